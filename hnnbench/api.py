@@ -1,0 +1,418 @@
+"""The plugin API: what a system and a model must provide.
+
+Conventions used throughout:
+
+- A *state* is ``x = (q_1..q_n, p_1..p_n)``: positions first, then momenta, so a batch of
+  states has shape ``(N, 2n)``. Units are the system's own (the paper's toy systems are
+  dimensionless).
+- Arrays crossing the API are float64 numpy arrays. Backends convert at the boundary.
+- ``t`` is a 1-D, strictly increasing time grid of shape ``(T,)`` starting at the
+  initial state's time.
+
+A third-party plugin subclasses :class:`System` or :class:`Model`, declares a config
+dataclass (its defaults are the hyperparameters users get), and registers the class
+under the entry-point group ``hnnbench.systems`` or ``hnnbench.models``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar, Optional
+
+import numpy as np
+
+from hnnbench.errors import ConfigError
+
+__all__ = [
+    "Dataset",
+    "FitResult",
+    "Model",
+    "ModelConfig",
+    "Progress",
+    "Split",
+    "System",
+    "SystemConfig",
+    "TrainSettings",
+    "Trajectories",
+    "check_positive",
+]
+
+#: Called by ``Model.fit`` as training goes: ``progress(step, {"train_loss": ...})``.
+Progress = Callable[[int, Mapping[str, float]], None]
+
+
+def check_positive(owner: str, **values: float | int | None) -> None:
+    """Raise a one-line :class:`ConfigError` for the first value that is not > 0.
+
+    ``None`` values are skipped (they mean "use the default").
+    """
+    for key, value in values.items():
+        if value is not None and not value > 0:
+            raise ConfigError(
+                f"{owner}.{key}={value} is invalid: expected a number > 0. "
+                f"Fix it with {owner}.{key}=<positive value>."
+            )
+
+
+# --------------------------------------------------------------------------- configs
+
+
+@dataclass
+class SystemConfig:
+    """Base config of a system; subclass it (as a dataclass) to add data settings.
+
+    The training fields are the task's training protocol (the paper fixes them per
+    task); a model config may override each of them. Every other field describes how
+    data and evaluation trajectories are made, and keys the dataset cache.
+    """
+
+    name: str = "???"
+    #: Optimizer steps.
+    steps: int = 2000
+    #: Minibatch size; ``None`` trains on the full training set every step.
+    batch_size: Optional[int] = None
+    #: Adam learning rate.
+    lr: float = 1e-3
+    #: Adam (L2) weight decay.
+    weight_decay: float = 0.0
+
+    TRAINING_FIELDS: ClassVar[tuple[str, ...]] = ("steps", "batch_size", "lr", "weight_decay")
+
+    def validate(self) -> None:
+        """Raise :class:`ConfigError` on an invalid value. Extend in subclasses."""
+        check_positive("system", steps=self.steps, batch_size=self.batch_size, lr=self.lr)
+        if self.weight_decay < 0:
+            raise ConfigError(
+                f"system.weight_decay={self.weight_decay} is invalid: expected >= 0."
+            )
+
+    def data_fields(self) -> dict[str, Any]:
+        """The fields that determine the generated data (the cache key)."""
+        out = dataclasses.asdict(self)
+        for key in (*self.TRAINING_FIELDS, "name"):
+            out.pop(key, None)
+        return out
+
+
+@dataclass
+class ModelConfig:
+    """Base config of a model. ``None`` training fields take the system's protocol."""
+
+    name: str = "???"
+    steps: Optional[int] = None
+    batch_size: Optional[int] = None
+    lr: Optional[float] = None
+    weight_decay: Optional[float] = None
+
+    def validate(self) -> None:
+        """Raise :class:`ConfigError` on an invalid value. Extend in subclasses."""
+        check_positive("model", steps=self.steps, batch_size=self.batch_size, lr=self.lr)
+        if self.weight_decay is not None and self.weight_decay < 0:
+            raise ConfigError(
+                f"model.weight_decay={self.weight_decay} is invalid: expected >= 0."
+            )
+
+
+@dataclass(frozen=True)
+class TrainSettings:
+    """The training protocol of one job: the system's, with the model's overrides."""
+
+    steps: int
+    batch_size: Optional[int]
+    lr: float
+    weight_decay: float
+
+    @classmethod
+    def resolve(cls, system: SystemConfig, model: ModelConfig) -> TrainSettings:
+        def pick(key: str) -> Any:
+            value = getattr(model, key, None)
+            return getattr(system, key) if value is None else value
+
+        return cls(**{key: pick(key) for key in SystemConfig.TRAINING_FIELDS})
+
+
+# --------------------------------------------------------------------------- data
+
+
+@dataclass(frozen=True)
+class Split:
+    """One split (train or test) of a dataset.
+
+    Attributes:
+        x: ``(N, D)`` model inputs: states ``(N, 2n)``, or flattened observations
+            (for pixel systems, two consecutive frames, ``D = 2 * H * W``).
+        dxdt: ``(N, D)`` targets: the time derivative of ``x`` (clean, noise-free).
+        traj: ``(N,)`` integer trajectory id of each point.
+        t: ``(N,)`` time of each point within its trajectory.
+        extras: further per-point arrays, each with leading dimension ``N`` (for pixel
+            systems, ``"state"``: the true ``(N, 2n)`` state, used by the linear probe).
+    """
+
+    x: np.ndarray
+    dxdt: np.ndarray
+    traj: np.ndarray
+    t: np.ndarray
+    extras: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.x.shape[0])
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """A train/test split of points and targets, plus JSON-serialisable metadata."""
+
+    train: Split
+    test: Split
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def save(self, path: Path) -> None:
+        """Write to ``path`` (an ``.npz``), without pickle."""
+        arrays: dict[str, np.ndarray] = {"__meta__": np.array(json.dumps(self.meta))}
+        for split_name in ("train", "test"):
+            split: Split = getattr(self, split_name)
+            for key in ("x", "dxdt", "traj", "t"):
+                arrays[f"{split_name}.{key}"] = getattr(split, key)
+            for key, value in split.extras.items():
+                arrays[f"{split_name}.extras.{key}"] = value
+        _savez(path, arrays)
+
+    @classmethod
+    def load(cls, path: Path) -> Dataset:
+        with np.load(path, allow_pickle=False) as npz:
+            arrays = {key: npz[key] for key in npz.files}
+        meta = json.loads(str(arrays.pop("__meta__")))
+
+        def split(prefix: str) -> Split:
+            extras = {
+                key.split(".", 2)[2]: value
+                for key, value in arrays.items()
+                if key.startswith(f"{prefix}.extras.")
+            }
+            return Split(
+                *(arrays[f"{prefix}.{key}"] for key in ("x", "dxdt", "traj", "t")),
+                extras=extras,
+            )
+
+        return cls(train=split("train"), test=split("test"), meta=meta)
+
+
+@dataclass(frozen=True)
+class Trajectories:
+    """Ground-truth trajectories used by the rollout metrics.
+
+    Attributes:
+        t: ``(T,)`` time grid, ``t[0]`` is the time of the initial states.
+        states: ``(M, T, 2n)`` true states along each trajectory.
+        dt: the data's sampling interval; the fixed RK4 step of the reversibility metric.
+        observations: for pixel systems, ``(M, T, D)`` model inputs along each
+            trajectory (``None`` for state systems, whose inputs are the states).
+        meta: JSON-serialisable description of the protocol (horizon, tolerances, ...).
+    """
+
+    t: np.ndarray
+    states: np.ndarray
+    dt: float
+    observations: Optional[np.ndarray] = None
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def x0(self) -> np.ndarray:
+        """``(M, 2n)`` initial states."""
+        return self.states[:, 0]
+
+    def save(self, path: Path) -> None:
+        arrays = {
+            "t": self.t,
+            "states": self.states,
+            "dt": np.array(self.dt),
+            "__meta__": np.array(json.dumps(self.meta)),
+        }
+        if self.observations is not None:
+            arrays["observations"] = self.observations
+        _savez(path, arrays)
+
+    @classmethod
+    def load(cls, path: Path) -> Trajectories:
+        with np.load(path, allow_pickle=False) as npz:
+            return cls(
+                t=npz["t"],
+                states=npz["states"],
+                dt=float(npz["dt"]),
+                observations=npz["observations"] if "observations" in npz.files else None,
+                meta=json.loads(str(npz["__meta__"])),
+            )
+
+
+def _savez(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    with open(path, "wb") as fh:
+        np.savez(fh, **arrays)
+
+
+# --------------------------------------------------------------------------- plugins
+
+
+class System(ABC):
+    """A physical system: its true energy and dynamics, its data and evaluation protocol.
+
+    Class attributes a subclass sets:
+        Config: its config dataclass (a :class:`SystemConfig` subclass).
+        version: bump when data generation changes; every record stores it.
+        description: one line for ``hnnbench list``.
+        observation: ``"state"`` (models see ``(q, p)``) or ``"pixels"``.
+        time_reversible: ``H(q, -p) == H(q, p)``; enables the time-reversal metric.
+        profiles: per-profile overrides of the config defaults, e.g.
+            ``{"quick": {"steps": 200, "n_traj": 20}}``. The ``paper`` profile is the
+            dataclass defaults.
+    """
+
+    Config: ClassVar[type[SystemConfig]] = SystemConfig
+    version: ClassVar[str] = "1"
+    description: ClassVar[str] = ""
+    observation: ClassVar[str] = "state"
+    time_reversible: ClassVar[bool] = True
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {}
+
+    def __init__(self, cfg: SystemConfig) -> None:
+        self.cfg = cfg
+
+    @property
+    def name(self) -> str:
+        return self.cfg.name
+
+    @property
+    @abstractmethod
+    def dof(self) -> int:
+        """Degrees of freedom n; a state has 2n numbers."""
+
+    @abstractmethod
+    def energy(self, x: np.ndarray) -> np.ndarray:
+        """True energy ``(N,)`` of states ``x`` of shape ``(N, 2n)``."""
+
+    def vector_field(self, x: np.ndarray) -> Optional[np.ndarray]:
+        """True ``dx/dt`` of shape ``(N, 2n)``, or ``None`` where unknown (measured data)."""
+        return None
+
+    @property
+    def has_vector_field(self) -> bool:
+        """Whether :meth:`vector_field` is implemented."""
+        return type(self).vector_field is not System.vector_field
+
+    @abstractmethod
+    def dataset(self, seed: int) -> Dataset:
+        """The train/test data for ``seed``. Must be deterministic given config and seed."""
+
+    @abstractmethod
+    def evaluation(self, seed: int) -> Trajectories:
+        """Ground-truth evaluation trajectories for ``seed`` (deterministic)."""
+
+    def reverse(self, x: np.ndarray) -> np.ndarray:
+        """The time-reversal map R: flip the momenta of ``(N, 2n)`` states."""
+        out = np.array(x, dtype=np.float64, copy=True)
+        out[..., self.dof :] *= -1.0
+        return out
+
+
+class Model(ABC):
+    """A learner of dynamics.
+
+    Class attributes a subclass sets:
+        Config: its config dataclass (a :class:`ModelConfig` subclass).
+        version, description, profiles: as for :class:`System`.
+        backend: ``"torch"``, ``"jax"`` or ``"numpy"``.
+        observations: the system observations it handles (``"state"``, ``"pixels"``).
+    """
+
+    Config: ClassVar[type[ModelConfig]] = ModelConfig
+    version: ClassVar[str] = "1"
+    description: ClassVar[str] = ""
+    backend: ClassVar[str] = "numpy"
+    observations: ClassVar[tuple[str, ...]] = ("state",)
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {}
+
+    def __init__(self, cfg: ModelConfig, system: System, device: str = "auto") -> None:
+        self.cfg = cfg
+        self.system = system
+        self.requested_device = device
+        #: Extra timings (seconds) a model wants recorded, e.g. ``{"compile_s": 1.2}``.
+        self.timings: dict[str, float] = {}
+
+    @property
+    def name(self) -> str:
+        return self.cfg.name
+
+    @property
+    def device(self) -> str:
+        """The device actually used (``"cpu"``, ``"cuda:0"``, ...)."""
+        return "cpu"
+
+    @classmethod
+    def unsupported_reason(cls, system: System) -> Optional[str]:
+        """Why this model cannot run on ``system`` (``None`` if it can)."""
+        if system.observation not in cls.observations:
+            return (
+                f"{system.observation} observations are not supported "
+                f"(supports: {', '.join(cls.observations)})"
+            )
+        return None
+
+    @abstractmethod
+    def fit(
+        self, data: Dataset, train: TrainSettings, seed: int, progress: Progress
+    ) -> FitResult:
+        """Train on ``data.train``; report losses through ``progress``."""
+
+    @abstractmethod
+    def time_derivative(self, x: np.ndarray) -> np.ndarray:
+        """Predicted ``dx/dt`` ``(N, D)`` for inputs ``x`` ``(N, D)``."""
+
+    @abstractmethod
+    def rollout(
+        self, x0: np.ndarray, t: np.ndarray, rtol: float = 1e-9, atol: float = 1e-9
+    ) -> np.ndarray:
+        """Integrate the learned dynamics from ``x0`` ``(M, D)`` over ``t`` ``(T,)``.
+
+        Adaptive Dormand-Prince in float64, batched over initial states. ``t`` may be
+        decreasing (backward integration). Returns ``(M, T, D)``; raise
+        :class:`hnnbench.errors.RolloutDiverged` if the solver gives up.
+        """
+
+    def loss(self, x: np.ndarray, dxdt: np.ndarray) -> float:
+        """The loss reported as train/test loss: MSE of ``dx/dt`` (override for
+        models whose objective is more than that, e.g. autoencoders)."""
+        pred = self.time_derivative(x)
+        return float(np.mean((pred - dxdt) ** 2))
+
+    def energy(self, x: np.ndarray) -> Optional[np.ndarray]:
+        """The learned conserved quantity ``(N,)`` if the model has one, else ``None``."""
+        return None
+
+    def encode(self, obs: np.ndarray) -> np.ndarray:
+        """Map observations to the space :meth:`rollout` works in (identity for states)."""
+        return obs
+
+    def save(self, path: Path) -> None:
+        """Write weights without pickle (npz / safetensors). Optional."""
+        raise NotImplementedError(f"{type(self).__name__} does not implement save()")
+
+    def load(self, path: Path) -> None:
+        raise NotImplementedError(f"{type(self).__name__} does not implement load()")
+
+
+@dataclass
+class FitResult:
+    """What training returns.
+
+    Attributes:
+        history: columns of the training log, e.g. ``{"step": [...], "train_loss":
+            [...], "test_loss": [...]}``, all of the same length.
+        steps: optimizer steps taken.
+    """
+
+    history: dict[str, list[float]] = field(default_factory=dict)
+    steps: int = 0

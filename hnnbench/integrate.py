@@ -1,0 +1,76 @@
+"""Reference integrators shared by systems, metrics and numpy models.
+
+- :func:`solve_batch`: scipy's adaptive solvers (DOP853 by default) over a batch of
+  initial states, integrated as one flattened system.
+- :func:`rk4`: fixed-step classical Runge-Kutta, batched; the integrator of the
+  reversibility metric.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from hnnbench.errors import RolloutDiverged
+
+#: A batched vector field: ``(M, D) -> (M, D)``.
+VectorField = Callable[[np.ndarray], np.ndarray]
+
+__all__ = ["VectorField", "rk4", "solve_batch"]
+
+
+def solve_batch(
+    f: VectorField,
+    x0: np.ndarray,
+    t: np.ndarray,
+    rtol: float = 1e-9,
+    atol: float = 1e-9,
+    method: str = "DOP853",
+) -> np.ndarray:
+    """Integrate ``dx/dt = f(x)`` from each row of ``x0`` ``(M, D)`` over ``t`` ``(T,)``.
+
+    The batch is solved as one system of ``M * D`` equations (one adaptive step size for
+    all), which is as accurate per trajectory as solving each alone. ``t`` may decrease.
+
+    Returns:
+        ``(M, T, D)`` float64 states, ``out[:, 0] == x0``.
+    """
+    x0 = np.asarray(x0, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64)
+    m, d = x0.shape
+
+    def rhs(_t: float, y: np.ndarray) -> np.ndarray:
+        return np.asarray(f(y.reshape(m, d)), dtype=np.float64).reshape(-1)
+
+    sol = solve_ivp(
+        rhs, (float(t[0]), float(t[-1])), x0.reshape(-1), t_eval=t, rtol=rtol, atol=atol,
+        method=method,
+    )
+    if not sol.success or sol.y.shape[1] != t.shape[0] or not np.all(np.isfinite(sol.y)):
+        raise RolloutDiverged(f"scipy {method} failed: {sol.message}")
+    return sol.y.T.reshape(t.shape[0], m, d).transpose(1, 0, 2)
+
+
+def rk4(f: VectorField, x0: np.ndarray, dt: float, n_steps: int) -> np.ndarray:
+    """Take ``n_steps`` classical RK4 steps of size ``dt`` (negative: backward).
+
+    Args:
+        f: batched vector field ``(M, D) -> (M, D)``.
+        x0: ``(M, D)`` initial states.
+
+    Returns:
+        ``(M, D)`` final states. Non-finite values propagate (the caller checks).
+    """
+    x = np.asarray(x0, dtype=np.float64)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for _ in range(n_steps):
+            k1 = f(x)
+            k2 = f(x + 0.5 * dt * k1)
+            k3 = f(x + 0.5 * dt * k2)
+            k4 = f(x + dt * k3)
+            x = x + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            if not np.all(np.isfinite(x)):
+                break
+    return x

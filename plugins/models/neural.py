@@ -1,0 +1,57 @@
+"""Config shared by the neural models of every backend (the 2019 paper's architecture)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from hnnbench.api import ModelConfig, check_positive
+from hnnbench.errors import ConfigError
+
+ACTIVATIONS = ("tanh", "sigmoid", "softplus")
+DTYPES = ("float32", "float64")
+
+
+@dataclass
+class NeuralConfig(ModelConfig):
+    """An MLP of ``layers`` linear layers (``hidden`` units each, no bias on the last),
+    orthogonal weight init, trained with Adam.
+
+    Attributes:
+        hidden: hidden units per layer.
+        layers: number of linear layers (the paper: 3, i.e. in -> 200 -> 200 -> out).
+        activation: one of ``tanh``, ``sigmoid``, ``softplus``.
+        dtype: training precision; rollouts always run in float64.
+        log_every: record train/test loss every this many steps (0: about 200 points).
+        rollout_max_steps: ODE solver step budget per rollout before it is declared
+            diverged.
+    """
+
+    hidden: int = 200
+    layers: int = 3
+    activation: str = "tanh"
+    dtype: str = "float32"
+    log_every: int = 0
+    rollout_max_steps: int = 200_000
+
+    def validate(self) -> None:
+        super().validate()
+        check_positive("model", hidden=self.hidden, rollout_max_steps=self.rollout_max_steps)
+        if self.layers < 2:
+            raise ConfigError(
+                f"model.layers={self.layers} is invalid: expected an integer >= 2."
+            )
+        if self.log_every < 0:
+            raise ConfigError(f"model.log_every={self.log_every} is invalid: expected >= 0.")
+        if self.activation not in ACTIVATIONS:
+            raise ConfigError(
+                f"model.activation='{self.activation}' is invalid: expected one of "
+                f"{', '.join(ACTIVATIONS)}."
+            )
+        if self.dtype not in DTYPES:
+            raise ConfigError(
+                f"model.dtype='{self.dtype}' is invalid: expected one of {', '.join(DTYPES)}."
+            )
+
+    def log_interval(self, steps: int) -> int:
+        """Steps between two loss records."""
+        return self.log_every or max(1, steps // 200)

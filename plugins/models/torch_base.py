@@ -1,0 +1,218 @@
+"""Shared machinery of the PyTorch models: device, training loop, float64 rollouts."""
+
+from __future__ import annotations
+
+import copy
+import time
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from hnnbench.api import Dataset, FitResult, Model, Progress, System, TrainSettings
+from hnnbench.errors import ConfigError, RolloutDiverged, require_backend
+from hnnbench_plugins.models.neural import NeuralConfig
+
+require_backend("torch", "torch")
+
+import torch  # noqa: E402
+from torch import nn  # noqa: E402
+
+
+def resolve_device(requested: str) -> torch.device:
+    """``auto`` -> the GPU if one is there, else the CPU."""
+    if requested == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if requested.startswith("cuda") and not torch.cuda.is_available():
+        raise ConfigError(
+            f"device={requested} was requested but torch sees no CUDA GPU: use device=cpu "
+            "or device=auto."
+        )
+    return torch.device(requested)
+
+
+class MLP(nn.Module):
+    """``layers`` linear layers with an activation between them; the last has no bias.
+
+    Weights are orthogonally initialised (as in the 2019 paper).
+    """
+
+    def __init__(self, d_in: int, d_out: int, cfg: NeuralConfig) -> None:
+        super().__init__()
+        dims = [d_in] + [cfg.hidden] * (cfg.layers - 1) + [d_out]
+        self.linears = nn.ModuleList(
+            nn.Linear(a, b, bias=i < cfg.layers - 1)
+            for i, (a, b) in enumerate(zip(dims[:-1], dims[1:]))
+        )
+        for layer in self.linears:
+            nn.init.orthogonal_(layer.weight)
+        self.activation = cfg.activation
+
+    def act(self, a: torch.Tensor) -> torch.Tensor:
+        if self.activation == "tanh":
+            return torch.tanh(a)
+        if self.activation == "sigmoid":
+            return torch.sigmoid(a)
+        return nn.functional.softplus(a)
+
+    def act_grad(self, a: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
+        """Derivative of the activation at pre-activation ``a`` (``h = act(a)``)."""
+        if self.activation == "tanh":
+            return 1.0 - h * h
+        if self.activation == "sigmoid":
+            return h * (1.0 - h)
+        return torch.sigmoid(a)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        h = x
+        for layer in self.linears[:-1]:
+            h = self.act(layer(h))
+        return self.linears[-1](h)
+
+    def input_gradient(self, x: torch.Tensor) -> torch.Tensor:
+        """Gradient of the scalar output with respect to ``x`` ``(N, d_in)``.
+
+        Computed in closed form (a reverse sweep through the layers), so training on it
+        needs one backward pass instead of a double backward through autograd.
+        Requires ``d_out == 1``.
+        """
+        pre, post = [], []
+        h = x
+        for layer in self.linears[:-1]:
+            a = layer(h)
+            h = self.act(a)
+            pre.append(a)
+            post.append(h)
+        g = self.linears[-1].weight.expand(x.shape[0], -1)  # (N, hidden)
+        for i in range(len(self.linears) - 2, -1, -1):
+            g = (g * self.act_grad(pre[i], post[i])) @ self.linears[i].weight
+        return g
+
+
+class TorchModel(Model):
+    """Base of the PyTorch models: subclasses define ``output_dim`` and ``field``."""
+
+    Config = NeuralConfig
+    cfg: NeuralConfig
+    backend = "torch"
+    output_scalar: ClassVar[bool] = False
+
+    def __init__(self, cfg: NeuralConfig, system: System, device: str = "auto") -> None:
+        super().__init__(cfg, system, device)
+        self._device = resolve_device(device)
+        self._dtype = getattr(torch, cfg.dtype)
+        self.net: MLP | None = None
+        self._net64: MLP | None = None
+
+    @property
+    def device(self) -> str:
+        return str(self._device)
+
+    # -- to implement ---------------------------------------------------------------
+    def field(self, net: MLP, x: torch.Tensor) -> torch.Tensor:
+        """``dx/dt`` ``(N, D)`` from the network, differentiable."""
+        raise NotImplementedError
+
+    # -- network ----------------------------------------------------------------------
+    def build(self, d_in: int, seed: int) -> MLP:
+        torch.manual_seed(seed)
+        net = MLP(d_in, 1 if self.output_scalar else d_in, self.cfg)
+        return net.to(device=self._device, dtype=self._dtype)
+
+    def _require_net(self) -> MLP:
+        if self.net is None:
+            raise RuntimeError(f"{self.name}: call fit() or load() first")
+        return self.net
+
+    def _float64_net(self) -> MLP:
+        if self._net64 is None:
+            self._net64 = copy.deepcopy(self._require_net()).to(torch.float64)
+        return self._net64
+
+    def _tensor(self, x: np.ndarray, dtype: Any | None = None) -> torch.Tensor:
+        return torch.as_tensor(np.asarray(x), dtype=dtype or self._dtype, device=self._device)
+
+    # -- training ---------------------------------------------------------------------
+    def fit(
+        self, data: Dataset, train: TrainSettings, seed: int, progress: Progress
+    ) -> FitResult:
+        x, dxdt = self._tensor(data.train.x), self._tensor(data.train.dxdt)
+        x_test, dxdt_test = self._tensor(data.test.x), self._tensor(data.test.dxdt)
+        net = self.net = self.build(x.shape[1], seed)
+        self._net64 = None
+        opt = torch.optim.Adam(net.parameters(), lr=train.lr, weight_decay=train.weight_decay)
+        gen = torch.Generator(device=self._device).manual_seed(seed)
+        n = x.shape[0]
+        full = train.batch_size is None or train.batch_size >= n
+        every = self.cfg.log_interval(train.steps)
+        history: dict[str, list[float]] = {"step": [], "train_loss": [], "test_loss": []}
+        for step in range(1, train.steps + 1):
+            if full:
+                xb, yb = x, dxdt
+            else:
+                idx = torch.randperm(n, generator=gen, device=self._device)[: train.batch_size]
+                xb, yb = x[idx], dxdt[idx]
+            loss = torch.mean((self.field(net, xb) - yb) ** 2)
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+            if step % every == 0 or step == train.steps:
+                train_loss = float(loss.detach())
+                test_loss = float(torch.mean((self.field(net, x_test) - dxdt_test) ** 2).detach())
+                history["step"].append(step)
+                history["train_loss"].append(train_loss)
+                history["test_loss"].append(test_loss)
+                progress(step, {"train_loss": train_loss, "test_loss": test_loss})
+                if not (np.isfinite(train_loss) and np.isfinite(test_loss)):
+                    raise RolloutDiverged(f"training loss became {train_loss} at step {step}")
+        return FitResult(history=history, steps=train.steps)
+
+    # -- inference --------------------------------------------------------------------
+    def time_derivative(self, x: np.ndarray) -> np.ndarray:
+        net = self._float64_net()
+        xt = self._tensor(x, torch.float64)
+        with torch.no_grad() if not self.output_scalar else torch.enable_grad():
+            out = self.field(net, xt)
+        return out.detach().cpu().numpy()
+
+    def rollout(
+        self, x0: np.ndarray, t: np.ndarray, rtol: float = 1e-9, atol: float = 1e-9
+    ) -> np.ndarray:
+        from torchdiffeq import odeint
+
+        net = self._float64_net()
+        y0 = self._tensor(x0, torch.float64)
+        tt = self._tensor(t, torch.float64)
+        start = time.perf_counter()
+        try:
+            with torch.no_grad():
+                ys = odeint(
+                    lambda _t, y: self.field(net, y), y0, tt, rtol=rtol, atol=atol,
+                    method="dopri5", options={"max_num_steps": self.cfg.rollout_max_steps},
+                )
+        except AssertionError as err:  # torchdiffeq signals step failures by assert
+            raise RolloutDiverged(f"dopri5 gave up: {err}") from None
+        self.timings["rollout_s"] = self.timings.get("rollout_s", 0.0) + (
+            time.perf_counter() - start
+        )
+        out = ys.permute(1, 0, 2).cpu().numpy()
+        if not np.all(np.isfinite(out)):
+            raise RolloutDiverged("rollout produced non-finite states")
+        return out
+
+    # -- persistence ------------------------------------------------------------------
+    def save(self, path: Path) -> None:
+        from safetensors.torch import save_file
+
+        net = self._require_net()
+        save_file({k: v.detach().cpu().contiguous() for k, v in net.state_dict().items()},
+                  str(path))
+
+    def load(self, path: Path) -> None:
+        from safetensors.torch import load_file
+
+        state = load_file(str(path))
+        d_in = state["linears.0.weight"].shape[1]
+        net = self.build(d_in, seed=0)
+        net.load_state_dict(state)
+        self.net, self._net64 = net, None

@@ -1,0 +1,151 @@
+"""One-degree-of-freedom Hamiltonian toy systems with the 2019 paper's data protocol.
+
+Data: ``n_traj`` trajectories over ``[0, t_end]`` sampled at ``n_points`` times. Each
+initial state points in a random direction (a uniform draw in the square [-1, 1]^2,
+normalised, as the original did) scaled to a radius drawn uniformly from
+``[radius_min, radius_max]``. Gaussian noise of std ``noise_std`` is added to q and p;
+the dx/dt targets are the true vector field at the clean states. The first
+``1 - test_split`` of the trajectories train, the rest test.
+
+Evaluation: ``eval_n_traj`` fresh noise-free trajectories from the same initial-state
+distribution over ``[0, eval_t_end]`` with ``eval_n_points`` points, integrated with
+DOP853 at ``eval_rtol``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hnnbench.api import Dataset, Split, System, SystemConfig, Trajectories, check_positive
+from hnnbench.errors import ConfigError
+from hnnbench.integrate import solve_batch
+
+#: Seed-stream tags, so data and evaluation draws never overlap.
+DATA_STREAM = 0
+EVAL_STREAM = 1
+
+
+@dataclass
+class ToyConfig(SystemConfig):
+    """Data and evaluation protocol of a 1-DOF toy system (times in the system's units)."""
+
+    n_traj: int = 50
+    t_end: float = 3.0
+    n_points: int = 30
+    radius_min: float = 0.1
+    radius_max: float = 1.0
+    noise_std: float = 0.1
+    test_split: float = 0.5
+    data_rtol: float = 1e-10
+    eval_n_traj: int = 15
+    eval_t_end: float = 20.0
+    eval_n_points: int = 100
+    eval_rtol: float = 1e-12
+
+    def validate(self) -> None:
+        super().validate()
+        check_positive(
+            "system", t_end=self.t_end, radius_min=self.radius_min, data_rtol=self.data_rtol,
+            eval_t_end=self.eval_t_end, eval_rtol=self.eval_rtol,
+        )
+        for key in ("n_traj", "n_points", "eval_n_traj", "eval_n_points"):
+            if getattr(self, key) < 2:
+                raise ConfigError(
+                    f"system.{key}={getattr(self, key)} is invalid: expected an integer >= 2."
+                )
+        if not 0.0 < self.test_split < 1.0:
+            raise ConfigError(
+                f"system.test_split={self.test_split} is invalid: expected a fraction "
+                "strictly between 0 and 1, e.g. system.test_split=0.5."
+            )
+        if self.radius_max < self.radius_min:
+            raise ConfigError(
+                f"system.radius_max={self.radius_max} is below system.radius_min="
+                f"{self.radius_min}: expected radius_min <= radius_max."
+            )
+        if self.noise_std < 0:
+            raise ConfigError(f"system.noise_std={self.noise_std} is invalid: expected >= 0.")
+        n_train = round(self.n_traj * (1 - self.test_split))
+        if not 0 < n_train < self.n_traj:
+            raise ConfigError(
+                f"system.test_split={self.test_split} with system.n_traj={self.n_traj} "
+                "leaves an empty train or test set: use more trajectories or another split."
+            )
+
+
+class ToySystem(System):
+    """Base of the 1-DOF systems: subclasses define ``hamiltonian`` and its gradient."""
+
+    Config = ToyConfig
+    cfg: ToyConfig
+    time_reversible = True
+
+    @property
+    def dof(self) -> int:
+        return 1
+
+    def grad_h(self, q: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(dH/dq, dH/dp)``."""
+        raise NotImplementedError
+
+    def hamiltonian(self, q: np.ndarray, p: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def energy(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=np.float64)
+        return self.hamiltonian(x[..., 0], x[..., 1])
+
+    def vector_field(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=np.float64)
+        dh_dq, dh_dp = self.grad_h(x[..., 0], x[..., 1])
+        return np.stack([dh_dp, -dh_dq], axis=-1)
+
+    def initial_states(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """``(n, 2)`` initial states at radii in ``[radius_min, radius_max]``."""
+        direction = rng.random((n, 2)) * 2.0 - 1.0
+        direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+        radius = rng.uniform(self.cfg.radius_min, self.cfg.radius_max, size=(n, 1))
+        return direction * radius
+
+    def dataset(self, seed: int) -> Dataset:
+        c = self.cfg
+        rng = np.random.default_rng((seed, DATA_STREAM))
+        t = np.linspace(0.0, c.t_end, c.n_points)
+        clean = solve_batch(
+            self.vector_field, self.initial_states(rng, c.n_traj), t, rtol=c.data_rtol,
+            atol=c.data_rtol,
+        )  # (n_traj, T, 2)
+        dxdt = self.vector_field(clean)
+        noisy = clean + rng.normal(0.0, c.noise_std, size=clean.shape)
+        traj = np.broadcast_to(np.arange(c.n_traj)[:, None], (c.n_traj, c.n_points))
+        times = np.broadcast_to(t[None, :], (c.n_traj, c.n_points))
+        n_train = round(c.n_traj * (1 - c.test_split))
+
+        def split(sl: slice) -> Split:
+            return Split(
+                x=noisy[sl].reshape(-1, 2), dxdt=dxdt[sl].reshape(-1, 2),
+                traj=traj[sl].reshape(-1).copy(), t=times[sl].reshape(-1).copy(),
+            )
+
+        return Dataset(
+            train=split(slice(0, n_train)),
+            test=split(slice(n_train, None)),
+            meta={"dt": float(t[1] - t[0]), "n_train_traj": n_train,
+                  "n_test_traj": c.n_traj - n_train},
+        )
+
+    def evaluation(self, seed: int) -> Trajectories:
+        c = self.cfg
+        rng = np.random.default_rng((seed, EVAL_STREAM))
+        t = np.linspace(0.0, c.eval_t_end, c.eval_n_points)
+        states = solve_batch(
+            self.vector_field, self.initial_states(rng, c.eval_n_traj), t, rtol=c.eval_rtol,
+            atol=c.eval_rtol,
+        )
+        return Trajectories(
+            t=t, states=states, dt=c.t_end / (c.n_points - 1),
+            meta={"horizon": c.eval_t_end, "n_traj": c.eval_n_traj, "reference": "DOP853",
+                  "rtol": c.eval_rtol},
+        )
