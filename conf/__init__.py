@@ -1,0 +1,1 @@
+"""hnnbench's Hydra config (conf/ in the repository), shipped as package data."""

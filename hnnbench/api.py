@@ -393,8 +393,14 @@ class Model(ABC):
         return None
 
     def encode(self, obs: np.ndarray) -> np.ndarray:
-        """Map observations to the space :meth:`rollout` works in (identity for states)."""
+        """Map observations ``(N, D_obs)`` to the space :meth:`rollout` works in,
+        ``(N, D_latent)`` (identity for state models)."""
         return obs
+
+    def decode(self, z: np.ndarray) -> Optional[np.ndarray]:
+        """Map latents ``(N, D_latent)`` back to observations ``(N, D_obs)``; ``None``
+        for models without a decoder (state models)."""
+        return None
 
     def save(self, path: Path) -> None:
         """Write weights without pickle (npz / safetensors). Optional."""

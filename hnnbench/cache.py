@@ -1,0 +1,96 @@
+"""On-disk cache of generated datasets and evaluation trajectories.
+
+Entries are keyed by system name, version, the config fields that determine the data,
+the seed and the kind (``dataset`` or ``evaluation``). Writes go to a unique temporary
+file that is then renamed over the target (``os.replace``), so concurrent workers that
+build the same entry never leave a torn file: the last complete write wins, and all
+writes are identical.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import time
+import uuid
+from collections.abc import Callable
+from pathlib import Path
+from typing import TypeVar
+
+from hnnbench.api import Dataset, System, Trajectories
+
+log = logging.getLogger("hnnbench")
+
+T = TypeVar("T", Dataset, Trajectories)
+
+__all__ = ["cache_root", "cached", "entry_key", "file_sha256"]
+
+
+def cache_root(explicit: str | None = None) -> Path:
+    """``explicit``, else ``$HNNBENCH_CACHE_DIR``, else the user cache dir."""
+    if explicit:
+        return Path(explicit).expanduser()
+    env = os.environ.get("HNNBENCH_CACHE_DIR")
+    if env:
+        return Path(env).expanduser()
+    from platformdirs import user_cache_dir
+
+    return Path(user_cache_dir("hnnbench"))
+
+
+def entry_key(system: System, seed: int, kind: str) -> str:
+    """Stable hash of everything that determines the generated arrays."""
+    payload = {
+        "system": system.name,
+        "class": f"{type(system).__module__}.{type(system).__qualname__}",
+        "version": system.version,
+        "data": system.cfg.data_fields(),
+        "seed": int(seed),
+        "kind": kind,
+    }
+    blob = json.dumps(payload, sort_keys=True, default=str).encode()
+    return hashlib.sha256(blob).hexdigest()[:20]
+
+
+def file_sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def cached(
+    system: System,
+    seed: int,
+    kind: str,
+    build: Callable[[], T],
+    loader: Callable[[Path], T],
+    root: Path,
+) -> tuple[T, Path, bool]:
+    """Load the entry from the cache, or ``build()`` and store it.
+
+    Returns:
+        ``(value, path, hit)``; ``hit`` is False when the entry was built now.
+    """
+    directory = root / "datasets" / system.name
+    path = directory / f"v{system.version}-seed{seed}-{kind}-{entry_key(system, seed, kind)}.npz"
+    if path.exists():
+        try:
+            return loader(path), path, True
+        except Exception as err:  # a corrupt entry is rebuilt, never fatal
+            log.warning("cache entry %s is unreadable (%s); rebuilding it", path, err)
+    log.info("generating %s %s (seed %d) ...", system.name, kind, seed)
+    start = time.perf_counter()
+    value = build()
+    directory.mkdir(parents=True, exist_ok=True)
+    tmp = directory / f".{path.name}.{os.getpid()}.{uuid.uuid4().hex}.tmp"
+    try:
+        value.save(tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    log.info("  %s %s ready in %.1f s -> %s", system.name, kind, time.perf_counter() - start, path)
+    return value, path, False

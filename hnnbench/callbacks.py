@@ -1,0 +1,53 @@
+"""Hydra callbacks: the end-of-sweep summary."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Any
+
+from hydra.experimental.callback import Callback
+from omegaconf import DictConfig
+
+log = logging.getLogger("hnnbench")
+
+__all__ = ["SweepSummary", "print_summary"]
+
+
+def print_summary(sweep_dir: Path) -> None:
+    """Print the Markdown summary of the records under ``sweep_dir``; write summary.csv."""
+    from hnnbench import records
+    from hnnbench.table import records_frame, summary_frame
+
+    frame = summary_frame(records_frame(records.load_records(sweep_dir)))
+    if frame.empty:
+        log.warning("no run records under %s", sweep_dir)
+        return
+    frame.to_csv(sweep_dir / "summary.csv", index=False)
+    counts = frame["status"].value_counts().to_dict()
+    print()
+    print(frame.to_markdown(index=False, floatfmt=".3g"))
+    print()
+    print(f"{len(frame)} jobs: " + ", ".join(f"{n} {s}" for s, n in sorted(counts.items())))
+    print(f"records and summary.csv in {sweep_dir}")
+
+
+class SweepSummary(Callback):
+    """At the end of a multirun, summarise every record in the sweep directory."""
+
+    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        sweep_dir = Path(config.hydra.sweep.dir)
+        try:
+            print_summary(sweep_dir)
+        except Exception as err:  # a summary problem must not hide the finished runs
+            log.error("could not summarise %s: %s", sweep_dir, err)
+        try:
+            from hnnbench import report
+        except ImportError:
+            return
+        hook = getattr(report, "on_sweep_end", None)
+        if hook is not None:
+            try:
+                hook(sweep_dir)
+            except Exception as err:
+                log.error("could not build the report for %s: %s", sweep_dir, err)

@@ -1,0 +1,58 @@
+"""Progress display for training runs.
+
+On a terminal: a tqdm bar per run with the current losses. Elsewhere (CI logs, Slurm
+output files): a log line at every quarter of the run. ``HNNBENCH_PROGRESS=bar|log|off``
+forces a mode.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+from collections.abc import Mapping
+from types import TracebackType
+
+log = logging.getLogger("hnnbench")
+
+__all__ = ["TrainingProgress"]
+
+
+class TrainingProgress:
+    """Context manager; pass :meth:`update` to ``Model.fit`` as its ``progress``."""
+
+    def __init__(self, label: str, total: int) -> None:
+        self.label = label
+        self.total = max(int(total), 1)
+        mode = os.environ.get("HNNBENCH_PROGRESS", "")
+        if mode not in ("bar", "log", "off"):
+            mode = "bar" if sys.stderr.isatty() else "log"
+        self.mode = mode
+        self._bar = None
+        self._last = 0
+        self._next_log = self.total // 4
+
+    def __enter__(self) -> TrainingProgress:
+        if self.mode == "bar":
+            from tqdm.auto import tqdm
+
+            self._bar = tqdm(total=self.total, desc=self.label, leave=False, dynamic_ncols=True,
+                             unit="step")
+        return self
+
+    def update(self, step: int, losses: Mapping[str, float]) -> None:
+        if self._bar is not None:
+            self._bar.update(step - self._last)
+            self._bar.set_postfix({k: f"{v:.3g}" for k, v in losses.items()}, refresh=False)
+        elif self.mode == "log" and step >= self._next_log and step < self.total:
+            text = "  ".join(f"{k}={v:.3g}" for k, v in losses.items())
+            log.info("  %s step %d/%d  %s", self.label, step, self.total, text)
+            self._next_log += max(self.total // 4, 1)
+        self._last = step
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if self._bar is not None:
+            self._bar.close()

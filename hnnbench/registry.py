@@ -1,0 +1,187 @@
+"""Plugin discovery through entry points, and their Hydra config registration.
+
+Systems are entry points of the group ``hnnbench.systems`` and models of
+``hnnbench.models``; built-ins are declared in hnnbench's own pyproject.toml exactly like
+third-party plugins. A plugin whose import fails is kept with its error (``hnnbench
+list`` shows it) and left out of everything else.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import metadata
+from typing import Any, Literal
+
+from hnnbench.api import Model, ModelConfig, System, SystemConfig
+from hnnbench.errors import ConfigError, HnnbenchError, UnknownNameError
+
+Kind = Literal["system", "model"]
+GROUPS: dict[str, str] = {"system": "hnnbench.systems", "model": "hnnbench.models"}
+BASES: dict[str, type] = {"system": System, "model": Model}
+CONFIG_BASES: dict[str, type] = {"system": SystemConfig, "model": ModelConfig}
+#: Profiles that ship with hnnbench (conf/profile/*.yaml). ``paper`` is the default.
+PROFILES = ("paper", "quick")
+
+__all__ = [
+    "GROUPS",
+    "PROFILES",
+    "PluginInfo",
+    "available",
+    "config_defaults",
+    "discover",
+    "get_class",
+    "refresh",
+    "register_configs",
+    "validate_profile",
+]
+
+
+@dataclass
+class PluginInfo:
+    """One entry point and the outcome of loading it."""
+
+    kind: str
+    name: str
+    target: str
+    distribution: str | None
+    dist_version: str | None
+    cls: type | None = None
+    error: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.cls is not None
+
+    @property
+    def version(self) -> str:
+        return str(getattr(self.cls, "version", "?")) if self.cls else "?"
+
+    @property
+    def description(self) -> str:
+        if self.cls is None:
+            return ""
+        doc = getattr(self.cls, "description", "") or (self.cls.__doc__ or "")
+        return doc.strip().splitlines()[0] if doc.strip() else ""
+
+    @property
+    def backend(self) -> str:
+        return str(getattr(self.cls, "backend", "-")) if self.kind == "model" and self.cls else "-"
+
+
+def _load(kind: str, ep: metadata.EntryPoint) -> PluginInfo:
+    dist = getattr(ep, "dist", None)
+    info = PluginInfo(
+        kind=kind, name=ep.name, target=ep.value,
+        distribution=dist.metadata["Name"] if dist is not None else None,
+        dist_version=dist.version if dist is not None else None,
+    )
+    try:
+        cls = ep.load()
+    except HnnbenchError as err:
+        info.error = str(err)
+        return info
+    except Exception as err:  # a broken plugin must not break the others
+        info.error = f"import failed: {type(err).__name__}: {err}".splitlines()[0]
+        return info
+    base = BASES[kind]
+    if not (isinstance(cls, type) and issubclass(cls, base)):
+        info.error = f"{ep.value} is not a subclass of hnnbench.api.{base.__name__}"
+        return info
+    config_cls = getattr(cls, "Config", None)
+    if not (isinstance(config_cls, type) and dataclasses.is_dataclass(config_cls)
+            and issubclass(config_cls, CONFIG_BASES[kind])):
+        info.error = (
+            f"{ep.value}.Config must be a dataclass subclassing "
+            f"hnnbench.api.{CONFIG_BASES[kind].__name__}"
+        )
+        return info
+    info.cls = cls
+    return info
+
+
+@lru_cache(maxsize=None)
+def _discover(kind: str) -> dict[str, PluginInfo]:
+    found: dict[str, PluginInfo] = {}
+    for ep in sorted(metadata.entry_points(group=GROUPS[kind]), key=lambda e: e.name):
+        if ep.name in found:  # same name from two distributions: keep the first, say so
+            other = found[ep.name]
+            if other.target != ep.value:
+                other.error = (
+                    f"name '{ep.name}' is declared twice ({other.target} and {ep.value}); "
+                    "uninstall one of the plugins"
+                )
+                other.cls = None
+            continue
+        found[ep.name] = _load(kind, ep)
+    return found
+
+
+def discover(kind: Kind) -> dict[str, PluginInfo]:
+    """Every entry point of ``kind``, loaded (cached; see :func:`refresh`)."""
+    return _discover(kind)
+
+
+def refresh() -> None:
+    """Forget discovered plugins (after installing one in a running process)."""
+    _discover.cache_clear()
+
+
+def available(kind: Kind) -> list[str]:
+    """Names of the plugins of ``kind`` that loaded."""
+    return [name for name, info in discover(kind).items() if info.ok]
+
+
+def get_class(kind: Kind, name: str) -> type[Any]:
+    """The plugin class registered as ``name``.
+
+    Raises:
+        UnknownNameError: no such plugin (the message suggests the closest name).
+        HnnbenchError: the plugin exists but failed to load.
+    """
+    plugins = discover(kind)
+    info = plugins.get(name)
+    if info is None:
+        raise UnknownNameError(kind, name, available(kind))
+    if info.cls is None:
+        raise HnnbenchError(f"The {kind} '{name}' is installed but unusable: {info.error}")
+    return info.cls
+
+
+def validate_profile(name: str) -> None:
+    if name not in PROFILES:
+        raise UnknownNameError("profile", name, PROFILES)
+
+
+def config_defaults(kind: Kind, name: str, profile: str = "paper") -> Any:
+    """The plugin's config dataclass instance for ``profile``: its defaults with the
+    plugin's own profile overrides applied."""
+    cls = get_class(kind, name)
+    overrides = dict(getattr(cls, "profiles", {}).get(profile, {}))
+    fields = {f.name for f in dataclasses.fields(cls.Config)}
+    unknown = sorted(set(overrides) - fields)
+    if unknown:
+        raise ConfigError(
+            f"The {kind} '{name}' declares profile '{profile}' overrides for unknown config "
+            f"fields {unknown}; fix {cls.__module__}.{cls.__name__}.profiles"
+        )
+    return cls.Config(**{**overrides, "name": name})
+
+
+def register_configs(profile: str = "paper") -> None:
+    """Store every working plugin's config as an option of the ``system`` / ``model``
+    Hydra config group, with the defaults of ``profile``."""
+    from hydra.core.config_store import ConfigStore
+
+    validate_profile(profile)
+    store = ConfigStore.instance()
+    for kind in ("system", "model"):
+        for name in available(kind):  # type: ignore[arg-type]
+            try:
+                node = config_defaults(kind, name, profile)  # type: ignore[arg-type]
+            except HnnbenchError as err:
+                info = discover(kind)[name]  # type: ignore[arg-type]
+                info.error, info.cls = str(err), None
+                continue
+            store.store(group=kind, name=name, node=node, provider="hnnbench")

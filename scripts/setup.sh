@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Create .venv and install hnnbench with every backend and the test tools.
+# Idempotent: re-running after a change of pyproject.toml reinstalls, else does nothing.
+#   TORCH_SPEC  torch requirement (default torch==2.13.0, the CPU build; set e.g.
+#               TORCH_SPEC="torch" on a GPU machine to get the CUDA build)
+#   PYTHON      interpreter used to create the venv (default python3)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PYTHON=${PYTHON:-python3}
+TORCH_SPEC=${TORCH_SPEC:-torch==2.13.0}
+stamp=.venv/.hnnbench-setup
+want="$(sha256sum pyproject.toml | cut -c1-16) $TORCH_SPEC"
+if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then
+  exit 0
+fi
+echo "setup: creating .venv and installing hnnbench[all,test] ($TORCH_SPEC) ..." >&2
+[ -x .venv/bin/python ] || "$PYTHON" -m venv .venv
+.venv/bin/python -m pip install -q --upgrade pip setuptools wheel
+# torch first and pinned, so that no later requirement pulls a different build.
+.venv/bin/python -m pip install -q "$TORCH_SPEC"
+.venv/bin/python -m pip install -q -e ".[all,test]"
+echo "$want" > "$stamp"
+echo "setup: done (.venv)" >&2

@@ -1,0 +1,45 @@
+"""Shared fixtures. Tests read the measured data through HNNBENCH_DATA_DIR and cache
+generated datasets in a per-session temporary directory."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED_DATA = REPO.parent / "shared" / "data" / "schmidt-lipson-2009"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _isolated_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Generated datasets go to a temp cache unless HNNBENCH_CACHE_DIR is set."""
+    if not os.environ.get("HNNBENCH_CACHE_DIR"):
+        os.environ["HNNBENCH_CACHE_DIR"] = str(tmp_path_factory.mktemp("hnnbench-cache"))
+    if not os.environ.get("HNNBENCH_DATA_DIR") and SHARED_DATA.is_dir():
+        os.environ["HNNBENCH_DATA_DIR"] = str(SHARED_DATA)
+    os.environ.setdefault("HNNBENCH_PROGRESS", "log")
+
+
+def hnnbench(*args: str, cwd: Path | None = None, env: dict | None = None,
+             timeout: float = 900) -> subprocess.CompletedProcess:
+    """Run the installed console script."""
+    exe = Path(sys.executable).parent / "hnnbench"
+    return subprocess.run(
+        [str(exe), *args], cwd=cwd, capture_output=True, text=True, timeout=timeout,
+        env={**os.environ, **(env or {})},
+    )
+
+
+def assert_one_line_error(proc: subprocess.CompletedProcess, *needles: str) -> str:
+    """A clean user error: non-zero exit, no traceback, one line naming the problem."""
+    assert proc.returncode != 0, proc.stdout + proc.stderr
+    assert "Traceback" not in proc.stderr + proc.stdout, proc.stderr
+    lines = [line for line in proc.stderr.strip().splitlines() if line.strip()]
+    assert len(lines) == 1, proc.stderr
+    for needle in needles:
+        assert needle in lines[0], lines[0]
+    return lines[0]

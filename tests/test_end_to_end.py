@@ -1,0 +1,47 @@
+"""End-to-end sweeps through the real console script and Hydra (slow)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from conftest import hnnbench
+
+pytestmark = pytest.mark.slow
+
+
+def _records(root: Path) -> dict[tuple, dict]:
+    out = {}
+    for path in root.rglob("result.json"):
+        rec = json.loads(path.read_text())
+        out[(rec["system"], rec["model"], rec["seed"])] = rec
+    return out
+
+
+def test_quick_sweep_spring_pendulum_then_resume(tmp_path):
+    sweep = tmp_path / "sweep"
+    args = ["-m", "system=spring,pendulum", "model=mlp_torch,hnn_torch,oracle", "profile=quick",
+            f"hydra.sweep.dir={sweep}"]
+    proc = hnnbench(*args, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    recs = _records(sweep)
+    assert len(recs) == 6
+    for key, rec in recs.items():
+        assert rec["status"] == "ok", (key, rec["error"])
+        for metric in ("train_loss", "test_loss", "energy_mse", "reversibility_error",
+                       "rollout_mse", "time_reversal_error", "valid_prediction_time"):
+            assert metric in rec["metrics"], (key, metric)
+        assert rec["environment"]["python"] and rec["config"]["seed"] == 0
+        assert set(rec["timings"]) >= {"data_s", "fit_s", "eval_s", "total_s"}
+    # The oracle is the floor of the evaluation pipeline.
+    assert recs[("spring", "oracle", 0)]["metrics"]["energy_mse"]["mean"] < 1e-10
+    assert "| system" in proc.stdout and "6 jobs: 6 ok" in proc.stdout
+    assert (sweep / "summary.csv").exists()
+
+    # Resume: the same command into the same directory redoes nothing.
+    before = {k: r["created_at"] for k, r in recs.items()}
+    proc = hnnbench(*args, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stderr.count("already finished") == 6
+    assert {k: r["created_at"] for k, r in _records(sweep).items()} == before

@@ -1,0 +1,52 @@
+import numpy as np
+import pytest
+
+from hnnbench import metrics as M
+from hnnbench.integrate import rk4, solve_batch
+
+
+def test_mse_and_per_point():
+    pred = np.array([[0.0, 0.0], [1.0, 3.0]])
+    target = np.array([[0.0, 2.0], [1.0, 1.0]])
+    assert M.mse(pred, target) == pytest.approx(2.0)
+    np.testing.assert_allclose(M.per_point_squared_error(pred, target), [2.0, 2.0])
+
+
+def test_energy_and_rollout_errors():
+    e_hat = np.array([[1.0, 2.0], [0.0, 0.0]])
+    e_true = np.array([[1.0, 1.0], [1.0, 1.0]])
+    np.testing.assert_allclose(M.energy_error_per_traj(e_hat, e_true), [0.5, 1.0])
+    x = np.zeros((2, 3, 2))
+    xh = x.copy()
+    xh[1, :, 0] = 2.0
+    np.testing.assert_allclose(M.rollout_error_per_traj(xh, x), [0.0, 2.0])
+
+
+def test_summarize_mean_and_sem():
+    s = M.summarize(np.array([1.0, 2.0, 3.0, 4.0]))
+    assert s["mean"] == pytest.approx(2.5)
+    assert s["sem"] == pytest.approx(np.std([1, 2, 3, 4], ddof=1) / 2)
+    assert np.isnan(M.summarize(np.array([1.0]))["sem"])
+    assert M.summarize(np.array([1.0, np.inf]))["mean"] == float("inf")
+
+
+def test_valid_prediction_time():
+    t = np.linspace(0, 4, 5)
+    x = np.ones((2, 5, 2))
+    xh = x.copy()
+    xh[0, 3:] += 1.0  # exceeds at t=3 -> valid until t=2
+    np.testing.assert_allclose(M.valid_prediction_time(xh, x, t, 0.1), [2.0, 4.0])
+    xh[1, 0] = np.nan  # non-finite counts as exceeded at the start
+    assert M.valid_prediction_time(xh, x, t, 0.1)[1] == 0.0
+
+
+def test_rk4_round_trip_and_reference_solver():
+    f = lambda x: np.stack([2 * x[:, 1], -2 * x[:, 0]], axis=1)  # noqa: E731
+    x0 = np.array([[1.0, 0.0], [0.0, 0.5]])
+    back = rk4(f, rk4(f, x0, 0.01, 300), -0.01, 300)
+    assert np.max(M.reversibility_per_traj(back, x0)) < 1e-12
+    t = np.linspace(0, np.pi, 7)  # one full period of the spring, omega = 2
+    xs = solve_batch(f, x0, t, rtol=1e-12, atol=1e-12)
+    assert xs.shape == (2, 7, 2)
+    np.testing.assert_allclose(xs[:, -1], x0, atol=1e-9)
+    np.testing.assert_allclose(xs[0, :, 0], np.cos(2 * t), atol=1e-9)

@@ -1,0 +1,70 @@
+"""Entry-point discovery, helpful errors, and broken plugins (with fake dist-infos)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+from hnnbench import registry
+from hnnbench.errors import HnnbenchError, UnknownNameError
+
+
+def test_builtins_are_entry_points():
+    systems = registry.discover("system")
+    models = registry.discover("model")
+    for name in ("spring", "pendulum"):
+        assert systems[name].ok and systems[name].distribution == "hnnbench"
+    for name in ("mlp_torch", "hnn_torch", "oracle"):
+        assert models[name].ok, models[name].error
+    assert models["hnn_torch"].backend == "torch"
+
+
+def test_unknown_name_suggests_closest():
+    with pytest.raises(UnknownNameError) as err:
+        registry.get_class("system", "sprng")
+    msg = str(err.value)
+    assert msg.startswith("Unknown system 'sprng'. Did you mean 'spring'? Available: ")
+    assert "pendulum" in msg and "\n" not in msg
+    with pytest.raises(UnknownNameError, match="Did you mean 'hnn_torch'"):
+        registry.get_class("model", "hnn_trch")
+    with pytest.raises(UnknownNameError, match="Unknown profile 'quik'. Did you mean 'quick'"):
+        registry.validate_profile("quik")
+
+
+def _fake_dist(root: Path, name: str, entry_points: str) -> None:
+    info = root / f"{name}-1.0.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: 1.0\n")
+    (info / "entry_points.txt").write_text(entry_points)
+
+
+def test_broken_plugin_is_reported_and_others_work(tmp_path, monkeypatch):
+    _fake_dist(tmp_path, "broken_plugin", "[hnnbench.models]\nbroken = no_such_module_xyz:Thing\n"
+               "notamodel = json:JSONDecoder\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    registry.refresh()
+    try:
+        models = registry.discover("model")
+        assert not models["broken"].ok
+        assert "No module named 'no_such_module_xyz'" in models["broken"].error
+        assert "not a subclass of hnnbench.api.Model" in models["notamodel"].error
+        assert "broken" not in registry.available("model")
+        assert models["hnn_torch"].ok
+        with pytest.raises(HnnbenchError, match="installed but unusable"):
+            registry.get_class("model", "broken")
+    finally:
+        monkeypatch.undo()
+        registry.refresh()
+    assert "broken" not in registry.discover("model")
+
+
+def test_core_import_does_not_import_backends():
+    import subprocess
+
+    code = ("import sys, hnnbench, hnnbench.registry, hnnbench.config, hnnbench.run, "
+            "hnnbench.evaluate, hnnbench.cli; "
+            "print(sorted(m for m in ('torch', 'jax') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
