@@ -14,12 +14,12 @@ import json
 import logging
 import os
 import time
-import uuid
 from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
 
 from hnnbench.api import Dataset, System, Trajectories
+from hnnbench.records import atomic_path
 
 log = logging.getLogger("hnnbench")
 
@@ -85,12 +85,7 @@ def cached(
     log.info("generating %s %s (seed %d) ...", system.name, kind, seed)
     start = time.perf_counter()
     value = build()
-    directory.mkdir(parents=True, exist_ok=True)
-    tmp = directory / f".{path.name}.{os.getpid()}.{uuid.uuid4().hex}.tmp"
-    try:
+    with atomic_path(path) as tmp:
         value.save(tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
     log.info("  %s %s ready in %.1f s -> %s", system.name, kind, time.perf_counter() - start, path)
     return value, path, False

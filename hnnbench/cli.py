@@ -9,12 +9,17 @@ so a bad input fails in one line before any job runs.
 
 from __future__ import annotations
 
-import itertools
+import argparse
+import contextlib
+import copy
 import os
+import shlex
+import signal
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, NoReturn
 
 from hnnbench import registry
 from hnnbench.errors import ConfigError, HnnbenchError, UnknownNameError
@@ -35,20 +40,26 @@ examples:
 Hydra's own options: hnnbench --hydra-help. Docs: README.md, docs/.
 """
 
-#: Hydra flags that take a value.
-VALUE_FLAGS = {"--cfg", "-c", "--package", "-p", "--config-path", "-cp", "--config-name",
-               "-cn", "--config-dir", "-cd", "--experimental-rerun"}
-INFO_VALUES = {"all", "config", "defaults", "defaults-tree", "plugins", "searchpath"}
-
 _single_run: list[dict] = []
+
+
+#: Commands that only print (a listing, a config): ``| head`` may close the pipe early.
+_PRINT_ONLY = ("list", "--cfg", "-c", "--info", "-i", "--help", "-h", "help", "--hydra-help")
 
 
 def main(argv: Sequence[str] | None = None) -> None:
     """Console-script entry point; exits with the command's status."""
-    sys.exit(run(list(sys.argv[1:] if argv is None else argv)))
+    args = list(sys.argv[1:] if argv is None else argv)
+    if any(a.split("=", 1)[0] in _PRINT_ONLY for a in args) and hasattr(signal, "SIGPIPE"):
+        # Die quietly when the reader goes away, as Unix tools do (never for runs:
+        # there a closed pipe must not kill a sweep).
+        signal.signal(signal.SIGPIPE, signal.SIG_DFL)
+    sys.exit(run(args))
 
 
 def run(argv: list[str]) -> int:
+    """Run the command ``argv``; return its exit status. User errors (and anything
+    unexpected) are one line on stderr, unless ``HYDRA_FULL_ERROR=1``."""
     try:
         if argv and argv[0] == "list":
             return cmd_list(argv[1:])
@@ -59,14 +70,33 @@ def run(argv: list[str]) -> int:
             return 0
         return run_hydra(argv)
     except HnnbenchError as err:
-        if os.environ.get("HYDRA_FULL_ERROR") == "1":
+        if _full_error():
             raise
-        print(f"hnnbench: error: {err}", file=sys.stderr)
+        _error_line(str(err))
         return 2
+    except BrokenPipeError:  # `hnnbench list | head`: the reader left; nothing to say
+        with contextlib.suppress(OSError, ValueError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except KeyboardInterrupt:
         print("hnnbench: interrupted; finished jobs keep their records. Re-run the same "
               "command with hydra.sweep.dir=<dir> to resume.", file=sys.stderr)
         return 130
+    except Exception as err:  # a bug, not a user error: still one line, then the way on
+        if _full_error():
+            raise
+        _error_line(f"unexpected {type(err).__name__}: {err} (set HYDRA_FULL_ERROR=1 for the "
+                    "traceback, and please report it)")
+        return 1
+
+
+def _full_error() -> bool:
+    return os.environ.get("HYDRA_FULL_ERROR") == "1"
+
+
+def _error_line(message: str) -> None:
+    """``hnnbench: error: <message>`` on one line, whatever the message holds."""
+    print(f"hnnbench: error: {' '.join(message.split())}", file=sys.stderr)
 
 
 # --------------------------------------------------------------------------- list
@@ -113,9 +143,23 @@ def _subcommand(name: str, args: list[str]) -> int:
 
     try:
         module = importlib.import_module(f"hnnbench.{name}")
-    except ModuleNotFoundError:
-        raise HnnbenchError(f"'hnnbench {name}' is not available in this version") from None
-    return int(module.main(args))
+    except HnnbenchError:
+        raise
+    except ModuleNotFoundError as err:
+        if err.name == f"hnnbench.{name}":
+            raise HnnbenchError(f"'hnnbench {name}' is not available in this version") from None
+        raise HnnbenchError(
+            f"'hnnbench {name}' needs {err.name}, which is not installed: {err}"
+        ) from None
+    except Exception as err:
+        raise HnnbenchError(
+            f"'hnnbench {name}' could not be loaded ({type(err).__name__}: {err})"
+        ) from None
+    main = getattr(module, "main", None)
+    if main is None:
+        raise HnnbenchError(f"'hnnbench {name}' is not available in this version")
+    status = main(args)
+    return int(status) if status is not None else 0
 
 
 # --------------------------------------------------------------------------- hydra
@@ -131,25 +175,76 @@ class Plan:
     overrides: list[str] = field(default_factory=list)
 
 
-def _split_args(argv: list[str]) -> tuple[list[str], list[str]]:
-    """Separate Hydra flags (with their values) from overrides."""
-    flags, overrides = [], []
-    it = iter(range(len(argv)))
-    for i in it:
-        tok = argv[i]
-        if tok in VALUE_FLAGS and i + 1 < len(argv):
-            flags += [tok, argv[i + 1]]
-            next(it, None)
-        elif tok == "--info":
-            flags.append(tok)
-            if i + 1 < len(argv) and argv[i + 1] in INFO_VALUES:
-                flags.append(argv[i + 1])
-                next(it, None)
-        elif tok.startswith("-"):
-            flags.append(tok)
+@dataclass
+class _Entry:
+    """One override of the command line."""
+
+    text: str
+    prefix: str  # "", "+", "++" or "~"
+    key: str
+    values: list[Any] | None  # None: a sweep hnnbench cannot enumerate (left to Hydra)
+    sweep: bool
+
+
+def _parse_flags(argv: list[str]) -> argparse.Namespace:
+    """Hydra's own argument parser, with flags and overrides in any order, raising a
+    one-line :class:`ConfigError` instead of printing usage and exiting."""
+    from hydra._internal.utils import get_args_parser
+
+    parser = get_args_parser()
+    parser.prog = "hnnbench"
+
+    def error(message: str) -> NoReturn:
+        raise ConfigError(f"{message} (see hnnbench --help)")
+
+    parser.error = error  # type: ignore[method-assign]
+    ns = parser.parse_intermixed_args(argv)
+    commands = [name for name, on in (
+        ("--run", ns.run), ("--multirun", ns.multirun), ("--cfg", ns.cfg is not None),
+        ("--info", ns.info is not None), ("--shell-completion", ns.shell_completion)) if on]
+    if len(commands) > 1:
+        raise ConfigError(
+            f"{' and '.join(commands)} cannot be combined: give one of --run, --multirun (-m), "
+            "--cfg, --info, --shell-completion"
+        )
+    if ns.resolve and ns.cfg is None and not ns.help:
+        raise ConfigError("--resolve only works together with --cfg, e.g. --cfg job --resolve")
+    if ns.package is not None and ns.cfg is None:
+        raise ConfigError("--package only works together with --cfg, e.g. --cfg job -p system")
+    for flag, value in (("--config-dir", ns.config_dir), ("--config-path", ns.config_path)):
+        if value is None or value.startswith("pkg://"):
+            continue
+        path = Path(value.removeprefix("file://")).expanduser()
+        if not path.is_dir():
+            raise ConfigError(f"{flag} {value}: no such directory")
+        # Hydra reads a relative --config-path relative to hnnbench's own source file;
+        # users mean their working directory.
+        resolved = str(path.resolve())
+        if flag == "--config-dir":
+            ns.config_dir = resolved
         else:
-            overrides.append(tok)
-    return flags, overrides
+            ns.config_path = resolved
+    if ns.experimental_rerun is not None and not Path(ns.experimental_rerun).is_file():
+        raise ConfigError(f"--experimental-rerun {ns.experimental_rerun}: no such file")
+    return ns
+
+
+def _flag_args(ns: argparse.Namespace) -> list[str]:
+    """The parsed flags as Hydra expects them, in canonical spelling."""
+    out: list[str] = []
+    for name, flag in (("help", "--help"), ("hydra_help", "--hydra-help"), ("run", "--run"),
+                       ("multirun", "--multirun"), ("shell_completion", "--shell-completion"),
+                       ("resolve", "--resolve")):
+        if getattr(ns, name):
+            out.append(flag)
+    for name, flag in (("cfg", "--cfg"), ("package", "--package"),
+                       ("config_path", "--config-path"), ("config_name", "--config-name"),
+                       ("config_dir", "--config-dir"), ("experimental_rerun",
+                                                        "--experimental-rerun"),
+                       ("info", "--info")):
+        if getattr(ns, name) is not None:
+            out += [flag, getattr(ns, name)]
+    return out
 
 
 def _expand_names(kind: str, values: list[str]) -> list[str]:
@@ -165,64 +260,165 @@ def _expand_names(kind: str, values: list[str]) -> list[str]:
     return out
 
 
+_PREFIX = {"ADD": "+", "FORCE_ADD": "++", "DEL": "~", "CHANGE": ""}
+
+
+def _parse_override(parser: Any, text: str) -> _Entry:
+    from hydra.core.override_parser.types import Glob
+
+    from hnnbench.config import hydra_error_line
+
+    try:
+        (ov,) = parser.parse_overrides([text])
+    except Exception as err:
+        raise ConfigError(f"Cannot parse override '{text}': {hydra_error_line(err)}") from None
+    key = ov.key_or_group
+    if not key:
+        raise ConfigError(f"Cannot parse override '{text}': expected KEY=VALUE, e.g. seed=0")
+    prefix = _PREFIX.get(ov.type.name, "")
+    if ov.is_delete():
+        return _Entry(text, prefix, key, [], False)
+    if not ov.is_sweep_override():
+        value = ov.get_value_element_as_str()
+        if key in ("system", "model"):
+            names = _expand_names(key, [value])
+            if len(names) > 1:  # `all`
+                return _Entry(f"{prefix}{key}={','.join(names)}", prefix, key, names, True)
+            return _Entry(f"{prefix}{key}={names[0]}", prefix, key, names, False)
+        return _Entry(text, prefix, key, [value], False)
+    try:
+        values: list[Any] | None = [str(v) for v in ov.sweep_string_iterator()]
+    except Exception:  # glob(...) and interval(...): not enumerable without a config
+        value = ov.value()
+        values = None
+        if key in ("system", "model") and isinstance(value, Glob):
+            values = value.filter(registry.available(key))  # type: ignore[arg-type]
+            if not values:
+                raise ConfigError(
+                    f"{text}: the pattern matches no registered {key} "
+                    f"(available: {', '.join(registry.available(key))})"  # type: ignore[arg-type]
+                ) from None
+        elif ov.value_type is not None and ov.value_type.name == "INTERVAL_SWEEP":
+            raise ConfigError(
+                f"{text}: interval() needs an optimizing sweeper; the basic sweeper "
+                "takes lists (a,b,c), range() and choice()"
+            ) from None
+    if values is not None and key in ("system", "model"):
+        values = _expand_names(key, values)
+        text = f"{prefix}{key}={','.join(values)}"
+    return _Entry(text, prefix, key, values, True)
+
+
+def _trial(entries: list[_Entry], choice: dict[int, Any]) -> list[str]:
+    """Overrides of one job: each sweep replaced by its chosen value (or its first)."""
+    out = []
+    for i, e in enumerate(entries):
+        if not e.sweep:
+            out.append(e.text)
+        elif e.values:  # unenumerable sweeps are left to Hydra
+            out.append(f"{e.prefix}{e.key}={choice.get(i, e.values[0])}")
+    return out
+
+
+def _is_group(key: str) -> bool:
+    return key in ("system", "model", "profile") or "/" in key or key.startswith("hydra")
+
+
 def plan(argv: list[str]) -> Plan:
-    """Check a Hydra command line and rewrite ``all``; raise :class:`ConfigError`."""
+    """Check a Hydra command line and rewrite ``all``; raise :class:`ConfigError`.
+
+    The flags are parsed by Hydra's own parser; every override is parsed, names are
+    checked, and the config of the first job and of every other swept value is
+    composed (Hydra's ``hydra`` node included) and validated, so that Hydra never gets
+    a command line it would reject with a multi-line error.
+    """
     from hydra.core.override_parser.overrides_parser import OverridesParser
+    from omegaconf import OmegaConf, open_dict
 
-    from hnnbench.config import compose, hydra_error_line, prepare_job, profile_of
+    from hnnbench.config import (
+        check_hydra_node,
+        compose,
+        hydra_error_line,
+        prepare_job,
+        profile_of,
+    )
 
-    flags, overrides = _split_args(argv)
-    multirun = "-m" in flags or "--multirun" in flags
-    profile = profile_of(overrides)
+    ns = _parse_flags(argv)
+    flags = _flag_args(ns)
+    multirun = bool(ns.multirun)
+    if ns.shell_completion:  # its arguments (install=bash) are not config overrides
+        return Plan(argv=flags + list(ns.overrides), multirun=False, n_jobs=None,
+                    overrides=list(ns.overrides))
+    profile_of(list(ns.overrides))
     parser = OverridesParser.create()
-    values: dict[str, list[str]] = {}
-    rewritten: list[str] = []
-    for text in overrides:
-        try:
-            (ov,) = parser.parse_overrides([text])
-        except Exception as err:
-            raise ConfigError(f"Cannot parse override '{text}': {hydra_error_line(err)}") from None
-        key = ov.key_or_group
-        if ov.is_sweep_override():
-            try:
-                vals = [str(v) for v in ov.sweep_string_iterator()]
-            except Exception:  # glob/interval sweeps: Hydra expands them itself
-                vals = []
-        else:
-            vals = [ov.get_value_element_as_str()] if ov.value() is not None else []
-        if key in ("system", "model") and vals:
-            vals = _expand_names(key, vals)
-            text = f"{key}={','.join(vals)}"
-        values[key] = vals
-        rewritten.append(text)
-    sweeping = {k: v for k, v in values.items() if len(v) > 1}
-    if sweeping and not multirun:
-        key, vals = next(iter(sweeping.items()))
+    entries = [_parse_override(parser, text) for text in ns.overrides]
+    rewritten = [e.text for e in entries]
+    sweeps = {i: e for i, e in enumerate(entries) if e.sweep and (e.values is None
+                                                                  or len(e.values) > 1)}
+    if sweeps and not multirun:
+        e = next(iter(sweeps.values()))
+        vals = [str(v) for v in e.values or []]
+        shown = f" ({', '.join(vals[:4])}{', ...' if len(vals) > 4 else ''})" if vals else ""
+        if ns.cfg is not None or ns.info is not None:
+            raise ConfigError(f"{e.key} has several values{shown}: --cfg and --info show one "
+                              "config, so give one value per key")
         raise ConfigError(
-            f"{key} has {len(vals)} values ({', '.join(vals[:4])}{', ...' if len(vals) > 4 else ''})"
-            f": that is a sweep, so add -m, e.g. hnnbench -m {' '.join(rewritten)}"
+            f"{e.key} has {len(vals) or 'several'} values{shown}: that is a sweep, so add -m, "
+            f"e.g. hnnbench -m {' '.join(rewritten)}"
         )
-    # Compose and validate every swept value (each against the first of the others).
-    base = {k: (v[0] if v else None) for k, v in values.items()}
-    trials = [dict(base)]
-    for key, vals in sweeping.items():
-        for val in vals[1:]:
-            trials.append({**base, key: val})
-    verbatim = [t for t in rewritten if t.split("=", 1)[0].lstrip("+~") not in values
-                or not values[t.split("=", 1)[0].lstrip("+~")]]
-    for trial in trials:
-        ovs = [f"{k}={v}" for k, v in trial.items() if v is not None] + verbatim
-        ovs = [o for o in ovs if not o.startswith("hydra.") and not o.startswith("hydra/")]
-        if not any(o.startswith("profile=") for o in ovs):
-            ovs.append(f"profile={profile}")
-        if "--cfg" in flags or "-c" in flags or "--info" in flags:
-            break
-        prepare_job(compose(ovs))
-    n_jobs = 1
-    for key, vals in values.items():
-        if key.startswith("hydra"):
-            continue
-        n_jobs *= max(len(vals), 1)
+    kwargs: dict[str, Any] = {}
+    if ns.config_name is not None:
+        kwargs["config_name"] = ns.config_name
+    if ns.config_path is not None and not ns.config_path.startswith("pkg://"):
+        kwargs["config_dir"] = ns.config_path
+    extra: list[str] = []
+    if ns.config_dir:  # Hydra puts it first on the search path, as these do
+        if (Path(ns.config_dir) / f"{ns.config_name or 'config'}.yaml").is_file():
+            kwargs.setdefault("config_dir", ns.config_dir)
+            extra = ["hydra.searchpath=[pkg://hnnbench_conf]"]
+        else:
+            extra = [f"hydra.searchpath=[file://{ns.config_dir}]"]
+
+    def job_config(overrides: list[str]) -> Any:
+        """The job config (validated), then the hydra node it was composed with."""
+        cfg = compose(overrides + extra, return_hydra_config=True, **kwargs)
+        with open_dict(cfg):
+            hydra_node = cfg.pop("hydra")
+        prepare_job(cfg)
+        with open_dict(cfg):
+            cfg["hydra"] = hydra_node
+        check_hydra_node(cfg)
+        with open_dict(cfg):
+            del cfg["hydra"]
+        return cfg
+
+    # The first job, composed with everything (the hydra node and its directories too).
+    base = job_config(_trial(entries, {}))
+    # Every other swept value, against the first value of the other keys: a group
+    # (system, model, hydra/...) is composed again; a plain value is merged (fast).
+    for i, e in sweeps.items():
+        for value in (e.values or [])[1:]:
+            if _is_group(e.key) or e.prefix:
+                job_config(_trial(entries, {i: value}))
+                continue
+            cfg = copy.deepcopy(base)
+            try:
+                (ov,) = parser.parse_overrides([f"{e.key}={value}"])
+                OmegaConf.update(cfg, e.key, ov.value(), merge=True)
+            except ConfigError:
+                raise
+            except Exception as err:
+                raise ConfigError(
+                    f"Error merging override {e.key}={value}: {hydra_error_line(err)}"
+                ) from None
+            prepare_job(cfg)
+    n_jobs: int | None = 1
+    counts: dict[str, int | None] = {}
+    for e in entries:
+        if not e.key.startswith("hydra"):
+            counts[e.key] = None if e.values is None else max(len(e.values), 1)
+    for count in counts.values():
+        n_jobs = None if n_jobs is None or count is None else n_jobs * count
     return Plan(argv=flags + rewritten, multirun=multirun, n_jobs=n_jobs, overrides=rewritten)
 
 
@@ -235,7 +431,8 @@ def _task(cfg) -> None:  # noqa: ANN001 - Hydra passes a DictConfig
     hc = HydraConfig.get()
     multirun = hc.mode == RunMode.MULTIRUN
     total = int(os.environ.get("HNNBENCH_N_JOBS", "0")) or None
-    record = run_job(cfg, Path(hc.runtime.output_dir), hc.job.num if multirun else None, total)
+    record = run_job(cfg, Path(hc.runtime.output_dir), hc.job.num if multirun else None, total,
+                     overrides=list(hc.overrides.task))
     if not multirun:
         _single_run.append(record)
 
@@ -243,20 +440,27 @@ def _task(cfg) -> None:  # noqa: ANN001 - Hydra passes a DictConfig
 def run_hydra(argv: list[str]) -> int:
     import hydra
 
-    from hnnbench.config import register_schema
+    from hnnbench.config import profile_of, register_schema
 
     checked = plan(argv)
     register_schema()
+    shell = "--shell-completion" in checked.argv
+    registry.register_configs("paper" if shell else profile_of(checked.overrides))
     if checked.n_jobs:
         os.environ["HNNBENCH_N_JOBS"] = str(checked.n_jobs)
+    else:
+        os.environ.pop("HNNBENCH_N_JOBS", None)
+    # The command line as typed, for the records (launchers' workers inherit it).
+    os.environ["HNNBENCH_COMMAND"] = shlex.join(["hnnbench", *argv])
     if checked.multirun and checked.n_jobs:
         print(f"hnnbench: {checked.n_jobs} job(s)", file=sys.stderr)
     saved = sys.argv
     sys.argv = [saved[0] if saved else "hnnbench", *checked.argv]
     _single_run.clear()
     try:
-        hydra.main(version_base="1.3", config_path="pkg://hnnbench_conf",
-                   config_name="config")(_task)()
+        with _one_line_hydra_errors():
+            hydra.main(version_base="1.3", config_path="pkg://hnnbench_conf",
+                       config_name="config")(_task)()
     finally:
         sys.argv = saved
     if _single_run:
@@ -264,18 +468,43 @@ def run_hydra(argv: list[str]) -> int:
     return 0
 
 
+@contextlib.contextmanager
+def _one_line_hydra_errors():  # noqa: ANN202
+    """A safety net behind :func:`plan`: an error Hydra still finds (it prints several
+    lines and exits) becomes a one-line :class:`HnnbenchError`."""
+    import hydra._internal.utils as hydra_utils
+
+    original = getattr(hydra_utils, "run_and_report", None)
+    if original is None or _full_error():
+        yield
+        return
+
+    def run_and_report(func: Any) -> Any:
+        from hnnbench.config import hydra_error_line
+
+        try:
+            return func()
+        except HnnbenchError:
+            raise
+        except Exception as err:
+            raise HnnbenchError(hydra_error_line(err)) from None
+
+    hydra_utils.run_and_report = run_and_report
+    try:
+        yield
+    finally:
+        hydra_utils.run_and_report = original
+
+
 def _report_single(record: dict) -> int:
     from tabulate import tabulate
 
     status = record["status"]
     if status == "failed":
-        print(f"hnnbench: error: {record.get('error')}", file=sys.stderr)
+        _error_line(str(record.get("error")))
         return 1
     rows = [[k, v.get("mean"), v.get("sem")] for k, v in record.get("metrics", {}).items()]
     print(tabulate(rows, headers=["metric", "mean", "sem"], floatfmt=".4g"))
     print(f"status: {status}" + (f" ({record.get('error')})" if record.get("error") else ""))
     return 0 if status in ("ok", "skipped") else 1
 
-
-def _product(lists: list[list[str]]) -> int:
-    return len(list(itertools.product(*lists)))

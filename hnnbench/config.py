@@ -8,21 +8,23 @@ and again at the start of each job, never deep inside training.
 
 from __future__ import annotations
 
+import difflib
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any, Optional
 
 from omegaconf import MISSING, DictConfig, OmegaConf
 
 from hnnbench import registry
 from hnnbench.api import Model, ModelConfig, System, SystemConfig
-from hnnbench.errors import ConfigError
+from hnnbench.errors import ConfigError, UnknownNameError
 
 __all__ = [
     "EvaluationConfig",
     "Job",
     "ProfileConfig",
     "RunConfig",
+    "check_hydra_node",
     "compose",
     "hydra_error_line",
     "prepare_job",
@@ -30,6 +32,24 @@ __all__ = [
 ]
 
 DEVICE_RE = re.compile(r"^(auto|cpu|cuda(:\d+)?)$")
+#: Seeds must fit every backend's generator (torch, numpy, JAX keys): 0 <= seed < 2**32.
+MAX_SEED = 2**32 - 1
+#: Hydra plugins that are installed separately, by config-group option.
+HYDRA_PLUGIN_PACKAGES = {
+    "hydra/launcher": {
+        "joblib": "hydra-joblib-launcher",
+        "submitit_local": "hydra-submitit-launcher",
+        "submitit_slurm": "hydra-submitit-launcher",
+        "ray": "hydra-ray-launcher",
+        "ray_aws": "hydra-ray-launcher",
+        "rq": "hydra-rq-launcher",
+    },
+    "hydra/sweeper": {
+        "optuna": "hydra-optuna-sweeper",
+        "ax": "hydra-ax-sweeper",
+        "nevergrad": "hydra-nevergrad-sweeper",
+    },
+}
 
 
 @dataclass
@@ -89,9 +109,49 @@ def register_schema() -> None:
 
 def validate_run(cfg: Any) -> None:
     """Check the run-level fields of a composed config."""
+    from omegaconf.errors import MissingMandatoryValue, OmegaConfBaseException
+
+    known = [f.name for f in fields(RunConfig)]
+    for key in cfg:
+        if key not in known and key != "hydra":
+            close = difflib.get_close_matches(str(key), known, n=1)
+            hint = f" Did you mean '{close[0]}'?" if close else ""
+            raise ConfigError(
+                f"{key} is not an hnnbench setting.{hint} Settings: {', '.join(known)}"
+            )
+    for key in known:
+        if key not in cfg:
+            raise ConfigError(f"{key} is missing (removed with ~{key}?): hnnbench needs it.")
+    try:  # without resolving: ${hydra:...} only resolves in a running job
+        OmegaConf.to_container(cfg, resolve=False, throw_on_missing=True)
+    except MissingMandatoryValue as err:
+        key = getattr(err, "full_key", None) or "a setting"
+        raise ConfigError(
+            f"{key} has no value: set it, e.g. {key}=<value> "
+            "(`hnnbench --cfg job` shows the config)."
+        ) from None
+    for key in cfg:  # every interpolation resolves (except those needing a running job)
+        if key == "hydra":
+            continue
+        try:
+            node = cfg[key]
+            if isinstance(node, DictConfig):
+                OmegaConf.to_container(node, resolve=True)
+        except OmegaConfBaseException as err:
+            if not _needs_running_hydra(err):
+                raise
+    for key in ("system", "model"):
+        node = cfg.get(key)
+        if not isinstance(node, DictConfig) or not isinstance(node.get("name"), str):
+            raise ConfigError(
+                f"{key} is not a {key} config: choose one with {key}=<name> "
+                "(`hnnbench list` shows the names)."
+            )
     seed = cfg.seed
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ConfigError(f"seed={seed} is invalid: expected an integer >= 0, e.g. seed=0.")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+        raise ConfigError(
+            f"seed={seed} is invalid: expected an integer from 0 to {MAX_SEED}, e.g. seed=0."
+        )
     if not DEVICE_RE.match(str(cfg.device)):
         raise ConfigError(
             f"device={cfg.device} is invalid: expected auto, cpu, cuda or cuda:N."
@@ -135,13 +195,26 @@ def prepare_job(cfg: DictConfig) -> Job:
     Raises:
         ConfigError: with a one-line message naming the bad value.
     """
-    validate_run(cfg)
-    system_cls = registry.get_class("system", cfg.system.name)
-    model_cls = registry.get_class("model", cfg.model.name)
-    system_cfg = _instantiate_config("system", cfg.system)
-    model_cfg = _instantiate_config("model", cfg.model)
-    system_cfg.validate()
-    model_cfg.validate()
+    from omegaconf.errors import OmegaConfBaseException
+
+    try:
+        validate_run(cfg)
+        system_cls = registry.get_class("system", cfg.system.name)
+        model_cls = registry.get_class("model", cfg.model.name)
+        system_cfg = _instantiate_config("system", cfg.system)
+        model_cfg = _instantiate_config("model", cfg.model)
+    except OmegaConfBaseException as err:  # interpolation, missing or mistyped values
+        raise ConfigError(hydra_error_line(err)) from None
+    for kind, typed in (("system", system_cfg), ("model", model_cfg)):
+        try:
+            typed.validate()
+        except ConfigError:
+            raise
+        except (TypeError, ValueError, ArithmeticError) as err:  # a value validate() chokes on
+            raise ConfigError(
+                f"{kind} '{typed.name}': invalid config ({type(err).__name__}: {err})"
+                .replace("\n", " ")
+            ) from None
     return Job(cfg, system_cls, system_cfg, model_cls, model_cfg)
 
 
@@ -160,27 +233,100 @@ def profile_of(overrides: list[str]) -> str:
     return profile
 
 
-def compose(overrides: list[str] | None = None) -> DictConfig:
+def compose(
+    overrides: list[str] | None = None,
+    return_hydra_config: bool = False,
+    config_name: str = "config",
+    config_dir: str | None = None,
+) -> DictConfig:
     """Compose the job config for ``overrides`` as the CLI would (for tests, notebooks).
+
+    ``hydra.*`` and ``hydra/<group>=<option>`` overrides are applied (and checked) too;
+    the ``hydra`` node is returned only with ``return_hydra_config`` (see
+    :func:`check_hydra_node`). ``config_dir`` composes a user's primary config from that directory
+    instead of hnnbench's own (``--config-path``).
 
     Raises:
         ConfigError: a bad override (one line).
     """
     from hydra import compose as hydra_compose
-    from hydra import initialize_config_module
+    from hydra import initialize_config_dir, initialize_config_module
     from hydra.core.global_hydra import GlobalHydra
 
     overrides = list(overrides or [])
     register_schema()
     registry.register_configs(profile_of(overrides))
     GlobalHydra.instance().clear()
+    if config_dir is None:
+        context = initialize_config_module("hnnbench_conf", version_base="1.3")
+    else:
+        context = initialize_config_dir(str(config_dir), version_base="1.3")
     try:
-        with initialize_config_module("hnnbench_conf", version_base="1.3"):
-            return hydra_compose("config", overrides=overrides)
+        with context:
+            _check_hydra_groups(overrides)
+            return hydra_compose(config_name, overrides=overrides,
+                                 return_hydra_config=return_hydra_config)
     except ConfigError:
         raise
     except Exception as err:
         raise ConfigError(hydra_error_line(err)) from None
+    finally:
+        GlobalHydra.instance().clear()
+
+
+def _needs_running_hydra(err: BaseException) -> bool:
+    """An interpolation like ``${hydra:runtime.output_dir}`` only resolves in a job."""
+    return "HydraConfig was not set" in str(err)
+
+
+def check_hydra_node(cfg: DictConfig) -> None:
+    """Resolve what Hydra needs before any job starts (the output directories) in a
+    config composed with ``return_hydra_config=True``; raise a one-line ConfigError."""
+    from omegaconf.errors import OmegaConfBaseException
+
+    for key in ("hydra.run.dir", "hydra.sweep.dir", "hydra.sweep.subdir"):
+        try:
+            OmegaConf.select(cfg, key, throw_on_resolution_failure=True)
+        except OmegaConfBaseException as err:
+            if not _needs_running_hydra(err):
+                raise ConfigError(hydra_error_line(err)) from None
+
+
+def _check_hydra_groups(overrides: list[str]) -> None:
+    """``hydra/<group>=<option>``: an installed option of a Hydra group, with a
+    did-you-mean and the package that provides a known but missing plugin."""
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    loader = GlobalHydra.instance().config_loader()
+    parser = OverridesParser.create()
+    for text in overrides:
+        if not text.lstrip("+~").startswith("hydra/"):
+            continue
+        try:
+            (ov,) = parser.parse_overrides([text])
+        except Exception as err:
+            raise ConfigError(f"Cannot parse override '{text}': {hydra_error_line(err)}") from None
+        group = ov.key_or_group
+        if ov.is_delete():
+            continue
+        groups = [f"hydra/{g}" for g in loader.list_groups("hydra")]
+        if group not in groups:
+            raise UnknownNameError("Hydra config group", group, groups)
+        options = loader.get_group_options(group)
+        values = [str(v) for v in ov.sweep_string_iterator()] if ov.is_sweep_override() else [
+            ov.get_value_element_as_str()]
+        kind = f"Hydra {group.split('/', 1)[1]}"
+        for value in values:
+            if value in options:
+                continue
+            package = HYDRA_PLUGIN_PACKAGES.get(group, {}).get(value)
+            if package:
+                raise ConfigError(
+                    f"{kind} '{value}' is not installed: pip install {package} "
+                    f"(installed: {', '.join(options)})"
+                )
+            raise UnknownNameError(kind, value, options)
 
 
 def hydra_error_line(err: BaseException) -> str:
@@ -191,16 +337,18 @@ def hydra_error_line(err: BaseException) -> str:
     while cur is not None and id(cur) not in seen:
         seen.add(id(cur))
         text = str(cur).strip()
-        if text:
+        # OmegaConf chains an unformatted copy of its message ('$VALUE'); Hydra's parser
+        # chains a 'None'. Neither says anything.
+        if text and "$VALUE" not in text and text != "None":
             first = text.splitlines()[0].strip()
             full_key = re.search(r"full_key:\s*(\S+)", text)
             if full_key and full_key.group(1) not in first:
                 first = f"{first} (key: {full_key.group(1)})"
-            if first not in parts:
+            if not any(first.split(" (key: ")[0] in part for part in parts):
                 parts.append(first)
         cur = cur.__cause__ or cur.__context__
-    line = ": ".join(parts) or type(err).__name__
-    line = line.replace("\n", " ")
+    line = ": ".join(p.rstrip(".:") if i < len(parts) - 1 else p for i, p in enumerate(parts))
+    line = " ".join((line or type(err).__name__).split())
     if "Could not find" in line or "not in" in line:
         line += ". Run `hnnbench list` for the names, or `hnnbench --cfg job` for the keys."
     return line

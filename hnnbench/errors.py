@@ -13,7 +13,11 @@ from collections.abc import Iterable
 
 
 class HnnbenchError(Exception):
-    """A problem the user can fix. ``str(err)`` is a single, complete line."""
+    """A problem the user can fix. ``str(err)`` is a single, complete line (whatever
+    the message was built from: line breaks and runs of whitespace become one space)."""
+
+    def __str__(self) -> str:
+        return " ".join(super().__str__().split())
 
 
 class ConfigError(HnnbenchError):

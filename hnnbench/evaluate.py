@@ -19,7 +19,15 @@ from hnnbench.config import EvaluationConfig
 from hnnbench.errors import RolloutDiverged
 from hnnbench.integrate import rk4
 
-__all__ = ["Evaluation", "LinearProbe", "ROLLOUT_METRICS", "evaluate", "loss_metrics"]
+__all__ = [
+    "HIGHER_IS_BETTER",
+    "ROLLOUT_METRICS",
+    "Evaluation",
+    "LinearProbe",
+    "evaluate",
+    "loss_metrics",
+    "worst",
+]
 
 #: Metrics that come from rollouts; ``inf`` when the rollout diverges.
 ROLLOUT_METRICS = (
@@ -30,6 +38,16 @@ ROLLOUT_METRICS = (
     "valid_prediction_time",
     "pixel_mse",
 )
+
+
+#: Metrics where higher is better; a diverged run gets 0 for them instead of inf.
+HIGHER_IS_BETTER = ("valid_prediction_time",)
+
+
+def worst(metric: str) -> dict[str, float]:
+    """The value recorded for ``metric`` when the run diverged: ``inf`` for errors,
+    ``0`` for metrics where higher is better (a diverged model predicts nothing)."""
+    return {"mean": 0.0 if metric in HIGHER_IS_BETTER else float("inf"), "sem": float("nan")}
 
 
 @dataclass
@@ -89,7 +107,6 @@ def evaluate(
     """Compute every metric of ``model`` on ``system``'s evaluation ``traj``."""
     result: dict[str, Any] = dict(loss_metrics(system, model, data))
     arrays: dict[str, np.ndarray] = {"t": traj.t, "states_true": traj.states}
-    inf = {"mean": float("inf"), "sem": float("nan")}
     pixels = traj.observations is not None
 
     if pixels:
@@ -108,7 +125,7 @@ def evaluate(
     except RolloutDiverged as err:
         diverged = f"rollout diverged: {err}"
         for key in ROLLOUT_METRICS:
-            result[key] = dict(inf)
+            result[key] = worst(key)
         if not system.time_reversible:
             result["time_reversal_error"] = {"mean": float("nan"), "sem": float("nan")}
         return Evaluation(metrics=result, diverged=diverged, arrays=arrays)
@@ -151,7 +168,7 @@ def evaluate(
             result["time_reversal_error"] = M.summarize(M.reversibility_per_traj(returned, z0))
         except RolloutDiverged as err:
             diverged = f"time-reversal rollout diverged: {err}"
-            result["time_reversal_error"] = dict(inf)
+            result["time_reversal_error"] = worst("time_reversal_error")
     else:
         result["time_reversal_error"] = {"mean": float("nan"), "sem": float("nan")}
 

@@ -6,6 +6,7 @@ written as JSON ``Infinity`` / ``NaN`` (Python's json reads them back).
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import json
 import os
@@ -13,7 +14,7 @@ import platform
 import subprocess
 import sys
 import uuid
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from functools import lru_cache
 from importlib import metadata
 from pathlib import Path
@@ -30,6 +31,7 @@ __all__ = [
     "RECORD_NAME",
     "SCHEMA_VERSION",
     "STATUSES",
+    "atomic_path",
     "atomic_write_text",
     "environment",
     "load_records",
@@ -38,23 +40,63 @@ __all__ = [
 ]
 
 
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` via a temporary file and ``os.replace``."""
+@contextlib.contextmanager
+def atomic_path(path: Path) -> Iterator[Path]:
+    """Yield a temporary path next to ``path``; when the block succeeds, the file
+    written there is synced to disk and renamed over ``path`` (``os.replace``), so
+    ``path`` is always either the old complete file or the new one, never torn. The
+    temporary name starts with a dot, contains ``.tmp`` and keeps ``path``'s suffix."""
+    path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex}.tmp")
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.{uuid.uuid4().hex}.tmp{path.suffix}")
     try:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
+        yield tmp
+        _fsync(tmp)
         os.replace(tmp, path)
+        _fsync_dir(path.parent)
     finally:
         tmp.unlink(missing_ok=True)
 
 
+def _fsync(path: Path) -> None:
+    with open(path, "rb") as fh:
+        os.fsync(fh.fileno())
+
+
+def _fsync_dir(directory: Path) -> None:
+    """Make a rename durable (POSIX); a no-op where directories cannot be opened."""
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` atomically (see :func:`atomic_path`)."""
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
+        fh.write(text)
+
+
+def _json_default(value: Any) -> Any:
+    """numpy scalars and arrays as numbers and lists (not strings); the rest as str."""
+    if hasattr(value, "item") and getattr(value, "ndim", None) == 0:
+        return value.item()
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    if isinstance(value, (set, frozenset, tuple)):
+        return list(value)
+    return str(value)
+
+
 def write_record(directory: Path, record: dict[str, Any]) -> Path:
-    path = directory / RECORD_NAME
-    atomic_write_text(path, json.dumps(record, indent=2, sort_keys=False, default=str) + "\n")
+    path = Path(directory) / RECORD_NAME
+    atomic_write_text(path, json.dumps(record, indent=2, default=_json_default) + "\n")
     return path
 
 
@@ -114,7 +156,8 @@ def environment(extra: Iterable[str] = ()) -> dict[str, Any]:
         "machine": platform.machine(),
         "git_commit": git_commit(),
     }
-    for dist in ("numpy", "scipy", "torch", "jax", "jaxlib", "diffrax", "rebound", *extra):
+    for dist in ("numpy", "scipy", "torch", "torchdiffeq", "safetensors", "jax", "jaxlib",
+                 "equinox", "optax", "diffrax", "rebound", "hydra-core", "omegaconf", *extra):
         env[dist] = _version(dist)
     return env
 

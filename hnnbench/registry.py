@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 from importlib import metadata
 from typing import Any, Literal
 
@@ -101,7 +101,7 @@ def _load(kind: str, ep: metadata.EntryPoint) -> PluginInfo:
     return info
 
 
-@lru_cache(maxsize=None)
+@cache
 def _discover(kind: str) -> dict[str, PluginInfo]:
     found: dict[str, PluginInfo] = {}
     for ep in sorted(metadata.entry_points(group=GROUPS[kind]), key=lambda e: e.name):

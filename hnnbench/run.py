@@ -9,12 +9,16 @@ run it. It never raises for a problem of its own run: a diverging model is recor
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import os
+import shlex
+import shutil
 import sys
 import time
 import traceback
+import uuid
 from pathlib import Path
 from typing import Any
 
@@ -22,10 +26,10 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from hnnbench import cache, records
-from hnnbench.api import Dataset, Trajectories, TrainSettings
+from hnnbench.api import Dataset, TrainSettings, Trajectories
 from hnnbench.config import EvaluationConfig, Job, prepare_job
 from hnnbench.errors import HnnbenchError, RolloutDiverged
-from hnnbench.evaluate import ROLLOUT_METRICS, evaluate
+from hnnbench.evaluate import ROLLOUT_METRICS, evaluate, worst
 from hnnbench.progress import TrainingProgress
 
 log = logging.getLogger("hnnbench")
@@ -44,16 +48,32 @@ def _set_threads(threads: int) -> None:
         torch.set_num_threads(threads)
 
 
-def _base_record(cfg: DictConfig) -> dict[str, Any]:
+def _select(cfg: DictConfig, key: str) -> Any:
+    try:
+        return OmegaConf.select(cfg, key, default=None)
+    except Exception:  # an unresolvable interpolation: the job fails with the reason
+        return None
+
+
+def _config_container(cfg: DictConfig) -> Any:
+    try:
+        return OmegaConf.to_container(cfg, resolve=True)
+    except Exception:
+        return OmegaConf.to_container(cfg, resolve=False)
+
+
+def _base_record(cfg: DictConfig, overrides: list[str] | None) -> dict[str, Any]:
+    command = os.environ.get("HNNBENCH_COMMAND")
+    job_overrides = [o for o in overrides or [] if not o.startswith(("hydra.", "hydra/"))]
     return {
         "schema_version": records.SCHEMA_VERSION,
-        "system": cfg.system.name,
+        "system": _select(cfg, "system.name"),
         "system_version": None,
-        "model": cfg.model.name,
+        "model": _select(cfg, "model.name"),
         "model_version": None,
         "backend": None,
-        "seed": cfg.seed,
-        "profile": cfg.profile.name,
+        "seed": _select(cfg, "seed"),
+        "profile": _select(cfg, "profile.name"),
         "status": "failed",
         "error": None,
         "metrics": {},
@@ -61,7 +81,13 @@ def _base_record(cfg: DictConfig) -> dict[str, Any]:
         "steps": 0,
         "device": None,
         "data": {},
-        "config": OmegaConf.to_container(cfg, resolve=True),
+        "config": _config_container(cfg),
+        # How to run exactly this job again (the resolved config above is the truth;
+        # these are the command lines that produced it).
+        "overrides": list(overrides) if overrides is not None else None,
+        "command": command,
+        "rerun_command": shlex.join(["hnnbench", *job_overrides])
+        if overrides is not None else None,
         "environment": records.environment(),
         "created_at": records.now_iso(),
     }
@@ -70,25 +96,74 @@ def _base_record(cfg: DictConfig) -> dict[str, Any]:
 def _save_arrays(directory: Path, arrays: dict[str, np.ndarray], history: dict) -> None:
     payload = {k: np.asarray(v) for k, v in arrays.items()}
     payload.update({f"history.{k}": np.asarray(v, dtype=np.float64) for k, v in history.items()})
-    tmp = directory / f".rollout.{os.getpid()}.tmp.npz"
-    np.savez_compressed(tmp, **payload)
-    os.replace(tmp, directory / "rollout.npz")
+    with records.atomic_path(directory / "rollout.npz") as tmp, open(tmp, "wb") as fh:
+        np.savez_compressed(fh, **payload)
+
+
+def _save_model(model: Any, directory: Path) -> None:
+    """``model.save`` into a private temporary folder, then each file it wrote is
+    renamed into ``directory``: a killed job never leaves torn weights behind (and a
+    model may add its own suffix, as ``np.savez`` does)."""
+    tmpdir = directory / f".weights.{os.getpid()}.{uuid.uuid4().hex}.tmp"
+    tmpdir.mkdir(parents=True)
+    try:
+        model.save(tmpdir / "weights.safetensors")
+        for path in sorted(tmpdir.iterdir()):
+            with records.atomic_path(directory / path.name) as tmp:
+                os.replace(path, tmp)
+    except NotImplementedError:
+        pass
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
+
+
+def _clean_stale(directory: Path) -> None:
+    """Remove temporary files a killed earlier attempt of this job left behind."""
+    if not directory.is_dir():
+        return
+    for path in directory.glob(".*.tmp*"):
+        if path.is_dir():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                path.unlink()
+
+
+def _check_finite(record: dict[str, Any]) -> None:
+    """A finished job whose train/test loss is NaN/inf is ``diverged``, with inf
+    losses, whatever the model and the rollouts said."""
+    means = {k: record["metrics"].get(k, {}).get("mean") for k in ("train_loss", "test_loss")}
+    bad = [k for k, v in means.items() if isinstance(v, (int, float)) and not np.isfinite(v)]
+    if not bad:
+        return
+    for key in bad:
+        record["metrics"][key]["mean"] = float("inf")
+    if record["status"] == "ok":
+        record.update(status="diverged", error=f"non-finite {' and '.join(bad)}")
 
 
 def run_job(
-    cfg: DictConfig, directory: Path, index: int | None = None, total: int | None = None
+    cfg: DictConfig, directory: Path, index: int | None = None, total: int | None = None,
+    overrides: list[str] | None = None,
 ) -> dict[str, Any]:
-    """Run one job and write its record into ``directory``; return the record."""
+    """Run one job and write its record into ``directory``; return the record.
+
+    Never raises for a problem of the job itself (bad config, data, model, NaNs): the
+    record says ``failed`` or ``diverged``. ``overrides`` (Hydra's task overrides) are
+    stored in the record so the job can be re-run exactly.
+    """
     directory = Path(directory)
-    tag = f"{cfg.system.name} x {cfg.model.name} seed={cfg.seed}"
+    system, model, seed = (_select(cfg, k) for k in ("system.name", "model.name", "seed"))
+    tag = f"{system} x {model} seed={seed}"
     count = f"[{index + 1}/{total}] " if index is not None and total else ""
     existing = records.read_record(directory / records.RECORD_NAME)
-    if existing and existing.get("status") in records.FINISHED and not cfg.rerun:
+    if existing and existing.get("status") in records.FINISHED and not _select(cfg, "rerun"):
         log.info("%s%s: already finished (%s), skipped; rerun=true redoes it",
                  count, tag, existing["status"])
         return existing
 
-    record = _base_record(cfg)
+    _clean_stale(directory)
+    record = _base_record(cfg, overrides)
     timings: dict[str, float] = record["timings"]
     start = time.perf_counter()
     log.info("%s%s: start", count, tag)
@@ -101,7 +176,11 @@ def run_job(
         record.update(status="failed", error=f"{type(err).__name__}: {err}".splitlines()[0])
         record["traceback"] = traceback.format_exc()
     timings["total_s"] = time.perf_counter() - start
-    records.write_record(directory, record)
+    try:
+        records.write_record(directory, record)
+    except Exception as err:  # e.g. a full disk: say so, and let the sweep go on
+        log.error("%s%s: could not write %s: %s", count, tag,
+                  directory / records.RECORD_NAME, err)
     _log_outcome(count, tag, record)
     return record
 
@@ -152,16 +231,16 @@ def _execute(
     except RolloutDiverged as err:
         timings["fit_s"] = time.perf_counter() - t0
         timings.update(model.timings)
-        inf = {"mean": float("inf"), "sem": float("nan")}
-        record["metrics"] = {k: dict(inf) for k in ("train_loss", "test_loss", *ROLLOUT_METRICS)}
-        record.update(status="diverged", error=f"training diverged: {err}")
+        _diverged(record, f"training diverged: {err}")
         return
     timings["fit_s"] = time.perf_counter() - t0
+    if _history_diverged(history):
+        timings.update(model.timings)
+        record["history"] = history
+        _diverged(record, f"training diverged: {_history_diverged(history)}")
+        return
     if cfg.save_model:
-        try:
-            model.save(directory / "weights.safetensors")
-        except NotImplementedError:
-            pass
+        _save_model(model, directory)
 
     t0 = time.perf_counter()
     ev = EvaluationConfig(**OmegaConf.to_container(cfg.evaluation, resolve=True))  # type: ignore[arg-type]
@@ -175,6 +254,24 @@ def _execute(
         record.update(status="diverged", error=result.diverged)
     else:
         record["status"] = "ok"
+    _check_finite(record)
+
+
+def _history_diverged(history: dict) -> str | None:
+    """Why the training log shows divergence (a non-finite loss), or ``None``."""
+    for key in ("train_loss", "test_loss"):
+        values = np.asarray(history.get(key, []), dtype=np.float64)
+        if values.size and not np.all(np.isfinite(values)):
+            step = int(np.argmax(~np.isfinite(values)))
+            steps = history.get("step") or []
+            at = f" at step {steps[step]}" if step < len(steps) else ""
+            return f"{key} became {values[step]}{at}"
+    return None
+
+
+def _diverged(record: dict[str, Any], error: str) -> None:
+    record["metrics"] = {k: worst(k) for k in ("train_loss", "test_loss", *ROLLOUT_METRICS)}
+    record.update(status="diverged", error=error)
 
 
 def _log_outcome(count: str, tag: str, record: dict[str, Any]) -> None:

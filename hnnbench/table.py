@@ -2,12 +2,24 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import math
+from collections.abc import Iterable, Sequence
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
-__all__ = ["SUMMARY_METRICS", "records_frame", "summary_frame"]
+from hnnbench.records import STATUSES
+
+__all__ = [
+    "SUMMARY_METRICS",
+    "display_frame",
+    "format_value",
+    "leaderboard",
+    "leaderboard_frame",
+    "records_frame",
+    "summary_frame",
+]
 
 #: Metrics shown in the end-of-sweep summary, in order.
 SUMMARY_METRICS = (
@@ -55,3 +67,145 @@ def summary_frame(frame: pd.DataFrame) -> pd.DataFrame:
     cols += [m for m in SUMMARY_METRICS if m in frame.columns]
     cols += [c for c in ("total_s",) if c in frame.columns]
     return frame[cols].sort_values(["system", "model", "seed"]).reset_index(drop=True)
+
+
+# --------------------------------------------------------------------------- leaderboard
+
+#: Canonical order of systems and models in tables; unknown names follow, sorted.
+SYSTEM_ORDER = ("spring", "pendulum", "real_pendulum", "two_body", "three_body",
+                "pixel_pendulum")
+MODEL_ORDER = ("mlp_torch", "hnn_torch", "mlp_jax", "hnn_jax", "oracle")
+#: Timings averaged into the leaderboard (``<name>_mean``).
+TIMINGS = ("fit_s", "eval_s", "total_s")
+#: Identity and status columns of a leaderboard, in order.
+ID_COLUMNS = ("profile", "system", "model", "backend")
+STATUS_COLUMNS = ("n_seeds", "seeds", "n_ok", "n_diverged", "n_failed", "n_skipped", "status")
+#: Metrics shown on a linear scale (others are errors spanning decades: log scale).
+LINEAR_METRICS = frozenset({"valid_prediction_time"})
+
+
+def order_key(name: str, order: Sequence[str]) -> tuple[int, str]:
+    return (order.index(name), "") if name in order else (len(order), str(name))
+
+
+def metric_names(frame: pd.DataFrame) -> list[str]:
+    """Metric names present in a records frame, summary metrics first."""
+    reserved = {"system", "model", "backend", "seed", "profile", "status", "error", "steps",
+                "device", "path", "data_s", "rollout_s", *TIMINGS}
+    found = [c for c in frame.columns if c not in reserved and not c.endswith("_sem")
+             and not c.endswith("_s")]
+    first = [m for m in SUMMARY_METRICS if m in found]
+    return first + sorted(m for m in found if m not in first)
+
+
+def _agg(values: pd.Series) -> tuple[float, float]:
+    """Mean and sample std over seeds; ``inf`` mean if any value is infinite (a
+    diverged rollout), NaN values (metric not applicable) ignored."""
+    arr = pd.to_numeric(values, errors="coerce").to_numpy(dtype=float)
+    arr = arr[~np.isnan(arr)]
+    if arr.size == 0:
+        return math.nan, math.nan
+    if np.any(np.isinf(arr)):
+        return float(np.mean(arr)), math.nan
+    std = float(np.std(arr, ddof=1)) if arr.size >= 2 else math.nan
+    return float(np.mean(arr)), std
+
+
+def status_text(counts: dict[str, int]) -> str:
+    """``ok``, ``diverged`` or ``2 ok, 1 diverged``."""
+    present = {s: n for s, n in counts.items() if n}
+    if len(present) == 1:
+        return next(iter(present))
+    return ", ".join(f"{n} {s}" for s, n in present.items())
+
+
+def leaderboard(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
+    """The leaderboard of run records (see :func:`leaderboard_frame`)."""
+    records = list(records)
+    names: list[str] = []
+    for rec in records:
+        names += [k for k in (rec.get("metrics") or {}) if k not in names]
+    first = [m for m in SUMMARY_METRICS if m in names]
+    return leaderboard_frame(records_frame(records), first + sorted(set(names) - set(first)))
+
+
+def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None) -> pd.DataFrame:
+    """One row per (profile, system, model) of a :func:`records_frame`.
+
+    Columns: :data:`ID_COLUMNS`, :data:`STATUS_COLUMNS`, ``<metric>_mean`` and
+    ``<metric>_std`` (over seeds) for every metric, ``<timing>_mean`` for
+    :data:`TIMINGS`. Metrics are aggregated over the ``ok`` runs; a pair with no ``ok``
+    run is aggregated over its ``diverged`` runs, so it shows ``inf`` where its rollouts
+    diverged (and its finite losses). Failed or skipped runs only: NaN, status says why.
+    """
+    if metrics is None:
+        metrics = metric_names(frame) if not frame.empty else []
+    columns = [*ID_COLUMNS, *STATUS_COLUMNS]
+    for m in metrics:
+        columns += [f"{m}_mean", f"{m}_std"]
+    columns += [f"{t}_mean" for t in TIMINGS]
+    if frame.empty:
+        return pd.DataFrame(columns=columns)
+    frame = frame.copy()
+    frame["profile"] = frame["profile"].fillna("?")
+    rows = []
+    for (profile, system, model), group in frame.groupby(["profile", "system", "model"],
+                                                          dropna=False, sort=False):
+        counts = {s: int((group["status"] == s).sum()) for s in STATUSES}
+        seeds = sorted({int(s) for s in group["seed"].dropna()})
+        backends = [b for b in group["backend"].dropna().unique()] if "backend" in group else []
+        row: dict[str, Any] = {
+            "profile": profile, "system": system, "model": model,
+            "backend": backends[0] if backends else "",
+            "n_seeds": len(group), "seeds": ";".join(str(s) for s in seeds),
+            **{f"n_{s}": counts[s] for s in STATUSES},
+            "status": status_text(counts),
+        }
+        use = group[group["status"] == "ok"]
+        if use.empty:
+            use = group[group["status"] == "diverged"]
+        for m in metrics:
+            mean, std = _agg(use[m]) if (m in use and not use.empty) else (math.nan, math.nan)
+            row[f"{m}_mean"], row[f"{m}_std"] = mean, std
+        timed = use if not use.empty else group
+        for t in TIMINGS:
+            vals = pd.to_numeric(timed[t], errors="coerce") if t in timed else pd.Series([])
+            row[f"{t}_mean"] = float(vals.mean()) if vals.notna().any() else math.nan
+        rows.append(row)
+    out = pd.DataFrame(rows, columns=columns)
+    keys = out.apply(lambda r: (str(r["profile"]), order_key(r["system"], SYSTEM_ORDER),
+                                order_key(r["model"], MODEL_ORDER)), axis=1)
+    return out.iloc[sorted(range(len(out)), key=lambda i: keys.iloc[i])].reset_index(drop=True)
+
+
+def format_value(mean: float, std: float = math.nan, linear: bool = False) -> str:
+    """``3.7e-02 ± 1.1e-03``; ``inf``; ``—`` for no value; mean alone for one seed."""
+    def one(x: float) -> str:
+        if math.isinf(x):
+            return "inf" if x > 0 else "-inf"
+        return f"{x:.3g}" if linear else f"{x:.1e}"
+
+    if mean is None or pd.isna(mean):
+        return "—"
+    text = one(float(mean))
+    if std is not None and not pd.isna(std) and not math.isinf(float(mean)):
+        text += f" ± {one(float(std))}"
+    return text
+
+
+def display_frame(board: pd.DataFrame, timings: bool = True) -> pd.DataFrame:
+    """The leaderboard with ``mean ± std`` strings, for Markdown and HTML."""
+    metrics = [c[: -len("_mean")] for c in board.columns
+               if c.endswith("_mean") and c[: -len("_mean")] not in TIMINGS]
+    rows = []
+    for _, r in board.iterrows():
+        row: dict[str, Any] = {"system": r["system"], "model": r["model"],
+                               "n_seeds": int(r["n_seeds"]), "status": r["status"]}
+        for m in metrics:
+            if board[f"{m}_mean"].isna().all():  # not applicable anywhere
+                continue
+            row[m] = format_value(r[f"{m}_mean"], r[f"{m}_std"], linear=m in LINEAR_METRICS)
+        if timings:
+            row["total_s"] = format_value(r.get("total_s_mean", math.nan), linear=True)
+        rows.append(row)
+    return pd.DataFrame(rows)

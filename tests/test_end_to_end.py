@@ -43,5 +43,5 @@ def test_quick_sweep_spring_pendulum_then_resume(tmp_path):
     before = {k: r["created_at"] for k, r in recs.items()}
     proc = hnnbench(*args, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    assert proc.stderr.count("already finished") == 6
+    assert (proc.stdout + proc.stderr).count("already finished") == 6  # job log: stdout
     assert {k: r["created_at"] for k, r in _records(sweep).items()} == before

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from hnnbench.errors import ConfigError, DataError
 from hnnbench_plugins.systems.real_pendulum import (
     FILENAME,
     SHA256,
@@ -14,8 +16,6 @@ from hnnbench_plugins.systems.real_pendulum import (
     RealPendulumConfig,
     parse_table,
 )
-
-from hnnbench.errors import ConfigError, DataError
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -31,7 +31,7 @@ class NeuralConfig(ModelConfig):
     activation: str = "tanh"
     dtype: str = "float32"
     log_every: int = 0
-    rollout_max_steps: int = 200_000
+    rollout_max_steps: int = 50_000
 
     def validate(self) -> None:
         super().validate()

@@ -42,7 +42,7 @@ class MLP(nn.Module):
         dims = [d_in] + [cfg.hidden] * (cfg.layers - 1) + [d_out]
         self.linears = nn.ModuleList(
             nn.Linear(a, b, bias=i < cfg.layers - 1)
-            for i, (a, b) in enumerate(zip(dims[:-1], dims[1:]))
+            for i, (a, b) in enumerate(zip(dims[:-1], dims[1:], strict=True))
         )
         for layer in self.linears:
             nn.init.orthogonal_(layer.weight)
@@ -130,7 +130,8 @@ class TorchModel(Model):
         return self._net64
 
     def _tensor(self, x: np.ndarray, dtype: Any | None = None) -> torch.Tensor:
-        return torch.as_tensor(np.asarray(x), dtype=dtype or self._dtype, device=self._device)
+        arr = np.ascontiguousarray(x)
+        return torch.as_tensor(arr, dtype=dtype or self._dtype, device=self._device)
 
     # -- training ---------------------------------------------------------------------
     def fit(
@@ -164,7 +165,10 @@ class TorchModel(Model):
                 history["test_loss"].append(test_loss)
                 progress(step, {"train_loss": train_loss, "test_loss": test_loss})
                 if not (np.isfinite(train_loss) and np.isfinite(test_loss)):
-                    raise RolloutDiverged(f"training loss became {train_loss} at step {step}")
+                    raise RolloutDiverged(
+                        f"loss became non-finite at step {step} "
+                        f"(train {train_loss:.3g}, test {test_loss:.3g})"
+                    )
         return FitResult(history=history, steps=train.steps)
 
     # -- inference --------------------------------------------------------------------

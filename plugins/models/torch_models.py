@@ -1,10 +1,15 @@
-"""The PyTorch baseline MLP and Hamiltonian neural network."""
+"""The PyTorch baseline MLP and Hamiltonian neural network.
+
+Both run on state and pixel systems; on pixels they learn their dynamics in the latent
+space of an autoencoder (:mod:`hnnbench_plugins.models.torch_pixel`).
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-from hnnbench_plugins.models.torch_base import MLP, TorchModel, torch
+from hnnbench_plugins.models.torch_base import MLP, torch
+from hnnbench_plugins.models.torch_pixel import PixelTorchModel
 
 
 def symplectic(grad: torch.Tensor) -> torch.Tensor:
@@ -13,7 +18,7 @@ def symplectic(grad: torch.Tensor) -> torch.Tensor:
     return torch.cat([grad[..., n:], -grad[..., :n]], dim=-1)
 
 
-class MLPTorch(TorchModel):
+class MLPTorch(PixelTorchModel):
     """Baseline: an MLP that outputs dx/dt directly (PyTorch)."""
 
     version = "1"
@@ -24,7 +29,7 @@ class MLPTorch(TorchModel):
         return net(x)
 
 
-class HNNTorch(TorchModel):
+class HNNTorch(PixelTorchModel):
     """Hamiltonian neural network: an MLP outputs a scalar H; dx/dt is its symplectic
     gradient (dH/dp, -dH/dq) (PyTorch)."""
 

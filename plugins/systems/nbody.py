@@ -1,0 +1,504 @@
+"""N gravitating point masses in the plane (G = m = 1): the HNN paper's two- and three-body tasks.
+
+State layout (``dof = 2N``, a state has ``4N`` numbers)::
+
+    x = (q, p),  q = (x_1, y_1, x_2, y_2, ..., x_N, y_N),  p = (px_1, py_1, ..., px_N, py_N)
+
+positions of each body first, then their momenta ``p_i = m v_i`` (with m = 1, the
+velocities). The Hamiltonian is
+
+    H = sum_i |p_i|^2 / (2 m) - sum_{i<j} G m^2 / |q_i - q_j|
+
+(every pair counted once, so it is right for any N, unlike the original code whose
+potential accumulated outside its loop), and the vector field is ``dq_i/dt = p_i / m``,
+``dp_i/dt = sum_{j != i} G m^2 (q_j - q_i) / |q_j - q_i|^3``. Both are vectorised over any
+leading batch dimensions.
+
+Initial states: the N bodies sit on a ring of radius ``r ~ U[radius_min, radius_max]``,
+evenly spaced (360/N degrees apart) at a uniformly random rotation, so two bodies are
+mirrored through the origin and three form an equilateral triangle. Each body moves
+tangentially (counter-clockwise) at the speed of the circular orbit of that ring,
+``v = sqrt(S / (4 r))`` with ``S = sum_{k=1}^{N-1} 1 / sin(pi k / N)`` (G = m = 1), times its
+own factor ``1 + velocity_noise * N(0, 1)``. "Positions in [0.5, 1.5]" (REFERENCE.md) is read
+as a random direction scaled to a random radius. Each body's factor is drawn
+independently, so the centre of mass may drift slowly.
+
+Ground truth: every trajectory is integrated by REBOUND with IAS15 (``adaptive_mode =
+"global"``, default epsilon), stopping exactly at each sample time. The worst relative
+energy drift ``|E(t) - E(0)| / |E(0)|`` (REBOUND's ``sim.energy()``) over all trajectories
+and sample times is recorded in ``Dataset.meta`` / ``Trajectories.meta`` as
+``max_rel_energy_drift`` and is at most :data:`MAX_REL_ENERGY_DRIFT` (1e-10). An orbit that
+breaks that limit is a near-collision (bodies closer than ~1e-4; about 1 in 5000 of the
+paper's three-body orbits) that IAS15 cannot follow to that accuracy: it is replaced
+by a fresh draw from the same random stream, and ``n_rejected_orbits`` counts these. If
+more than 5% of the orbits (at least 3) need replacing, generation fails with
+:class:`DataError`.
+
+Data: ``n_orbits`` orbits with ``n_points`` samples over ``[0, t_end]``. The dx/dt targets
+are the analytic vector field at the states. The original added no noise to n-body
+inputs, so ``noise_std`` defaults to 0. The first ``test_split`` of the orbits are the
+test set, the rest train.
+
+Evaluation: ``eval_n_orbits`` fresh orbits from the same distribution (another random
+stream), ``eval_n_points`` samples over ``[0, eval_t_end]``, also from REBOUND IAS15;
+``dt`` is the training data's sampling interval.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+import rebound
+
+from hnnbench.api import Dataset, Split, System, SystemConfig, Trajectories, check_positive
+from hnnbench.errors import ConfigError, DataError
+
+__all__ = [
+    "MAX_REL_ENERGY_DRIFT",
+    "NBody",
+    "NBodyConfig",
+    "ThreeBody",
+    "ThreeBodyConfig",
+    "TwoBody",
+    "TwoBodyConfig",
+    "circular_speed",
+    "hamiltonian",
+    "rebound_orbits",
+    "ring_states",
+    "vector_field",
+]
+
+#: Gravitational constant and the mass of every body.
+G = 1.0
+MASS = 1.0
+
+#: Largest relative energy drift of REBOUND ground truth a dataset may have.
+MAX_REL_ENERGY_DRIFT = 1e-10
+
+#: REBOUND stops an orbit whose bodies come closer than this (a near-collision that IAS15
+#: cannot follow to MAX_REL_ENERGY_DRIFT anyway, and that could take very many steps).
+ENCOUNTER_DISTANCE = 1e-6
+
+#: Seed-stream tags, so data and evaluation draws never overlap.
+DATA_STREAM = 0
+EVAL_STREAM = 1
+
+
+# --------------------------------------------------------------------------- config
+
+
+@dataclass
+class NBodyConfig(SystemConfig):
+    """Data and evaluation protocol of N bodies on a perturbed circular ring."""
+
+    n_bodies: int = 2
+    n_orbits: int = 1000
+    t_end: float = 20.0
+    n_points: int = 50
+    radius_min: float = 0.5
+    radius_max: float = 1.5
+    #: Std of each body's relative speed perturbation ``1 + velocity_noise * N(0, 1)``.
+    velocity_noise: float = 0.05
+    #: Gaussian noise added to the model inputs (targets stay clean); 0 as in the paper.
+    noise_std: float = 0.0
+    #: Fraction of orbits (the first ones) held out as the test set.
+    test_split: float = 0.2
+    eval_n_orbits: int = 15
+    eval_t_end: float = 25.0
+    eval_n_points: int = 500
+
+    def validate(self) -> None:
+        super().validate()
+        check_positive(
+            "system", t_end=self.t_end, radius_min=self.radius_min, eval_t_end=self.eval_t_end
+        )
+        for key in ("n_bodies", "n_orbits", "n_points", "eval_n_orbits", "eval_n_points"):
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 2:
+                raise ConfigError(
+                    f"system.{key}={value} is invalid: expected an integer >= 2. "
+                    f"Fix it with system.{key}=<integer >= 2>."
+                )
+        if not 0.0 < self.test_split < 1.0:
+            raise ConfigError(
+                f"system.test_split={self.test_split} is invalid: expected a fraction "
+                "strictly between 0 and 1, e.g. system.test_split=0.2."
+            )
+        if self.radius_max < self.radius_min:
+            raise ConfigError(
+                f"system.radius_max={self.radius_max} is below system.radius_min="
+                f"{self.radius_min}: expected radius_min <= radius_max; raise radius_max."
+            )
+        for key in ("velocity_noise", "noise_std"):
+            if not getattr(self, key) >= 0:
+                raise ConfigError(
+                    f"system.{key}={getattr(self, key)} is invalid: expected a number >= 0. "
+                    f"Fix it with system.{key}=0 or another non-negative value."
+                )
+        n_test = round(self.n_orbits * self.test_split)
+        if not 0 < n_test < self.n_orbits:
+            raise ConfigError(
+                f"system.test_split={self.test_split} with system.n_orbits={self.n_orbits} "
+                "leaves an empty train or test set: use more orbits or another split."
+            )
+
+
+@dataclass
+class TwoBodyConfig(NBodyConfig):
+    """Paper settings: 1000 orbits x 50 points over [0, 20], radius U[0.5, 1.5]."""
+
+    n_bodies: int = 2
+    n_orbits: int = 1000
+    t_end: float = 20.0
+    n_points: int = 50
+    radius_min: float = 0.5
+    radius_max: float = 1.5
+    velocity_noise: float = 0.05
+    test_split: float = 0.2
+    eval_t_end: float = 25.0
+    eval_n_points: int = 500
+    steps: int = 10000
+    batch_size: int = 200
+    weight_decay: float = 0.0
+
+
+@dataclass
+class ThreeBodyConfig(NBodyConfig):
+    """Paper settings: 5000 orbits x 20 points over [0, 5], radius U[0.9, 1.2]."""
+
+    n_bodies: int = 3
+    n_orbits: int = 5000
+    t_end: float = 5.0
+    n_points: int = 20
+    radius_min: float = 0.9
+    radius_max: float = 1.2
+    velocity_noise: float = 0.2
+    test_split: float = 0.2
+    eval_t_end: float = 3.0
+    eval_n_points: int = 500
+    steps: int = 10000
+    batch_size: int = 600
+    weight_decay: float = 1e-4
+
+
+# --------------------------------------------------------------------------- physics
+
+
+def _split(x: np.ndarray, n_bodies: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(..., 4N)`` states -> positions and momenta, each ``(..., N, 2)``."""
+    x = np.asarray(x, dtype=np.float64)
+    if x.shape[-1] != 4 * n_bodies:
+        raise ValueError(
+            f"expected states with {4 * n_bodies} numbers for {n_bodies} bodies, "
+            f"got shape {x.shape}"
+        )
+    lead = x.shape[:-1]
+    q = x[..., : 2 * n_bodies].reshape(*lead, n_bodies, 2)
+    p = x[..., 2 * n_bodies :].reshape(*lead, n_bodies, 2)
+    return q, p
+
+
+def hamiltonian(x: np.ndarray, n_bodies: int) -> np.ndarray:
+    """``H`` of ``(..., 4N)`` states, shape ``(...)``."""
+    q, p = _split(x, n_bodies)
+    kinetic = np.sum(p**2, axis=(-1, -2)) / (2.0 * MASS)
+    i, j = np.triu_indices(n_bodies, k=1)
+    dist = np.linalg.norm(q[..., i, :] - q[..., j, :], axis=-1)
+    potential = -G * MASS * MASS * np.sum(1.0 / dist, axis=-1)
+    return kinetic + potential
+
+
+def accelerations(q: np.ndarray) -> np.ndarray:
+    """Gravitational accelerations ``(..., N, 2)`` of bodies at positions ``(..., N, 2)``."""
+    n = q.shape[-2]
+    diff = q[..., None, :, :] - q[..., :, None, :]  # [..., i, j] = q_j - q_i
+    dist2 = np.sum(diff**2, axis=-1)
+    dist2[..., np.arange(n), np.arange(n)] = np.inf  # no self-force
+    inv_r3 = dist2**-1.5
+    return G * MASS * np.sum(diff * inv_r3[..., None], axis=-2)
+
+
+def vector_field(x: np.ndarray, n_bodies: int) -> np.ndarray:
+    """``dx/dt = (p / m, F)`` of ``(..., 4N)`` states (F: gravitational forces), same shape."""
+    q, p = _split(x, n_bodies)
+    lead = q.shape[:-2]
+    dq = p / MASS
+    dp = MASS * accelerations(q)
+    return np.concatenate(
+        [dq.reshape(*lead, 2 * n_bodies), dp.reshape(*lead, 2 * n_bodies)], axis=-1
+    )
+
+
+def circular_speed(radius: np.ndarray, n_bodies: int) -> np.ndarray:
+    """Speed of N equal masses on a uniformly rotating ring of ``radius`` (G = m = 1).
+
+    Body 0 feels ``sum_k G m / d_k^2`` toward the centre times ``sin(pi k / N)``, with
+    ``d_k = 2 r sin(pi k / N)``; equating it to ``v^2 / r`` gives ``v = sqrt(G m S / (4 r))``,
+    ``S = sum_k 1 / sin(pi k / N)``.
+    """
+    k = np.arange(1, n_bodies)
+    s = np.sum(1.0 / np.sin(np.pi * k / n_bodies))
+    return np.sqrt(G * MASS * s / (4.0 * np.asarray(radius, dtype=np.float64)))
+
+
+def ring_states(
+    rng: np.random.Generator,
+    n: int,
+    n_bodies: int,
+    radius_min: float,
+    radius_max: float,
+    velocity_noise: float,
+) -> np.ndarray:
+    """``(n, 4N)`` perturbed circular-ring initial states (see the module docstring)."""
+    radius = rng.uniform(radius_min, radius_max, size=n)
+    phase = rng.uniform(0.0, 2.0 * np.pi, size=n)
+    factor = 1.0 + velocity_noise * rng.standard_normal((n, n_bodies))
+    angle = phase[:, None] + 2.0 * np.pi * np.arange(n_bodies)[None, :] / n_bodies  # (n, N)
+    radial = np.stack([np.cos(angle), np.sin(angle)], axis=-1)  # (n, N, 2)
+    tangential = np.stack([-np.sin(angle), np.cos(angle)], axis=-1)
+    q = radius[:, None, None] * radial
+    speed = circular_speed(radius, n_bodies)[:, None] * factor  # (n, N)
+    p = MASS * speed[..., None] * tangential
+    return np.concatenate([q.reshape(n, -1), p.reshape(n, -1)], axis=1)
+
+
+# --------------------------------------------------------------------------- REBOUND
+
+
+def _new_simulation() -> rebound.Simulation:
+    sim = rebound.Simulation()
+    sim.G = G
+    sim.integrator = "ias15"
+    # REBOUND 5's default step rule (PRS23) can stall on symmetric states.
+    sim.integrator.adaptive_mode = "global"
+    sim.exit_min_distance = ENCOUNTER_DISTANCE
+    return sim
+
+
+def rebound_orbits(x0: np.ndarray, t: np.ndarray, n_bodies: int) -> tuple[np.ndarray, np.ndarray]:
+    """Integrate each initial state of ``x0`` ``(M, 4N)`` over ``t`` with REBOUND IAS15.
+
+    One simulation per orbit, stopping exactly at each time of ``t`` (``t[0]`` is the time
+    of ``x0``). Nothing is rejected here.
+
+    Returns:
+        ``(M, T, 4N)`` states and ``(M,)`` relative energy drifts ``max_t |E(t) - E(0)| /
+        |E(0)|`` (REBOUND's ``sim.energy()``). The drift is ``inf`` where a pair came
+        closer than :data:`ENCOUNTER_DISTANCE` (REBOUND stops; that orbit's states after
+        the stop are NaN) or a state is not finite.
+    """
+    x0 = np.asarray(x0, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64)
+    m, n_t, nb = x0.shape[0], t.shape[0], n_bodies
+    out = np.full((m, n_t, 4 * nb), np.nan)
+    out[:, 0] = x0
+    buf = np.zeros((nb, 6))  # x, y, z, vx, vy, vz of each particle
+    drift = np.zeros(m)
+    q0, p0 = _split(x0, nb)
+    v0 = p0 / MASS
+    for k in range(m):
+        sim = _new_simulation()
+        sim.t = float(t[0])
+        for i in range(nb):
+            sim.add(m=MASS, x=q0[k, i, 0], y=q0[k, i, 1], vx=v0[k, i, 0], vy=v0[k, i, 1])
+        e0 = sim.energy()
+        worst = 0.0
+        row = out[k]
+        try:
+            for j in range(1, n_t):
+                sim.integrate(t[j], exact_finish_time=1)
+                sim.serialize_particle_data(xyzvxvyvz=buf)
+                row[j, : 2 * nb] = buf[:, 0:2].reshape(-1)
+                row[j, 2 * nb :] = MASS * buf[:, 3:5].reshape(-1)
+                worst = max(worst, abs(sim.energy() - e0))
+        except rebound.Encounter:
+            worst = np.inf
+        drift[k] = worst / abs(e0) if np.all(np.isfinite(row)) else np.inf
+    return out, drift
+
+
+def ias15_epsilon() -> float:
+    """IAS15's accuracy parameter as used here (REBOUND's default)."""
+    return float(_new_simulation().integrator.epsilon)
+
+
+def _reference_meta() -> dict[str, Any]:
+    return {
+        "reference": "REBOUND IAS15",
+        "rebound_version": str(rebound.__version__),
+        "ias15_adaptive_mode": "global",
+        "ias15_epsilon": ias15_epsilon(),
+        "max_rel_energy_drift_limit": MAX_REL_ENERGY_DRIFT,
+        "encounter_distance": ENCOUNTER_DISTANCE,
+    }
+
+
+def min_pair_distance(states: np.ndarray, n_bodies: int) -> float:
+    """Smallest distance between two bodies over all ``(..., 4N)`` states."""
+    q, _ = _split(states, n_bodies)
+    i, j = np.triu_indices(n_bodies, k=1)
+    return float(np.min(np.linalg.norm(q[..., i, :] - q[..., j, :], axis=-1)))
+
+
+# --------------------------------------------------------------------------- systems
+
+
+class NBody(System):
+    """N equal point masses in 2-D under Newtonian gravity (G = m = 1).
+
+    ``Config.n_bodies`` sets N; :class:`TwoBody` and :class:`ThreeBody` are the paper's
+    tasks.
+    """
+
+    Config: ClassVar[type[SystemConfig]] = NBodyConfig
+    cfg: NBodyConfig
+    version = "1"
+    description = "N bodies in 2-D under Newtonian gravity, G = m = 1 (REBOUND IAS15 data)"
+    time_reversible = True
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {
+        "quick": {"n_orbits": 100, "steps": 300, "eval_n_orbits": 5, "eval_n_points": 100}
+    }
+
+    @property
+    def n_bodies(self) -> int:
+        return int(self.cfg.n_bodies)
+
+    @property
+    def dof(self) -> int:
+        return 2 * self.n_bodies
+
+    def energy(self, x: np.ndarray) -> np.ndarray:
+        return hamiltonian(x, self.n_bodies)
+
+    def vector_field(self, x: np.ndarray) -> np.ndarray:
+        return vector_field(x, self.n_bodies)
+
+    def initial_states(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """``(n, 4N)`` initial states drawn from the protocol's distribution."""
+        c = self.cfg
+        return ring_states(
+            rng, n, self.n_bodies, c.radius_min, c.radius_max, c.velocity_noise
+        )
+
+    @property
+    def data_dt(self) -> float:
+        """Sampling interval of the training data."""
+        return float(self.cfg.t_end) / (self.cfg.n_points - 1)
+
+    def ground_truth(
+        self, rng: np.random.Generator, n: int, t: np.ndarray
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """``n`` REBOUND orbits over ``t`` from fresh initial states, and their metadata.
+
+        An orbit whose relative energy drift exceeds :data:`MAX_REL_ENERGY_DRIFT` (in
+        practice: a near-collision, closer than ~1e-4) is replaced by a new draw from
+        ``rng``, so the result is deterministic given the generator's state. Raises
+        :class:`DataError` if more than :func:`max_rejections` orbits are replaced.
+        """
+        nb = self.n_bodies
+        states, drift = rebound_orbits(self.initial_states(rng, n), t, nb)
+        bad = np.flatnonzero(~(drift <= MAX_REL_ENERGY_DRIFT))
+        n_rejected = 0
+        limit = max_rejections(n)
+        while bad.size:
+            n_rejected += int(bad.size)
+            if n_rejected > limit:
+                raise DataError(
+                    f"{self.name}: {n_rejected} of {n} REBOUND IAS15 orbits broke the "
+                    f"energy-drift limit {MAX_REL_ENERGY_DRIFT:g} (near-collisions), more "
+                    f"than the {limit} allowed: lower system.velocity_noise or "
+                    "system.t_end, or raise system.radius_min."
+                )
+            new_states, new_drift = rebound_orbits(self.initial_states(rng, bad.size), t, nb)
+            states[bad], drift[bad] = new_states, new_drift
+            bad = bad[~(new_drift <= MAX_REL_ENERGY_DRIFT)]
+        worst = int(np.argmax(drift))
+        if not drift[worst] <= MAX_REL_ENERGY_DRIFT:  # unreachable; a last guard
+            raise DataError(
+                f"{self.name}: REBOUND ground truth drifted in energy by {drift[worst]:.3g}, "
+                f"above {MAX_REL_ENERGY_DRIFT:g}."
+            )
+        info = {
+            **_reference_meta(),
+            "max_rel_energy_drift": float(drift[worst]),
+            "n_rejected_orbits": n_rejected,
+            "min_pair_distance": min_pair_distance(states, nb),
+        }
+        return states, info
+
+    def dataset(self, seed: int) -> Dataset:
+        c = self.cfg
+        rng = np.random.default_rng((seed, DATA_STREAM))
+        t = np.linspace(0.0, c.t_end, c.n_points)
+        states, info = self.ground_truth(rng, c.n_orbits, t)  # (n_orbits, T, 4N)
+        dxdt = self.vector_field(states)
+        x = states
+        if c.noise_std > 0:
+            x = states + rng.normal(0.0, c.noise_std, size=states.shape)
+        d = 4 * self.n_bodies
+        traj = np.broadcast_to(np.arange(c.n_orbits)[:, None], (c.n_orbits, c.n_points))
+        times = np.broadcast_to(t[None, :], (c.n_orbits, c.n_points))
+        n_test = round(c.n_orbits * c.test_split)
+
+        def split(sl: slice) -> Split:
+            return Split(
+                x=x[sl].reshape(-1, d).copy(), dxdt=dxdt[sl].reshape(-1, d).copy(),
+                traj=traj[sl].reshape(-1).copy(), t=times[sl].reshape(-1).copy(),
+            )
+
+        return Dataset(
+            train=split(slice(n_test, None)),
+            test=split(slice(0, n_test)),
+            meta={
+                "dt": self.data_dt,
+                "n_bodies": self.n_bodies,
+                "n_train_traj": c.n_orbits - n_test,
+                "n_test_traj": n_test,
+                "test_orbits": "first",
+                **info,
+            },
+        )
+
+    def evaluation(self, seed: int) -> Trajectories:
+        c = self.cfg
+        rng = np.random.default_rng((seed, EVAL_STREAM))
+        t = np.linspace(0.0, c.eval_t_end, c.eval_n_points)
+        states, info = self.ground_truth(rng, c.eval_n_orbits, t)
+        return Trajectories(
+            t=t, states=states, dt=self.data_dt,
+            meta={
+                "horizon": float(c.eval_t_end),
+                "n_traj": int(c.eval_n_orbits),
+                "n_bodies": self.n_bodies,
+                **info,
+            },
+        )
+
+
+def max_rejections(n: int) -> int:
+    """How many of ``n`` orbits may be redrawn before generation gives up (5%, at least 3)."""
+    return max(3, int(np.ceil(0.05 * n)))
+
+
+class TwoBody(NBody):
+    """Two bodies on perturbed circular orbits; the paper's task 4."""
+
+    Config = TwoBodyConfig
+    cfg: TwoBodyConfig
+    description = "Two bodies in 2-D, Newtonian gravity G = m = 1 (HNN paper, task 4; REBOUND)"
+    profiles = {
+        "quick": {"n_orbits": 100, "steps": 300, "eval_n_orbits": 5, "eval_n_points": 100}
+    }
+
+
+class ThreeBody(NBody):
+    """Three bodies from a perturbed rotating triangle; the paper's three-body task."""
+
+    Config = ThreeBodyConfig
+    cfg: ThreeBodyConfig
+    description = "Three bodies in 2-D, Newtonian gravity G = m = 1 (HNN repo README; REBOUND)"
+    profiles = {
+        "quick": {"n_orbits": 100, "steps": 300, "eval_n_orbits": 5, "eval_n_points": 100}
+    }

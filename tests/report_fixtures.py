@@ -1,0 +1,138 @@
+"""Synthetic sweep directories for the report and check tests: real ``result.json``
+records (via :func:`hnnbench.records.write_record`) and ``rollout.npz`` arrays in the
+layout that :mod:`hnnbench.run` writes."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hnnbench import records
+
+INF = float("inf")
+NAN = float("nan")
+
+#: (system, model) -> metric means of seed 0; seed s multiplies errors by (1 + 0.1 s).
+BASE: dict[tuple[str, str], dict[str, float]] = {
+    ("spring", "mlp_torch"): {"train_loss": 3.7e-2, "test_loss": 3.8e-2, "energy_mse": 4e-3,
+                              "rollout_mse": 0.2, "reversibility_error": 1e-8,
+                              "time_reversal_error": 3e-2, "valid_prediction_time": 1.2},
+    ("spring", "hnn_torch"): {"train_loss": 3.6e-2, "test_loss": 3.7e-2, "energy_mse": 2e-5,
+                              "rollout_mse": 0.1, "reversibility_error": 4e-8,
+                              "time_reversal_error": 3e-4, "valid_prediction_time": 4.0},
+    ("spring", "oracle"): {"train_loss": 4e-2, "test_loss": 4e-2, "energy_mse": 2e-16,
+                           "rollout_mse": 4e-17, "reversibility_error": 1e-8,
+                           "time_reversal_error": 1e-15, "valid_prediction_time": 20.0},
+    ("pendulum", "mlp_torch"): {"train_loss": 5e-2, "test_loss": 5e-2, "energy_mse": 5e-2,
+                                "rollout_mse": 1.0, "reversibility_error": 2e-6,
+                                "time_reversal_error": 4.0, "valid_prediction_time": 3.7},
+    ("pendulum", "hnn_torch"): {"train_loss": 3.4e-2, "test_loss": 3.4e-2, "energy_mse": 1e-3,
+                                "rollout_mse": 8e-2, "reversibility_error": 2e-6,
+                                "time_reversal_error": 0.14, "valid_prediction_time": 3.9},
+}
+BACKEND = {"mlp_torch": "torch", "hnn_torch": "torch", "mlp_jax": "jax", "hnn_jax": "jax",
+           "oracle": "numpy"}
+HIGHER_BETTER = {"valid_prediction_time"}
+
+
+def seed_metrics(system: str, model: str, seed: int) -> dict[str, float]:
+    base = BASE.get((system, model)) or BASE[("spring", model.replace("jax", "torch"))]
+    out = {}
+    for name, value in base.items():
+        f = 1.0 + 0.1 * seed
+        out[name] = value / f if name in HIGHER_BETTER else value * f
+    return out
+
+
+def _arrays(system: str, model: str, seed: int, n_traj: int = 3, n_t: int = 25,
+            steps: int = 20) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 5.0, n_t)
+    r = 0.2 + 0.8 * rng.random(n_traj)
+    phase = rng.random(n_traj) * 2 * np.pi
+    q = r[:, None] * np.cos(t[None] + phase[:, None])
+    p = -r[:, None] * np.sin(t[None] + phase[:, None])
+    true = np.stack([q, p], axis=-1)
+    drift = 0.0 if model == "oracle" else (0.02 if model.startswith("hnn") else 0.1)
+    hat = true * (1.0 + drift * t[None, :, None] / t[-1])
+    arrays: dict[str, np.ndarray] = {
+        "t": t, "states_true": true, "states_hat": hat,
+        "energy_true": np.sum(true**2, axis=-1), "energy_hat": np.sum(hat**2, axis=-1),
+    }
+    if model.startswith("hnn") or model == "oracle":
+        arrays["learned_energy"] = np.sum(hat**2, axis=-1) + 0.3
+    if model != "oracle":
+        step = np.arange(1, steps + 1, dtype=np.float64)
+        arrays["history.step"] = step
+        arrays["history.train_loss"] = 1.0 / step
+        arrays["history.test_loss"] = 1.1 / step
+    return arrays
+
+
+def write_run(root: Path, system: str, model: str, seed: int, status: str = "ok",
+              metrics: dict[str, float] | None = None, profile: str = "quick",
+              rollout: bool = True) -> Path:
+    """One job directory like ``run.py`` writes it; returns the directory."""
+    directory = Path(root) / system / model / f"seed{seed}"
+    directory.mkdir(parents=True, exist_ok=True)
+    values = seed_metrics(system, model, seed) if metrics is None else metrics
+    if status == "diverged" and metrics is None:
+        values = {k: (v if k.endswith("_loss") else INF) for k, v in values.items()}
+    if status in ("failed", "skipped"):
+        values = {}
+    record: dict[str, Any] = {
+        "schema_version": records.SCHEMA_VERSION, "system": system, "system_version": "1",
+        "model": model, "model_version": "1", "backend": BACKEND.get(model, "torch"),
+        "seed": seed, "profile": profile, "status": status,
+        "error": None if status == "ok" else f"synthetic {status}",
+        "metrics": {k: {"mean": v, "sem": 0.1 * v} for k, v in values.items()},
+        "timings": {"data_s": 0.1, "fit_s": 2.0 + seed, "eval_s": 1.0, "total_s": 3.1 + seed},
+        "steps": 20, "device": "cpu", "data": {},
+        "config": {"seed": seed, "profile": {"name": profile}},
+        "environment": records.environment(), "created_at": records.now_iso(),
+    }
+    records.write_record(directory, record)
+    if rollout and status in ("ok", "diverged"):
+        arrays = _arrays(system, model, seed)
+        if status == "diverged":
+            arrays = {k: v for k, v in arrays.items()
+                      if k in ("t", "states_true") or k.startswith("history.")}
+        np.savez_compressed(directory / "rollout.npz", **arrays)
+    return directory
+
+
+PAIRS = (("spring", "mlp_torch"), ("spring", "hnn_torch"), ("spring", "oracle"),
+         ("pendulum", "mlp_torch"), ("pendulum", "hnn_torch"))
+
+
+def make_sweep(root: Path, pairs=PAIRS, seeds=(0, 1), **kwargs: Any) -> Path:
+    root = Path(root)
+    for system, model in pairs:
+        for seed in seeds:
+            write_run(root, system, model, seed, **kwargs)
+    return root
+
+
+def scale_metric(root: Path, system: str, model: str, metric: str, factor: float) -> None:
+    """Multiply ``metric`` of every record of (system, model) under ``root``."""
+    for path in Path(root).rglob(records.RECORD_NAME):
+        rec = records.read_record(path)
+        assert rec is not None
+        if rec["system"] == system and rec["model"] == model:
+            rec = copy.deepcopy(rec)
+            rec["metrics"][metric]["mean"] *= factor
+            records.write_record(path.parent, rec)
+
+
+def set_status(root: Path, system: str, model: str, seed: int, status: str) -> None:
+    """Rewrite one run as ``status`` (diverged: infinite rollout metrics)."""
+    import shutil
+
+    directory = Path(root) / system / model / f"seed{seed}"
+    profile = (records.read_record(directory / records.RECORD_NAME) or {}).get("profile",
+                                                                                "quick")
+    shutil.rmtree(directory)
+    write_run(root, system, model, seed, status=status, profile=profile)

@@ -1,0 +1,135 @@
+"""The JAX models are twins of the PyTorch models: same weights + same data -> same
+training curve and same rollouts.
+
+Both backends start from the torch model's seeded initial weights (copied into the
+equinox model with ``initial_weights``), train in float64 on the full spring training
+set (750 points, paper architecture) and log every step. Minibatch runs are not
+compared: the two backends draw minibatches from different random streams.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("torch")
+pytest.importorskip("torchdiffeq")
+pytest.importorskip("jax")
+pytest.importorskip("diffrax")
+
+import torch  # noqa: E402
+
+from hnnbench.api import Dataset, TrainSettings  # noqa: E402
+from hnnbench_plugins.models.jax_base import jnp, optax  # noqa: E402
+from hnnbench_plugins.models.jax_models import HNNJax, MLPJax  # noqa: E402
+from hnnbench_plugins.models.neural import NeuralConfig  # noqa: E402
+from hnnbench_plugins.models.torch_models import HNNTorch, MLPTorch  # noqa: E402
+from hnnbench_plugins.systems.spring import Spring, SpringConfig  # noqa: E402
+
+PAIRS = [(MLPTorch, MLPJax), (HNNTorch, HNNJax)]
+STEPS = 50
+SEED = 0
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _one_torch_thread():
+    """These problems are tiny: one thread is faster, and immune to the stalls torch's
+    thread pool suffers on a CPU shared with other processes."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+@pytest.fixture(scope="module")
+def spring() -> Spring:
+    return Spring(SpringConfig(name="spring"))
+
+
+@pytest.fixture(scope="module")
+def data(spring: Spring) -> Dataset:
+    data = spring.dataset(SEED)
+    assert len(data.train) == 750
+    return data
+
+
+def torch_state(model) -> dict[str, np.ndarray]:
+    return {k: v.detach().cpu().numpy() for k, v in model.net.state_dict().items()}
+
+
+@pytest.fixture(scope="module", params=PAIRS, ids=lambda p: p[1].__name__)
+def trained_pair(request, spring: Spring, data: Dataset):
+    torch_cls, jax_cls = request.param
+    cfg = NeuralConfig(name="parity", dtype="float64", log_every=1)
+    train = TrainSettings(steps=STEPS, batch_size=None, lr=1e-3, weight_decay=1e-4)
+    tm = torch_cls(cfg, spring, "cpu")
+    d_in = data.train.x.shape[1]
+    init = {k: v.detach().numpy().copy() for k, v in tm.build(d_in, SEED).state_dict().items()}
+    jm = jax_cls(cfg, spring, "cpu")
+    jm.initial_weights = init
+    t_hist = tm.fit(data, train, SEED, lambda *_: None).history
+    j_hist = jm.fit(data, train, SEED, lambda *_: None).history
+    # torch's fit rebuilds its net from the same seed: check it started where we copied.
+    assert all(np.array_equal(v, tm.build(d_in, SEED).state_dict()[k].numpy())
+               for k, v in init.items())
+    return tm, jm, t_hist, j_hist
+
+
+def test_loss_curves_agree(trained_pair):
+    _, _, t_hist, j_hist = trained_pair
+    assert t_hist["step"] == j_hist["step"] == list(range(1, STEPS + 1))
+    for key in ("train_loss", "test_loss"):
+        np.testing.assert_allclose(j_hist[key], t_hist[key], rtol=1e-4)
+    # The curve must actually move, or agreement means nothing.
+    assert t_hist["train_loss"][-1] < 0.9 * t_hist["train_loss"][0]
+
+
+def test_trained_weights_agree(trained_pair):
+    tm, jm, _, _ = trained_pair
+    t_state, j_state = torch_state(tm), jm.numpy_layers()
+    assert set(t_state) == set(j_state)
+    for key, value in t_state.items():
+        np.testing.assert_allclose(j_state[key], value, rtol=1e-6, atol=1e-9, err_msg=key)
+
+
+def test_same_weights_same_field_and_rollouts(trained_pair, spring: Spring, data: Dataset):
+    tm, jm, _, _ = trained_pair
+    jm.from_numpy_layers(torch_state(tm))  # exactly the same weights
+    x = data.test.x
+    np.testing.assert_allclose(jm.time_derivative(x), tm.time_derivative(x),
+                               rtol=1e-12, atol=1e-12)
+    if isinstance(jm, HNNJax):
+        np.testing.assert_allclose(jm.energy(x), tm.energy(x), rtol=1e-12, atol=1e-12)
+    ev = spring.evaluation(SEED)
+    x0, t = ev.x0[:5], ev.t[:26]  # t in [0, 5]: torchdiffeq is slow at rtol = 1e-9
+    fwd_t, fwd_j = tm.rollout(x0, t), jm.rollout(x0, t)  # rtol = atol = 1e-9
+    assert fwd_j.shape == fwd_t.shape
+    np.testing.assert_allclose(fwd_j, fwd_t, rtol=0, atol=1e-6)
+    t_back = np.ascontiguousarray(t[::-1])  # decreasing time: backward integration
+    back_t = tm.rollout(fwd_t[:, -1], t_back)
+    back_j = jm.rollout(fwd_j[:, -1], t_back)
+    np.testing.assert_allclose(back_j, back_t, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(back_j[:, -1], x0, rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("weight_decay", [0.0, 1e-4, 1e-2])
+def test_optax_chain_is_torch_adam(weight_decay: float):
+    """``add_decayed_weights`` + ``adam`` == ``torch.optim.Adam(weight_decay=...)``."""
+    rng = np.random.default_rng(0)
+    w0, target = rng.normal(size=(5, 3)), rng.normal(size=(5, 3))
+    w_t = torch.tensor(w0, requires_grad=True)
+    opt_t = torch.optim.Adam([w_t], lr=1e-2, weight_decay=weight_decay)
+    opt_j = optax.chain(optax.add_decayed_weights(weight_decay), optax.adam(1e-2))
+    w_j = jnp.asarray(w0)
+    state = opt_j.init(w_j)
+    for _ in range(100):
+        opt_t.zero_grad()
+        loss = torch.sum(torch.tanh(w_t - torch.tensor(target)) ** 2)
+        loss.backward()
+        opt_t.step()
+        # the same gradient formula, evaluated at the JAX iterate
+        grad = 2 * np.tanh(np.asarray(w_j) - target) / np.cosh(np.asarray(w_j) - target) ** 2
+        updates, state = opt_j.update(jnp.asarray(grad), state, w_j)
+        w_j = optax.apply_updates(w_j, updates)
+    np.testing.assert_allclose(np.asarray(w_j), w_t.detach().numpy(), rtol=1e-10, atol=1e-12)
+

@@ -1,0 +1,258 @@
+"""``hnnbench report``: leaderboard tables, figures, the HTML page, the paper comparison
+and the paper's claims, on synthetic sweeps with the real record schema."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import assert_one_line_error, hnnbench
+from report_fixtures import INF, make_sweep, seed_metrics, set_status, write_run
+
+from hnnbench import claims as C
+from hnnbench import report
+from hnnbench.table import format_value, leaderboard
+
+METRICS = ("train_loss", "test_loss", "energy_mse", "rollout_mse", "reversibility_error",
+           "time_reversal_error", "valid_prediction_time")
+
+
+@pytest.fixture()
+def sweep(tmp_path):
+    return make_sweep(tmp_path / "sweep")
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    """A synthetic sweep (spring, pendulum; 2 seeds) with its report in ``out``."""
+    root = tmp_path_factory.mktemp("built")
+    sweep = make_sweep(root / "sweep")
+    out = root / "out"
+    assert report.main([str(sweep), "--out", str(out)]) == 0
+    return out
+
+
+def _board(out):
+    return pd.read_csv(out / "leaderboard.csv")
+
+
+def _row(board, system, model):
+    sel = board[(board["system"] == system) & (board["model"] == model)]
+    assert len(sel) == 1, (system, model, board[["system", "model"]])
+    return sel.iloc[0]
+
+
+def test_leaderboard_csv_has_one_row_per_pair_with_mean_std_status_and_timings(built):
+    board = _board(built)
+    assert len(board) == 5
+    expected = {"profile", "system", "model", "backend", "n_seeds", "seeds", "n_ok",
+                "n_diverged", "n_failed", "n_skipped", "status",
+                "fit_s_mean", "eval_s_mean", "total_s_mean"}
+    expected |= {f"{m}_{s}" for m in METRICS for s in ("mean", "std")}
+    assert expected <= set(board.columns), expected - set(board.columns)
+    row = _row(board, "spring", "hnn_torch")
+    assert row["n_seeds"] == 2 and row["n_ok"] == 2 and row["status"] == "ok"
+    values = [seed_metrics("spring", "hnn_torch", s)["energy_mse"] for s in (0, 1)]
+    assert row["energy_mse_mean"] == pytest.approx(np.mean(values))
+    assert row["energy_mse_std"] == pytest.approx(np.std(values, ddof=1))
+    assert row["fit_s_mean"] == pytest.approx(2.5)
+    # Canonical order: spring before pendulum, baseline before HNN before oracle.
+    assert list(zip(board["system"], board["model"], strict=True))[:3] == [
+        ("spring", "mlp_torch"), ("spring", "hnn_torch"), ("spring", "oracle")]
+
+
+def test_default_out_is_the_sweep_dir_and_markdown_is_compact(sweep):
+    assert report.main([str(sweep), "--no-figures"]) == 0
+    assert not (sweep / "figures").exists()
+    md = (sweep / "leaderboard.md").read_text()
+    assert "Profile `quick`" in md and "2 seed(s)" in md
+    mean = np.mean([seed_metrics("spring", "mlp_torch", s)["energy_mse"] for s in (0, 1)])
+    std = np.std([seed_metrics("spring", "mlp_torch", s)["energy_mse"] for s in (0, 1)], ddof=1)
+    assert f"{mean:.1e} ± {std:.1e}" in md
+    header = next(line for line in md.splitlines() if line.startswith("| system"))
+    for column in ("model", "status", "energy_mse", "test_loss", "valid_prediction_time"):
+        assert column in header
+
+
+def test_figures_per_system_and_html_embeds_every_one(built):
+    out = built
+    pngs = sorted(p.name for p in (out / "figures").glob("*.png"))
+    for system in ("spring", "pendulum"):
+        for kind in ("phase", "energy", "learned_energy", "loss"):
+            assert f"{system}_{kind}.png" in pngs
+    for name in pngs:
+        assert (out / "figures" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    page = (out / "leaderboard.html").read_text()
+    assert page.count("<img") == len(pngs) == 8
+    assert page.count('src="data:image/png;base64,') == len(pngs)
+    assert "src=\"figures/" not in page and "<link" not in page  # self-contained
+    assert "<table" in page and "hnn_torch" in page and "Qualitative claims" in page
+
+
+def test_no_learned_energy_figure_without_a_model_that_has_one(tmp_path):
+    sweep = make_sweep(tmp_path / "s", pairs=(("spring", "mlp_torch"),), seeds=(3, 1))
+    report.main([str(sweep)])
+    names = {p.name for p in (sweep / "figures").glob("*.png")}
+    assert names == {"spring_phase.png", "spring_energy.png", "spring_loss.png"}
+    assert report._runs_for_figures(report.load_sweep(sweep))[0] == 1  # the lowest seed
+
+
+def test_diverged_pair_is_shown_as_diverged_with_inf_never_dropped(tmp_path):
+    sweep = make_sweep(tmp_path / "s", pairs=(("spring", "mlp_torch"), ("spring", "hnn_torch"),
+                                              ("pendulum", "hnn_torch")))
+    for seed in (0, 1):
+        set_status(sweep, "spring", "mlp_torch", seed, "diverged")
+    set_status(sweep, "pendulum", "hnn_torch", 1, "diverged")  # one of two seeds
+    write_run(sweep, "spring", "mlp_jax", 0, status="failed")
+    report.main([str(sweep)])
+    board = _board(sweep)
+    row = _row(board, "spring", "mlp_torch")
+    assert row["status"] == "diverged" and row["n_diverged"] == 2 and row["n_ok"] == 0
+    assert math.isinf(row["energy_mse_mean"]) and row["energy_mse_mean"] > 0
+    assert np.isfinite(row["train_loss_mean"])  # the losses of a diverged rollout are kept
+    mixed = _row(board, "pendulum", "hnn_torch")
+    assert mixed["status"] == "1 ok, 1 diverged" and np.isfinite(mixed["energy_mse_mean"])
+    failed = _row(board, "spring", "mlp_jax")
+    assert failed["status"] == "failed" and math.isnan(failed["energy_mse_mean"])
+    md = (sweep / "leaderboard.md").read_text()
+    line = next(ln for ln in md.splitlines() if "| spring" in ln and "mlp_torch" in ln)
+    assert "diverged" in line and re.search(r"\|\s*inf\s*\|", line)
+    # Figures still build: the diverged model has no rollout, others do.
+    assert (sweep / "figures" / "spring_energy.png").exists()
+    page = (sweep / "leaderboard.html").read_text()
+    assert '<td class="txt diverged">diverged</td>' in page and '<td class="inf">inf</td>' in page
+
+
+def test_format_value():
+    assert format_value(0.037, 0.0011) == "3.7e-02 ± 1.1e-03"
+    assert format_value(0.037) == "3.7e-02"
+    assert format_value(INF, math.nan) == "inf"
+    assert format_value(math.nan, math.nan) == "—"
+    assert format_value(3.14159, 0.5, linear=True) == "3.14 ± 0.5"
+
+
+# --------------------------------------------------------------------------- paper
+
+
+def test_paper_table_is_in_natural_units_and_complete():
+    table = report.paper_table()
+    assert set(table["system"]) == {"spring", "pendulum", "real_pendulum", "two_body",
+                                    "three_body", "pixel_pendulum"}
+    assert len(table) == 6 * 3 * 2
+    for r in table.itertuples():
+        assert r.value == pytest.approx(float(r.printed_value) / float(r.printed_scale))
+    spring = table[(table.system == "spring") & (table.metric == "energy_mse")]
+    assert spring.set_index("model")["value"].to_dict() == pytest.approx(
+        {"baseline": 0.17, "hnn": 3.8e-4})
+    two_body = table[(table.system == "two_body") & (table.metric == "test_loss")]
+    assert set(two_body["printed_scale"].astype(float)) == {1e6}
+    assert two_body.set_index("model")["value"]["hnn"] == pytest.approx(2.8e-6)
+
+
+def test_every_claim_holds_on_the_papers_own_numbers():
+    results = report.paper_claim_ratios()
+    assert set(results) == {c.id for c in C.CLAIMS}
+    for res in results.values():
+        assert res.outcome == C.REPRODUCED, (res.claim.text, res.ratio)
+
+
+def test_paper_comparison_shows_every_table1_cell(built):
+    text = (built / "paper_comparison.md").read_text()
+    table = [ln for ln in text.splitlines() if ln.startswith("| ") and "(" in ln.split("|")[1]]
+    tasks = [ln for ln in table if re.search(r"\((spring|pendulum|real_pendulum|two_body|"
+                                             r"three_body|pixel_pendulum)\)", ln)]
+    assert len(tasks) == 18
+    real = [ln for ln in tasks if "(real_pendulum)" in ln]
+    assert len(real) == 3 and all(ln.count("—") >= 2 for ln in real)
+    assert "6.3e4 / 39 ×10³" in text and "×10⁶" in text
+    ours = next(ln for ln in tasks if "(spring)" in ln and "energy_mse" in ln)
+    assert "4.2e-03 ± 2.8e-04" in ours  # seeds 0 and 1: 4.0e-3 and 4.4e-3
+    assert "## Qualitative claims" in text
+    assert "spring: HNN energy MSE >= 100x below baseline" in text
+
+
+def _lookup(values):
+    def lookup(system, model, metric):
+        return values.get((system, model, metric))
+    return lookup
+
+
+def test_claims_are_evaluated_per_backend_pair():
+    values = {
+        ("spring", "mlp_torch", "energy_mse"): 1e-2, ("spring", "hnn_torch", "energy_mse"): 1e-5,
+        ("spring", "mlp_jax", "energy_mse"): 1e-2, ("spring", "hnn_jax", "energy_mse"): 1e-3,
+    }
+    claim = next(c for c in C.CLAIMS if c.id == "spring.energy_mse.hnn_100x_lower")
+    res = {r.backend: r for r in C.evaluate_claims(_lookup(values), [claim])}
+    assert res["torch"].outcome == C.REPRODUCED and res["torch"].ratio == pytest.approx(1000)
+    assert res["jax"].outcome == C.NOT_REPRODUCED and res["jax"].ratio == pytest.approx(10)
+    assert "need >= 100x" in res["jax"].numbers()
+    # No pair at all: one "not run" entry.
+    (none,) = C.evaluate_claims(_lookup({}), [claim])
+    assert none.outcome == C.NOT_RUN and none.backend == "-"
+
+
+@pytest.mark.parametrize(
+    "claim_id, baseline, hnn, outcome",
+    [
+        ("spring.energy_mse.hnn_100x_lower", INF, 1e-5, C.REPRODUCED),  # baseline diverged
+        ("spring.energy_mse.hnn_100x_lower", 1e-2, INF, C.NOT_REPRODUCED),
+        ("spring.energy_mse.hnn_100x_lower", math.nan, 1e-5, C.NOT_RUN),  # all failed
+        ("spring.test_loss.similar", 0.037, 0.07, C.REPRODUCED),
+        ("spring.test_loss.similar", 0.037, 0.08, C.NOT_REPRODUCED),
+        ("spring.test_loss.similar", INF, 0.037, C.NOT_REPRODUCED),
+        ("real_pendulum.test_loss.baseline_lower", 2e-3, 6e-3, C.REPRODUCED),
+        ("real_pendulum.test_loss.baseline_lower", 6e-3, 6e-3, C.NOT_REPRODUCED),
+        ("pendulum.energy_mse.hnn_lower", 4e-2, 2.5e-2, C.REPRODUCED),
+        ("pendulum.energy_mse.hnn_lower", 2e-2, 2.5e-2, C.NOT_REPRODUCED),
+    ],
+)
+def test_claim_judgement(claim_id, baseline, hnn, outcome):
+    claim = next(c for c in C.CLAIMS if c.id == claim_id)
+    assert claim.judge(baseline, hnn)[0] == outcome
+
+
+def test_claims_on_a_leaderboard(sweep):
+    board = leaderboard(report.load_sweep(sweep))
+    results = {r.claim.id: r for r in report.claim_results(board) if r.backend == "torch"}
+    assert results["spring.energy_mse.hnn_100x_lower"].outcome == C.REPRODUCED
+    assert results["spring.test_loss.similar"].outcome == C.REPRODUCED
+    assert results["pendulum.energy_mse.hnn_lower"].outcome == C.REPRODUCED
+    everything = report.claim_results(board)
+    assert {r.outcome for r in everything if r.claim.system == "two_body"} == {C.NOT_RUN}
+
+
+def test_on_sweep_end_writes_the_report_into_the_sweep(tmp_path, capsys):
+    sweep = make_sweep(tmp_path / "s", pairs=(("spring", "hnn_torch"),), seeds=(0,))
+    report.on_sweep_end(sweep)
+    assert (sweep / "leaderboard.html").exists() and (sweep / "paper_comparison.md").exists()
+    assert "leaderboard.html" in capsys.readouterr().out
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    report.on_sweep_end(empty)  # no records: a warning, no exception
+    assert not (empty / "leaderboard.csv").exists()
+
+
+# --------------------------------------------------------------------------- CLI
+
+
+def test_report_cli(tmp_path):
+    sweep = make_sweep(tmp_path / "s", pairs=(("spring", "hnn_torch"),), seeds=(0,))
+    out = tmp_path / "cli-out"
+    proc = hnnbench("report", str(sweep), "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    assert "hnn_torch" in proc.stdout and (out / "leaderboard.html").exists()
+
+
+@pytest.mark.parametrize("case", ["missing", "empty", "no-arg", "bad-flag"])
+def test_report_bad_input_is_one_line(case, tmp_path):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    args = {"missing": [str(tmp_path / "nope")], "empty": [str(empty)], "no-arg": [],
+            "bad-flag": [str(empty), "--bogus"]}[case]
+    needle = {"missing": "does not exist", "empty": "No run records", "no-arg": "DIR",
+              "bad-flag": "--bogus"}[case]
+    assert_one_line_error(hnnbench("report", *args), needle)
