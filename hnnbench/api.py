@@ -39,6 +39,9 @@ __all__ = [
     "SystemConfig",
     "TrainSettings",
     "Trajectories",
+    "check_fraction",
+    "check_int_at_least",
+    "check_ordered",
     "check_positive",
 ]
 
@@ -57,6 +60,36 @@ def check_positive(owner: str, **values: float | int | None) -> None:
                 f"{owner}.{key}={value} is invalid: expected a number > 0. "
                 f"Fix it with {owner}.{key}=<positive value>."
             )
+
+
+def check_int_at_least(owner: str, low: int, **values: Any) -> None:
+    """Raise a one-line :class:`ConfigError` for the first value that is not an integer
+    ``>= low`` (booleans are rejected)."""
+    for key, value in values.items():
+        ok = not isinstance(value, bool) and isinstance(value, (int, np.integer))
+        if not ok or value < low:
+            raise ConfigError(
+                f"{owner}.{key}={value} is invalid: expected an integer >= {low}. "
+                f"Fix it with {owner}.{key}=<integer >= {low}>."
+            )
+
+
+def check_fraction(owner: str, key: str, value: float, example: float) -> None:
+    """Raise a one-line :class:`ConfigError` unless ``0 < value < 1``."""
+    if not 0.0 < value < 1.0:
+        raise ConfigError(
+            f"{owner}.{key}={value} is invalid: expected a fraction strictly between 0 and "
+            f"1, e.g. {owner}.{key}={example}."
+        )
+
+
+def check_ordered(owner: str, low_key: str, low: float, high_key: str, high: float) -> None:
+    """Raise a one-line :class:`ConfigError` unless ``low <= high``."""
+    if high < low:
+        raise ConfigError(
+            f"{owner}.{high_key}={high} is below {owner}.{low_key}={low}: expected "
+            f"{low_key} <= {high_key}."
+        )
 
 
 # --------------------------------------------------------------------------- configs

@@ -14,6 +14,18 @@ REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / "shared" / "data" / "schmidt-lipson-2009"
 
 
+def shared_data_dir() -> Path:
+    """``$HNNBENCH_DATA_DIR`` (relative paths: to the cwd, else the repo), else the
+    shared checkout next to the repo."""
+    value = os.environ.get("HNNBENCH_DATA_DIR", "").strip()
+    if value:
+        path = Path(value).expanduser()
+        if not path.is_absolute() and not path.is_dir():
+            path = REPO / path
+        return path.resolve()
+    return SHARED_DATA
+
+
 @pytest.fixture(scope="session", autouse=True)
 def _isolated_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
     """Generated datasets go to a temp cache unless HNNBENCH_CACHE_DIR is set."""

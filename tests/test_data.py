@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import hashlib
-import os
 import socket
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from conftest import shared_data_dir
 
 from hnnbench import data
 from hnnbench.errors import DataError
@@ -19,16 +19,6 @@ SHA256 = "45d92988198b89a5933f5a53e67aa819d06937516f71a462ac09e1307d8b3411"
 REPO = Path(__file__).resolve().parents[1]
 
 
-def shared_data_dir() -> Path:
-    """``$HNNBENCH_DATA_DIR`` (relative paths: to the cwd, else the repo), else the
-    shared checkout next to the repo."""
-    value = os.environ.get("HNNBENCH_DATA_DIR", "").strip()
-    if value:
-        path = Path(value).expanduser()
-        if not path.is_absolute() and not path.is_dir():
-            path = REPO / path
-        return path.resolve()
-    return Path(__file__).resolve().parents[2] / "shared/data/schmidt-lipson-2009"
 
 
 SOURCE = shared_data_dir() / FILENAME

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import shared_data_dir
 
 from hnnbench.errors import ConfigError, DataError
 from hnnbench_plugins.systems.real_pendulum import (
@@ -20,14 +20,6 @@ from hnnbench_plugins.systems.real_pendulum import (
 REPO = Path(__file__).resolve().parents[1]
 
 
-def shared_data_dir() -> Path:
-    value = os.environ.get("HNNBENCH_DATA_DIR", "").strip()
-    if value:
-        path = Path(value).expanduser()
-        if not path.is_absolute() and not path.is_dir():
-            path = REPO / path
-        return path.resolve()
-    return Path(__file__).resolve().parents[2] / "shared/data/schmidt-lipson-2009"
 
 
 DATA_DIR = shared_data_dir()

@@ -52,7 +52,17 @@ from typing import Any, ClassVar
 import numpy as np
 import rebound
 
-from hnnbench.api import Dataset, Split, System, SystemConfig, Trajectories, check_positive
+from hnnbench.api import (
+    Dataset,
+    Split,
+    System,
+    SystemConfig,
+    Trajectories,
+    check_fraction,
+    check_int_at_least,
+    check_ordered,
+    check_positive,
+)
 from hnnbench.errors import ConfigError, DataError
 
 __all__ = [
@@ -114,23 +124,12 @@ class NBodyConfig(SystemConfig):
         check_positive(
             "system", t_end=self.t_end, radius_min=self.radius_min, eval_t_end=self.eval_t_end
         )
-        for key in ("n_bodies", "n_orbits", "n_points", "eval_n_orbits", "eval_n_points"):
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 2:
-                raise ConfigError(
-                    f"system.{key}={value} is invalid: expected an integer >= 2. "
-                    f"Fix it with system.{key}=<integer >= 2>."
-                )
-        if not 0.0 < self.test_split < 1.0:
-            raise ConfigError(
-                f"system.test_split={self.test_split} is invalid: expected a fraction "
-                "strictly between 0 and 1, e.g. system.test_split=0.2."
-            )
-        if self.radius_max < self.radius_min:
-            raise ConfigError(
-                f"system.radius_max={self.radius_max} is below system.radius_min="
-                f"{self.radius_min}: expected radius_min <= radius_max; raise radius_max."
-            )
+        check_int_at_least(
+            "system", 2, n_bodies=self.n_bodies, n_orbits=self.n_orbits, n_points=self.n_points,
+            eval_n_orbits=self.eval_n_orbits, eval_n_points=self.eval_n_points,
+        )
+        check_fraction("system", "test_split", self.test_split, 0.2)
+        check_ordered("system", "radius_min", self.radius_min, "radius_max", self.radius_max)
         for key in ("velocity_noise", "noise_std"):
             if not getattr(self, key) >= 0:
                 raise ConfigError(

@@ -59,7 +59,17 @@ from typing import Optional
 
 import numpy as np
 
-from hnnbench.api import Dataset, Split, System, SystemConfig, Trajectories, check_positive
+from hnnbench.api import (
+    Dataset,
+    Split,
+    System,
+    SystemConfig,
+    Trajectories,
+    check_fraction,
+    check_int_at_least,
+    check_ordered,
+    check_positive,
+)
 from hnnbench.errors import ConfigError
 from hnnbench.integrate import solve_batch
 from hnnbench_plugins.systems.pendulum import Pendulum, PendulumConfig
@@ -161,21 +171,9 @@ class PixelPendulumConfig(SystemConfig):
         )
         for key, low in (("n_traj", 2), ("n_frames", 3), ("eval_n_traj", 1),
                          ("eval_n_points", 2), ("side", 8), ("supersample", 1)):
-            value = getattr(self, key)
-            if int(value) != value or value < low:
-                raise ConfigError(
-                    f"system.{key}={value} is invalid: expected an integer >= {low}."
-                )
-        if not 0.0 < self.test_split < 1.0:
-            raise ConfigError(
-                f"system.test_split={self.test_split} is invalid: expected a fraction "
-                "strictly between 0 and 1, e.g. system.test_split=0.2."
-            )
-        if self.radius_max < self.radius_min:
-            raise ConfigError(
-                f"system.radius_max={self.radius_max} is below system.radius_min="
-                f"{self.radius_min}: expected radius_min <= radius_max."
-            )
+            check_int_at_least("system", low, **{key: getattr(self, key)})
+        check_fraction("system", "test_split", self.test_split, 0.2)
+        check_ordered("system", "radius_min", self.radius_min, "radius_max", self.radius_max)
         n_test = round(self.n_traj * self.test_split)
         if not 0 < n_test < self.n_traj:
             raise ConfigError(

@@ -18,7 +18,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hnnbench.api import Dataset, Split, System, SystemConfig, Trajectories, check_positive
+from hnnbench.api import (
+    Dataset,
+    Split,
+    System,
+    SystemConfig,
+    Trajectories,
+    check_fraction,
+    check_int_at_least,
+    check_ordered,
+    check_positive,
+)
 from hnnbench.errors import ConfigError
 from hnnbench.integrate import solve_batch
 
@@ -50,21 +60,10 @@ class ToyConfig(SystemConfig):
             "system", t_end=self.t_end, radius_min=self.radius_min, data_rtol=self.data_rtol,
             eval_t_end=self.eval_t_end, eval_rtol=self.eval_rtol,
         )
-        for key in ("n_traj", "n_points", "eval_n_traj", "eval_n_points"):
-            if getattr(self, key) < 2:
-                raise ConfigError(
-                    f"system.{key}={getattr(self, key)} is invalid: expected an integer >= 2."
-                )
-        if not 0.0 < self.test_split < 1.0:
-            raise ConfigError(
-                f"system.test_split={self.test_split} is invalid: expected a fraction "
-                "strictly between 0 and 1, e.g. system.test_split=0.5."
-            )
-        if self.radius_max < self.radius_min:
-            raise ConfigError(
-                f"system.radius_max={self.radius_max} is below system.radius_min="
-                f"{self.radius_min}: expected radius_min <= radius_max."
-            )
+        check_int_at_least("system", 2, n_traj=self.n_traj, n_points=self.n_points,
+                           eval_n_traj=self.eval_n_traj, eval_n_points=self.eval_n_points)
+        check_fraction("system", "test_split", self.test_split, 0.5)
+        check_ordered("system", "radius_min", self.radius_min, "radius_max", self.radius_max)
         if self.noise_std < 0:
             raise ConfigError(f"system.noise_std={self.noise_std} is invalid: expected >= 0.")
         n_train = round(self.n_traj * (1 - self.test_split))
