@@ -341,17 +341,21 @@ _COMPILED: dict[Any, Any] = {}
 _COMPILED_MAX = 32
 
 
-def _compiled_chunk(field: Field, static: MLPNet, length: int, args: tuple) -> tuple[Any, float]:
+def _compiled_chunk(
+    field: Field, static: Any, length: int, args: tuple, chunk: Any = None
+) -> tuple[Any, float]:
     """The executable for one training chunk and the seconds spent compiling it (0.0
-    when it was cached)."""
+    when it was cached). ``chunk`` is the jitted chunk function (static arguments
+    ``field, static, length``); default :func:`_train_chunk`."""
+    chunk = _train_chunk_jit if chunk is None else chunk
     leaves, treedef = jax.tree_util.tree_flatten(args)
     avals = tuple((leaf.shape, str(leaf.dtype), str(leaf.sharding)) for leaf in leaves)
-    key = (field, static, length, treedef, avals)
+    key = (chunk, field, static, length, treedef, avals)
     if key in _COMPILED:
         return _COMPILED[key], 0.0
     start = time.perf_counter()
     with jax.default_matmul_precision("highest"):  # no TF32 on GPUs: as torch by default
-        compiled = _train_chunk_jit.lower(field, static, length, *args).compile()
+        compiled = chunk.lower(field, static, length, *args).compile()
     seconds = time.perf_counter() - start
     if len(_COMPILED) >= _COMPILED_MAX:
         _COMPILED.pop(next(iter(_COMPILED)))

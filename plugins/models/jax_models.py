@@ -1,17 +1,21 @@
-"""The JAX baseline MLP and Hamiltonian neural network (twins of the PyTorch models)."""
+"""The JAX baseline MLP and Hamiltonian neural network (twins of the PyTorch models).
+
+Both run on state and pixel systems; on pixels they learn their dynamics in the latent
+space of an autoencoder (:mod:`hnnbench_plugins.models.jax_pixel`).
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
 from hnnbench_plugins.models.jax_base import (
-    JaxModel,
     MLPNet,
     _apply,
     jax,
     jnp,
     symplectic,
 )
+from hnnbench_plugins.models.jax_pixel import PixelJaxModel
 
 
 def mlp_field(net: MLPNet, x: jax.Array) -> jax.Array:
@@ -30,7 +34,7 @@ def hnn_field(net: MLPNet, x: jax.Array) -> jax.Array:
     return symplectic(grad)
 
 
-class MLPJax(JaxModel):
+class MLPJax(PixelJaxModel):
     """Baseline: an MLP that outputs dx/dt directly (JAX: equinox + optax + diffrax)."""
 
     version = "1"
@@ -39,7 +43,7 @@ class MLPJax(JaxModel):
     field = staticmethod(mlp_field)
 
 
-class HNNJax(JaxModel):
+class HNNJax(PixelJaxModel):
     """Hamiltonian neural network: an MLP outputs a scalar H; dx/dt is its symplectic
     gradient (dH/dp, -dH/dq), taken with ``jax.grad`` (JAX)."""
 
