@@ -322,6 +322,20 @@ def _train_chunk(
     def loss_fn(params: Any, xb: jax.Array, yb: jax.Array) -> jax.Array:
         return jnp.mean((field(eqx.combine(params, static), xb) - yb) ** 2)
 
+    params, opt_state, losses = scan_steps(loss_fn, optimizer, params, opt_state, idx, x, y,
+                                           length)
+    return params, opt_state, losses, loss_fn(params, x_test, y_test)
+
+
+def scan_steps(
+    loss_fn: Callable[[Any, jax.Array, jax.Array], jax.Array], optimizer: Any, params: Any,
+    opt_state: Any, idx: jax.Array | None, x: jax.Array, y: jax.Array, length: int,
+) -> tuple[Any, Any, jax.Array]:
+    """``length`` optimizer steps of ``loss_fn(params, x_batch, y_batch)`` under
+    ``lax.scan``; ``idx`` is ``(length, batch)`` minibatch indices or ``None`` (full
+    batch). Returns the new params, optimizer state and the ``(length,)`` losses, each
+    taken before its update."""
+
     def step(carry: tuple[Any, Any], batch_idx: jax.Array | None) -> Any:
         params, opt_state = carry
         xb, yb = (x, y) if batch_idx is None else (x[batch_idx], y[batch_idx])
@@ -330,7 +344,7 @@ def _train_chunk(
         return (optax.apply_updates(params, updates), opt_state), loss
 
     (params, opt_state), losses = jax.lax.scan(step, (params, opt_state), idx, length=length)
-    return params, opt_state, losses, loss_fn(params, x_test, y_test)
+    return params, opt_state, losses
 
 
 _train_chunk_jit = jax.jit(_train_chunk, static_argnums=(0, 1, 2))

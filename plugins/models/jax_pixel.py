@@ -43,8 +43,8 @@ from hnnbench_plugins.models.jax_base import (
     jax,
     jnp,
     net_to_numpy,
-    optax,
     orthogonal,
+    scan_steps,
 )
 from hnnbench_plugins.models.neural import NeuralConfig
 
@@ -154,14 +154,8 @@ def _pixel_train_chunk(
         ae, net = eqx.combine(params, static)
         return objective(field, ae, net, xb, xnb)
 
-    def step(carry: tuple[Any, Any], batch_idx: jax.Array | None) -> Any:
-        params, opt_state = carry
-        xb, xnb = (x, x_next) if batch_idx is None else (x[batch_idx], x_next[batch_idx])
-        loss, grads = jax.value_and_grad(loss_fn)(params, xb, xnb)
-        updates, opt_state = optimizer.update(grads, opt_state, params)
-        return (optax.apply_updates(params, updates), opt_state), loss
-
-    (params, opt_state), losses = jax.lax.scan(step, (params, opt_state), idx, length=length)
+    params, opt_state, losses = scan_steps(loss_fn, optimizer, params, opt_state, idx, x,
+                                           x_next, length)
     return params, opt_state, losses, loss_fn(params, x_test, x_next_test)
 
 
