@@ -56,6 +56,7 @@ __all__ = [
     "main",
     "on_sweep_end",
     "paper_table",
+    "provenance",
     "write_report",
 ]
 
@@ -182,8 +183,42 @@ def _seed_line(board: pd.DataFrame) -> str:
             "`—` = no value).")
 
 
-def leaderboard_markdown(board: pd.DataFrame) -> str:
+def provenance(recs: Sequence[dict[str, Any]]) -> dict[str, list[str]]:
+    """Where the records came from: distinct commands, git commits, devices, dates.
+
+    Each list is sorted and deduplicated; a sweep resumed under another command or
+    commit shows all of them.
+    """
+    def distinct(values: Any) -> list[str]:
+        return sorted({str(v) for v in values if v not in (None, "")})
+
+    return {
+        "command": distinct(r.get("command") for r in recs),
+        "commit": distinct((r.get("environment") or {}).get("git_commit") for r in recs),
+        "device": distinct(r.get("device") for r in recs),
+        "hnnbench": distinct((r.get("environment") or {}).get("hnnbench") for r in recs),
+        "date": distinct(str(r.get("created_at") or "")[:10] for r in recs),
+    }
+
+
+def provenance_lines(prov: dict[str, list[str]]) -> list[str]:
+    """Markdown bullet lines for :func:`provenance`."""
+    def join(key: str, code: bool = True) -> str:
+        vals = prov.get(key) or ["unknown"]
+        return ", ".join(f"`{v}`" if code else v for v in vals)
+
+    return [
+        f"- Command: {join('command')}",
+        f"- Git commit: {join('commit')}; hnnbench {join('hnnbench', code=False)}",
+        f"- Device: {join('device', code=False)}; run on {join('date', code=False)}",
+    ]
+
+
+def leaderboard_markdown(board: pd.DataFrame,
+                         prov: Optional[dict[str, list[str]]] = None) -> str:
     lines = ["# Leaderboard", "", _seed_line(board), ""]
+    if prov is not None:
+        lines += [*provenance_lines(prov), ""]
     lines.append(_md_table(display_frame(board)))
     lines += ["", "Machine-readable: `leaderboard.csv`. Built by `hnnbench report` from the "
               "run records; do not edit by hand.", ""]
@@ -549,7 +584,8 @@ def _img(path: Path, alt: str) -> str:
     return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
 
 
-def report_html(board: pd.DataFrame, figures: list[tuple[str, str, Path]]) -> str:
+def report_html(board: pd.DataFrame, figures: list[tuple[str, str, Path]],
+                prov: Optional[dict[str, list[str]]] = None) -> str:
     titles = {"phase": "Phase portraits (q1 vs p1)", "energy": "True energy along rollouts",
               "learned_energy": "Learned conserved quantity", "loss": "Loss curves"}
     parts = [
@@ -557,6 +593,8 @@ def report_html(board: pd.DataFrame, figures: list[tuple[str, str, Path]]) -> st
         "<title>hnnbench leaderboard</title>", f"<style>{_CSS}</style></head><body>",
         "<h1>hnnbench leaderboard</h1>",
         f'<p class="note">{html.escape(_seed_line(board))}</p>',
+        *([f'<p class="note">{html.escape(line[2:])}</p>' for line in provenance_lines(prov)]
+          if prov is not None else []),
         _html_table(display_frame(board), "board", status_col="status"),
         "<h2>Comparison with Greydanus et al. (2019), Table 1</h2>",
         '<p class="note">Natural units (the paper printed ×10³, two-body losses ×10⁶, '
@@ -601,12 +639,13 @@ def write_report(sweep_dir: Path | str, out: Path | str | None = None,
     R.atomic_write_text(csv_path, board.to_csv(index=False))
     report.files["csv"] = csv_path
     report.files["md"] = out / "leaderboard.md"
-    R.atomic_write_text(report.files["md"], leaderboard_markdown(board))
+    prov = provenance(recs)
+    R.atomic_write_text(report.files["md"], leaderboard_markdown(board, prov))
     report.files["paper"] = out / "paper_comparison.md"
     R.atomic_write_text(report.files["paper"], comparison_markdown(board))
     report.figures = make_figures(recs, out / "figures") if figures else []
     report.files["html"] = out / "leaderboard.html"
-    R.atomic_write_text(report.files["html"], report_html(board, report.figures))
+    R.atomic_write_text(report.files["html"], report_html(board, report.figures, prov))
     return report
 
 

@@ -91,6 +91,7 @@ def write_run(root: Path, system: str, model: str, seed: int, status: str = "ok"
         "metrics": {k: {"mean": v, "sem": 0.1 * v} for k, v in values.items()},
         "timings": {"data_s": 0.1, "fit_s": 2.0 + seed, "eval_s": 1.0, "total_s": 3.1 + seed},
         "steps": 20, "device": "cpu", "data": {},
+        "command": f"hnnbench -m system={system} seed={seed}",
         "config": {"seed": seed, "profile": {"name": profile}},
         "environment": records.environment(), "created_at": records.now_iso(),
     }

@@ -1,10 +1,11 @@
-"""The JAX models are twins of the PyTorch models: same weights + same data -> same
-training curve and same rollouts.
+"""The JAX models are twins of the PyTorch models: same seed -> same initial weights
+and minibatches -> same training curve and same rollouts.
 
-Both backends start from the torch model's seeded initial weights (copied into the
-equinox model with ``initial_weights``), train in float64 on the full spring training
-set (750 points, paper architecture) and log every step. Minibatch runs are not
-compared: the two backends draw minibatches from different random streams.
+Both backends build their seeded initial weights from the same numpy draws
+(:func:`hnnbench_plugins.models.neural.init_arrays`) and draw minibatches from the same
+stream (:class:`~hnnbench_plugins.models.neural.BatchStream`). Here they train in
+float64 on the spring training set (750 points, paper architecture), full batch and
+minibatch, and log every step.
 """
 
 from __future__ import annotations
@@ -57,21 +58,35 @@ def torch_state(model) -> dict[str, np.ndarray]:
     return {k: v.detach().cpu().numpy() for k, v in model.net.state_dict().items()}
 
 
-@pytest.fixture(scope="module", params=PAIRS, ids=lambda p: p[1].__name__)
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+@pytest.mark.parametrize(("torch_cls", "jax_cls"), PAIRS)
+def test_same_seed_same_initial_weights(torch_cls, jax_cls, spring: Spring, dtype: str):
+    cfg = NeuralConfig(name="parity", dtype=dtype)
+    tm, jm = torch_cls(cfg, spring, "cpu"), jax_cls(cfg, spring, "cpu")
+    for seed in (0, 7):
+        jm.net = jm.build(2, seed)
+        t_state = {k: v.numpy() for k, v in tm.build(2, seed).state_dict().items()}
+        j_state = jm.numpy_layers()
+        assert t_state.keys() == j_state.keys()
+        for key, value in t_state.items():
+            assert value.dtype == np.dtype(dtype)
+            np.testing.assert_array_equal(value, j_state[key])
+    other = {k: v.numpy() for k, v in tm.build(2, 1).state_dict().items()}
+    assert not np.array_equal(other["linears.1.weight"], t_state["linears.1.weight"])
+
+
+@pytest.fixture(
+    scope="module",
+    params=[(*pair, batch) for pair in PAIRS for batch in (None, 100)],
+    ids=lambda p: f"{p[1].__name__}-batch{p[2] or 'full'}",
+)
 def trained_pair(request, spring: Spring, data: Dataset):
-    torch_cls, jax_cls = request.param
+    torch_cls, jax_cls, batch = request.param
     cfg = NeuralConfig(name="parity", dtype="float64", log_every=1)
-    train = TrainSettings(steps=STEPS, batch_size=None, lr=1e-3, weight_decay=1e-4)
-    tm = torch_cls(cfg, spring, "cpu")
-    d_in = data.train.x.shape[1]
-    init = {k: v.detach().numpy().copy() for k, v in tm.build(d_in, SEED).state_dict().items()}
-    jm = jax_cls(cfg, spring, "cpu")
-    jm.initial_weights = init
+    train = TrainSettings(steps=STEPS, batch_size=batch, lr=1e-3, weight_decay=1e-4)
+    tm, jm = torch_cls(cfg, spring, "cpu"), jax_cls(cfg, spring, "cpu")
     t_hist = tm.fit(data, train, SEED, lambda *_: None).history
     j_hist = jm.fit(data, train, SEED, lambda *_: None).history
-    # torch's fit rebuilds its net from the same seed: check it started where we copied.
-    assert all(np.array_equal(v, tm.build(d_in, SEED).state_dict()[k].numpy())
-               for k, v in init.items())
     return tm, jm, t_hist, j_hist
 
 
@@ -133,3 +148,20 @@ def test_optax_chain_is_torch_adam(weight_decay: float):
         w_j = optax.apply_updates(w_j, updates)
     np.testing.assert_allclose(np.asarray(w_j), w_t.detach().numpy(), rtol=1e-10, atol=1e-12)
 
+
+
+def test_same_seed_same_autoencoder(spring: Spring):
+    from hnnbench_plugins.models.jax_pixel import init_autoencoder
+
+    cfg = NeuralConfig(name="parity", hidden=16)
+    tm = HNNTorch(cfg, spring, "cpu")
+    t_ae = tm._build_autoencoder(12, seed=3)
+    j_ae = init_autoencoder(3, 12, tm.latent_dim, 16, jnp.float32)
+    for half in ("encoder", "decoder"):
+        t_layers, j_layers = getattr(t_ae, half), getattr(j_ae, half)
+        assert len(t_layers) == len(j_layers) == 4
+        for t_layer, j_layer in zip(t_layers, j_layers, strict=True):
+            np.testing.assert_array_equal(t_layer.weight.detach().numpy(),
+                                          np.asarray(j_layer.weight))
+            np.testing.assert_array_equal(t_layer.bias.detach().numpy(),
+                                          np.asarray(j_layer.bias))

@@ -13,7 +13,7 @@ from conftest import assert_one_line_error, hnnbench
 from report_fixtures import INF, make_sweep, seed_metrics, set_status, write_run
 
 from hnnbench import claims as C
-from hnnbench import report
+from hnnbench import records, report
 from hnnbench.table import format_value, leaderboard
 
 METRICS = ("train_loss", "test_loss", "energy_mse", "rollout_mse", "reversibility_error",
@@ -75,6 +75,17 @@ def test_default_out_is_the_sweep_dir_and_markdown_is_compact(sweep):
     header = next(line for line in md.splitlines() if line.startswith("| system"))
     for column in ("model", "status", "energy_mse", "test_loss", "valid_prediction_time"):
         assert column in header
+
+
+def test_markdown_and_html_name_the_commands_commit_and_device(sweep):
+    report.main([str(sweep), "--no-figures"])
+    md = (sweep / "leaderboard.md").read_text()
+    page = (sweep / "leaderboard.html").read_text()
+    commit = records.git_commit() or "unknown"
+    for text in (md, page):
+        assert "hnnbench -m system=spring seed=0" in text
+        assert "hnnbench -m system=pendulum seed=1" in text
+        assert commit in text and "cpu" in text
 
 
 def test_figures_per_system_and_html_embeds_every_one(built):

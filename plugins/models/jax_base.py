@@ -37,7 +37,12 @@ import numpy as np
 
 from hnnbench.api import Dataset, FitResult, Model, Progress, System, TrainSettings
 from hnnbench.errors import ConfigError, RolloutDiverged, require_backend
-from hnnbench_plugins.models.neural import NeuralConfig
+from hnnbench_plugins.models.neural import (
+    BatchStream,
+    NeuralConfig,
+    init_arrays,
+    mlp_shapes,
+)
 
 for _module in ("jax", "equinox", "optax", "diffrax"):
     require_backend(_module, "jax")
@@ -52,9 +57,6 @@ jax.config.update("jax_enable_x64", True)
 # Probing for absent accelerators (TPU, GPU) logs an INFO line per backend, which the
 # CLI's INFO-level logging would print on every run.
 logging.getLogger("jax._src.xla_bridge").setLevel(logging.WARNING)
-
-#: Seed streams (numpy ``default_rng([seed, stream])``): initial weights, minibatches.
-INIT_STREAM, BATCH_STREAM = 0, 1
 
 #: Format tag written into saved weight files.
 WEIGHTS_FORMAT = "hnnbench-jax-mlp/1"
@@ -147,29 +149,6 @@ class MLPNet(eqx.Module):
         return int(self.linears[-1].weight.shape[0])
 
 
-def orthogonal(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
-    """Orthogonal matrix init, the algorithm of ``torch.nn.init.orthogonal_``."""
-    rows, cols = shape
-    a = rng.standard_normal((rows, cols))
-    if rows < cols:
-        a = a.T
-    q, r = np.linalg.qr(a)
-    q = q * np.sign(np.diag(r))
-    return q.T if rows < cols else q
-
-
-def mlp_shapes(d_in: int, d_out: int, cfg: NeuralConfig) -> dict[str, tuple[int, ...]]:
-    """Parameter name -> shape of the network ``cfg`` describes (no bias on the last
-    layer); the names are :class:`MLPNet`'s tree paths and the torch twin's keys."""
-    dims = [d_in] + [cfg.hidden] * (cfg.layers - 1) + [d_out]
-    shapes: dict[str, tuple[int, ...]] = {}
-    for i, (a, b) in enumerate(zip(dims[:-1], dims[1:], strict=True)):
-        shapes[f"linears.{i}.weight"] = (b, a)
-        if i < cfg.layers - 1:
-            shapes[f"linears.{i}.bias"] = (b,)
-    return shapes
-
-
 def _assemble(arrays: Mapping[str, Any], cfg: NeuralConfig, dtype: Any) -> MLPNet:
     linears = tuple(
         Dense(
@@ -181,21 +160,11 @@ def _assemble(arrays: Mapping[str, Any], cfg: NeuralConfig, dtype: Any) -> MLPNe
     return MLPNet(linears, cfg.activation)
 
 
-def init_mlp(
-    rng: np.random.Generator, d_in: int, d_out: int, cfg: NeuralConfig, dtype: Any = np.float64
-) -> MLPNet:
-    """A freshly initialised :class:`MLPNet`: orthogonal weights, biases
-    ``U(-1/sqrt(fan_in), 1/sqrt(fan_in))`` (torch's ``nn.Linear`` default). Drawn with
-    numpy in float64 (fast, and the same on every device), then cast to ``dtype``."""
-    arrays: dict[str, np.ndarray] = {}
-    for name, shape in mlp_shapes(d_in, d_out, cfg).items():
-        if name.endswith("weight"):
-            arrays[name] = orthogonal(rng, shape)  # type: ignore[arg-type]
-        else:
-            fan_in = arrays[name.replace("bias", "weight")].shape[1]
-            bound = 1.0 / np.sqrt(fan_in)
-            arrays[name] = rng.uniform(-bound, bound, size=shape)
-    return _assemble(arrays, cfg, dtype)
+def init_mlp(seed: int, d_in: int, d_out: int, cfg: NeuralConfig, dtype: Any = np.float64
+             ) -> MLPNet:
+    """A freshly initialised :class:`MLPNet` from :func:`~hnnbench_plugins.models.neural.
+    init_arrays` (the same weights as the torch twin with this seed), cast to ``dtype``."""
+    return _assemble(init_arrays(seed, d_in, d_out, cfg), cfg, dtype)
 
 
 def _path_name(path: tuple[Any, ...]) -> str:
@@ -418,8 +387,7 @@ class JaxModel(Model):
     # -- network ----------------------------------------------------------------------
     def build(self, d_in: int, seed: int) -> MLPNet:
         """A seeded random net in the training dtype, on the model's device."""
-        rng = np.random.default_rng([seed, INIT_STREAM])
-        net = init_mlp(rng, d_in, 1 if self.output_scalar else d_in, self.cfg, self._dtype)
+        net = init_mlp(seed, d_in, 1 if self.output_scalar else d_in, self.cfg, self._dtype)
         return self._place(net)
 
     def _place(self, tree: Any) -> Any:
@@ -477,18 +445,17 @@ class JaxModel(Model):
 
         n = int(x.shape[0])
         full = train.batch_size is None or train.batch_size >= n
-        rng = np.random.default_rng([seed, BATCH_STREAM])
+        stream = None if full else BatchStream(seed, n, int(train.batch_size))
         every = self.cfg.log_interval(train.steps)
         lengths = [every] * (train.steps // every)
         if train.steps % every:
             lengths.append(train.steps % every)
 
         def indices(length: int) -> jax.Array | None:
-            if full:
+            if stream is None:
                 return None
-            block = np.stack([rng.choice(n, train.batch_size, replace=False)
-                              for _ in range(length)])
-            return jax.device_put(jnp.asarray(block, dtype=jnp.int32), self._device)
+            return jax.device_put(jnp.asarray(stream.block(length), dtype=jnp.int32),
+                                  self._device)
 
         compile_s = 0.0
         history: dict[str, list[float]] = {"step": [], "train_loss": [], "test_loss": []}

@@ -43,10 +43,14 @@ from hnnbench_plugins.models.jax_base import (
     jax,
     jnp,
     net_to_numpy,
-    orthogonal,
     scan_steps,
 )
-from hnnbench_plugins.models.neural import NeuralConfig
+from hnnbench_plugins.models.neural import (
+    AE_LAYERS,
+    BatchStream,
+    NeuralConfig,
+    autoencoder_init_arrays,
+)
 
 #: Weights of the objective's terms (the paper's).
 CC_WEIGHT = 1.0
@@ -55,12 +59,8 @@ DYNAMICS_WEIGHT = 0.1
 CHUNK = 4096
 #: The logged test loss is taken on this many evenly spaced test points.
 LOG_TEST_POINTS = 1024
-#: Seed streams (numpy ``default_rng([seed, stream])``) of the autoencoder's init.
-AE_STREAM = 2
 #: Format tag written into saved pixel weight files.
 PIXEL_WEIGHTS_FORMAT = "hnnbench-jax-pixel/1"
-#: Linear layers of each half of the autoencoder.
-AE_LAYERS = 4
 
 
 class Autoencoder(eqx.Module):
@@ -84,19 +84,11 @@ class Autoencoder(eqx.Module):
         return self._run(self.decoder, z)
 
 
-def init_autoencoder(
-    rng: np.random.Generator, d_obs: int, d_latent: int, hidden: int, dtype: Any
-) -> Autoencoder:
-    """Orthogonal weights, zero biases (as the torch twin)."""
-
-    def stack(d_in: int, d_out: int) -> tuple[Dense, ...]:
-        dims = [d_in] + [hidden] * (AE_LAYERS - 1) + [d_out]
-        return tuple(
-            Dense(jnp.asarray(orthogonal(rng, (b, a)), dtype=dtype), jnp.zeros((b,), dtype))
-            for a, b in zip(dims[:-1], dims[1:], strict=True)
-        )
-
-    return Autoencoder(stack(d_obs, d_latent), stack(d_latent, d_obs))
+def init_autoencoder(seed: int, d_obs: int, d_latent: int, hidden: int, dtype: Any
+                     ) -> Autoencoder:
+    """The seeded initial autoencoder (the same weights as the torch twin's)."""
+    return autoencoder_from_numpy(autoencoder_init_arrays(seed, d_obs, d_latent, hidden),
+                                  dtype)
 
 
 def autoencoder_from_numpy(arrays: dict[str, np.ndarray], dtype: Any) -> Autoencoder:
@@ -222,7 +214,7 @@ class PixelJaxModel(JaxModel):
         )
         net = self.build(self.latent_dim, seed)
         ae = self._place(init_autoencoder(
-            np.random.default_rng([seed, AE_STREAM]), int(x.shape[1]), self.latent_dim,
+            seed, int(x.shape[1]), self.latent_dim,
             self.cfg.hidden, self._dtype,
         ))
         params, static = eqx.partition((ae, net), eqx.is_inexact_array)
@@ -231,18 +223,17 @@ class PixelJaxModel(JaxModel):
 
         n = int(x.shape[0])
         full = train.batch_size is None or train.batch_size >= n
-        rng = np.random.default_rng([seed, 1])  # jax_base.BATCH_STREAM
+        stream = None if full else BatchStream(seed, n, int(train.batch_size))
         every = self.cfg.log_interval(train.steps)
         lengths = [every] * (train.steps // every)
         if train.steps % every:
             lengths.append(train.steps % every)
 
         def indices(length: int) -> jax.Array | None:
-            if full:
+            if stream is None:
                 return None
-            block = np.stack([rng.choice(n, train.batch_size, replace=False)
-                              for _ in range(length)])
-            return jax.device_put(jnp.asarray(block, dtype=jnp.int32), self._device)
+            return jax.device_put(jnp.asarray(stream.block(length), dtype=jnp.int32),
+                                  self._device)
 
         def keep(params: Any) -> None:
             ae, net = eqx.combine(params, static)

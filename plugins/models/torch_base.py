@@ -11,7 +11,7 @@ import numpy as np
 
 from hnnbench.api import Dataset, FitResult, Model, Progress, System, TrainSettings
 from hnnbench.errors import ConfigError, RolloutDiverged, require_backend
-from hnnbench_plugins.models.neural import NeuralConfig
+from hnnbench_plugins.models.neural import BatchStream, NeuralConfig, init_arrays
 
 require_backend("torch", "torch")
 
@@ -34,7 +34,9 @@ def resolve_device(requested: str) -> torch.device:
 class MLP(nn.Module):
     """``layers`` linear layers with an activation between them; the last has no bias.
 
-    Weights are orthogonally initialised (as in the 2019 paper).
+    Built with torch's default init; :meth:`TorchModel.build` then loads the seeded
+    orthogonal weights of :func:`~hnnbench_plugins.models.neural.init_arrays` (the same
+    as the JAX twin's).
     """
 
     def __init__(self, d_in: int, d_out: int, cfg: NeuralConfig) -> None:
@@ -44,8 +46,6 @@ class MLP(nn.Module):
             nn.Linear(a, b, bias=i < cfg.layers - 1)
             for i, (a, b) in enumerate(zip(dims[:-1], dims[1:], strict=True))
         )
-        for layer in self.linears:
-            nn.init.orthogonal_(layer.weight)
         self.activation = cfg.activation
 
     def act(self, a: torch.Tensor) -> torch.Tensor:
@@ -115,9 +115,13 @@ class TorchModel(Model):
 
     # -- network ----------------------------------------------------------------------
     def build(self, d_in: int, seed: int) -> MLP:
-        torch.manual_seed(seed)
-        net = MLP(d_in, 1 if self.output_scalar else d_in, self.cfg)
-        return net.to(device=self._device, dtype=self._dtype)
+        """The seeded initial network (:func:`~hnnbench_plugins.models.neural.init_arrays`,
+        shared with the JAX twin) in the training dtype, on the model's device."""
+        d_out = 1 if self.output_scalar else d_in
+        net = MLP(d_in, d_out, self.cfg).to(device=self._device, dtype=self._dtype)
+        arrays = init_arrays(seed, d_in, d_out, self.cfg)
+        net.load_state_dict({k: torch.from_numpy(v) for k, v in arrays.items()})  # casts
+        return net
 
     def _require_net(self) -> MLP:
         if self.net is None:
@@ -142,16 +146,16 @@ class TorchModel(Model):
         net = self.net = self.build(x.shape[1], seed)
         self._net64 = None
         opt = torch.optim.Adam(net.parameters(), lr=train.lr, weight_decay=train.weight_decay)
-        gen = torch.Generator(device=self._device).manual_seed(seed)
         n = x.shape[0]
         full = train.batch_size is None or train.batch_size >= n
+        stream = None if full else BatchStream(seed, n, int(train.batch_size))
         every = self.cfg.log_interval(train.steps)
         history: dict[str, list[float]] = {"step": [], "train_loss": [], "test_loss": []}
         for step in range(1, train.steps + 1):
-            if full:
+            if stream is None:
                 xb, yb = x, dxdt
             else:
-                idx = torch.randperm(n, generator=gen, device=self._device)[: train.batch_size]
+                idx = torch.from_numpy(stream.next()).to(self._device)
                 xb, yb = x[idx], dxdt[idx]
             loss = torch.mean((self.field(net, xb) - yb) ** 2)
             opt.zero_grad(set_to_none=True)

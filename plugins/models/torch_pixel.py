@@ -48,7 +48,12 @@ import numpy as np
 
 from hnnbench.api import Dataset, FitResult, Progress, System, TrainSettings
 from hnnbench.errors import ConfigError, RolloutDiverged
-from hnnbench_plugins.models.neural import NeuralConfig
+from hnnbench_plugins.models.neural import (
+    AE_LAYERS,
+    BatchStream,
+    NeuralConfig,
+    autoencoder_init_arrays,
+)
 from hnnbench_plugins.models.torch_base import TorchModel, nn, torch
 
 #: Weights of the objective's terms (the paper's).
@@ -68,14 +73,11 @@ class Autoencoder(nn.Module):
         super().__init__()
 
         def stack(d_in: int, d_out: int) -> nn.ModuleList:
-            dims = [d_in, hidden, hidden, hidden, d_out]
+            dims = [d_in] + [hidden] * (AE_LAYERS - 1) + [d_out]
             return nn.ModuleList(nn.Linear(a, b) for a, b in zip(dims[:-1], dims[1:], strict=True))
 
         self.encoder = stack(d_obs, d_latent)
         self.decoder = stack(d_latent, d_obs)
-        for layer in [*self.encoder, *self.decoder]:
-            nn.init.orthogonal_(layer.weight)
-            nn.init.zeros_(layer.bias)
 
     @staticmethod
     def _run(layers: nn.ModuleList, x: torch.Tensor) -> torch.Tensor:
@@ -151,20 +153,20 @@ class PixelTorchModel(TorchModel):
             test.x[sub], test.dxdt[sub], {k: v[sub] for k, v in test.extras.items()}
         )
         net = self.net = self.build(self.latent_dim, seed)
-        ae = self.autoencoder = self._build_autoencoder(x.shape[1])
+        ae = self.autoencoder = self._build_autoencoder(x.shape[1], seed)
         self._net64 = None
         params = [*ae.parameters(), *net.parameters()]
         opt = torch.optim.Adam(params, lr=train.lr, weight_decay=train.weight_decay)
-        gen = torch.Generator(device=self._device).manual_seed(seed)
         n = x.shape[0]
         batch = n if train.batch_size is None else min(train.batch_size, n)
+        stream = None if batch == n else BatchStream(seed, n, batch)
         every = self.cfg.log_interval(train.steps)
         history: dict[str, list[float]] = {"step": [], "train_loss": [], "test_loss": []}
         for step in range(1, train.steps + 1):
-            if batch == n:
+            if stream is None:
                 xb, xnb = x, x_next
             else:
-                idx = torch.randperm(n, generator=gen, device=self._device)[:batch]
+                idx = torch.from_numpy(stream.next()).to(self._device)
                 xb, xnb = x[idx], x_next[idx]
             loss = self.objective(ae, net, xb, xnb)
             opt.zero_grad(set_to_none=True)
@@ -191,9 +193,13 @@ class PixelTorchModel(TorchModel):
             x_next = np.asarray(x) + self.frame_dt * np.asarray(dxdt)
         return self._tensor(x), self._tensor(x_next)
 
-    def _build_autoencoder(self, d_obs: int) -> Autoencoder:
+    def _build_autoencoder(self, d_obs: int, seed: int = 0) -> Autoencoder:
+        """The seeded initial autoencoder (the same weights as the JAX twin's)."""
         ae = Autoencoder(d_obs, self.latent_dim, self.cfg.hidden)
-        return ae.to(device=self._device, dtype=self._dtype)
+        ae = ae.to(device=self._device, dtype=self._dtype)
+        arrays = autoencoder_init_arrays(seed, d_obs, self.latent_dim, self.cfg.hidden)
+        ae.load_state_dict({k: torch.from_numpy(v) for k, v in arrays.items()})  # casts
+        return ae
 
     def _require_autoencoder(self) -> Autoencoder:
         if self.autoencoder is None:
