@@ -88,4 +88,6 @@ def cached(
     with atomic_path(path) as tmp:
         value.save(tmp)
     log.info("  %s %s ready in %.1f s -> %s", system.name, kind, time.perf_counter() - start, path)
-    return value, path, False
+    # Return what a cache hit would load (same dtypes and memory layout), so a job's
+    # metrics never depend on whether it or another worker built the entry.
+    return loader(path), path, False

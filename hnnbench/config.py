@@ -295,11 +295,10 @@ def check_hydra_node(cfg: DictConfig) -> None:
 def _check_hydra_groups(overrides: list[str]) -> None:
     """``hydra/<group>=<option>``: an installed option of a Hydra group, with a
     did-you-mean and the package that provides a known but missing plugin."""
-    from hydra.core.global_hydra import GlobalHydra
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    loader = GlobalHydra.instance().config_loader()
     parser = OverridesParser.create()
+    groups_of, options_of = _hydra_group_lister(overrides, parser)
     for text in overrides:
         if not text.lstrip("+~").startswith("hydra/"):
             continue
@@ -310,10 +309,10 @@ def _check_hydra_groups(overrides: list[str]) -> None:
         group = ov.key_or_group
         if ov.is_delete():
             continue
-        groups = [f"hydra/{g}" for g in loader.list_groups("hydra")]
+        groups = [f"hydra/{g}" for g in groups_of("hydra")]
         if group not in groups:
             raise UnknownNameError("Hydra config group", group, groups)
-        options = loader.get_group_options(group)
+        options = options_of(group)
         values = [str(v) for v in ov.sweep_string_iterator()] if ov.is_sweep_override() else [
             ov.get_value_element_as_str()]
         kind = f"Hydra {group.split('/', 1)[1]}"
@@ -327,6 +326,37 @@ def _check_hydra_groups(overrides: list[str]) -> None:
                     f"(installed: {', '.join(options)})"
                 )
             raise UnknownNameError(kind, value, options)
+
+
+def _hydra_group_lister(overrides: list[str], parser: Any) -> tuple[Any, Any]:
+    """``(list_groups(parent), group_options(group))`` over Hydra's search path plus the
+    entries of a ``hydra.searchpath=[...]`` override, so that a user's own option file
+    (e.g. ``hydra/launcher/my_slurm.yaml`` in a directory on the search path) is known."""
+    import copy
+
+    from hydra._internal.config_repository import ConfigRepository
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.core.object_type import ObjectType
+
+    loader = GlobalHydra.instance().config_loader()
+    entries: list[str] = []
+    for text in overrides:
+        if text.lstrip("+~").split("=", 1)[0].strip() != "hydra.searchpath":
+            continue
+        try:
+            (ov,) = parser.parse_overrides([text])
+        except Exception as err:
+            raise ConfigError(f"Cannot parse override '{text}': {hydra_error_line(err)}") from None
+        value = ov.value()
+        entries += [str(v) for v in (value if isinstance(value, list) else [value])]
+    if not entries:
+        return loader.list_groups, loader.get_group_options
+    search_path = copy.deepcopy(loader.config_search_path)
+    for entry in entries:
+        search_path.append(provider="hydra.searchpath (command line)", path=entry)
+    repo = ConfigRepository(config_search_path=search_path)
+    return (lambda parent: repo.get_group_options(parent, ObjectType.GROUP),
+            lambda group: repo.get_group_options(group, ObjectType.CONFIG))
 
 
 def hydra_error_line(err: BaseException) -> str:

@@ -1,0 +1,123 @@
+"""Smoke tests of the benchmark scripts in benchmarks/ (they are not part of the package).
+
+The fast test runs ``benchmarks/eval_speed.py`` in-process with the oracle (the true
+vector field, numpy only, no training) at a loose tolerance; the slow one runs the
+script as a subprocess with briefly trained torch and JAX models and checks that the
+batched rollout and the per-trajectory scipy loop compute the same energy MSE.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import subprocess
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+EVAL_SPEED = REPO / "benchmarks" / "eval_speed.py"
+HEADER = "| system | model | traj | batched ms | scipy-loop ms | speed-up |"
+
+
+def load_eval_speed() -> ModuleType:
+    """Import benchmarks/eval_speed.py as a module."""
+    spec = importlib.util.spec_from_file_location("hnnbench_eval_speed", EVAL_SPEED)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
+
+
+def table_rows(output: str) -> dict[str, list[str]]:
+    """The Markdown table's data rows, by model name, as lists of cell strings."""
+    lines = output.splitlines()
+    assert any(line.startswith(HEADER) for line in lines), output
+    start = next(i for i, line in enumerate(lines) if line.startswith(HEADER)) + 2
+    rows: dict[str, list[str]] = {}
+    for line in lines[start:]:
+        if not line.startswith("|"):
+            break
+        cells = [cell.strip() for cell in line.strip("|").split("|")]
+        rows[cells[1]] = cells
+    return rows
+
+
+def test_eval_speed_oracle_in_process(capsys: pytest.CaptureFixture[str]) -> None:
+    """Both paths run and agree on the oracle, whose energy MSE is the solver's error."""
+    bench = load_eval_speed()
+    status = bench.main(["--models", "oracle", "--repeats", "1", "--rtol", "1e-6",
+                         "--atol", "1e-6"])
+    out = capsys.readouterr().out
+    assert status == 0, out
+    row = table_rows(out)["oracle"]
+    assert row[0] == "spring" and row[2] == "15"
+    batched_ms, loop_ms = float(row[3]), float(row[4])
+    assert batched_ms > 0 and loop_ms > 0
+    assert float(row[6]) > 15 * 6  # loop RHS evals: at least one RK45 step per trajectory
+    mse_batched, mse_loop = float(row[8]), float(row[9])
+    # The true field at rtol = 1e-6 over 20 time units: energy errors of ~1e-5 at most
+    # (measured: ~1e-10 for both MSEs); a path that compares the wrong states is O(0.1).
+    assert 0 <= mse_batched < 1e-8 and 0 <= mse_loop < 1e-8, row
+
+
+def test_eval_speed_rejects_pixel_systems(capsys: pytest.CaptureFixture[str]) -> None:
+    bench = load_eval_speed()
+    status = bench.main(["--systems", "pixel_pendulum", "--models", "oracle"])
+    out = capsys.readouterr().out
+    assert status == 1
+    assert "FAILED" in out and "states only" in out
+
+
+def test_row_relative_difference() -> None:
+    bench = load_eval_speed()
+    row = bench.Row(
+        system="spring", model="m", n_traj=15, n_points=100, rtol=1e-9, atol=1e-9,
+        fit_s=0.0, batched_ms=10.0, batched_min_ms=10.0, loop_ms=250.0, loop_min_ms=250.0,
+        loop_nfev=1, batched_rhs_calls=None, energy_mse_batched=2.0, energy_mse_loop=1.0,
+    )
+    assert row.speedup == pytest.approx(25.0)
+    assert row.rel_diff == pytest.approx(0.5)
+    assert "| spring | m | 15 | 10.0 | 250.0 | 25.0x |" in bench.markdown_table([row])
+
+
+@pytest.mark.slow
+def test_eval_speed_trained_models_agree() -> None:
+    """Briefly trained torch and JAX models at the harness tolerance: the two paths'
+    energy MSEs agree to well within the solver's accuracy."""
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run(
+        [sys.executable, str(EVAL_SPEED), "--models", "mlp_torch", "hnn_jax",
+         "--steps", "100", "--repeats", "1"],
+        capture_output=True, text=True, timeout=900, env=env, cwd=REPO,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    rows = table_rows(proc.stdout)
+    assert set(rows) == {"mlp_torch", "hnn_jax"}, proc.stdout
+    for name, row in rows.items():
+        mse_batched, mse_loop, rel = float(row[8]), float(row[9]), float(row[10])
+        assert mse_batched > 0 and mse_loop > 0, row
+        assert rel < 1e-4, f"{name}: energy MSEs disagree: {row}"
+        assert float(row[5].rstrip("x")) > 1.0, f"{name}: batched path slower: {row}"
+    assert rows["mlp_torch"][7].isdigit()  # torch: batched RHS calls counted
+
+
+@pytest.mark.slow
+def test_train_step_benchmark_prints_2019_and_roofline_columns():
+    """benchmarks/train_step.py, tiny settings: it runs, and its tables have the 2019
+    loop and roofline columns and a row per backend."""
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "train_step.py"), "--systems", "spring",
+         "--models", "hnn_torch", "hnn_jax", "--steps", "20", "--repeats", "1",
+         "--steps-2019", "10", "--rate-budget", "0.05", "--no-pin"],
+        capture_output=True, text=True, timeout=600, env=env, cwd=REPO,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = proc.stdout
+    assert "2019 loop" in out and "roofline" in out.lower()
+    rows = [line for line in out.splitlines() if line.startswith("| spring | hnn_")]
+    assert {line.split("|")[2].strip() for line in rows} >= {"hnn_torch", "hnn_jax"}
