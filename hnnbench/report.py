@@ -359,6 +359,15 @@ def _color(model: str, models: Sequence[str]) -> str:
     return _SPARE_COLORS[others.index(model) % len(_SPARE_COLORS)]
 
 
+def _line(model: str, models: Sequence[str]) -> dict[str, Any]:
+    """Line style of a model in the shared-axes figures: JAX models dashed and thin on
+    top of a wide solid line for the others, so that a torch model and its JAX twin,
+    which often coincide (same seed, same initial weights), both stay visible."""
+    if model.endswith("_jax"):
+        return {"color": _color(model, models), "lw": 1.3, "ls": (0, (4, 2)), "zorder": 3}
+    return {"color": _color(model, models), "lw": 2.4, "ls": "-", "alpha": 0.85, "zorder": 2}
+
+
 def _load_npz(path: Path) -> dict[str, np.ndarray]:
     try:
         with np.load(path, allow_pickle=False) as z:
@@ -439,8 +448,8 @@ def _energy_figure(system: str, seed: int, runs: list[_Run], models: list[str]) 
     for k, ax in enumerate(axes):
         ax.plot(t, e_true[k], "k--", lw=2.0, label="ground truth")
         for run in shown:
-            ax.plot(run.arrays["t"], run.arrays["energy_hat"][k], "-",
-                    color=_color(run.model, models), lw=1.4, label=run.model)
+            ax.plot(run.arrays["t"], run.arrays["energy_hat"][k], label=run.model,
+                    **_line(run.model, models))
         ax.set_title(f"trajectory {k + 1}")
         ax.set_xlabel("time")
         ax.set_ylabel("true energy E(x̂(t))")
@@ -462,8 +471,7 @@ def _learned_energy_figure(system: str, seed: int, runs: list[_Run], models: lis
     for k, ax in enumerate(axes):
         for run in shown:
             h = run.arrays["learned_energy"][k]
-            ax.plot(run.arrays["t"], h - h[0], "-", color=_color(run.model, models), lw=1.4,
-                    label=run.model)
+            ax.plot(run.arrays["t"], h - h[0], label=run.model, **_line(run.model, models))
         ax.axhline(0.0, color="k", lw=0.8, ls=":")
         ax.set_title(f"trajectory {k + 1}")
         ax.set_xlabel("time")
