@@ -587,6 +587,13 @@ def _html_table(frame: pd.DataFrame, cls: str = "", status_col: Optional[str] = 
             f"<tbody>{''.join(body)}</tbody></table></div>")
 
 
+def _inline_code(markdown: str) -> str:
+    """Escape ``markdown`` for HTML, turning its `code` spans into <code> elements."""
+    parts = markdown.split("`")
+    return "".join(f"<code>{html.escape(p)}</code>" if i % 2 else html.escape(p)
+                   for i, p in enumerate(parts))
+
+
 def _img(path: Path, alt: str) -> str:
     data = base64.b64encode(path.read_bytes()).decode("ascii")
     return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
@@ -600,8 +607,8 @@ def report_html(board: pd.DataFrame, figures: list[tuple[str, str, Path]],
         "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
         "<title>hnnbench leaderboard</title>", f"<style>{_CSS}</style></head><body>",
         "<h1>hnnbench leaderboard</h1>",
-        f'<p class="note">{html.escape(_seed_line(board))}</p>',
-        *([f'<p class="note">{html.escape(line[2:])}</p>' for line in provenance_lines(prov)]
+        f'<p class="note">{_inline_code(_seed_line(board))}</p>',
+        *([f'<p class="note">{_inline_code(line[2:])}</p>' for line in provenance_lines(prov)]
           if prov is not None else []),
         _html_table(display_frame(board), "board", status_col="status"),
         "<h2>Comparison with Greydanus et al. (2019), Table 1</h2>",

@@ -86,6 +86,7 @@ def test_markdown_and_html_name_the_commands_commit_and_device(sweep):
         assert "hnnbench -m system=spring seed=0" in text
         assert "hnnbench -m system=pendulum seed=1" in text
         assert commit in text and "cpu" in text
+    assert "<code>hnnbench -m system=spring seed=0</code>" in page and "`" not in page
 
 
 def test_figures_per_system_and_html_embeds_every_one(built):
