@@ -428,6 +428,28 @@ class JaxModel(Model):
             )
         self._set_net(net)
 
+    def _chunk_plan(
+        self, train: TrainSettings, n: int, seed: int
+    ) -> tuple[list[int], Callable[[int], jax.Array | None]]:
+        """How a fit of ``train.steps`` steps on ``n`` points is cut into compiled
+        chunks (one per log interval): the chunk lengths, and a function that draws the
+        next chunk's ``(length, batch)`` minibatch indices on the device (``None`` for
+        full batch). Indices come from the run's shared :class:`BatchStream`."""
+        full = train.batch_size is None or train.batch_size >= n
+        stream = None if full else BatchStream(seed, n, int(train.batch_size))
+        every = self.cfg.log_interval(train.steps)
+        lengths = [every] * (train.steps // every)
+        if train.steps % every:
+            lengths.append(train.steps % every)
+
+        def indices(length: int) -> jax.Array | None:
+            if stream is None:
+                return None
+            return jax.device_put(jnp.asarray(stream.block(length), dtype=jnp.int32),
+                                  self._device)
+
+        return lengths, indices
+
     # -- training ---------------------------------------------------------------------
     def fit(
         self, data: Dataset, train: TrainSettings, seed: int, progress: Progress
@@ -443,19 +465,7 @@ class JaxModel(Model):
         opt_state = self._place(adam_like_torch(train.lr, train.weight_decay).init(params))
         hyper = (self._array(train.lr), self._array(train.weight_decay))  # training dtype
 
-        n = int(x.shape[0])
-        full = train.batch_size is None or train.batch_size >= n
-        stream = None if full else BatchStream(seed, n, int(train.batch_size))
-        every = self.cfg.log_interval(train.steps)
-        lengths = [every] * (train.steps // every)
-        if train.steps % every:
-            lengths.append(train.steps % every)
-
-        def indices(length: int) -> jax.Array | None:
-            if stream is None:
-                return None
-            return jax.device_put(jnp.asarray(stream.block(length), dtype=jnp.int32),
-                                  self._device)
+        lengths, indices = self._chunk_plan(train, int(x.shape[0]), seed)
 
         compile_s = 0.0
         history: dict[str, list[float]] = {"step": [], "train_loss": [], "test_loss": []}

@@ -47,7 +47,6 @@ from hnnbench_plugins.models.jax_base import (
 )
 from hnnbench_plugins.models.neural import (
     AE_LAYERS,
-    BatchStream,
     NeuralConfig,
     autoencoder_init_arrays,
 )
@@ -221,19 +220,7 @@ class PixelJaxModel(JaxModel):
         opt_state = self._place(adam_like_torch(train.lr, train.weight_decay).init(params))
         hyper = (self._array(train.lr), self._array(train.weight_decay))
 
-        n = int(x.shape[0])
-        full = train.batch_size is None or train.batch_size >= n
-        stream = None if full else BatchStream(seed, n, int(train.batch_size))
-        every = self.cfg.log_interval(train.steps)
-        lengths = [every] * (train.steps // every)
-        if train.steps % every:
-            lengths.append(train.steps % every)
-
-        def indices(length: int) -> jax.Array | None:
-            if stream is None:
-                return None
-            return jax.device_put(jnp.asarray(stream.block(length), dtype=jnp.int32),
-                                  self._device)
+        lengths, indices = self._chunk_plan(train, int(x.shape[0]), seed)
 
         def keep(params: Any) -> None:
             ae, net = eqx.combine(params, static)
