@@ -14,7 +14,7 @@ evaluation trajectories:
 (a) **batched** (what :func:`hnnbench.evaluate.evaluate` does): one
     ``model.rollout(x0_all, t, rtol, atol)`` call from every initial state at once,
     the batch integrated as one system by the backend's adaptive Dormand-Prince 5(4)
-    in float64 (torchdiffeq ``dopri5`` for torch, diffrax ``Dopri5`` for JAX), then the
+    in float64 (hnnbench's own batched ``dopri5`` for torch, diffrax ``Dopri5`` for JAX), then the
     energy MSE with hnnbench's own functions (``evaluate._energies``,
     ``metrics.energy_error_per_traj``, ``metrics.summarize``).
 (b) **scipy loop** (the 2019 code's way): for each trajectory separately,

@@ -83,6 +83,9 @@ class RunConfig:
         threads: CPU threads per job for torch/BLAS/XLA (0: the library default). One
             thread is fastest for the paper-sized networks and keeps parallel workers
             from oversubscribing the cores.
+        pin_cpu: pin the job's process to one free core (:mod:`hnnbench.affinity`).
+            ``null`` (default): pin when ``threads=1`` and the job runs in a launcher's
+            worker process (joblib, submitit), not in the ``hnnbench`` process itself.
         save_model: write the trained weights next to the record.
         cache_dir: dataset cache (default ``$HNNBENCH_CACHE_DIR`` or the user cache).
         data_dir: where measured data files are looked up before ``$HNNBENCH_DATA_DIR``.
@@ -95,6 +98,7 @@ class RunConfig:
     device: str = "auto"
     rerun: bool = False
     threads: int = 1
+    pin_cpu: Optional[bool] = None
     save_model: bool = True
     cache_dir: Optional[str] = None
     data_dir: Optional[str] = None

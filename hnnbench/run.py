@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from hnnbench import cache, records
+from hnnbench import affinity, cache, records
 from hnnbench.api import Dataset, TrainSettings, Trajectories
 from hnnbench.config import EvaluationConfig, Job, prepare_job
 from hnnbench.errors import HnnbenchError, RolloutDiverged
@@ -197,6 +197,9 @@ def _execute(
         record.update(status="skipped", error=f"{cfg.model.name} on {cfg.system.name}: {reason}")
         return
     _set_threads(int(cfg.threads))
+    pin = cfg.get("pin_cpu")
+    if pin or (pin is None and int(cfg.threads) == 1 and affinity.is_launcher_worker()):
+        record["cpu_pin"] = affinity.claim_core()
     root = cache.cache_root(cfg.cache_dir)
     seed = int(cfg.seed)
 

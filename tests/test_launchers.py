@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 import shlex
 import subprocess
 import sys
@@ -92,6 +93,13 @@ def test_sweep_completes_with_summary(sweeps: Sweeps, launcher: str) -> None:
     for key, rec in recs.items():
         assert rec["status"] == "ok", (launcher, key, rec["error"])
         assert set(rec["timings"]) >= {"data_s", "fit_s", "eval_s", "total_s"}
+    # Jobs in launcher workers pin themselves to a core (hnnbench.affinity); the basic
+    # launcher runs jobs in the hnnbench process itself, which is left alone.
+    pins = {rec.get("cpu_pin") for rec in recs.values()}
+    if launcher == "basic":
+        assert pins == {None}
+    elif len(os.sched_getaffinity(0)) > 1:
+        assert None not in pins and pins <= set(os.sched_getaffinity(0)), pins
     # The end-of-sweep callback ran once, in the launching process, over every record.
     assert f"{N} jobs: {N} ok" in proc.stdout, proc.stdout[-3000:]
     with open(sweep.dir / "summary.csv", newline="") as fh:

@@ -170,7 +170,6 @@ def test_profiles_are_valid_and_paper_defaults():
 def tiny():
     """A tiny pixel dataset and both torch models fitted for a few steps."""
     pytest.importorskip("torch")
-    pytest.importorskip("torchdiffeq")
     from hnnbench_plugins.models.neural import NeuralConfig
     from hnnbench_plugins.models.torch_models import HNNTorch, MLPTorch
 

@@ -22,12 +22,21 @@ minibatch each step), built with equinox and optax.
 
 Importing this module enables 64-bit floats in JAX (``jax_enable_x64``), which float64
 rollouts need. Training runs in ``cfg.dtype``: parameters and data are cast explicitly.
+
+It also turns on JAX's persistent compilation cache, under the dataset cache's root
+(``$HNNBENCH_CACHE_DIR/jax-compilation``, unless ``JAX_COMPILATION_CACHE_DIR`` names
+another place), so that launcher workers and later sweeps load the rollout and training
+executables other processes compiled instead of compiling them again. For the rollout
+to be cacheable it must hold no host callbacks, so equinox's in-graph error checks
+answer with NaN (``EQX_ON_ERROR=nan``, unless set otherwise) instead of calling back to
+raise; a NaN rollout is recorded as diverged, like a solver failure.
 """
 
 from __future__ import annotations
 
 import json
 import logging
+import os
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -36,6 +45,7 @@ from typing import Any, ClassVar, Optional
 import numpy as np
 
 from hnnbench.api import Dataset, FitResult, Model, Progress, System, TrainSettings
+from hnnbench.cache import cache_root
 from hnnbench.errors import ConfigError, RolloutDiverged, require_backend
 from hnnbench_plugins.models.neural import (
     BatchStream,
@@ -47,6 +57,8 @@ from hnnbench_plugins.models.neural import (
 for _module in ("jax", "equinox", "optax", "diffrax"):
     require_backend(_module, "jax")
 
+os.environ.setdefault("EQX_ON_ERROR", "nan")  # read when equinox is imported
+
 import diffrax  # noqa: E402
 import equinox as eqx  # noqa: E402
 import jax  # noqa: E402
@@ -54,6 +66,9 @@ import jax.numpy as jnp  # noqa: E402
 import optax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
+if not jax.config.jax_compilation_cache_dir:
+    jax.config.update("jax_compilation_cache_dir", str(cache_root() / "jax-compilation"))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
 # Probing for absent accelerators (TPU, GPU) logs an INFO line per backend, which the
 # CLI's INFO-level logging would print on every run.
 logging.getLogger("jax._src.xla_bridge").setLevel(logging.WARNING)

@@ -27,7 +27,8 @@ class Pendulum(ToySystem):
     """
 
     Config = PendulumConfig
-    version = "1"
+    # 2: evaluation initial states drawn as the 2019 notebooks did (eval_init="box").
+    version = "2"
     description = "Ideal pendulum, H = 3(1 - cos q) + p^2 (HNN paper, task 2)"
     profiles = {"quick": {"steps": 300, "eval_n_traj": 5}}
 

@@ -24,7 +24,8 @@ class Spring(ToySystem):
     """Ideal mass-spring, H = q^2 + p^2; the paper's task 1."""
 
     Config = SpringConfig
-    version = "1"
+    # 2: evaluation initial states drawn as the 2019 notebooks did (eval_init="box").
+    version = "2"
     description = "Ideal mass-spring, H = q^2 + p^2 (HNN paper, task 1)"
     profiles = {"quick": {"steps": 300, "eval_n_traj": 5}}
 
