@@ -1,14 +1,20 @@
-"""One CPU core per launcher worker.
+"""One CPU core per job process.
 
-A job runs its networks with one thread (``threads=1``), but XLA's CPU thread pool still
-spreads large products over every core it may use, so two parallel workers on a 2-core
-machine contend (docs/SCALING.md). :func:`claim_core` gives the calling process a core of
-its own: it takes an exclusive ``flock`` on one lock file per allowed CPU, in order, and
-pins every thread of the process to the first CPU whose lock it gets. The lock is held
-until the process exits, so concurrent workers (joblib/loky processes, submitit tasks,
-even two sweeps) end up on different cores, and a reused worker keeps its core.
+A job runs its networks with one thread (``threads=1``), but XLA's CPU thread pool
+spreads products over every core in the process's affinity mask. That makes two
+parallel workers on a 2-core machine contend (docs/SCALING.md), and it makes JAX results
+depend on the core count: a product split over two threads rounds differently. So a
+job started by the ``hnnbench`` command pins its process to one core before any JAX
+computation: XLA then starts a one-thread pool, whichever launcher runs the job, and
+the basic, joblib and submitit launchers give the same numbers.
 
-Linux only; elsewhere, or with a single allowed CPU, nothing is pinned.
+:func:`claim_core` takes an exclusive ``flock`` on one lock file per allowed CPU, in
+order, and pins every thread of the process to the first CPU whose lock it gets. The
+lock is held until the process exits, so concurrent processes (joblib/loky workers,
+submitit tasks, even two sweeps) end up on different cores, and a reused worker keeps
+its core. When more processes than cores run at once (submitit_local starts a whole
+batch), the extra ones share a core, chosen by process id, but are pinned all the same,
+so XLA runs one thread in every job. Linux only; elsewhere nothing is pinned.
 """
 
 from __future__ import annotations
@@ -18,19 +24,19 @@ import tempfile
 from pathlib import Path
 from typing import IO, Optional
 
-__all__ = ["claim_core", "is_launcher_worker", "MAIN_PID_ENV"]
+__all__ = ["claim_core", "started_by_cli", "CLI_ENV"]
 
-#: Set by the CLI to the pid of the process that starts Hydra; launcher workers inherit it.
-MAIN_PID_ENV = "HNNBENCH_MAIN_PID"
+#: Set by the ``hnnbench`` command before it starts Hydra; launcher workers inherit it.
+CLI_ENV = "HNNBENCH_CLI_PID"
 
 _held: dict[str, object] = {}
 
 
-def is_launcher_worker() -> bool:
-    """Whether this process is a launcher's worker, not the ``hnnbench`` process itself
-    (the basic launcher runs jobs in the main process; joblib and submitit do not)."""
-    main = os.environ.get(MAIN_PID_ENV)
-    return main is not None and main != str(os.getpid())
+def started_by_cli() -> bool:
+    """Whether this process runs jobs for the ``hnnbench`` command (its own process
+    under the basic launcher, or a launcher's worker), not for a caller of
+    :func:`hnnbench.run.run_job` such as a notebook or a test, which is left alone."""
+    return CLI_ENV in os.environ
 
 
 def _lock_dir() -> Path:
@@ -54,8 +60,8 @@ def _pin_all_threads(cpu: int) -> None:
 
 
 def claim_core(lock_dir: Optional[Path] = None) -> Optional[int]:
-    """Pin this process to a CPU no other claimant holds; return it (``None``: not
-    pinned, because the platform can't, one CPU is allowed, or every core is taken).
+    """Pin this process to one CPU, one that no other claimant holds if there is one;
+    return it (``None``: the platform has no CPU affinity).
 
     Idempotent: a process that holds a core returns it again.
     """
@@ -68,8 +74,9 @@ def claim_core(lock_dir: Optional[Path] = None) -> Optional[int]:
     except ImportError:  # not POSIX
         return None
     allowed = sorted(os.sched_getaffinity(0))
-    if len(allowed) < 2:
-        return None
+    if len(allowed) == 1:
+        _held["cpu"] = allowed[0]
+        return allowed[0]
     directory = lock_dir or _lock_dir()
     for cpu in allowed:
         handle: IO[str] = open(directory / f"cpu{cpu}.lock", "a+")  # noqa: SIM115
@@ -81,4 +88,7 @@ def claim_core(lock_dir: Optional[Path] = None) -> Optional[int]:
         _pin_all_threads(cpu)
         _held.update(cpu=cpu, handle=handle)  # the lock lives as long as the process
         return cpu
-    return None
+    cpu = allowed[os.getpid() % len(allowed)]  # every core taken: share one
+    _pin_all_threads(cpu)
+    _held["cpu"] = cpu
+    return cpu

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from hnnbench import registry
-from hnnbench.affinity import MAIN_PID_ENV
+from hnnbench.affinity import CLI_ENV
 from hnnbench.errors import ConfigError, HnnbenchError, UnknownNameError
 
 USAGE = """\
@@ -451,8 +451,8 @@ def run_hydra(argv: list[str]) -> int:
         os.environ["HNNBENCH_N_JOBS"] = str(checked.n_jobs)
     else:
         os.environ.pop("HNNBENCH_N_JOBS", None)
-    # Launcher workers inherit it and so know they are workers (hnnbench.affinity).
-    os.environ[MAIN_PID_ENV] = str(os.getpid())
+    # Jobs (here or in launcher workers, which inherit it) may pin a core: hnnbench.affinity.
+    os.environ[CLI_ENV] = str(os.getpid())
     # The command line as typed, for the records (launchers' workers inherit it).
     os.environ["HNNBENCH_COMMAND"] = shlex.join(["hnnbench", *argv])
     if checked.multirun and checked.n_jobs:

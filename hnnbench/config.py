@@ -83,9 +83,10 @@ class RunConfig:
         threads: CPU threads per job for torch/BLAS/XLA (0: the library default). One
             thread is fastest for the paper-sized networks and keeps parallel workers
             from oversubscribing the cores.
-        pin_cpu: pin the job's process to one free core (:mod:`hnnbench.affinity`).
-            ``null`` (default): pin when ``threads=1`` and the job runs in a launcher's
-            worker process (joblib, submitit), not in the ``hnnbench`` process itself.
+        pin_cpu: pin the job's process to one free core (:mod:`hnnbench.affinity`), so
+            that XLA runs one thread too and results do not depend on the launcher.
+            ``null`` (default): pin when ``threads=1`` and the ``hnnbench`` command
+            started the job (not when a notebook calls ``run_job``).
         save_model: write the trained weights next to the record.
         cache_dir: dataset cache (default ``$HNNBENCH_CACHE_DIR`` or the user cache).
         data_dir: where measured data files are looked up before ``$HNNBENCH_DATA_DIR``.

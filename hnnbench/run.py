@@ -198,7 +198,7 @@ def _execute(
         return
     _set_threads(int(cfg.threads))
     pin = cfg.get("pin_cpu")
-    if pin or (pin is None and int(cfg.threads) == 1 and affinity.is_launcher_worker()):
+    if pin or (pin is None and int(cfg.threads) == 1 and affinity.started_by_cli()):
         record["cpu_pin"] = affinity.claim_core()
     root = cache.cache_root(cfg.cache_dir)
     seed = int(cfg.seed)

@@ -53,9 +53,9 @@ def test_concurrent_claimants_get_distinct_cores_then_none(tmp_path):
             assert early == f"[{cpu}]"  # threads that existed before the claim moved too
             cpus.append(int(cpu))
         assert sorted(cpus) == allowed  # one core each, in order
-        proc, cpu, _, early = _claimant(tmp_path)  # every core taken: not pinned
+        proc, cpu, again, early = _claimant(tmp_path)  # every core taken: share one
         held.append(proc)
-        assert cpu == "None" and early == str(allowed)
+        assert cpu == again and int(cpu) in allowed and early == f"[{cpu}]"
     finally:
         for proc in held:
             proc.communicate("")
@@ -65,10 +65,8 @@ def test_concurrent_claimants_get_distinct_cores_then_none(tmp_path):
     assert cpu == str(allowed[0])
 
 
-def test_only_launcher_workers_count_as_workers(monkeypatch):
-    monkeypatch.delenv(affinity.MAIN_PID_ENV, raising=False)
-    assert not affinity.is_launcher_worker()  # not started by the CLI (tests, notebooks)
-    monkeypatch.setenv(affinity.MAIN_PID_ENV, str(os.getpid()))
-    assert not affinity.is_launcher_worker()  # the basic launcher: the CLI process itself
-    monkeypatch.setenv(affinity.MAIN_PID_ENV, str(os.getpid() + 1))
-    assert affinity.is_launcher_worker()
+def test_only_jobs_of_the_hnnbench_command_pin(monkeypatch):
+    monkeypatch.delenv(affinity.CLI_ENV, raising=False)
+    assert not affinity.started_by_cli()  # run_job from a notebook or a test
+    monkeypatch.setenv(affinity.CLI_ENV, "123")
+    assert affinity.started_by_cli()

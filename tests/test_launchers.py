@@ -26,9 +26,11 @@ pytestmark = pytest.mark.slow
 #: The quick sweep, trimmed (two systems, two trained models, fewer steps, a shorter
 #: evaluation horizon) so that three launchers and two resumes stay within a minute or
 #: two on two cores: each job costs a process start under submitit.
-SWEEP = ("-m", "system=spring,pendulum", "model=mlp_torch,hnn_torch", "profile=quick",
+SWEEP = ("-m", "system=spring,pendulum", "model=mlp_torch,hnn_torch,hnn_jax", "profile=quick",
          "seed=0", "system.steps=100", "system.eval_t_end=5")
-KEYS = {(s, m, 0) for s in ("spring", "pendulum") for m in ("mlp_torch", "hnn_torch")}
+#: hnn_jax is in because XLA's results depend on its thread count: every launcher's jobs
+#: pin their process to one core (hnnbench.affinity), so XLA runs one thread everywhere.
+KEYS = {(s, m, 0) for s in ("spring", "pendulum") for m in ("mlp_torch", "hnn_torch", "hnn_jax")}
 N = len(KEYS)
 #: Relative tolerance of the metric comparison: none. Every job evaluates on arrays
 #: as loaded from the dataset cache, whoever built them (hnnbench.cache.cached).
@@ -93,12 +95,9 @@ def test_sweep_completes_with_summary(sweeps: Sweeps, launcher: str) -> None:
     for key, rec in recs.items():
         assert rec["status"] == "ok", (launcher, key, rec["error"])
         assert set(rec["timings"]) >= {"data_s", "fit_s", "eval_s", "total_s"}
-    # Jobs in launcher workers pin themselves to a core (hnnbench.affinity); the basic
-    # launcher runs jobs in the hnnbench process itself, which is left alone.
+    # Every launcher's jobs pin their process to a core (hnnbench.affinity).
     pins = {rec.get("cpu_pin") for rec in recs.values()}
-    if launcher == "basic":
-        assert pins == {None}
-    elif len(os.sched_getaffinity(0)) > 1:
+    if len(os.sched_getaffinity(0)) > 1:
         assert None not in pins and pins <= set(os.sched_getaffinity(0)), pins
     # The end-of-sweep callback ran once, in the launching process, over every record.
     assert f"{N} jobs: {N} ok" in proc.stdout, proc.stdout[-3000:]
