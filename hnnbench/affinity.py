@@ -14,11 +14,14 @@ lock is held until the process exits, so concurrent processes (joblib/loky worke
 submitit tasks, even two sweeps) end up on different cores, and a reused worker keeps
 its core. When more processes than cores run at once (submitit_local starts a whole
 batch), the extra ones share a core, chosen by process id, but are pinned all the same,
-so XLA runs one thread in every job. Linux only; elsewhere nothing is pinned.
+so XLA runs one thread in every job; such a process keeps that core even if another
+frees up, so do not start more job processes than cores. Linux only; elsewhere nothing
+is pinned.
 """
 
 from __future__ import annotations
 
+import logging
 import os
 import tempfile
 from pathlib import Path
@@ -30,6 +33,7 @@ __all__ = ["claim_core", "started_by_cli", "CLI_ENV"]
 CLI_ENV = "HNNBENCH_CLI_PID"
 
 _held: dict[str, object] = {}
+log = logging.getLogger("hnnbench")
 
 
 def started_by_cli() -> bool:
@@ -61,10 +65,20 @@ def _pin_all_threads(cpu: int) -> None:
 
 def claim_core(lock_dir: Optional[Path] = None) -> Optional[int]:
     """Pin this process to one CPU, one that no other claimant holds if there is one;
-    return it (``None``: the platform has no CPU affinity).
+    return it (``None``: not pinned, because the platform has no CPU affinity or the OS
+    refused, e.g. an unwritable temporary directory; a warning says which).
 
     Idempotent: a process that holds a core returns it again.
     """
+    try:
+        return _claim(lock_dir)
+    except OSError as err:
+        log.warning("hnnbench: could not pin this job to one CPU core (%s); it runs "
+                    "unpinned, and JAX results may then differ in the last bits", err)
+        return None
+
+
+def _claim(lock_dir: Optional[Path]) -> Optional[int]:
     if "cpu" in _held:
         return int(_held["cpu"])  # type: ignore[call-overload]
     if not hasattr(os, "sched_setaffinity"):

@@ -452,6 +452,8 @@ def run_hydra(argv: list[str]) -> int:
     else:
         os.environ.pop("HNNBENCH_N_JOBS", None)
     # Jobs (here or in launcher workers, which inherit it) may pin a core: hnnbench.affinity.
+    # Restored afterwards, so a notebook's later run_job calls are not pinned.
+    previous_cli = os.environ.get(CLI_ENV)
     os.environ[CLI_ENV] = str(os.getpid())
     # The command line as typed, for the records (launchers' workers inherit it).
     os.environ["HNNBENCH_COMMAND"] = shlex.join(["hnnbench", *argv])
@@ -466,6 +468,10 @@ def run_hydra(argv: list[str]) -> int:
                        config_name="config")(_task)()
     finally:
         sys.argv = saved
+        if previous_cli is None:
+            os.environ.pop(CLI_ENV, None)
+        else:
+            os.environ[CLI_ENV] = previous_cli
     if _single_run:
         return _report_single(_single_run[-1])
     return 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import select
 import subprocess
 import sys
 import textwrap
@@ -10,6 +11,8 @@ import textwrap
 import pytest
 
 from hnnbench import affinity
+from hnnbench.config import compose
+from hnnbench.run import run_job
 
 pytestmark = pytest.mark.skipif(
     not hasattr(os, "sched_setaffinity") or len(os.sched_getaffinity(0)) < 2,
@@ -38,6 +41,10 @@ CHILD = textwrap.dedent(
 def _claimant(lock_dir):
     proc = subprocess.Popen([sys.executable, "-c", CHILD, str(lock_dir)], text=True,
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    ready, _, _ = select.select([proc.stdout], [], [], 60)
+    if not ready:
+        proc.kill()
+        pytest.fail("a claimant printed nothing within 60 s")
     cpu, again, early = proc.stdout.readline().split(" ", 2)
     return proc, cpu, again, early.strip()
 
@@ -70,3 +77,43 @@ def test_only_jobs_of_the_hnnbench_command_pin(monkeypatch):
     assert not affinity.started_by_cli()  # run_job from a notebook or a test
     monkeypatch.setenv(affinity.CLI_ENV, "123")
     assert affinity.started_by_cli()
+
+
+@pytest.mark.parametrize(
+    "cli, overrides, pinned",
+    [
+        (True, [], True),  # threads=1 under the CLI: pinned
+        (False, [], False),  # run_job from a notebook: left alone
+        (True, ["threads=2"], False),  # more threads asked for: left alone
+        (True, ["pin_cpu=false"], False),
+        (False, ["pin_cpu=true"], True),
+    ],
+)
+def test_which_jobs_pin(monkeypatch, tmp_path, cli, overrides, pinned):
+    claims = []
+    monkeypatch.setattr(affinity, "claim_core", lambda: claims.append(1) or 7)
+    if cli:
+        monkeypatch.setenv(affinity.CLI_ENV, "123")
+    else:
+        monkeypatch.delenv(affinity.CLI_ENV, raising=False)
+    cfg = compose(["system=spring", "model=oracle", "profile=quick", *overrides])
+    rec = run_job(cfg, tmp_path / "job")
+    assert rec["status"] == "ok", rec["error"]
+    assert (rec.get("cpu_pin") == 7) is pinned and bool(claims) is pinned
+
+
+def test_the_cli_flag_does_not_outlive_an_in_process_run(monkeypatch, capsys):
+    from hnnbench.cli import run
+
+    monkeypatch.delenv(affinity.CLI_ENV, raising=False)
+    assert run(["--cfg", "job", "system=spring", "model=oracle"]) == 0
+    capsys.readouterr()
+    assert affinity.CLI_ENV not in os.environ
+
+
+def test_an_unwritable_lock_directory_leaves_the_job_unpinned(tmp_path, caplog):
+    blocker = tmp_path / "not-a-dir"
+    blocker.write_text("")
+    affinity._held.clear()
+    assert affinity.claim_core(blocker / "sub") is None
+    assert "could not pin" in caplog.text and not affinity._held

@@ -1,8 +1,8 @@
 """One small sweep through three real Hydra launchers: basic (in-process, one job after
 another), joblib (a pool of two worker processes) and submitit_local (one process per
-job). The records must agree: training is seeded and deterministic on CPU, whatever
-process runs it, so data and training curves are identical bit for bit, and the
-metrics agree to the last bits (see :func:`test_launchers_reproduce_the_basic_sweep`).
+job). The records must agree: training is seeded and deterministic on one CPU core,
+whatever process runs it, so data, training curves, weights and metrics are identical
+bit for bit (see :func:`test_launchers_reproduce_the_basic_sweep`).
 Each launcher must also produce the end-of-sweep summary, hand the job processes the
 caller's environment, and resume (slow)."""
 
@@ -97,7 +97,7 @@ def test_sweep_completes_with_summary(sweeps: Sweeps, launcher: str) -> None:
         assert set(rec["timings"]) >= {"data_s", "fit_s", "eval_s", "total_s"}
     # Every launcher's jobs pin their process to a core (hnnbench.affinity).
     pins = {rec.get("cpu_pin") for rec in recs.values()}
-    if len(os.sched_getaffinity(0)) > 1:
+    if hasattr(os, "sched_getaffinity") and len(os.sched_getaffinity(0)) > 1:
         assert None not in pins and pins <= set(os.sched_getaffinity(0)), pins
     # The end-of-sweep callback ran once, in the launching process, over every record.
     assert f"{N} jobs: {N} ok" in proc.stdout, proc.stdout[-3000:]
@@ -115,15 +115,12 @@ def _close(a: float, b: float) -> bool:
 
 @pytest.mark.parametrize("launcher", [n for n in LAUNCHERS if n != "basic"])
 def test_launchers_reproduce_the_basic_sweep(sweeps: Sweeps, launcher: str) -> None:
-    """Same keys; the same data, training curves and weights bit for bit; the same
-    metrics to a few ulp.
+    """Same keys; the same data, training curves, weights and metrics, bit for bit.
 
-    Why not the metrics bit for bit: a job that builds the evaluation set holds its
-    ``states`` as a transposed (non-contiguous) view, while a job that loads it from the
-    cache gets a C-contiguous array. numpy's reductions in the rollout metrics sum in
-    memory order, so the two differ in the last bits (seen: rollout_mse 0.8306863352695896
-    vs ...893). Which job builds an entry first depends on the launcher's scheduling
-    (under submitit_local every job starts at once), not on the launcher as such.
+    Two things make that hold: every job evaluates on arrays as loaded from the dataset
+    cache, whichever job built them (a freshly built array can be a transposed view, and
+    numpy sums in memory order), and every job's process is pinned to one core, so XLA
+    runs one thread whatever the launcher (hnnbench.affinity).
     """
     base, other = sweeps["basic"][0].records(), sweeps[launcher][0].records()
     assert set(base) == set(other) == KEYS

@@ -23,9 +23,11 @@ minibatch each step), built with equinox and optax.
 Importing this module enables 64-bit floats in JAX (``jax_enable_x64``), which float64
 rollouts need. Training runs in ``cfg.dtype``: parameters and data are cast explicitly.
 
-It also turns on JAX's persistent compilation cache, under the dataset cache's root
-(``$HNNBENCH_CACHE_DIR/jax-compilation``, unless ``JAX_COMPILATION_CACHE_DIR`` names
-another place), so that launcher workers and later sweeps load the rollout and training
+It also turns on JAX's persistent compilation cache in
+``$HNNBENCH_CACHE_DIR/jax-compilation`` (else the user cache dir; the ``cache_dir=``
+setting does not move it, as it is chosen at import), unless
+``JAX_COMPILATION_CACHE_DIR`` names another place or ``JAX_ENABLE_COMPILATION_CACHE=false``
+turns it off. Launcher workers and later sweeps then load the rollout and training
 executables other processes compiled instead of compiling them again. For the rollout
 to be cacheable it must hold no host callbacks, so equinox's in-graph error checks
 answer with NaN (``EQX_ON_ERROR=nan``, unless set otherwise) instead of calling back to
