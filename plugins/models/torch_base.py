@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import copy
 import time
 from pathlib import Path
 from typing import Any, ClassVar
@@ -33,6 +32,24 @@ def resolve_device(requested: str) -> torch.device:
     return torch.device(requested)
 
 
+def activate(name: str, a: torch.Tensor) -> torch.Tensor:
+    """The activation ``name`` (``tanh``, ``sigmoid`` or ``softplus``) at ``a``."""
+    if name == "tanh":
+        return torch.tanh(a)
+    if name == "sigmoid":
+        return torch.sigmoid(a)
+    return nn.functional.softplus(a)
+
+
+def activation_grad(name: str, a: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
+    """Derivative of the activation ``name`` at pre-activation ``a`` (``h`` its value)."""
+    if name == "tanh":
+        return 1.0 - h * h
+    if name == "sigmoid":
+        return h * (1.0 - h)
+    return torch.sigmoid(a)
+
+
 class MLP(nn.Module):
     """``layers`` linear layers with an activation between them; the last has no bias.
 
@@ -50,25 +67,10 @@ class MLP(nn.Module):
         )
         self.activation = cfg.activation
 
-    def act(self, a: torch.Tensor) -> torch.Tensor:
-        if self.activation == "tanh":
-            return torch.tanh(a)
-        if self.activation == "sigmoid":
-            return torch.sigmoid(a)
-        return nn.functional.softplus(a)
-
-    def act_grad(self, a: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
-        """Derivative of the activation at pre-activation ``a`` (``h = act(a)``)."""
-        if self.activation == "tanh":
-            return 1.0 - h * h
-        if self.activation == "sigmoid":
-            return h * (1.0 - h)
-        return torch.sigmoid(a)
-
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         h = x
         for layer in self.linears[:-1]:
-            h = self.act(layer(h))
+            h = activate(self.activation, layer(h))
         return self.linears[-1](h)
 
     def input_gradient(self, x: torch.Tensor) -> torch.Tensor:
@@ -82,13 +84,55 @@ class MLP(nn.Module):
         h = x
         for layer in self.linears[:-1]:
             a = layer(h)
-            h = self.act(a)
+            h = activate(self.activation, a)
             pre.append(a)
             post.append(h)
         g = self.linears[-1].weight.expand(x.shape[0], -1)  # (N, hidden)
         for i in range(len(self.linears) - 2, -1, -1):
-            g = (g * self.act_grad(pre[i], post[i])) @ self.linears[i].weight
+            g = (g * activation_grad(self.activation, pre[i], post[i])) @ self.linears[i].weight
         return g
+
+
+class FrozenMLP:
+    """An inference-only copy of an :class:`MLP` in another dtype, for rollouts.
+
+    Same ``__call__`` and ``input_gradient`` as the module, computed from detached,
+    pre-transposed weights with one ``addmm`` per layer and no module dispatch: an ODE
+    solve calls the network thousands of times on a handful of states, where the
+    per-call overhead, not the arithmetic, decides the cost.
+    """
+
+    def __init__(self, net: MLP, dtype: torch.dtype) -> None:
+        with torch.no_grad():
+            weights = [layer.weight.detach().to(dtype) for layer in net.linears]
+            self.weights = [w.contiguous() for w in weights]  # (out, in)
+            self.weights_t = [w.t().contiguous() for w in weights]  # (in, out)
+            self.biases = [layer.bias.detach().to(dtype) for layer in net.linears[:-1]]
+        self.activation = net.activation
+
+    def __call__(self, x: torch.Tensor) -> torch.Tensor:
+        h = x
+        for w_t, b in zip(self.weights_t[:-1], self.biases, strict=True):
+            h = activate(self.activation, torch.addmm(b, h, w_t))
+        return h @ self.weights_t[-1]
+
+    def input_gradient(self, x: torch.Tensor) -> torch.Tensor:
+        """As :meth:`MLP.input_gradient` ``(N, d_in)``; requires ``d_out == 1``."""
+        pre, post = [], []
+        h = x
+        for w_t, b in zip(self.weights_t[:-1], self.biases, strict=True):
+            a = torch.addmm(b, h, w_t)
+            h = activate(self.activation, a)
+            pre.append(a)
+            post.append(h)
+        g = self.weights[-1]  # (1, hidden), broadcast over the batch
+        for i in range(len(self.weights) - 2, -1, -1):
+            g = (g * activation_grad(self.activation, pre[i], post[i])) @ self.weights[i]
+        return g
+
+
+#: What :meth:`TorchModel.field` receives: the training module or a frozen copy.
+Network = MLP | FrozenMLP
 
 
 class TorchModel(Model):
@@ -104,15 +148,16 @@ class TorchModel(Model):
         self._device = resolve_device(device)
         self._dtype = getattr(torch, cfg.dtype)
         self.net: MLP | None = None
-        self._net64: MLP | None = None
+        self._net64: FrozenMLP | None = None
 
     @property
     def device(self) -> str:
         return str(self._device)
 
     # -- to implement ---------------------------------------------------------------
-    def field(self, net: MLP, x: torch.Tensor) -> torch.Tensor:
-        """``dx/dt`` ``(N, D)`` from the network, differentiable."""
+    def field(self, net: Network, x: torch.Tensor) -> torch.Tensor:
+        """``dx/dt`` ``(N, D)`` from the network (differentiable when ``net`` is the
+        training :class:`MLP`)."""
         raise NotImplementedError
 
     # -- network ----------------------------------------------------------------------
@@ -130,9 +175,10 @@ class TorchModel(Model):
             raise RuntimeError(f"{self.name}: call fit() or load() first")
         return self.net
 
-    def _float64_net(self) -> MLP:
+    def _float64_net(self) -> FrozenMLP:
+        """The trained network, frozen in float64 (cached until the next fit/load)."""
         if self._net64 is None:
-            self._net64 = copy.deepcopy(self._require_net()).to(torch.float64)
+            self._net64 = FrozenMLP(self._require_net(), torch.float64)
         return self._net64
 
     def _tensor(self, x: np.ndarray, dtype: Any | None = None) -> torch.Tensor:
@@ -181,9 +227,9 @@ class TorchModel(Model):
     def time_derivative(self, x: np.ndarray) -> np.ndarray:
         net = self._float64_net()
         xt = self._tensor(x, torch.float64)
-        with torch.no_grad() if not self.output_scalar else torch.enable_grad():
+        with torch.no_grad():
             out = self.field(net, xt)
-        return out.detach().cpu().numpy()
+        return out.cpu().numpy()
 
     def rollout(
         self, x0: np.ndarray, t: np.ndarray, rtol: float = 1e-9, atol: float = 1e-9

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hnnbench_plugins.models.torch_base import MLP, torch
+from hnnbench_plugins.models.torch_base import Network, torch
 from hnnbench_plugins.models.torch_pixel import PixelTorchModel
 
 
@@ -25,7 +25,7 @@ class MLPTorch(PixelTorchModel):
     description = "Baseline MLP predicting dx/dt directly (PyTorch, paper architecture)"
     profiles = {}
 
-    def field(self, net: MLP, x: torch.Tensor) -> torch.Tensor:
+    def field(self, net: Network, x: torch.Tensor) -> torch.Tensor:
         return net(x)
 
 
@@ -37,7 +37,7 @@ class HNNTorch(PixelTorchModel):
     description = "Hamiltonian NN: scalar H, dynamics (dH/dp, -dH/dq) (PyTorch)"
     output_scalar = True
 
-    def field(self, net: MLP, x: torch.Tensor) -> torch.Tensor:
+    def field(self, net: Network, x: torch.Tensor) -> torch.Tensor:
         return symplectic(net.input_gradient(x))
 
     def energy(self, x: np.ndarray) -> np.ndarray:
