@@ -220,7 +220,7 @@ def read_reference(path: Path | str) -> pd.DataFrame:
                 raise CheckError(f"Reference {path}: column {col} holds a non-number "
                                  f"({frame[col][bad].iloc[0]!r})")
             frame[col] = values.astype(float)
-    dupes = frame.duplicated(list(KEY))
+    dupes = frame.duplicated(list(_keys(frame)))
     if dupes.any():
         r = frame[dupes].iloc[0]
         raise CheckError(f"Reference {path} has duplicate rows for {r['system']} x "
@@ -270,6 +270,22 @@ def _claims_by_key(board: pd.DataFrame) -> dict[tuple[str, str], C.ClaimResult]:
     return out  # type: ignore[return-value]
 
 
+def _keys(frame: pd.DataFrame) -> tuple[str, ...]:
+    """The columns that identify a row: :data:`KEY`, plus ``variant`` where present."""
+    return (*KEY, "variant") if "variant" in frame.columns else KEY
+
+
+def _row_key(row: Any) -> tuple[str, str, str, str]:
+    """``(profile, system, model, variant)`` of a leaderboard row (variant ``""`` if none)."""
+    variant = row.get("variant", "")
+    variant = "" if variant is None or pd.isna(variant) else str(variant)
+    return (str(row["profile"]), str(row["system"]), str(row["model"]), variant)
+
+
+def _model_text(model: str, variant: str) -> str:
+    return f"{model} [{variant}]" if variant else model
+
+
 def compare(reference: pd.DataFrame, current: pd.DataFrame,
             rules: Optional[tuple[Rule, dict[str, Rule]]] = None,
             allow_missing: bool = False) -> CheckResult:
@@ -278,11 +294,8 @@ def compare(reference: pd.DataFrame, current: pd.DataFrame,
     result = CheckResult()
     ref = reference.copy()
     cur = current.copy()
-    for frame in (ref, cur):
-        for col in KEY:
-            frame[col] = frame[col].astype(str)
-    ref_keys = {tuple(r[c] for c in KEY): r for _, r in ref.iterrows()}
-    cur_keys = {tuple(r[c] for c in KEY): r for _, r in cur.iterrows()}
+    ref_keys = {_row_key(r): r for _, r in ref.iterrows()}
+    cur_keys = {_row_key(r): r for _, r in cur.iterrows()}
     if ref_keys and cur_keys and not set(ref_keys) & set(cur_keys):
         ref_prof = sorted({k[0] for k in ref_keys})
         cur_prof = sorted({k[0] for k in cur_keys})
@@ -292,7 +305,7 @@ def compare(reference: pd.DataFrame, current: pd.DataFrame,
     metrics = [c[: -len("_mean")] for c in ref.columns if c.endswith("_mean")]
 
     for key, r in ref_keys.items():
-        profile, system, model = key
+        system, model = key[1], _model_text(key[2], key[3])
         c = cur_keys.get(key)
         if c is None:
             finding = Finding("missing", "-", system, model, _status_text(r), "no runs")
@@ -330,7 +343,8 @@ def compare(reference: pd.DataFrame, current: pd.DataFrame,
                 (result.regressions if rule.gate else result.info).append(finding)
     for key, c in cur_keys.items():
         if key not in ref_keys:
-            result.info.append(Finding("new", "-", key[1], key[2], "not in reference",
+            result.info.append(Finding("new", "-", key[1], _model_text(key[2], key[3]),
+                                       "not in reference",
                                        _status_text(c)))
 
     ref_claims, cur_claims = _claims_by_key(ref), _claims_by_key(cur)

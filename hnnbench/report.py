@@ -22,6 +22,7 @@ import base64
 import html
 import logging
 import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from importlib import resources
@@ -43,6 +44,7 @@ from hnnbench.table import (
     format_value,
     leaderboard,
     order_key,
+    variant_labels,
 )
 
 log = logging.getLogger("hnnbench")
@@ -113,9 +115,13 @@ def paper_table() -> pd.DataFrame:
 
 
 def board_lookup(board: pd.DataFrame, profile: Optional[str] = None) -> C.Lookup:
-    """A :data:`hnnbench.claims.Lookup` on a leaderboard (one profile)."""
+    """A :data:`hnnbench.claims.Lookup` on a leaderboard (one profile). Only the rows
+    without a variant (runs at the profile's own settings) count: the paper's claims are
+    about those settings."""
     if profile is not None and "profile" in board:
         board = board[board["profile"].astype(str) == str(profile)]
+    if "variant" in board:
+        board = board[board["variant"].fillna("").astype(str) == ""]
     index = {(r["system"], r["model"]): r for _, r in board.iterrows()}
 
     def lookup(system: str, model: str, metric: str) -> Optional[float]:
@@ -344,7 +350,7 @@ def comparison_markdown(board: pd.DataFrame) -> str:
 # --------------------------------------------------------------------------- figures
 
 
-@dataclass
+@dataclass(eq=False)  # compared by identity: the arrays make field equality ambiguous
 class _Run:
     model: str
     seed: int
@@ -516,24 +522,29 @@ def make_figures(recs: list[dict[str, Any]], directory: Path) -> list[tuple[str,
     directory = Path(directory)
     out: list[tuple[str, str, Path]] = []
     profiles = sorted({str(r.get("profile")) for r in recs})
-    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
-    for rec in recs:
-        groups.setdefault((str(rec.get("profile")), str(rec.get("system"))), []).append(rec)
-    keys = sorted(groups, key=lambda k: (k[0], order_key(k[1], SYSTEM_ORDER)))
-    for profile, system in keys:
-        seed, runs = _runs_for_figures(groups[(profile, system)])
+    groups: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    variants = variant_labels([rec.get("overrides") for rec in recs])
+    for rec, variant in zip(recs, variants, strict=True):
+        key = (str(rec.get("profile")), str(rec.get("system")), variant)
+        groups.setdefault(key, []).append(rec)
+    keys = sorted(groups, key=lambda k: (k[0], order_key(k[1], SYSTEM_ORDER), k[2]))
+    for profile, system, variant in keys:
+        seed, runs = _runs_for_figures(groups[(profile, system, variant)])
         if seed is None:
             continue
         models = [r.model for r in runs]
         stem = system if len(profiles) == 1 else f"{profile}_{system}"
+        if variant:  # one figure set per variant, named after it
+            stem += "__" + re.sub(r"[^A-Za-z0-9._-]+", "_", variant.replace("=", "-"))[:120]
         for kind, make in _FIGURES.items():
             try:
-                fig = make(system, seed, runs, models)
+                fig = make(f"{system} [{variant}]" if variant else system, seed, runs, models)
             except Exception as err:  # one broken array must not stop the report
                 log.warning("figure %s/%s failed: %s", system, kind, err)
                 continue
             if fig is not None:
                 label = system if len(profiles) == 1 else f"{system} ({profile})"
+                label += f" [{variant}]" if variant else ""
                 out.append((label, kind, _save(fig, directory / f"{stem}_{kind}.png")))
     return out
 

@@ -19,6 +19,7 @@ __all__ = [
     "leaderboard_frame",
     "records_frame",
     "summary_frame",
+    "variant_labels",
 ]
 
 #: Metrics shown in the end-of-sweep summary, in order.
@@ -33,14 +34,56 @@ SUMMARY_METRICS = (
 )
 
 
+#: Override keys that do not define a variant: the identity columns, and settings that
+#: say where and how a job runs rather than what it computes.
+NON_VARIANT_KEYS = frozenset({
+    "system", "model", "seed", "profile", "rerun", "device", "threads", "pin_cpu",
+    "save_model", "cache_dir", "data_dir",
+})
+
+
+def _variant_items(overrides: Iterable[str] | None) -> dict[str, str]:
+    """``key -> "key=value"`` of the overrides that may define a variant."""
+    items = {}
+    for text in overrides or ():
+        key = str(text).split("=", 1)[0].lstrip("+~")
+        if key not in NON_VARIANT_KEYS and not key.startswith("hydra"):
+            items[key] = str(text)
+    return items
+
+
+def variant_labels(overrides: Sequence[Iterable[str] | None]) -> list[str]:
+    """The configuration variant of each of a set of runs, from their command-line
+    overrides: the overrides whose value is not the same for every run (an override all
+    runs share is a setting of the whole sweep, shown in its command, not a variant),
+    leaving out system, model, seed, profile and the run settings of
+    :data:`NON_VARIANT_KEYS`; sorted and space-separated, ``""`` where there is none.
+
+    ``hnnbench -m system=spring model=hnn_torch model.hidden=100,200`` gives
+    ``"model.hidden=100"`` and ``"model.hidden=200"``: runs of one (system, model) that
+    differ in it are different rows of every table, never seeds of one row.
+    """
+    items = [_variant_items(o) for o in overrides]
+    keys = set().union(*items) if items else set()
+    varying = {k for k in keys if len({it.get(k) for it in items}) > 1}
+    return [" ".join(sorted(v for k, v in it.items() if k in varying)) for it in items]
+
+
+def _has_variants(frame: pd.DataFrame) -> bool:
+    return "variant" in frame and bool((frame["variant"].fillna("") != "").any())
+
+
 def records_frame(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
-    """One row per record: identity columns, ``<metric>`` means, ``<metric>_sem`` and
-    ``<timing>`` columns."""
+    """One row per record: identity columns (``variant``: see :func:`variant_labels`),
+    ``<metric>`` means, ``<metric>_sem`` and ``<timing>`` columns."""
+    records = list(records)
+    variants = variant_labels([rec.get("overrides") for rec in records])
     rows = []
-    for rec in records:
+    for rec, variant in zip(records, variants, strict=True):
         row: dict[str, Any] = {
             "system": rec.get("system"),
             "model": rec.get("model"),
+            "variant": variant,
             "backend": rec.get("backend"),
             "seed": rec.get("seed"),
             "profile": rec.get("profile"),
@@ -60,13 +103,15 @@ def records_frame(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
 
 
 def summary_frame(frame: pd.DataFrame) -> pd.DataFrame:
-    """One row per (system, model, seed) with the summary metrics and status."""
+    """One row per (system, model, variant, seed) with the summary metrics and status;
+    the ``variant`` column only when some run has one."""
     if frame.empty:
         return frame
-    cols = ["system", "model", "seed", "status"]
+    ids = ["system", "model", *(["variant"] if _has_variants(frame) else []), "seed"]
+    cols = [*ids, "status"]
     cols += [m for m in SUMMARY_METRICS if m in frame.columns]
     cols += [c for c in ("total_s",) if c in frame.columns]
-    return frame[cols].sort_values(["system", "model", "seed"]).reset_index(drop=True)
+    return frame[cols].sort_values(ids).reset_index(drop=True)
 
 
 # --------------------------------------------------------------------------- leaderboard
@@ -90,8 +135,8 @@ def order_key(name: str, order: Sequence[str]) -> tuple[int, str]:
 
 def metric_names(frame: pd.DataFrame) -> list[str]:
     """Metric names present in a records frame, summary metrics first."""
-    reserved = {"system", "model", "backend", "seed", "profile", "status", "error", "steps",
-                "device", "path", "data_s", "rollout_s", *TIMINGS}
+    reserved = {"system", "model", "variant", "backend", "seed", "profile", "status", "error",
+                "steps", "device", "path", "data_s", "rollout_s", *TIMINGS}
     found = [c for c in frame.columns if c not in reserved and not c.endswith("_sem")
              and not c.endswith("_s")]
     first = [m for m in SUMMARY_METRICS if m in found]
@@ -130,17 +175,22 @@ def leaderboard(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
 
 
 def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None) -> pd.DataFrame:
-    """One row per (profile, system, model) of a :func:`records_frame`.
+    """One row per (profile, system, model, variant) of a :func:`records_frame`.
 
-    Columns: :data:`ID_COLUMNS`, :data:`STATUS_COLUMNS`, ``<metric>_mean`` and
-    ``<metric>_std`` (over seeds) for every metric, ``<timing>_mean`` for
+    Columns: :data:`ID_COLUMNS` (with ``variant`` after ``model`` when some run has a
+    variant, so a sweep without one keeps the plain schema), :data:`STATUS_COLUMNS`,
+    ``<metric>_mean`` and ``<metric>_std`` (over seeds) for every metric, ``<timing>_mean`` for
     :data:`TIMINGS`. Metrics are aggregated over the ``ok`` runs; a pair with no ``ok``
     run is aggregated over its ``diverged`` runs, so it shows ``inf`` where its rollouts
     diverged (and its finite losses). Failed or skipped runs only: NaN, status says why.
     """
     if metrics is None:
         metrics = metric_names(frame) if not frame.empty else []
-    columns = [*ID_COLUMNS, *STATUS_COLUMNS]
+    variants = _has_variants(frame)
+    ids = list(ID_COLUMNS)
+    if variants:
+        ids.insert(ids.index("model") + 1, "variant")
+    columns = [*ids, *STATUS_COLUMNS]
     for m in metrics:
         columns += [f"{m}_mean", f"{m}_std"]
     columns += [f"{t}_mean" for t in TIMINGS]
@@ -148,14 +198,15 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
         return pd.DataFrame(columns=columns)
     frame = frame.copy()
     frame["profile"] = frame["profile"].fillna("?")
+    frame["variant"] = frame["variant"].fillna("") if "variant" in frame else ""
     rows = []
-    for (profile, system, model), group in frame.groupby(["profile", "system", "model"],
-                                                          dropna=False, sort=False):
+    for (profile, system, model, variant), group in frame.groupby(
+            ["profile", "system", "model", "variant"], dropna=False, sort=False):
         counts = {s: int((group["status"] == s).sum()) for s in STATUSES}
         seeds = sorted({int(s) for s in group["seed"].dropna()})
         backends = [b for b in group["backend"].dropna().unique()] if "backend" in group else []
         row: dict[str, Any] = {
-            "profile": profile, "system": system, "model": model,
+            "profile": profile, "system": system, "model": model, "variant": variant,
             "backend": backends[0] if backends else "",
             "n_seeds": len(group), "seeds": ";".join(str(s) for s in seeds),
             **{f"n_{s}": counts[s] for s in STATUSES},
@@ -174,7 +225,8 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
         rows.append(row)
     out = pd.DataFrame(rows, columns=columns)
     keys = out.apply(lambda r: (str(r["profile"]), order_key(r["system"], SYSTEM_ORDER),
-                                order_key(r["model"], MODEL_ORDER)), axis=1)
+                                order_key(r["model"], MODEL_ORDER),
+                                str(r["variant"]) if variants else ""), axis=1)
     return out.iloc[sorted(range(len(out)), key=lambda i: keys.iloc[i])].reset_index(drop=True)
 
 
@@ -199,8 +251,10 @@ def display_frame(board: pd.DataFrame, timings: bool = True) -> pd.DataFrame:
                if c.endswith("_mean") and c[: -len("_mean")] not in TIMINGS]
     rows = []
     for _, r in board.iterrows():
-        row: dict[str, Any] = {"system": r["system"], "model": r["model"],
-                               "n_seeds": int(r["n_seeds"]), "status": r["status"]}
+        row: dict[str, Any] = {"system": r["system"], "model": r["model"]}
+        if "variant" in board:
+            row["variant"] = r["variant"] if isinstance(r["variant"], str) else ""
+        row.update(n_seeds=int(r["n_seeds"]), status=r["status"])
         for m in metrics:
             if board[f"{m}_mean"].isna().all():  # not applicable anywhere
                 continue

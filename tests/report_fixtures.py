@@ -74,9 +74,12 @@ def _arrays(system: str, model: str, seed: int, n_traj: int = 3, n_t: int = 25,
 
 def write_run(root: Path, system: str, model: str, seed: int, status: str = "ok",
               metrics: dict[str, float] | None = None, profile: str = "quick",
-              rollout: bool = True) -> Path:
-    """One job directory like ``run.py`` writes it; returns the directory."""
+              rollout: bool = True, overrides: tuple[str, ...] = ()) -> Path:
+    """One job directory like ``run.py`` writes it; returns the directory. ``overrides``
+    are the job's extra command-line overrides (its variant)."""
     directory = Path(root) / system / model / f"seed{seed}"
+    if overrides:
+        directory = directory / ",".join(sorted(overrides))
     directory.mkdir(parents=True, exist_ok=True)
     values = seed_metrics(system, model, seed) if metrics is None else metrics
     if status == "diverged" and metrics is None:
@@ -92,6 +95,7 @@ def write_run(root: Path, system: str, model: str, seed: int, status: str = "ok"
         "timings": {"data_s": 0.1, "fit_s": 2.0 + seed, "eval_s": 1.0, "total_s": 3.1 + seed},
         "steps": 20, "device": "cpu", "data": {},
         "command": f"hnnbench -m system={system} seed={seed}",
+        "overrides": [f"system={system}", f"model={model}", f"seed={seed}", *overrides],
         "config": {"seed": seed, "profile": {"name": profile}},
         "environment": records.environment(), "created_at": records.now_iso(),
     }
