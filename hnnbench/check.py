@@ -2,7 +2,8 @@
 
 The leaderboard of DIR (:func:`hnnbench.table.leaderboard`) is compared with a
 reference in the same format (a ``leaderboard.csv``), row by row on (profile, system,
-model):
+model, variant) (the variant is empty where the runs vary in nothing but seeds;
+:func:`hnnbench.table.variant_labels`):
 
 - metrics: each ``<metric>_mean`` by the rules of ``resources/check_rules.yaml``
   (direction, tolerated factor in log space, noise floor), overridable with ``--rules``;

@@ -2,14 +2,16 @@
 
 Writes into OUT (default DIR):
 
-- ``leaderboard.csv``: one row per (system, model); status counts, mean and std over
+- ``leaderboard.csv``: one row per (system, model), and per variant where runs differ in
+  other overrides (:func:`hnnbench.table.variant_labels`); status counts, mean and std over
   seeds of every metric (``<metric>_mean``, ``<metric>_std``), mean wall times. This is
   also the reference format of ``hnnbench check``.
 - ``leaderboard.md``: the same table, ``mean ± std``, for a README.
 - ``paper_comparison.md``: our values next to Table 1 of Greydanus et al. (2019), and
   the paper's qualitative claims (:mod:`hnnbench.claims`) evaluated on our runs.
 - ``figures/<system>_{phase,energy,learned_energy,loss}.png``: rollouts of the lowest
-  seed, true energy along each rollout, the learned conserved quantity, loss curves.
+  seed, true energy along each rollout, the learned conserved quantity, loss curves
+  (``<system>__<variant>_...`` for each variant).
 - ``leaderboard.html``: one self-contained page with all of the above.
 
 :func:`on_sweep_end` is called by the end-of-sweep Hydra callback.
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import base64
+import hashlib
 import html
 import logging
 import math
@@ -114,14 +117,20 @@ def paper_table() -> pd.DataFrame:
     return frame
 
 
+def _plain_rows(board: pd.DataFrame) -> pd.DataFrame:
+    """The rows without a variant: the comparison with the paper is made on those only
+    (a variant row is a setting the sweep varied away from the others)."""
+    if "variant" not in board:
+        return board
+    return board[board["variant"].fillna("").astype(str) == ""]
+
+
 def board_lookup(board: pd.DataFrame, profile: Optional[str] = None) -> C.Lookup:
-    """A :data:`hnnbench.claims.Lookup` on a leaderboard (one profile). Only the rows
-    without a variant (runs at the profile's own settings) count: the paper's claims are
-    about those settings."""
+    """A :data:`hnnbench.claims.Lookup` on a leaderboard (one profile), over the rows
+    without a variant (:func:`_plain_rows`)."""
     if profile is not None and "profile" in board:
         board = board[board["profile"].astype(str) == str(profile)]
-    if "variant" in board:
-        board = board[board["variant"].fillna("").astype(str) == ""]
+    board = _plain_rows(board)
     index = {(r["system"], r["model"]): r for _, r in board.iterrows()}
 
     def lookup(system: str, model: str, metric: str) -> Optional[float]:
@@ -233,7 +242,8 @@ def leaderboard_markdown(board: pd.DataFrame,
 
 def _ours_cell(board: pd.DataFrame, profile: Optional[str], system: str, model: str,
                metric: str) -> str:
-    sel = board[(board["system"] == system) & (board["model"] == model)]
+    sel = _plain_rows(board)
+    sel = sel[(sel["system"] == system) & (sel["model"] == model)]
     if profile is not None:
         sel = sel[sel["profile"].astype(str) == profile]
     if sel.empty or f"{metric}_mean" not in sel:
@@ -517,6 +527,15 @@ _FIGURES = {"phase": _phase_figure, "energy": _energy_figure,
             "learned_energy": _learned_energy_figure, "loss": _loss_figure}
 
 
+def _variant_slug(variant: str, limit: int = 80) -> str:
+    """A file-name form of a variant; a long one is cut and given a hash of the whole,
+    so two variants never share a name."""
+    slug = re.sub(r"[^A-Za-z0-9._-]+", "_", variant.replace("=", "-"))
+    if len(slug) <= limit:
+        return slug
+    return f"{slug[:limit]}-{hashlib.sha1(variant.encode()).hexdigest()[:10]}"
+
+
 def make_figures(recs: list[dict[str, Any]], directory: Path) -> list[tuple[str, str, Path]]:
     """Figures per system into ``directory``; ``[(system, kind, path)]``."""
     directory = Path(directory)
@@ -535,7 +554,7 @@ def make_figures(recs: list[dict[str, Any]], directory: Path) -> list[tuple[str,
         models = [r.model for r in runs]
         stem = system if len(profiles) == 1 else f"{profile}_{system}"
         if variant:  # one figure set per variant, named after it
-            stem += "__" + re.sub(r"[^A-Za-z0-9._-]+", "_", variant.replace("=", "-"))[:120]
+            stem += "__" + _variant_slug(variant)
         for kind, make in _FIGURES.items():
             try:
                 fig = make(f"{system} [{variant}]" if variant else system, seed, runs, models)

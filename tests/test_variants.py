@@ -94,3 +94,17 @@ def test_check_matches_rows_by_variant(hidden_sweep, tmp_path):
     doubled.to_csv(path, index=False)
     with pytest.raises(check.CheckError, match="duplicate"):
         check.read_reference(path)
+
+
+def test_paper_comparison_shows_only_the_plain_runs(hidden_sweep):
+    board = leaderboard(load_records(hidden_sweep))
+    assert report._ours_cell(board, "quick", "spring", "hnn_torch", "energy_mse") == "—"
+    assert report._ours_cell(board, "quick", "spring", "mlp_torch", "energy_mse") != "—"
+
+
+def test_long_variants_get_distinct_file_names():
+    common = " ".join(f"system.option_number_{i}=1" for i in range(6))
+    a = report._variant_slug(f"{common} system.eval_t_end=40")
+    b = report._variant_slug(f"{common} system.eval_t_end=80")
+    assert a != b and len(a) <= 91
+    assert report._variant_slug("model.hidden=100") == "model.hidden-100"

@@ -27,10 +27,8 @@ It also turns on JAX's persistent compilation cache in
 ``$HNNBENCH_CACHE_DIR/jax-compilation`` (else the user cache dir; the ``cache_dir=``
 setting does not move it, as it is chosen at import), unless
 ``JAX_COMPILATION_CACHE_DIR`` names another place or ``JAX_ENABLE_COMPILATION_CACHE=false``
-turns it off; it is capped at 1 GiB (``jax_compilation_cache_max_size``, least
-recently used entries evicted first). Launcher workers and later sweeps then load the
-rollout and training executables other processes compiled instead of compiling them
-again. For the rollout
+turns it off. Launcher workers and later sweeps then load the rollout and training
+executables other processes compiled instead of compiling them again. For the rollout
 to be cacheable it must hold no host callbacks, so equinox's in-graph error checks
 answer with NaN (``EQX_ON_ERROR=nan``, unless set otherwise) instead of calling back to
 raise; a NaN rollout is recorded as diverged, like a solver failure.
@@ -58,9 +56,6 @@ from hnnbench_plugins.models.neural import (
     mlp_shapes,
 )
 
-#: Size cap of the persistent compilation cache hnnbench turns on (bytes).
-COMPILATION_CACHE_MAX_BYTES = 1 << 30
-
 for _module in ("jax", "equinox", "optax", "diffrax"):
     require_backend(_module, "jax")
 
@@ -76,9 +71,6 @@ jax.config.update("jax_enable_x64", True)
 if not jax.config.jax_compilation_cache_dir:
     jax.config.update("jax_compilation_cache_dir", str(cache_root() / "jax-compilation"))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
-    if jax.config.jax_compilation_cache_max_size < 0:  # unbounded unless the user chose
-        # Least recently used entries go first; all of hnnbench's take a few MB.
-        jax.config.update("jax_compilation_cache_max_size", COMPILATION_CACHE_MAX_BYTES)
 # Probing for absent accelerators (TPU, GPU) logs an INFO line per backend, which the
 # CLI's INFO-level logging would print on every run.
 logging.getLogger("jax._src.xla_bridge").setLevel(logging.WARNING)

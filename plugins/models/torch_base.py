@@ -103,11 +103,11 @@ class FrozenMLP:
     """
 
     def __init__(self, net: MLP, dtype: torch.dtype) -> None:
-        with torch.no_grad():
-            weights = [layer.weight.detach().to(dtype) for layer in net.linears]
-            self.weights = [w.contiguous() for w in weights]  # (out, in)
+        with torch.no_grad():  # copies, also where the dtype is already the same
+            weights = [layer.weight.detach().to(dtype).clone() for layer in net.linears]
+            self.weights = weights  # (out, in)
             self.weights_t = [w.t().contiguous() for w in weights]  # (in, out)
-            self.biases = [layer.bias.detach().to(dtype) for layer in net.linears[:-1]]
+            self.biases = [layer.bias.detach().to(dtype).clone() for layer in net.linears[:-1]]
         self.activation = net.activation
 
     def __call__(self, x: torch.Tensor) -> torch.Tensor:
