@@ -43,13 +43,28 @@ NON_VARIANT_KEYS = frozenset({
 
 
 def _variant_items(overrides: Iterable[str] | None) -> dict[str, str]:
-    """``key -> "key=value"`` of the overrides that may define a variant."""
+    """``key -> "key=value"`` of the overrides that may define a variant (Hydra's
+    append prefix ``+``/``++`` dropped, so ``+a=1`` and ``a=1`` are one variant)."""
     items = {}
     for text in overrides or ():
-        key = str(text).split("=", 1)[0].lstrip("+~")
+        text = str(text).lstrip("+")
+        key = text.split("=", 1)[0].lstrip("~")
         if key not in NON_VARIANT_KEYS and not key.startswith("hydra"):
-            items[key] = str(text)
+            items[key] = text
     return items
+
+
+def variant_sort_key(variant: str) -> tuple[tuple[str, int, float, str], ...]:
+    """Orders variants by key, then by numeric value where the values are numbers
+    (``model.hidden=200`` before ``model.hidden=1000``)."""
+    out = []
+    for token in str(variant).split():
+        key, _, value = token.partition("=")
+        try:
+            out.append((key, 0, float(value), ""))
+        except ValueError:
+            out.append((key, 1, 0.0, value))
+    return tuple(out)
 
 
 def variant_labels(overrides: Sequence[Iterable[str] | None]) -> list[str]:
@@ -111,7 +126,16 @@ def summary_frame(frame: pd.DataFrame) -> pd.DataFrame:
     cols = [*ids, "status"]
     cols += [m for m in SUMMARY_METRICS if m in frame.columns]
     cols += [c for c in ("total_s",) if c in frame.columns]
-    return frame[cols].sort_values(ids).reset_index(drop=True)
+    out = frame[cols].reset_index(drop=True)
+
+    def key(i: int) -> tuple[Any, ...]:  # leaderboard order, then variant, then seed
+        r = out.iloc[i]
+        seed = pd.to_numeric(r["seed"], errors="coerce")
+        return (order_key(str(r["system"]), SYSTEM_ORDER), order_key(str(r["model"]), MODEL_ORDER),
+                variant_sort_key(r["variant"]) if "variant" in out else (),
+                math.inf if pd.isna(seed) else float(seed))
+
+    return out.iloc[sorted(range(len(out)), key=key)].reset_index(drop=True)
 
 
 # --------------------------------------------------------------------------- leaderboard
@@ -226,7 +250,7 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
     out = pd.DataFrame(rows, columns=columns)
     keys = out.apply(lambda r: (str(r["profile"]), order_key(r["system"], SYSTEM_ORDER),
                                 order_key(r["model"], MODEL_ORDER),
-                                str(r["variant"]) if variants else ""), axis=1)
+                                variant_sort_key(r["variant"]) if variants else ()), axis=1)
     return out.iloc[sorted(range(len(out)), key=lambda i: keys.iloc[i])].reset_index(drop=True)
 
 

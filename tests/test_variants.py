@@ -25,8 +25,11 @@ def test_a_variant_is_the_overrides_that_differ_between_runs():
     runs = [["system.steps=50", "+model.hidden=100", "system.eval_t_end=80"],
             ["system.steps=50", "+model.hidden=200", "system.eval_t_end=80"],
             ["system.steps=50"]]
-    assert variant_labels(runs) == ["+model.hidden=100 system.eval_t_end=80",
-                                    "+model.hidden=200 system.eval_t_end=80", ""]
+    assert variant_labels(runs) == ["model.hidden=100 system.eval_t_end=80",
+                                    "model.hidden=200 system.eval_t_end=80", ""]
+    # Hydra's append prefix does not make another variant
+    assert variant_labels([["+model.hidden=100"], ["model.hidden=100"], ["model.hidden=5"]]
+                          ) == ["model.hidden=100", "model.hidden=100", "model.hidden=5"]
 
 
 @pytest.fixture()
@@ -54,6 +57,19 @@ def test_leaderboard_has_a_row_per_variant(hidden_sweep):
     assert rows[("hnn_torch", "model.hidden=200")].energy_mse_mean == pytest.approx(2e-4)
     summary = summary_frame(records_frame(load_records(hidden_sweep)))
     assert "variant" in summary.columns and len(summary) == 6
+    # leaderboard order (mlp before hnn), numeric variant order, then seeds
+    assert [(r.model, r.variant, r.seed) for r in summary.itertuples()] == [
+        ("mlp_torch", "", 0), ("mlp_torch", "", 1),
+        ("hnn_torch", "model.hidden=100", 0), ("hnn_torch", "model.hidden=100", 1),
+        ("hnn_torch", "model.hidden=200", 0), ("hnn_torch", "model.hidden=200", 1)]
+
+
+def test_numeric_variants_sort_by_value(tmp_path):
+    for hidden in (1000, 200, 50):
+        write_run(tmp_path, "spring", "hnn_torch", 0, overrides=(f"model.hidden={hidden}",))
+    board = leaderboard(load_records(tmp_path))
+    assert list(board["variant"]) == ["model.hidden=50", "model.hidden=200",
+                                      "model.hidden=1000"]
 
 
 def test_a_sweep_without_variants_keeps_the_plain_schema(tmp_path):
