@@ -1,6 +1,7 @@
 """Whole-sweep wall time: the basic launcher vs joblib, side by side in one run.
 
     python benchmarks/sweep.py                       # the quick sweep, all systems and models
+    python benchmarks/sweep.py --warm                # the same, with caches filled first
     python benchmarks/sweep.py --overrides system=spring,pendulum model=mlp_torch,hnn_torch
     python benchmarks/sweep.py --overrides profile=paper seed=0 --n-jobs 4
     python benchmarks/sweep.py --from results/runs/paper_2026-11-22_10-00-00 [DIR ...]
@@ -8,10 +9,11 @@
 Without ``--from`` it runs the same sweep once per launcher (by default ``basic``, then
 ``hydra/launcher=joblib hydra.launcher.n_jobs=N``) through the installed ``hnnbench``
 console script, each into its own temporary sweep directory and with its own empty
-dataset cache (so both pay for generating the data), and prints the wall time of each
-command, the speed-up over the first launcher, and the per-job table read from the
-records' ``timings``. With ``--from`` it only summarises existing sweep directories,
-e.g. a paper sweep run on another machine.
+cache (so each pays for generating the data and compiling the JAX functions; with
+``--warm`` every one starts from one cache that a first, uncompared run filled), and
+prints the wall time of each command, the speed-up over the first launcher, and the
+per-job table read from the records' ``timings``. With ``--from`` it only summarises
+existing sweep directories, e.g. a paper sweep run on another machine.
 
 Wall time is the whole command: start-up (importing the backends), every job, and the
 end-of-sweep summary and report. ``fit_s`` includes ``compile_s`` (JAX compilation of
@@ -103,10 +105,11 @@ def load_records(directory: Path) -> list[dict[str, Any]]:
     return out
 
 
-def run_sweep(label: str, args: list[str], root: Path) -> Sweep:
-    """Run ``hnnbench -m ARGS`` into ``root/label`` with a fresh dataset cache."""
+def run_sweep(label: str, args: list[str], root: Path, cache: Path | None = None) -> Sweep:
+    """Run ``hnnbench -m ARGS`` into ``root/label`` with ``cache`` as the hnnbench cache
+    (datasets and JAX compilations; default: a fresh one, ``root/label/cache``)."""
     directory = root / label / "sweep"
-    cache = root / label / "cache"
+    cache = root / label / "cache" if cache is None else cache
     log = root / label / "hnnbench.log"
     log.parent.mkdir(parents=True)
     command = [hnnbench_exe(), "-m", *args, f"hydra.sweep.dir={directory}"]
@@ -242,20 +245,31 @@ def summarise(directories: list[Path]) -> int:
     return 0
 
 
-def benchmark(overrides: list[str], launchers: list[str], n_jobs: int, keep: Path | None) -> int:
-    """Run the sweep once per launcher, side by side; print the tables."""
+def benchmark(overrides: list[str], launchers: list[str], n_jobs: int, keep: Path | None,
+              warm: bool = False) -> int:
+    """Run the sweep once per launcher, side by side; print the tables. ``warm``: first
+    run it once with the basic launcher to fill one cache (datasets and JAX
+    compilations), then time every launcher against that cache."""
     args = sweep_overrides(overrides)
     print(f"machine: {machine_line()}")
     print(f"sweep: hnnbench -m {' '.join(args)}\n")
     root = Path(tempfile.mkdtemp(prefix="hnnbench-sweep-bench-")) if keep is None else keep
     root.mkdir(parents=True, exist_ok=True)
     sweeps = []
+    cache = None
     try:
+        if warm:
+            cache = root / "warm-cache"
+            primed = run_sweep("warmup", args, root, cache)
+            print(f"[warmup] filled {cache}; not compared below\n",
+                  flush=True)
+            if primed.returncode != 0:
+                return 1
         for name in launchers:
             label = name if name == "basic" else f"{name} n_jobs={n_jobs}"
             # The directory name goes into a Hydra override: no '=' or spaces in it.
             slug = name if name == "basic" else f"{name}_{n_jobs}"
-            sweep = run_sweep(slug, [*args, *launcher_args(name, n_jobs)], root)
+            sweep = run_sweep(slug, [*args, *launcher_args(name, n_jobs)], root, cache)
             sweep.label = label
             sweeps.append(sweep)
         print(f"\nmachine after: {machine_line()}\n")
@@ -290,6 +304,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--keep", type=Path, default=None, metavar="DIR",
                         help="keep the sweep directories and logs under DIR "
                              "(default: a temporary directory, removed)")
+    parser.add_argument("--warm", action="store_true",
+                        help="time every launcher with caches that one first, uncompared "
+                             "run filled (a user's second sweep); default: each starts "
+                             "empty")
     parser.add_argument("--from", dest="sources", nargs="+", type=Path, metavar="DIR",
                         help="only summarise these existing sweep directories")
     args = parser.parse_args(argv)
@@ -297,7 +315,7 @@ def main(argv: list[str] | None = None) -> int:
         return summarise(args.sources)
     if args.n_jobs < 1:
         parser.error("--n-jobs must be at least 1")
-    return benchmark(args.overrides, args.launchers, args.n_jobs, args.keep)
+    return benchmark(args.overrides, args.launchers, args.n_jobs, args.keep, args.warm)
 
 
 if __name__ == "__main__":

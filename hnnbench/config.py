@@ -177,6 +177,15 @@ def _instantiate_config(kind: str, node: Any) -> Any:
     cls = registry.get_class(kind, name)  # type: ignore[arg-type]
     values = OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
     assert isinstance(values, dict)
+    known = [f.name for f in fields(cls.Config)]
+    for key in values:
+        if key not in known:
+            close = difflib.get_close_matches(str(key), known, n=1)
+            hint = f" Did you mean '{close[0]}'?" if close else ""
+            raise ConfigError(
+                f"{kind}.{key} is not a setting of {kind} '{name}'.{hint} "
+                f"Settings: {', '.join(known)}"
+            )
     try:
         return cls.Config(**values)
     except TypeError as err:

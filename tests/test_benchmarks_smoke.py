@@ -1,14 +1,16 @@
 """Smoke tests of the benchmark scripts in benchmarks/ (they are not part of the package).
 
 The fast test runs ``benchmarks/eval_speed.py`` in-process with the oracle (the true
-vector field, numpy only, no training) at a loose tolerance; the slow one runs the
-script as a subprocess with briefly trained torch and JAX models and checks that the
-batched rollout and the per-trajectory scipy loop compute the same energy MSE.
+vector field, numpy only, no training) at a loose tolerance. The slow ones run the
+scripts as subprocesses: eval_speed.py with briefly trained torch and JAX models (the
+batched rollout and the per-trajectory scipy loop must compute the same energy MSE),
+train_step.py at tiny settings, and sweep.py --warm on two oracle jobs.
 """
 
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
 import subprocess
 import sys
@@ -121,3 +123,24 @@ def test_train_step_benchmark_prints_2019_and_roofline_columns():
     assert "2019 loop" in out and "roofline" in out.lower()
     rows = [line for line in out.splitlines() if line.startswith("| spring | hnn_")]
     assert {line.split("|")[2].strip() for line in rows} >= {"hnn_torch", "hnn_jax"}
+
+
+@pytest.mark.slow
+def test_sweep_benchmark_warm_runs_start_from_the_filled_cache(tmp_path):
+    """benchmarks/sweep.py --warm: an uncompared first run fills the cache, and the timed
+    run finds every dataset there (its records say cache_hit)."""
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "sweep.py"), "--warm", "--launchers",
+         "basic", "--overrides", "system=spring,pendulum", "model=oracle",
+         "--keep", str(tmp_path)],
+        capture_output=True, text=True, timeout=600, env=env, cwd=REPO,
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "[warmup]" in proc.stdout and "## Wall time" in proc.stdout
+    records = sorted((tmp_path / "basic" / "sweep").rglob("result.json"))
+    assert len(records) == 2
+    for path in records:
+        record = json.loads(path.read_text())
+        assert record["status"] == "ok" and record["data"]["cache_hit"] is True
+    assert not (tmp_path / "basic" / "cache").exists()  # no cache of its own

@@ -126,6 +126,8 @@ def test_bad_input_console_script(args, needles, tmp_path):
         (["foo=1"], ["Key 'foo' not in"]),
         (["+foo=1"], ["foo is not an hnnbench setting"]),
         (["+sed=1"], ["Did you mean 'seed'"]),
+        (["+system.extra=0"], ["system.extra is not a setting of system 'spring'"]),
+        (["+model.hiden=5"], ["model.hiden is not a setting", "Did you mean 'hidden'"]),
         (["~system"], ["system is missing"]),
         (["system.steps=${nowhere}"], ["nowhere", "system.steps"]),
         (["cache_dir=${oc.env:HNNBENCH_SURELY_UNSET_VAR}"], ["HNNBENCH_SURELY_UNSET_VAR"]),

@@ -30,7 +30,9 @@ class NeuralConfig(ModelConfig):
         layers: number of linear layers (the paper: 3, i.e. in -> 200 -> 200 -> out).
         activation: one of ``tanh``, ``sigmoid``, ``softplus``.
         dtype: training precision; rollouts always run in float64.
-        log_every: record train/test loss every this many steps (0: about 200 points).
+        log_every: record train/test loss every this many steps (0: about 200 points,
+            at least 10 steps apart, so a 300-step smoke run does not spend a third of
+            its time on test losses).
         rollout_max_steps: ODE solver step budget per rollout before it is declared
             diverged.
     """
@@ -62,8 +64,8 @@ class NeuralConfig(ModelConfig):
             )
 
     def log_interval(self, steps: int) -> int:
-        """Steps between two loss records."""
-        return self.log_every or max(1, steps // 200)
+        """Steps between two loss records (the JAX models compile one chunk per interval)."""
+        return self.log_every or max(10, steps // 200)
 
 
 #: Seed-stream tags: ``np.random.default_rng([seed, stream])``.
