@@ -261,8 +261,7 @@ def benchmark(overrides: list[str], launchers: list[str], n_jobs: int, keep: Pat
         if warm:
             cache = root / "warm-cache"
             primed = run_sweep("warmup", args, root, cache)
-            print(f"[warmup] filled {cache}; not compared below\n",
-                  flush=True)
+            print(f"[warmup] filled {cache}; not compared below\n", flush=True)
             if primed.returncode != 0:
                 return 1
         for name in launchers:

@@ -112,6 +112,13 @@ def register_schema() -> None:
     ConfigStore.instance().store(name="hnnbench_schema", node=RunConfig, provider="hnnbench")
 
 
+def _not_a_setting(what: str, key: Any, known: list[str]) -> ConfigError:
+    """``<what>. Did you mean '<closest>'? Settings: <known>``."""
+    close = difflib.get_close_matches(str(key), known, n=1)
+    hint = f" Did you mean '{close[0]}'?" if close else ""
+    return ConfigError(f"{what}.{hint} Settings: {', '.join(known)}")
+
+
 def validate_run(cfg: Any) -> None:
     """Check the run-level fields of a composed config."""
     from omegaconf.errors import MissingMandatoryValue, OmegaConfBaseException
@@ -119,11 +126,7 @@ def validate_run(cfg: Any) -> None:
     known = [f.name for f in fields(RunConfig)]
     for key in cfg:
         if key not in known and key != "hydra":
-            close = difflib.get_close_matches(str(key), known, n=1)
-            hint = f" Did you mean '{close[0]}'?" if close else ""
-            raise ConfigError(
-                f"{key} is not an hnnbench setting.{hint} Settings: {', '.join(known)}"
-            )
+            raise _not_a_setting(f"{key} is not an hnnbench setting", key, known)
     for key in known:
         if key not in cfg:
             raise ConfigError(f"{key} is missing (removed with ~{key}?): hnnbench needs it.")
@@ -180,12 +183,8 @@ def _instantiate_config(kind: str, node: Any) -> Any:
     known = [f.name for f in fields(cls.Config)]
     for key in values:
         if key not in known:
-            close = difflib.get_close_matches(str(key), known, n=1)
-            hint = f" Did you mean '{close[0]}'?" if close else ""
-            raise ConfigError(
-                f"{kind}.{key} is not a setting of {kind} '{name}'.{hint} "
-                f"Settings: {', '.join(known)}"
-            )
+            raise _not_a_setting(f"{kind}.{key} is not a setting of {kind} '{name}'", key,
+                                 known)
     try:
         return cls.Config(**values)
     except TypeError as err:
