@@ -27,6 +27,7 @@ from typing import Any, ClassVar, Optional
 import numpy as np
 
 from hnnbench.errors import ConfigError
+from hnnbench.kinematics import Kinematics
 
 __all__ = [
     "Dataset",
@@ -298,10 +299,19 @@ class System(ABC):
         version: bump when data generation changes; every record stores it.
         description: one line for ``hnnbench list``.
         observation: ``"state"`` (models see ``(q, p)``) or ``"pixels"``.
-        time_reversible: ``H(q, -p) == H(q, p)``; enables the time-reversal metric.
+        time_reversible: the true dynamics are time-reversal symmetric,
+            ``R Φ_T R Φ_T x = x`` with ``R(q, p) = (q, -p)``; enables the
+            reversibility metric (NaN elsewhere).
+        conservative: the true dynamics conserve :meth:`energy`; enables the
+            long-horizon energy-drift metric (NaN elsewhere). ``False`` for damped and
+            measured systems.
         profiles: per-profile overrides of the config defaults, e.g.
             ``{"quick": {"steps": 200, "n_traj": 20}}``. The ``paper`` profile is the
-            dataclass defaults.
+            dataclass defaults; ``quick`` is the only other profile.
+
+    Optional methods and properties a subclass may override: :meth:`vector_field`
+    (where the dynamics are known), :meth:`kinematics` (for second-order models),
+    :attr:`lyapunov_time` (for chaotic systems).
     """
 
     Config: ClassVar[type[SystemConfig]] = SystemConfig
@@ -309,6 +319,7 @@ class System(ABC):
     description: ClassVar[str] = ""
     observation: ClassVar[str] = "state"
     time_reversible: ClassVar[bool] = True
+    conservative: ClassVar[bool] = True
     profiles: ClassVar[dict[str, dict[str, Any]]] = {}
 
     def __init__(self, cfg: SystemConfig) -> None:
@@ -343,6 +354,19 @@ class System(ABC):
     @abstractmethod
     def evaluation(self, seed: int) -> Trajectories:
         """Ground-truth evaluation trajectories for ``seed`` (deterministic)."""
+
+    def kinematics(self) -> Optional[Kinematics]:
+        """How positions move (:mod:`hnnbench.kinematics`): the map between canonical
+        states ``(q, p)`` and velocity states ``(q, q̇)``. ``None`` (the default): not
+        declared, and models that need it (second-order families) skip this system."""
+        return None
+
+    @property
+    def lyapunov_time(self) -> Optional[float]:
+        """The system's Lyapunov time (the inverse of its largest Lyapunov exponent),
+        in its time units, for the configured regime; ``None`` where it is not chaotic
+        or not known. Enables the ``vpt_lyapunov`` metric."""
+        return None
 
     def reverse(self, x: np.ndarray) -> np.ndarray:
         """The time-reversal map R: flip the momenta of ``(N, 2n)`` states."""

@@ -64,6 +64,7 @@ from hnnbench.api import (
     check_positive,
 )
 from hnnbench.errors import ConfigError, DataError
+from hnnbench.kinematics import Kinematics, LinearKinematics
 
 __all__ = [
     "MAX_REL_ENERGY_DRIFT",
@@ -373,6 +374,10 @@ class NBody(System):
 
     def vector_field(self, x: np.ndarray) -> np.ndarray:
         return vector_field(x, self.n_bodies)
+
+    def kinematics(self) -> Kinematics:
+        """``q̇ = p / m``."""
+        return LinearKinematics(1.0 / MASS)
 
     def initial_states(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """``(n, 4N)`` initial states drawn from the protocol's distribution."""

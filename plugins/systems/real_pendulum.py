@@ -41,6 +41,7 @@ import numpy as np
 from hnnbench.api import Dataset, Split, System, SystemConfig, Trajectories
 from hnnbench.data import URL_SCHEMES, locate
 from hnnbench.errors import ConfigError, DataError
+from hnnbench.kinematics import Kinematics, identity_kinematics
 
 #: The file's name in the Schmidt & Lipson data set.
 FILENAME = "real_pend_h_1.txt"
@@ -178,6 +179,7 @@ class RealPendulum(System):
     version = "1"
     description = "Measured pendulum, Schmidt & Lipson 2009, E = 2.4(1 - cos q) + p^2 (task 3)"
     time_reversible = False
+    conservative = False
     profiles = {"quick": {"steps": 300}}
 
     def __init__(self, cfg: SystemConfig) -> None:
@@ -192,6 +194,10 @@ class RealPendulum(System):
         x = np.asarray(x, dtype=np.float64)
         q, p = x[..., 0], x[..., 1]
         return ENERGY_A * (1.0 - np.cos(q)) + p**2
+
+    def kinematics(self) -> Kinematics:
+        """The state's "momentum" is the measured angular velocity: ``q̇ = p``."""
+        return identity_kinematics()
 
     # ------------------------------------------------------------------ data
 

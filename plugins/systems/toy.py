@@ -40,6 +40,7 @@ from hnnbench.api import (
 )
 from hnnbench.errors import ConfigError
 from hnnbench.integrate import solve_batch
+from hnnbench.kinematics import Kinematics, LinearKinematics
 
 #: Seed-stream tags, so data and evaluation draws never overlap.
 DATA_STREAM = 0
@@ -110,9 +111,16 @@ class ToySystem(System):
     def dof(self) -> int:
         return 1
 
+    #: ``dq/dt`` per unit momentum: H = V(q) + p^2 in the paper's units gives 2.
+    velocity_per_momentum: float = 2.0
+
     def grad_h(self, q: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(dH/dq, dH/dp)``."""
         raise NotImplementedError
+
+    def kinematics(self) -> Kinematics:
+        """``q̇ = 2 p`` (``H = V(q) + p^2``)."""
+        return LinearKinematics(self.velocity_per_momentum)
 
     def hamiltonian(self, q: np.ndarray, p: np.ndarray) -> np.ndarray:
         raise NotImplementedError
