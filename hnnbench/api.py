@@ -6,8 +6,10 @@ Conventions used throughout:
   states has shape ``(N, 2n)``. Units are the system's own (the paper's toy systems are
   dimensionless).
 - Arrays crossing the API are float64 numpy arrays. Backends convert at the boundary.
-- ``t`` is a 1-D, strictly increasing time grid of shape ``(T,)`` starting at the
-  initial state's time.
+- A time grid ``t`` is 1-D, ``(T,)``, starting at the initial state's time. Data and
+  evaluation grids are strictly increasing; :meth:`Model.rollout` must also accept a
+  strictly decreasing grid (integration backward in time, used by the reversibility
+  metric).
 
 A third-party plugin subclasses :class:`System` or :class:`Model`, declares a config
 dataclass (its defaults are the hyperparameters users get), and registers the class
@@ -19,14 +21,14 @@ from __future__ import annotations
 import dataclasses
 import json
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, Optional
 
 import numpy as np
 
-from hnnbench.errors import ConfigError
+from hnnbench.errors import ConfigError, RolloutDiverged
 from hnnbench.kinematics import Kinematics
 
 __all__ = [
@@ -383,6 +385,8 @@ class Model(ABC):
         version, description, profiles: as for :class:`System`.
         backend: ``"torch"``, ``"jax"`` or ``"numpy"``.
         observations: the system observations it handles (``"state"``, ``"pixels"``).
+        weights_file: the file name :meth:`save` writes in the job's directory, e.g.
+            ``"weights.safetensors"``; ``None`` (the default): nothing to save.
     """
 
     Config: ClassVar[type[ModelConfig]] = ModelConfig
@@ -391,6 +395,7 @@ class Model(ABC):
     backend: ClassVar[str] = "numpy"
     observations: ClassVar[tuple[str, ...]] = ("state",)
     profiles: ClassVar[dict[str, dict[str, Any]]] = {}
+    weights_file: ClassVar[Optional[str]] = None
 
     def __init__(self, cfg: ModelConfig, system: System, device: str = "auto") -> None:
         self.cfg = cfg
@@ -423,6 +428,26 @@ class Model(ABC):
         self, data: Dataset, train: TrainSettings, seed: int, progress: Progress
     ) -> FitResult:
         """Train on ``data.train``; report losses through ``progress``."""
+
+    def fit_seeds(
+        self, data: Dataset, train: TrainSettings, seeds: Sequence[int], progress: Progress
+    ) -> list[tuple[Model, FitResult]]:
+        """Train one model per seed, in ``seeds`` order: ``[(trained model, result)]``.
+
+        A seed whose training diverges gets a result with ``diverged`` set; the others
+        are unaffected. The default trains a fresh instance per seed, one after the
+        other; a model that can train several seeds as one batch (the neural models)
+        overrides it. Used when a job trains several seeds (``seeds_per_job``).
+        """
+        out: list[tuple[Model, FitResult]] = []
+        for seed in seeds:
+            model = type(self)(self.cfg, self.system, self.requested_device)
+            try:
+                result = model.fit(data, train, seed, progress)
+            except RolloutDiverged as err:
+                result = FitResult(diverged=f"training diverged: {err}")
+            out.append((model, result))
+        return out
 
     @abstractmethod
     def time_derivative(self, x: np.ndarray) -> np.ndarray:
@@ -460,10 +485,14 @@ class Model(ABC):
         return None
 
     def save(self, path: Path) -> None:
-        """Write weights without pickle (npz / safetensors). Optional."""
+        """Write the trained weights to exactly ``path`` (``<job dir>/<weights_file>``;
+        write no other file and add no suffix), without pickle (safetensors, npz).
+        Called after a successful fit when ``weights_file`` is set."""
         raise NotImplementedError(f"{type(self).__name__} does not implement save()")
 
     def load(self, path: Path) -> None:
+        """Read weights written by :meth:`save` (the model is built with the same config
+        and system)."""
         raise NotImplementedError(f"{type(self).__name__} does not implement load()")
 
 
@@ -474,8 +503,13 @@ class FitResult:
     Attributes:
         history: columns of the training log, e.g. ``{"step": [...], "train_loss":
             [...], "test_loss": [...]}``, all of the same length.
-        steps: optimizer steps taken.
+        steps: optimizer steps taken; 0 for a model without an iterative training
+            loop (closed form, least squares), whose record then shows no training
+            protocol.
+        diverged: why training diverged, from :meth:`Model.fit_seeds` (``fit`` raises
+            :class:`~hnnbench.errors.RolloutDiverged` instead); ``None`` otherwise.
     """
 
     history: dict[str, list[float]] = field(default_factory=dict)
     steps: int = 0
+    diverged: Optional[str] = None

@@ -42,6 +42,12 @@ class BackendMissingError(HnnbenchError):
     """An optional backend (torch, JAX) is not installed."""
 
 
+class UnsupportedPair(Exception):
+    """This model cannot run on this system (raised by a model's ``fit`` when that only
+    shows in the data, e.g. no trajectory windows). Not a user error: the job is
+    recorded as ``skipped`` with the message as its reason."""
+
+
 class RolloutDiverged(Exception):
     """A rollout produced non-finite states or the ODE solver gave up.
 

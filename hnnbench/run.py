@@ -20,7 +20,7 @@ import time
 import traceback
 import uuid
 from pathlib import Path
-from typing import Any
+from typing import Any, Optional
 
 import numpy as np
 import threadpoolctl
@@ -29,7 +29,7 @@ from omegaconf import DictConfig, OmegaConf
 from hnnbench import affinity, cache, records
 from hnnbench.api import Dataset, TrainSettings, Trajectories
 from hnnbench.config import EvaluationConfig, Job, prepare_job
-from hnnbench.errors import HnnbenchError, RolloutDiverged
+from hnnbench.errors import HnnbenchError, RolloutDiverged, UnsupportedPair
 from hnnbench.evaluate import ROLLOUT_METRICS, evaluate, worst
 from hnnbench.progress import TrainingProgress
 
@@ -112,21 +112,29 @@ def _save_arrays(directory: Path, arrays: dict[str, np.ndarray], history: dict) 
         np.savez_compressed(fh, **payload)
 
 
-def _save_model(model: Any, directory: Path) -> None:
-    """``model.save`` into a private temporary folder, then each file it wrote is
-    renamed into ``directory``: a killed job never leaves torn weights behind (and a
-    model may add its own suffix, as ``np.savez`` does)."""
+def _save_model(model: Any, directory: Path) -> Optional[str]:
+    """Save the trained weights as ``directory / model.weights_file`` (nothing if the
+    model names no file): ``model.save`` writes into a private temporary folder, then the
+    file is renamed into place, so a killed job never leaves torn weights behind.
+    Returns the file name, or ``None``."""
+    name = getattr(model, "weights_file", None)
+    if not name:
+        return None
     tmpdir = directory / f".weights.{os.getpid()}.{uuid.uuid4().hex}.tmp"
     tmpdir.mkdir(parents=True)
     try:
-        model.save(tmpdir / "weights.safetensors")
-        for path in sorted(tmpdir.iterdir()):
-            with records.atomic_path(directory / path.name) as tmp:
-                os.replace(path, tmp)
-    except NotImplementedError:
-        pass
+        model.save(tmpdir / name)
+        written = tmpdir / name
+        if not written.is_file():
+            raise HnnbenchError(
+                f"{type(model).__name__}.save() did not write {name}: a model's save(path) "
+                "must write exactly the path it is given (see Model.weights_file)"
+            )
+        with records.atomic_path(directory / name) as tmp:
+            os.replace(written, tmp)
     finally:
         shutil.rmtree(tmpdir, ignore_errors=True)
+    return name
 
 
 def _clean_stale(directory: Path) -> None:
@@ -232,17 +240,22 @@ def _execute(
         "evaluation_meta": traj.meta,
     }
 
-    model = job.model_cls(job.model_cfg, system, str(cfg.device))
-    record["device"] = model.device
     train = TrainSettings.resolve(job.system_cfg, job.model_cfg)
     record["train"] = dataclasses.asdict(train)
     t0 = time.perf_counter()
     history: dict = {}
     try:
+        model = job.model_cls(job.model_cfg, system, str(cfg.device))
+        record["device"] = model.device
         with TrainingProgress(f"{cfg.system.name}/{cfg.model.name} s{seed}", train.steps) as bar:
             fit = model.fit(data, train, seed, bar.update)
         history = fit.history
         record["steps"] = fit.steps
+        if fit.steps == 0:  # no training loop (closed form, oracle): no protocol used
+            record["train"] = None
+    except UnsupportedPair as err:
+        record.update(status="skipped", error=f"{cfg.model.name} on {cfg.system.name}: {err}")
+        return
     except RolloutDiverged as err:
         timings["fit_s"] = time.perf_counter() - t0
         timings.update(model.timings)
@@ -255,7 +268,7 @@ def _execute(
         _diverged(record, f"training diverged: {_history_diverged(history)}")
         return
     if cfg.save_model:
-        _save_model(model, directory)
+        record["weights_file"] = _save_model(model, directory)
 
     t0 = time.perf_counter()
     ev = EvaluationConfig(**OmegaConf.to_container(cfg.evaluation, resolve=True))  # type: ignore[arg-type]

@@ -40,9 +40,3 @@ class Oracle(Model):
 
     def energy(self, x: np.ndarray) -> np.ndarray:
         return self.system.energy(x)
-
-    def save(self, path) -> None:  # nothing to save: no parameters
-        np.savez(path, empty=np.zeros(0))
-
-    def load(self, path) -> None:
-        return None

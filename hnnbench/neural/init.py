@@ -1,72 +1,27 @@
-"""What the neural models of every backend share: the config (the 2019 paper's
-architecture and recipe), the seeded initial weights and the minibatch stream.
+"""Seeded initial weights and minibatch streams, drawn with numpy for every backend.
 
 Initial weights and minibatch indices are drawn with numpy from the run's seed, so a
 torch model and its JAX twin with the same seed start from the same weights (cast to
 the training dtype) and see the same minibatches: a backend comparison at one seed
-compares backends, not random draws.
+compares backends, not random draws. Several seeds trained as one batch draw exactly
+what each would draw alone.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from hnnbench.api import ModelConfig, check_positive
-from hnnbench.errors import ConfigError
+from hnnbench.neural.config import NeuralConfig
 
-ACTIVATIONS = ("tanh", "sigmoid", "softplus")
-DTYPES = ("float32", "float64")
-
-
-@dataclass
-class NeuralConfig(ModelConfig):
-    """An MLP of ``layers`` linear layers (``hidden`` units each, no bias on the last),
-    orthogonal weight init, trained with Adam.
-
-    Attributes:
-        hidden: hidden units per layer.
-        layers: number of linear layers (the paper: 3, i.e. in -> 200 -> 200 -> out).
-        activation: one of ``tanh``, ``sigmoid``, ``softplus``.
-        dtype: training precision; rollouts always run in float64.
-        log_every: record train/test loss every this many steps (0: about 200 points,
-            at least 10 steps apart, so a 300-step smoke run does not spend a third of
-            its time on test losses).
-        rollout_max_steps: ODE solver step budget per rollout before it is declared
-            diverged.
-    """
-
-    hidden: int = 200
-    layers: int = 3
-    activation: str = "tanh"
-    dtype: str = "float32"
-    log_every: int = 0
-    rollout_max_steps: int = 50_000
-
-    def validate(self) -> None:
-        super().validate()
-        check_positive("model", hidden=self.hidden, rollout_max_steps=self.rollout_max_steps)
-        if self.layers < 2:
-            raise ConfigError(
-                f"model.layers={self.layers} is invalid: expected an integer >= 2."
-            )
-        if self.log_every < 0:
-            raise ConfigError(f"model.log_every={self.log_every} is invalid: expected >= 0.")
-        if self.activation not in ACTIVATIONS:
-            raise ConfigError(
-                f"model.activation='{self.activation}' is invalid: expected one of "
-                f"{', '.join(ACTIVATIONS)}."
-            )
-        if self.dtype not in DTYPES:
-            raise ConfigError(
-                f"model.dtype='{self.dtype}' is invalid: expected one of {', '.join(DTYPES)}."
-            )
-
-    def log_interval(self, steps: int) -> int:
-        """Steps between two loss records (the JAX models compile one chunk per interval)."""
-        return self.log_every or max(10, steps // 200)
-
+__all__ = [
+    "AE_LAYERS",
+    "BatchStream",
+    "autoencoder_init_arrays",
+    "init_arrays",
+    "mlp_shapes",
+    "network_init_arrays",
+    "orthogonal",
+]
 
 #: Seed-stream tags: ``np.random.default_rng([seed, stream])``.
 INIT_STREAM, BATCH_STREAM, AE_STREAM = 0, 1, 2
@@ -90,8 +45,8 @@ def orthogonal(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
 def mlp_shapes(d_in: int, d_out: int, cfg: NeuralConfig) -> dict[str, tuple[int, ...]]:
     """Parameter name -> shape of the MLP ``cfg`` describes (no bias on the last layer).
 
-    Names and ``(out, in)`` weight shapes follow torch's ``state_dict`` of
-    ``hnnbench_plugins.models.torch_base.MLP``; the JAX net uses the same names.
+    Names and ``(out, in)`` weight shapes follow torch's ``nn.Linear`` convention; both
+    backends use the same names.
     """
     dims = [d_in] + [cfg.hidden] * (cfg.layers - 1) + [d_out]
     shapes: dict[str, tuple[int, ...]] = {}
@@ -102,13 +57,18 @@ def mlp_shapes(d_in: int, d_out: int, cfg: NeuralConfig) -> dict[str, tuple[int,
     return shapes
 
 
-def init_arrays(seed: int, d_in: int, d_out: int, cfg: NeuralConfig) -> dict[str, np.ndarray]:
+def init_arrays(seed: int, d_in: int, d_out: int, cfg: NeuralConfig,
+                network: int = 0) -> dict[str, np.ndarray]:
     """The seeded initial weights of an MLP, float64, keyed as :func:`mlp_shapes`.
 
     Orthogonal weights; biases ``U(-1/sqrt(fan_in), 1/sqrt(fan_in))`` (torch's
     ``nn.Linear`` default). Every backend builds its network from these arrays.
+    ``network`` numbers the networks of a model (a model with one network uses 0); each
+    draws from its own stream, ``[seed, INIT_STREAM]`` for the first and
+    ``[seed, INIT_STREAM, k]`` for the k-th after it.
     """
-    rng = np.random.default_rng([seed, INIT_STREAM])
+    stream = [seed, INIT_STREAM] if network == 0 else [seed, INIT_STREAM, network]
+    rng = np.random.default_rng(stream)
     arrays: dict[str, np.ndarray] = {}
     for name, shape in mlp_shapes(d_in, d_out, cfg).items():
         if name.endswith("weight"):
@@ -117,6 +77,16 @@ def init_arrays(seed: int, d_in: int, d_out: int, cfg: NeuralConfig) -> dict[str
             bound = 1.0 / np.sqrt(arrays[name.replace("bias", "weight")].shape[1])
             arrays[name] = rng.uniform(-bound, bound, size=shape)
     return arrays
+
+
+def network_init_arrays(
+    seed: int, shapes: dict[str, tuple[int, int]], cfg: NeuralConfig
+) -> dict[str, dict[str, np.ndarray]]:
+    """Initial weights of every network of a model: ``{net: {param: array}}`` for
+    ``shapes = {net: (d_in, d_out)}``, the k-th network (in ``shapes``' order) drawn with
+    ``init_arrays(..., network=k)``."""
+    return {name: init_arrays(seed, d_in, d_out, cfg, network=k)
+            for k, (name, (d_in, d_out)) in enumerate(shapes.items())}
 
 
 def autoencoder_init_arrays(

@@ -1,0 +1,16 @@
+"""Neural models for hnnbench: one core for every family and backend.
+
+A model family is declared once (:class:`Family`) and implemented in one small module
+per backend; its entry-point classes subclass :class:`NeuralModel`. The training loop
+(:mod:`hnnbench.neural.loop`), seeded initial weights (:mod:`hnnbench.neural.init`),
+float64 rollouts, pixel autoencoders and second-order coordinates
+(:mod:`hnnbench.neural.views`) and weight files are shared. Backends
+(:mod:`hnnbench.neural.torch`, :mod:`hnnbench.neural.jax`) are imported only when a
+model is built. docs/PLUGINS.md shows a new family in a few lines.
+"""
+
+from hnnbench.neural.config import NeuralConfig
+from hnnbench.neural.family import Family
+from hnnbench.neural.model import NeuralModel
+
+__all__ = ["Family", "NeuralConfig", "NeuralModel"]

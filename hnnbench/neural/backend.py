@@ -1,0 +1,116 @@
+"""What a backend (torch, JAX) supplies to the neural models, and how it is loaded.
+
+A backend provides only primitives; everything else is shared
+(:mod:`hnnbench.neural.loop`, :class:`hnnbench.neural.NeuralModel`):
+
+- a :class:`~hnnbench.neural.loop.Trainer` built from the shared numpy initial weights
+  of ``S`` seeds, running compiled (JAX) or eager (torch) chunks of optimizer steps;
+- the trained weights back as numpy arrays;
+- an :class:`Inference`: the float64 field and learned energy, the batched adaptive
+  Dormand-Prince solver, and, for pixel models, the autoencoder in training precision.
+
+Backends are imported only when a model is built (``load_backend``), so listing,
+composing, validating and reporting import neither torch nor JAX, and a job imports
+only the backend it runs.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Sequence
+from types import ModuleType
+from typing import Protocol
+
+import numpy as np
+
+from hnnbench.api import TrainSettings
+from hnnbench.errors import HnnbenchError, require_backend
+from hnnbench.neural.config import NeuralConfig
+from hnnbench.neural.family import Family
+from hnnbench.neural.loop import Trainer
+from hnnbench.neural.views import Problem
+
+__all__ = ["BACKENDS", "Backend", "Inference", "Weights", "load_backend"]
+
+#: Flat ``{"<net>.linears.<i>.weight": array, ...}`` of one seed (pixel models add
+#: ``"autoencoder.encoder.<i>.weight"`` etc.), in the training dtype.
+Weights = dict[str, np.ndarray]
+
+#: backend name -> (module, class, the modules it needs, the pip extra providing them).
+BACKENDS: dict[str, tuple[str, str, tuple[str, ...], str]] = {
+    "torch": ("hnnbench.neural.torch", "TorchBackend", ("torch",), "torch"),
+    "jax": ("hnnbench.neural.jax", "JaxBackend", ("jax", "equinox", "optax", "diffrax"),
+            "jax"),
+}
+
+
+class Inference(Protocol):
+    """A trained model's float64 computations (one seed)."""
+
+    def field(self, z: np.ndarray) -> np.ndarray:
+        """``(N, d) -> (N, d)``: the learned field, float64, per model time unit."""
+        ...
+
+    def energy(self, z: np.ndarray) -> np.ndarray:
+        """``(N, d) -> (N,)``: the learned energy (families with ``learned_energy``)."""
+        ...
+
+    def rollout(self, z0: np.ndarray, t: np.ndarray, rtol: float, atol: float,
+                max_steps: int) -> np.ndarray:
+        """Adaptive Dormand-Prince 5(4) in float64 from ``(M, d)`` over ``(T,)``
+        (monotonic, may decrease), the batch integrated as one system; ``(M, T, d)``.
+        Raises :class:`~hnnbench.errors.RolloutDiverged`."""
+        ...
+
+    def encode(self, x: np.ndarray) -> np.ndarray:
+        """Pixel models: observations ``(N, D)`` -> latents ``(N, d)``."""
+        ...
+
+    def decode(self, z: np.ndarray) -> np.ndarray:
+        """Pixel models: latents ``(N, d)`` -> observations ``(N, D)``."""
+        ...
+
+    def objective(self, x: np.ndarray, x_next: np.ndarray) -> float:
+        """Pixel models: the training objective's mean over the pairs ``(x, x_next)``."""
+        ...
+
+
+class Backend(Protocol):
+    """One backend, configured for a model (precision, device)."""
+
+    #: ``"torch"`` or ``"jax"``.
+    name: str
+    #: The device actually used: ``"cpu"``, ``"cuda:0"``, ...
+    device_name: str
+    #: Seconds a model wants recorded, e.g. ``{"compile_s": ...}``; accumulated.
+    timings: dict[str, float]
+
+    def trainer(self, family: Family, impl: ModuleType, problem: Problem,
+                initial: Sequence[Weights], settings: TrainSettings, d: int) -> Trainer:
+        """A trainer of ``len(initial)`` seeds, from their float64 initial weights;
+        ``d`` is the dimension of the family's working coordinates."""
+        ...
+
+    def weights(self, trainer: Trainer) -> list[Weights]:
+        """The current weights of each seed of ``trainer`` (training dtype)."""
+        ...
+
+    def inference(self, family: Family, impl: ModuleType, weights: Weights,
+                  d: int) -> Inference:
+        """The float64 computations of one seed's trained weights."""
+        ...
+
+
+def load_backend(name: str, cfg: NeuralConfig, device: str) -> Backend:
+    """Import backend ``name`` (``torch`` / ``jax``) and configure it; a missing
+    install raises a one-line :class:`~hnnbench.errors.BackendMissingError`."""
+    if name not in BACKENDS:
+        raise HnnbenchError(
+            f"Unknown neural backend '{name}': expected one of {', '.join(BACKENDS)}"
+        )
+    module_name, class_name, needs, extra = BACKENDS[name]
+    for module in needs:
+        require_backend(module, extra)
+    module = importlib.import_module(module_name)
+    backend: Backend = getattr(module, class_name)(cfg, device)
+    return backend

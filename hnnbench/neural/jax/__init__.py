@@ -1,0 +1,382 @@
+"""The JAX backend of the neural models: equinox networks, optax's Adam made equal to
+torch's, compiled training chunks, diffrax rollouts.
+
+- Training is jit-compiled and stays on the device: one compiled call runs a chunk of
+  optimizer steps with :func:`jax.lax.scan` and returns each step's loss and the test
+  loss after the chunk, so the host only wakes up to log. Compilation is timed apart
+  (``timings["compile_s"]``) and cached per process, so later fits of the same shapes
+  (other seeds, learning rates) compile nothing. Several seeds train as one batch by
+  ``jax.vmap`` over the parameter and optimizer pytrees and the minibatch indices.
+- Rollouts use diffrax (Dopri5, PID step-size control) in float64. The batch of
+  initial states is integrated as one system (one step-size sequence, error norm over
+  the whole batch), as the torch backend does. A solve that stops early raises
+  :class:`~hnnbench.errors.RolloutDiverged`; nothing is silently truncated.
+
+Importing this module enables 64-bit floats in JAX (``jax_enable_x64``), which float64
+rollouts need; training runs in ``cfg.dtype`` (parameters and data cast explicitly).
+It also turns on JAX's persistent compilation cache in ``<cache root>/jax-compilation``
+(:func:`hnnbench.paths.cache_root`), unless ``JAX_COMPILATION_CACHE_DIR`` names
+another place or ``JAX_ENABLE_COMPILATION_CACHE=false`` turns it off. For the rollout
+to be cacheable it must hold no host callbacks, so equinox's in-graph error checks
+answer with NaN (``EQX_ON_ERROR=nan``, unless set otherwise) instead of calling back to
+raise; a NaN rollout is recorded as diverged, like a solver failure.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from collections.abc import Callable, Sequence
+from types import ModuleType
+from typing import Any, Optional
+
+import numpy as np
+
+os.environ.setdefault("EQX_ON_ERROR", "nan")  # read when equinox is imported
+
+import diffrax  # noqa: E402
+import equinox as eqx  # noqa: E402
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import optax  # noqa: E402
+
+from hnnbench.api import TrainSettings  # noqa: E402
+from hnnbench.cache import cache_root  # noqa: E402
+from hnnbench.errors import ConfigError, RolloutDiverged  # noqa: E402
+from hnnbench.neural.backend import Weights  # noqa: E402
+from hnnbench.neural.config import NeuralConfig  # noqa: E402
+from hnnbench.neural.family import Family  # noqa: E402
+from hnnbench.neural.jax.nets import (  # noqa: E402
+    Nets,
+    nets_from_weights,
+    nets_to_weights,
+    pixel_objective,
+)
+from hnnbench.neural.views import Problem  # noqa: E402
+
+__all__ = ["JaxBackend", "adam_like_torch", "device_name", "resolve_device"]
+
+jax.config.update("jax_enable_x64", True)
+if not jax.config.jax_compilation_cache_dir:
+    jax.config.update("jax_compilation_cache_dir", str(cache_root() / "jax-compilation"))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
+# Probing for absent accelerators (TPU, GPU) logs an INFO line per backend, which the
+# CLI's INFO-level logging would print on every run.
+logging.getLogger("jax._src.xla_bridge").setLevel(logging.WARNING)
+
+Field = Callable[[Nets, jax.Array], jax.Array]
+
+
+# --------------------------------------------------------------------------- device
+
+
+def _gpus() -> list[Any]:
+    try:
+        return list(jax.devices("gpu"))
+    except RuntimeError:  # no GPU backend
+        return []
+
+
+def resolve_device(requested: str) -> Any:
+    """``auto`` -> the first GPU if JAX sees one, else the CPU; ``cpu``; ``cuda[:N]``."""
+    req = str(requested).strip().lower()
+    if req == "auto":
+        gpus = _gpus()
+        return gpus[0] if gpus else jax.devices("cpu")[0]
+    if req == "cpu":
+        return jax.devices("cpu")[0]
+    if req in ("cuda", "gpu") or req.startswith(("cuda:", "gpu:")):
+        index = int(req.split(":", 1)[1]) if ":" in req and req.split(":", 1)[1].isdigit() else 0
+        gpus = _gpus()
+        if not gpus:
+            raise ConfigError(
+                f"device={requested} was requested but JAX sees no CUDA GPU: use device=cpu "
+                "or device=auto (or install a CUDA build of jax: pip install 'jax[cuda12]')."
+            )
+        if index >= len(gpus):
+            raise ConfigError(
+                f"device={requested} was requested but JAX sees only {len(gpus)} GPU(s): "
+                f"use device=cuda:0..{len(gpus) - 1}."
+            )
+        return gpus[index]
+    raise ConfigError(f"device={requested} is invalid: expected auto, cpu, cuda or cuda:N.")
+
+
+def device_name(device: Any) -> str:
+    """Torch-style name of a JAX device: ``cpu`` or ``cuda:N``."""
+    return "cpu" if device.platform == "cpu" else f"cuda:{device.id}"
+
+
+# --------------------------------------------------------------------------- training
+
+
+def adam_like_torch(lr: Any, weight_decay: Any) -> optax.GradientTransformation:
+    """``torch.optim.Adam(lr, weight_decay=wd)`` in optax.
+
+    torch adds ``wd * param`` to the gradient *before* the moment estimates (coupled L2,
+    not AdamW's decoupled decay), and puts ``eps = 1e-8`` outside the square root of the
+    bias-corrected second moment, as ``optax.adam`` does.
+    """
+    return optax.chain(
+        optax.add_decayed_weights(weight_decay),
+        optax.adam(lr, b1=0.9, b2=0.999, eps=1e-8, eps_root=0.0),
+    )
+
+
+def _loss(kind: str, impl: ModuleType, static: Any, params: Any, *arrays: jax.Array
+          ) -> jax.Array:
+    """One seed's loss on a batch of a :class:`~hnnbench.neural.views.Problem`."""
+    nets = eqx.combine(params, static)
+    if kind == "derivatives":
+        z, zdot = arrays
+        return jnp.mean((impl.field(nets, z) - zdot) ** 2)
+    if kind == "windows":
+        return impl.window_loss(nets, *arrays)
+    return pixel_objective(impl.field, nets, *arrays)
+
+
+def scan_steps(
+    loss_fn: Callable[..., jax.Array], optimizer: Any, params: Any, opt_state: Any,
+    idx: Optional[jax.Array], arrays: tuple[jax.Array, ...], length: int,
+) -> tuple[Any, Any, jax.Array]:
+    """``length`` optimizer steps of ``loss_fn(params, *batch)`` under ``lax.scan``;
+    ``idx`` is ``(length, batch)`` row indices or ``None`` (full batch). Returns the
+    new params, optimizer state and the ``(length,)`` losses, each taken before its
+    update."""
+
+    def step(carry: tuple[Any, Any], batch_idx: Optional[jax.Array]) -> Any:
+        params, opt_state = carry
+        batch = arrays if batch_idx is None else tuple(a[batch_idx] for a in arrays)
+        loss, grads = jax.value_and_grad(loss_fn)(params, *batch)
+        updates, opt_state = optimizer.update(grads, opt_state, params)
+        return (optax.apply_updates(params, updates), opt_state), loss
+
+    (params, opt_state), losses = jax.lax.scan(step, (params, opt_state), idx, length=length)
+    return params, opt_state, losses
+
+
+def _chunk(kind: str, impl: ModuleType, static: Any, length: int, params: Any,
+           opt_state: Any, idx: Optional[jax.Array], train: tuple[jax.Array, ...],
+           test: tuple[jax.Array, ...], lr: jax.Array, weight_decay: jax.Array
+           ) -> tuple[Any, Any, jax.Array, jax.Array]:
+    """One chunk of ``length`` steps, then the test loss. ``lr`` and ``weight_decay``
+    are traced, so one executable serves every learning rate."""
+    optimizer = adam_like_torch(lr, weight_decay)
+
+    def loss_fn(p: Any, *batch: jax.Array) -> jax.Array:
+        return _loss(kind, impl, static, p, *batch)
+
+    params, opt_state, losses = scan_steps(loss_fn, optimizer, params, opt_state, idx, train,
+                                           length)
+    return params, opt_state, losses, loss_fn(params, *test)
+
+
+def _batched_chunk(kind: str, impl: ModuleType, static: Any, length: int, params: Any,
+                   opt_state: Any, idx: Optional[jax.Array], train: tuple[jax.Array, ...],
+                   test: tuple[jax.Array, ...], lr: jax.Array, weight_decay: jax.Array
+                   ) -> tuple[Any, Any, jax.Array, jax.Array]:
+    """:func:`_chunk` for stacked seeds: ``vmap`` over params, optimizer state and
+    indices (data and hyperparameters shared)."""
+    def one(p: Any, o: Any, i: Optional[jax.Array]) -> Any:
+        return _chunk(kind, impl, static, length, p, o, i, train, test, lr, weight_decay)
+
+    return jax.vmap(one, in_axes=(0, 0, None if idx is None else 0))(params, opt_state, idx)
+
+
+_CHUNKS = {False: jax.jit(_chunk, static_argnums=(0, 1, 2, 3)),
+           True: jax.jit(_batched_chunk, static_argnums=(0, 1, 2, 3))}
+#: Compiled chunks of this process, keyed by loss, layout, length, argument shapes and
+#: device: a sweep reuses them across seeds.
+_COMPILED: dict[Any, Any] = {}
+_COMPILED_MAX = 32
+
+
+def _compiled(batched: bool, statics: tuple[Any, ...], args: tuple[Any, ...]
+              ) -> tuple[Any, float]:
+    """The executable for one chunk and the seconds spent compiling it (0.0 if cached)."""
+    leaves, treedef = jax.tree_util.tree_flatten(args)
+    avals = tuple((leaf.shape, str(leaf.dtype), str(leaf.sharding)) for leaf in leaves)
+    key = (batched, statics, treedef, avals)
+    if key in _COMPILED:
+        return _COMPILED[key], 0.0
+    start = time.perf_counter()
+    with jax.default_matmul_precision("highest"):  # no TF32 on GPUs: as torch by default
+        compiled = _CHUNKS[batched].lower(*statics, *args).compile()
+    seconds = time.perf_counter() - start
+    if len(_COMPILED) >= _COMPILED_MAX:
+        _COMPILED.pop(next(iter(_COMPILED)))
+    _COMPILED[key] = compiled
+    return compiled, seconds
+
+
+def _stack(trees: Sequence[Any]) -> Any:
+    return jax.tree.map(lambda *leaves: jnp.stack(leaves), *trees)
+
+
+class JaxTrainer:
+    """The parameters and optimizer state of ``S`` seeds (stacked when ``S > 1``)."""
+
+    def __init__(self, backend: JaxBackend, family: Family, impl: ModuleType,
+                 problem: Problem, initial: Sequence[Weights], settings: TrainSettings,
+                 d: int) -> None:
+        self.backend = backend
+        self.seeds = len(initial)
+        cfg, dtype = backend.cfg, backend.dtype
+        names = tuple(family.networks(d))
+        trees = [nets_from_weights(w, names, cfg.layers, cfg.activation, dtype)
+                 for w in initial]
+        tree = trees[0] if self.seeds == 1 else _stack(trees)
+        params, self.static = eqx.partition(tree, eqx.is_inexact_array)
+        optimizer = adam_like_torch(settings.lr, settings.weight_decay)
+        opt_state = (optimizer.init(params) if self.seeds == 1
+                     else jax.vmap(optimizer.init)(params))
+        self.params, self.opt_state = backend.place(params), backend.place(opt_state)
+        self.train = tuple(backend.array(a) for a in problem.train)
+        self.test = tuple(backend.array(a) for a in problem.test)
+        self.hyper = (backend.array(settings.lr), backend.array(settings.weight_decay))
+        self.statics = (problem.kind, impl, self.static)
+
+    def run_chunk(self, indices: Optional[np.ndarray], length: int) -> tuple[Any, Any]:
+        idx = None
+        if indices is not None:
+            block = indices[0] if self.seeds == 1 else indices
+            idx = self.backend.place(jnp.asarray(block, dtype=jnp.int32))
+        args = (self.params, self.opt_state, idx, self.train, self.test, *self.hyper)
+        compiled, seconds = _compiled(self.seeds > 1, (*self.statics, length), args)
+        timings = self.backend.timings
+        timings["compile_s"] = timings.get("compile_s", 0.0) + seconds
+        self.params, self.opt_state, losses, test = compiled(*args)
+        return losses, test
+
+    def weights(self) -> list[Weights]:
+        nets = eqx.combine(self.params, self.static)
+        if self.seeds == 1:
+            return [nets_to_weights(nets)]
+        return [nets_to_weights(nets, s) for s in range(self.seeds)]
+
+
+# --------------------------------------------------------------------------- inference
+
+
+@eqx.filter_jit
+def _apply(fn: Field, nets: Nets, z: jax.Array) -> jax.Array:
+    return fn(nets, z)
+
+
+@eqx.filter_jit
+def _solve(field: Field, nets: Nets, y0: jax.Array, t: jax.Array, rtol: jax.Array,
+           atol: jax.Array, max_steps: int) -> tuple[jax.Array, jax.Array]:
+    """Dopri5 from the ``(M, D)`` batch ``y0`` over ``t``, the batch integrated as one
+    system; returns ``ys (M, T, D)`` and the diffrax result code (0: success)."""
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(lambda _t, y, _args: field(nets, y)), diffrax.Dopri5(),
+        t0=t[0], t1=t[-1], dt0=None, y0=y0, saveat=diffrax.SaveAt(ts=t),
+        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol),
+        max_steps=max_steps, throw=False,
+    )
+    return jnp.swapaxes(sol.ys, 0, 1), sol.result._value
+
+
+def _result_message(code: int) -> str:
+    try:
+        return str(diffrax.RESULTS._index_to_message[code]).splitlines()[0]
+    except (AttributeError, IndexError):  # private diffrax API moved
+        return f"diffrax result code {code}"
+
+
+@eqx.filter_jit
+def _encode(nets: Nets, x: jax.Array) -> jax.Array:
+    assert nets.autoencoder is not None
+    return jax.vmap(nets.autoencoder.encode)(x)
+
+
+@eqx.filter_jit
+def _decode(nets: Nets, z: jax.Array) -> jax.Array:
+    assert nets.autoencoder is not None
+    return jax.vmap(nets.autoencoder.decode)(z)
+
+
+@eqx.filter_jit
+def _objective(field: Field, nets: Nets, x: jax.Array, x_next: jax.Array) -> jax.Array:
+    return pixel_objective(field, nets, x, x_next)
+
+
+class JaxInference:
+    """One seed's float64 field, energy and rollouts, and its pixel autoencoder in the
+    training dtype."""
+
+    def __init__(self, backend: JaxBackend, family: Family, impl: ModuleType,
+                 weights: Weights, d: int) -> None:
+        self.backend, self.impl = backend, impl
+        cfg = backend.cfg
+        names = tuple(family.networks(d))
+        self.nets64 = backend.place(
+            nets_from_weights(weights, names, cfg.layers, cfg.activation, jnp.float64))
+        self.nets = backend.place(
+            nets_from_weights(weights, names, cfg.layers, cfg.activation, backend.dtype))
+
+    def field(self, z: np.ndarray) -> np.ndarray:
+        out = _apply(self.impl.field, self.nets64, self.backend.array(z, jnp.float64))
+        return np.asarray(out, dtype=np.float64)
+
+    def energy(self, z: np.ndarray) -> np.ndarray:
+        out = _apply(self.impl.energy, self.nets64, self.backend.array(z, jnp.float64))
+        return np.asarray(out, dtype=np.float64)
+
+    def rollout(self, z0: np.ndarray, t: np.ndarray, rtol: float, atol: float,
+                max_steps: int) -> np.ndarray:
+        array = self.backend.array
+        ys, codes = _solve(self.impl.field, self.nets64, array(z0, jnp.float64),
+                           array(t, jnp.float64), jnp.float64(rtol), jnp.float64(atol),
+                           int(max_steps))
+        out, code = np.asarray(ys, dtype=np.float64), int(np.asarray(codes))
+        if code != 0:
+            finite = np.all(np.isfinite(out), axis=(0, 2))
+            reached = float(t[np.flatnonzero(finite)[-1]]) if finite.any() else float(t[0])
+            raise RolloutDiverged(
+                f"dopri5 gave up after t={reached:g} (of {float(t[0]):g}..{float(t[-1]):g}): "
+                f"{_result_message(code)} (model.rollout_max_steps={max_steps})"
+            )
+        return out
+
+    def encode(self, x: np.ndarray) -> np.ndarray:
+        return np.asarray(_encode(self.nets, self.backend.array(x)))
+
+    def decode(self, z: np.ndarray) -> np.ndarray:
+        return np.asarray(_decode(self.nets, self.backend.array(z)))
+
+    def objective(self, x: np.ndarray, x_next: np.ndarray) -> float:
+        array = self.backend.array
+        return float(_objective(self.impl.field, self.nets, array(x), array(x_next)))
+
+
+class JaxBackend:
+    """The JAX backend for one model: device, training dtype, timings."""
+
+    name = "jax"
+
+    def __init__(self, cfg: NeuralConfig, device: str) -> None:
+        self.cfg = cfg
+        self.device = resolve_device(device)
+        self.dtype = jnp.dtype(cfg.dtype)
+        self.device_name = device_name(self.device)
+        self.timings: dict[str, float] = {}
+
+    def place(self, tree: Any) -> Any:
+        return jax.device_put(tree, self.device)
+
+    def array(self, x: Any, dtype: Any = None) -> jax.Array:
+        return jax.device_put(jnp.asarray(np.asarray(x), dtype=dtype or self.dtype),
+                              self.device)
+
+    def trainer(self, family: Family, impl: ModuleType, problem: Problem,
+                initial: Sequence[Weights], settings: TrainSettings, d: int) -> JaxTrainer:
+        return JaxTrainer(self, family, impl, problem, initial, settings, d)
+
+    def weights(self, trainer: Any) -> list[Weights]:
+        return trainer.weights()
+
+    def inference(self, family: Family, impl: ModuleType, weights: Weights,
+                  d: int) -> JaxInference:
+        return JaxInference(self, family, impl, weights, d)

@@ -1,0 +1,128 @@
+"""The training loop of every neural model, written once for every backend.
+
+A backend supplies a :class:`Trainer`: it owns the parameters and optimizer state of
+``S`` seeds (``S = 1`` for an ordinary job) and runs one *chunk* of optimizer steps at
+a time (a compiled ``lax.scan`` in JAX, a Python loop in torch). This module does the
+rest, identically for every backend and family:
+
+- the chunk plan: one chunk per loss record (``NeuralConfig.log_interval``);
+- the minibatch indices of every seed, drawn on the host from its own
+  :class:`~hnnbench.neural.init.BatchStream` (the next chunk's while the current one
+  runs), so a seed trained in a batch of seeds sees exactly the minibatches it sees
+  alone;
+- the loss history of each seed, progress reports, and divergence: a seed whose loss
+  becomes non-finite is marked diverged at its first non-finite step; the others go
+  on, and training stops when every seed has diverged.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Optional, Protocol
+
+import numpy as np
+
+from hnnbench.api import Progress, TrainSettings
+from hnnbench.neural.init import BatchStream
+
+__all__ = ["SeedFit", "Trainer", "chunk_lengths", "train"]
+
+
+class Trainer(Protocol):
+    """A backend's training state for ``S`` seeds."""
+
+    def run_chunk(self, indices: Optional[np.ndarray], length: int) -> tuple[Any, Any]:
+        """Run ``length`` optimizer steps.
+
+        Args:
+            indices: ``(S, length, batch)`` minibatch row indices, or ``None`` (every
+                step uses the whole training set).
+            length: steps in this chunk.
+
+        Returns:
+            ``(losses, test_loss)``, array-likes of shape ``(S, length)`` (each step's
+            training loss, taken before its update) and ``(S,)`` (the test loss after
+            the chunk). They may be device arrays still being computed: the loop
+            converts them with ``numpy.asarray`` after drawing the next chunk's
+            indices.
+        """
+        ...
+
+
+@dataclass
+class SeedFit:
+    """The training log of one seed.
+
+    Attributes:
+        history: ``{"step": [...], "train_loss": [...], "test_loss": [...]}``.
+        steps: optimizer steps run.
+        diverged: why training diverged (``None`` if it did not).
+    """
+
+    history: dict[str, list[float]] = field(
+        default_factory=lambda: {"step": [], "train_loss": [], "test_loss": []})
+    steps: int = 0
+    diverged: Optional[str] = None
+
+
+def chunk_lengths(steps: int, interval: int) -> list[int]:
+    """``steps`` cut into chunks of ``interval`` steps (the last one shorter)."""
+    lengths = [interval] * (steps // interval)
+    if steps % interval:
+        lengths.append(steps % interval)
+    return lengths
+
+
+def train(
+    trainer: Trainer,
+    n_train: int,
+    settings: TrainSettings,
+    seeds: Sequence[int],
+    interval: int,
+    progress: Progress,
+) -> list[SeedFit]:
+    """Train every seed of ``trainer`` for ``settings.steps`` steps; one
+    :class:`SeedFit` per seed, in ``seeds`` order."""
+    full = settings.batch_size is None or settings.batch_size >= n_train
+    streams = None if full else [BatchStream(seed, n_train, int(settings.batch_size))
+                                 for seed in seeds]
+
+    def draw(length: int) -> Optional[np.ndarray]:
+        if streams is None:
+            return None
+        return np.stack([stream.block(length) for stream in streams])
+
+    fits = [SeedFit() for _ in seeds]
+    lengths = chunk_lengths(settings.steps, interval)
+    step = 0
+    indices = draw(lengths[0])
+    for k, length in enumerate(lengths):
+        losses_out, test_out = trainer.run_chunk(indices, length)
+        if k + 1 < len(lengths):  # drawn while an asynchronous backend computes
+            indices = draw(lengths[k + 1])
+        losses = np.asarray(losses_out, dtype=np.float64).reshape(len(seeds), length)
+        tests = np.asarray(test_out, dtype=np.float64).reshape(len(seeds))
+        step += length
+        live = []
+        for s, fit in enumerate(fits):
+            if fit.diverged is not None:
+                continue
+            fit.steps = step
+            train_loss, test_loss = float(losses[s, -1]), float(tests[s])
+            fit.history["step"].append(step)
+            fit.history["train_loss"].append(train_loss)
+            fit.history["test_loss"].append(test_loss)
+            if np.all(np.isfinite(losses[s])) and np.isfinite(test_loss):
+                live.append(s)
+                continue
+            bad = np.flatnonzero(~np.isfinite(losses[s]))
+            at = step - length + 1 + int(bad[0]) if bad.size else step
+            value = losses[s, bad[0]] if bad.size else test_loss
+            fit.diverged = f"training loss became {value} at step {at}"
+        shown = live or list(range(len(seeds)))
+        progress(step, {"train_loss": float(np.mean(losses[shown, -1])),
+                        "test_loss": float(np.mean(tests[shown]))})
+        if not live:
+            break
+    return fits

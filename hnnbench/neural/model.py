@@ -1,0 +1,244 @@
+"""The neural model: a family, a backend and a view, composed.
+
+A built-in or third-party family is one :class:`~hnnbench.neural.family.Family`
+declaration, one small implementation module per backend, and one entry point per
+backend whose class is just::
+
+    class HNNTorch(NeuralModel):
+        family = HNN
+        backend = "torch"
+
+Everything else is here, once: seeded initial weights, the training loop (for one
+seed or several seeds as one batch), float64 fields and rollouts, the learned energy,
+pixel autoencoders and second-order coordinates (through the view), saving and
+loading. Importing this module imports no backend; building a model imports its own.
+"""
+
+from __future__ import annotations
+
+import importlib
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, ClassVar, Optional
+
+import numpy as np
+
+from hnnbench.api import Dataset, FitResult, Model, Progress, System, TrainSettings
+from hnnbench.errors import RolloutDiverged
+from hnnbench.neural import views
+from hnnbench.neural.backend import Inference, Weights, load_backend
+from hnnbench.neural.config import NeuralConfig
+from hnnbench.neural.family import Family
+from hnnbench.neural.init import autoencoder_init_arrays, network_init_arrays
+from hnnbench.neural.loop import train as run_training
+from hnnbench.neural.weights import load_weights, save_weights
+
+__all__ = ["NeuralModel"]
+
+#: Rows per call when mapping whole splits through a network (bounds memory).
+CHUNK = 4096
+
+
+class NeuralModel(Model):
+    """A neural model of one :class:`Family` on one backend (see the module docstring).
+
+    Subclasses set ``family`` and ``backend``; ``observations`` follows the family.
+    """
+
+    Config = NeuralConfig
+    cfg: NeuralConfig
+    family: ClassVar[Family]
+    weights_file: ClassVar[Optional[str]] = "weights.safetensors"
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        family = cls.__dict__.get("family")
+        if family is not None:
+            cls.observations = tuple(family.observations)
+            if not cls.__dict__.get("description"):
+                cls.description = f"{family.title} ({cls.backend})"
+
+    @classmethod
+    def unsupported_reason(cls, system: System) -> Optional[str]:
+        return super().unsupported_reason(system) or views.unsupported_reason(
+            cls.family, system)
+
+    def __init__(self, cfg: NeuralConfig, system: System, device: str = "auto") -> None:
+        super().__init__(cfg, system, device)
+        self.view = views.view_for(self.family, system)
+        self._backend = load_backend(self.backend, cfg, device)
+        self._impl = importlib.import_module(self.family.implementations[self.backend])
+        self._weights: Optional[Weights] = None
+        self._inference: Optional[Inference] = None
+        self.timings = self._backend.timings
+
+    @property
+    def device(self) -> str:
+        return self._backend.device_name
+
+    # -- weights --------------------------------------------------------------------
+    def network_shapes(self) -> dict[str, tuple[int, int]]:
+        """``{net: (d_in, d_out)}`` of the family's networks on this system."""
+        return self.family.networks(self.view.dim)
+
+    def initial_weights(self, seed: int, d_obs: Optional[int] = None) -> Weights:
+        """The seeded float64 initial weights (flat names), the same for every backend;
+        pixel models also need the observation size ``d_obs``."""
+        nested = network_init_arrays(seed, self.network_shapes(), self.cfg)
+        flat = {f"{net}.{key}": value for net, arrays in nested.items()
+                for key, value in arrays.items()}
+        if isinstance(self.view, views.PixelView):
+            if d_obs is None:
+                raise ValueError("pixel models need d_obs for their initial weights")
+            ae = autoencoder_init_arrays(seed, d_obs, self.view.dim, self.cfg.hidden)
+            flat.update({f"autoencoder.{k}": v for k, v in ae.items()})
+        return flat
+
+    def get_weights(self) -> Weights:
+        """The trained weights (training dtype), flat names."""
+        if self._weights is None:
+            raise RuntimeError(f"{self.name}: call fit() or load() first")
+        return dict(self._weights)
+
+    def set_weights(self, weights: Weights) -> None:
+        """Use these weights (cast to the training dtype), e.g. another backend's."""
+        dtype = np.dtype(self.cfg.dtype)
+        self._weights = {k: np.asarray(v).astype(dtype, copy=False) for k, v in weights.items()}
+        self._inference = None
+
+    def _infer(self) -> Inference:
+        if self._inference is None:
+            self._inference = self._backend.inference(self.family, self._impl,
+                                                      self.get_weights(), self.view.dim)
+        return self._inference
+
+    # -- training -------------------------------------------------------------------
+    def _train(self, data: Dataset, settings: TrainSettings, seeds: Sequence[int],
+               progress: Progress) -> tuple[list[Any], list[Weights]]:
+        problem = self.view.problem(data)
+        d_obs = problem.train[0].shape[1] if problem.kind == "pixels" else None
+        initial = [self.initial_weights(seed, d_obs) for seed in seeds]
+        trainer = self._backend.trainer(self.family, self._impl, problem, initial, settings,
+                                        self.view.dim)
+        fits = run_training(trainer, problem.n, settings, seeds,
+                            self.cfg.log_interval(settings.steps), progress)
+        return fits, self._backend.weights(trainer)
+
+    def fit(self, data: Dataset, train: TrainSettings, seed: int,
+            progress: Progress) -> FitResult:
+        (fit,), (weights,) = self._train(data, train, [seed], progress)
+        self.set_weights(weights)
+        if fit.diverged is not None:
+            raise RolloutDiverged(fit.diverged)
+        return FitResult(history=fit.history, steps=fit.steps)
+
+    def fit_seeds(self, data: Dataset, train: TrainSettings, seeds: Sequence[int],
+                  progress: Progress) -> list[tuple[Model, FitResult]]:
+        """Train every seed in one program (their networks as one batch); each seed
+        starts from its own initial weights and sees its own minibatches, exactly as
+        when it runs alone."""
+        fits, weights = self._train(data, train, seeds, progress)
+        out: list[tuple[Model, FitResult]] = []
+        for fit, w in zip(fits, weights, strict=True):
+            model = self.copy()
+            model.set_weights(w)
+            out.append((model, FitResult(history=fit.history, steps=fit.steps,
+                                         diverged=fit.diverged)))
+        return out
+
+    def copy(self) -> NeuralModel:
+        """An untrained model like this one, sharing its backend."""
+        model = object.__new__(type(self))
+        Model.__init__(model, self.cfg, self.system, self.requested_device)
+        model.view = self.view
+        model._backend, model._impl = self._backend, self._impl
+        model._weights, model._inference = None, None
+        model.timings = dict(self.timings)  # training timings so far; rollouts its own
+        return model
+
+    # -- inference ------------------------------------------------------------------
+    def time_derivative(self, x: np.ndarray) -> np.ndarray:
+        z = self.view.to_model(x)
+        return self.view.rate_out(z, self._infer().field(z))
+
+    def rollout(self, x0: np.ndarray, t: np.ndarray, rtol: float = 1e-9,
+                atol: float = 1e-9) -> np.ndarray:
+        z0 = self.view.to_model(np.atleast_2d(x0))
+        times = np.asarray(t, dtype=np.float64) / self.view.time_unit
+        start = time.perf_counter()
+        try:
+            zs = self._infer().rollout(z0, times, rtol, atol, int(self.cfg.rollout_max_steps))
+        finally:
+            self.timings["rollout_s"] = self.timings.get("rollout_s", 0.0) + (
+                time.perf_counter() - start)
+        out = self.view.from_model(zs)
+        if not np.all(np.isfinite(out)):
+            raise RolloutDiverged("rollout produced non-finite states")
+        return out
+
+    def energy(self, x: np.ndarray) -> Optional[np.ndarray]:
+        if not self.family.learned_energy:
+            return None
+        return self._infer().energy(self.view.to_model(x))
+
+    def _chunked(self, fn: Any, a: np.ndarray) -> np.ndarray:
+        parts = [fn(a[i:i + CHUNK]) for i in range(0, a.shape[0], CHUNK)]
+        return np.concatenate(parts).astype(np.float64) if parts else np.zeros((0, 0))
+
+    def encode(self, obs: np.ndarray) -> np.ndarray:
+        if not isinstance(self.view, views.PixelView):
+            return super().encode(obs)
+        return self._chunked(self._infer().encode, np.asarray(obs))
+
+    def decode(self, z: np.ndarray) -> Optional[np.ndarray]:
+        if not isinstance(self.view, views.PixelView):
+            return super().decode(z)
+        return self._chunked(self._infer().decode, np.asarray(z))
+
+    def loss(self, x: np.ndarray, dxdt: np.ndarray) -> float:
+        if not isinstance(self.view, views.PixelView):
+            return super().loss(x, dxdt)
+        xs, x_next = self.view.pairs(x, dxdt, {})
+        infer, total = self._infer(), 0.0
+        for i in range(0, xs.shape[0], CHUNK):
+            total += infer.objective(xs[i:i + CHUNK], x_next[i:i + CHUNK]) * len(xs[i:i + CHUNK])
+        return total / max(1, xs.shape[0])
+
+    # -- persistence ----------------------------------------------------------------
+    def _meta(self) -> dict[str, Any]:
+        c = self.cfg
+        return {"model": self.name, "family": self.family.name, "backend": self.backend,
+                "dtype": c.dtype, "activation": c.activation, "layers": c.layers,
+                "hidden": c.hidden, "time_unit": self.view.time_unit}
+
+    def save(self, path: Path) -> None:
+        """Write the trained weights to ``path`` (safetensors, via numpy; the same
+        format for every backend)."""
+        save_weights(path, self.get_weights(), self._meta())
+
+    def load(self, path: Path) -> None:
+        weights, meta = load_weights(path)
+        mine = self._meta()
+        for key in ("family", "activation", "layers", "hidden"):
+            if key in meta and meta[key] != mine[key]:
+                raise ValueError(f"{path} holds a model with {key}={meta[key]}, but this "
+                                 f"model has {key}={mine[key]}")
+        expected = set(self.initial_weights(0, self._obs_size(weights)))
+        if set(weights) != expected:
+            raise ValueError(
+                f"{path} does not match the model: missing {sorted(expected - set(weights))},"
+                f" unexpected {sorted(set(weights) - expected)}")
+        for key, value in self.initial_weights(0, self._obs_size(weights)).items():
+            if weights[key].shape != value.shape:
+                raise ValueError(f"weight {key} has shape {weights[key].shape}, expected "
+                                 f"{value.shape} (model.hidden={self.cfg.hidden}, "
+                                 f"model.layers={self.cfg.layers})")
+        if isinstance(self.view, views.PixelView):
+            self.view.time_unit = float(meta.get("time_unit", 1.0))
+        self.set_weights(weights)
+
+    @staticmethod
+    def _obs_size(weights: Weights) -> Optional[int]:
+        first = weights.get("autoencoder.encoder.0.weight")
+        return None if first is None else int(first.shape[1])

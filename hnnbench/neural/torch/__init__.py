@@ -1,0 +1,207 @@
+"""The torch backend of the neural models: eager training chunks, float64 inference
+with the batched Dormand-Prince of :mod:`hnnbench.neural.torch.ode`.
+
+Several seeds train as one batch through :func:`torch.func.vmap` over stacked
+parameters: each seed's loss is its own mean, the total is their sum, so each seed's
+gradient, and its Adam update (element-wise), is its own.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from types import ModuleType
+from typing import Any, Optional
+
+import numpy as np
+import torch
+
+from hnnbench.api import TrainSettings
+from hnnbench.errors import ConfigError, RolloutDiverged
+from hnnbench.neural.backend import Weights
+from hnnbench.neural.config import NeuralConfig
+from hnnbench.neural.family import Family
+from hnnbench.neural.torch.nets import MLP, Autoencoder, FrozenMLP, pixel_objective
+from hnnbench.neural.torch.ode import SolverGaveUp, dopri5
+from hnnbench.neural.views import Problem
+
+__all__ = ["TorchBackend", "resolve_device"]
+
+Params = dict[str, torch.Tensor]
+
+
+def resolve_device(requested: str) -> torch.device:
+    """``auto`` -> the GPU if one is there, else the CPU."""
+    if requested == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if requested.startswith("cuda") and not torch.cuda.is_available():
+        raise ConfigError(
+            f"device={requested} was requested but torch sees no CUDA GPU: use device=cpu "
+            "or device=auto (or install a CUDA build of torch: TORCH_SPEC=torch make setup)."
+        )
+    return torch.device(requested)
+
+
+def networks(family: Family, params: Mapping[str, Any], d: int, cfg: NeuralConfig,
+             build: Callable[..., Any]) -> dict[str, Any]:
+    """``{net: network}`` of ``family`` (``build(params, net, layers, activation)``)."""
+    return {name: build(params, name, cfg.layers, cfg.activation)
+            for name in family.networks(d)}
+
+
+def make_loss(family: Family, impl: ModuleType, kind: str, d: int, cfg: NeuralConfig
+              ) -> Callable[..., torch.Tensor]:
+    """``loss(params, *arrays) -> scalar`` of one seed for a :class:`Problem` kind."""
+
+    def nets_of(params: Params) -> dict[str, MLP]:
+        return networks(family, params, d, cfg, MLP.view)
+
+    if kind == "derivatives":
+        def loss(params: Params, z: torch.Tensor, zdot: torch.Tensor) -> torch.Tensor:
+            return torch.mean((impl.field(nets_of(params), z) - zdot) ** 2)
+    elif kind == "windows":
+        def loss(params: Params, windows: torch.Tensor, dts: torch.Tensor) -> torch.Tensor:
+            return impl.window_loss(nets_of(params), windows, dts)
+    else:
+        def loss(params: Params, x: torch.Tensor, x_next: torch.Tensor) -> torch.Tensor:
+            return pixel_objective(impl.field, nets_of(params), Autoencoder(params), x, x_next)
+    return loss
+
+
+class TorchTrainer:
+    """The parameters and Adam state of ``S`` seeds (stacked when ``S > 1``)."""
+
+    def __init__(self, backend: TorchBackend, family: Family, impl: ModuleType,
+                 problem: Problem, initial: Sequence[Weights], settings: TrainSettings,
+                 d: int) -> None:
+        dev, dtype = backend.device, backend.dtype
+        self.seeds = len(initial)
+        self.loss = make_loss(family, impl, problem.kind, d, backend.cfg)
+
+        def tensor(a: np.ndarray) -> torch.Tensor:
+            return torch.as_tensor(np.ascontiguousarray(a), device=dev).to(dtype)
+
+        if self.seeds == 1:
+            self.params = {k: tensor(v).clone().requires_grad_() for k, v in initial[0].items()}
+        else:
+            self.params = {k: tensor(np.stack([w[k] for w in initial])).requires_grad_()
+                           for k in initial[0]}
+        self.train = tuple(tensor(a) for a in problem.train)
+        self.test = tuple(tensor(a) for a in problem.test)
+        self.opt = torch.optim.Adam(list(self.params.values()), lr=settings.lr,
+                                    weight_decay=settings.weight_decay)
+        self.device = dev
+
+    def _losses(self, arrays: tuple[torch.Tensor, ...], per_seed_rows: bool) -> torch.Tensor:
+        """Each seed's loss ``(S,)`` (a scalar when ``S == 1``)."""
+        if self.seeds == 1:
+            return self.loss(self.params, *arrays)
+        dims = (0, *([0 if per_seed_rows else None] * len(arrays)))
+        return torch.func.vmap(self.loss, in_dims=dims)(self.params, *arrays)
+
+    def run_chunk(self, indices: Optional[np.ndarray], length: int
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        losses = []
+        for j in range(length):
+            if indices is None:
+                batch, per_seed = self.train, False
+            else:
+                idx = torch.from_numpy(indices[:, j]).to(self.device)
+                rows = idx[0] if self.seeds == 1 else idx  # (B,) or (S, B)
+                batch, per_seed = tuple(a[rows] for a in self.train), self.seeds > 1
+            loss = self._losses(batch, per_seed)
+            self.opt.zero_grad(set_to_none=True)
+            (loss if self.seeds == 1 else loss.sum()).backward()
+            self.opt.step()
+            losses.append(loss.detach())
+        with torch.no_grad():
+            test = self._losses(self.test, False)
+        out = torch.stack(losses).reshape(length, self.seeds).T
+        return out.cpu().numpy(), test.reshape(self.seeds).cpu().numpy()
+
+    def weights(self) -> list[Weights]:
+        arrays = {k: v.detach().cpu().numpy() for k, v in self.params.items()}
+        if self.seeds == 1:
+            return [arrays]
+        return [{k: v[s].copy() for k, v in arrays.items()} for s in range(self.seeds)]
+
+
+class TorchInference:
+    """One seed's float64 field, energy and rollouts, and its pixel autoencoder in the
+    training dtype."""
+
+    def __init__(self, backend: TorchBackend, family: Family, impl: ModuleType,
+                 weights: Weights, d: int) -> None:
+        self.backend, self.impl = backend, impl
+        cfg, dev = backend.cfg, backend.device
+        self.nets64 = networks(
+            family, weights, d, cfg,
+            lambda w, name, layers, act: FrozenMLP.from_weights(w, name, layers, act,
+                                                                torch.float64, dev))
+        self.pixels = "autoencoder.encoder.0.weight" in weights
+        if self.pixels:  # training-dtype autoencoder and dynamics, for the objective
+            params = {k: torch.as_tensor(v, device=dev).to(backend.dtype)
+                      for k, v in weights.items()}
+            self.ae = Autoencoder(params)
+            self.nets = networks(family, params, d, cfg, MLP.view)
+
+    def _tensor(self, a: np.ndarray, dtype: torch.dtype) -> torch.Tensor:
+        return torch.as_tensor(np.ascontiguousarray(a), device=self.backend.device).to(dtype)
+
+    def field(self, z: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            out = self.impl.field(self.nets64, self._tensor(z, torch.float64))
+        return out.cpu().numpy()
+
+    def energy(self, z: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            out = self.impl.energy(self.nets64, self._tensor(z, torch.float64))
+        return out.cpu().numpy()
+
+    def rollout(self, z0: np.ndarray, t: np.ndarray, rtol: float, atol: float,
+                max_steps: int) -> np.ndarray:
+        y0 = self._tensor(z0, torch.float64)
+        try:
+            with torch.no_grad():  # the fields need no autograd (closed-form gradients)
+                ys = dopri5(lambda y: self.impl.field(self.nets64, y), y0, np.asarray(t),
+                            rtol=rtol, atol=atol, max_steps=max_steps)
+        except SolverGaveUp as err:
+            raise RolloutDiverged(f"dopri5 gave up: {err}") from None
+        return ys.permute(1, 0, 2).cpu().numpy()
+
+    def encode(self, x: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            return self.ae.encode(self._tensor(x, self.backend.dtype)).cpu().numpy()
+
+    def decode(self, z: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            return self.ae.decode(self._tensor(z, self.backend.dtype)).cpu().numpy()
+
+    def objective(self, x: np.ndarray, x_next: np.ndarray) -> float:
+        dtype = self.backend.dtype
+        with torch.no_grad():
+            return float(pixel_objective(self.impl.field, self.nets, self.ae,
+                                         self._tensor(x, dtype), self._tensor(x_next, dtype)))
+
+
+class TorchBackend:
+    """The torch backend for one model: device, training dtype, timings."""
+
+    name = "torch"
+
+    def __init__(self, cfg: NeuralConfig, device: str) -> None:
+        self.cfg = cfg
+        self.device = resolve_device(device)
+        self.dtype: torch.dtype = getattr(torch, cfg.dtype)
+        self.device_name = str(self.device)
+        self.timings: dict[str, float] = {}
+
+    def trainer(self, family: Family, impl: ModuleType, problem: Problem,
+                initial: Sequence[Weights], settings: TrainSettings, d: int) -> TorchTrainer:
+        return TorchTrainer(self, family, impl, problem, initial, settings, d)
+
+    def weights(self, trainer: Any) -> list[Weights]:
+        return trainer.weights()
+
+    def inference(self, family: Family, impl: ModuleType, weights: Weights,
+                  d: int) -> TorchInference:
+        return TorchInference(self, family, impl, weights, d)

@@ -1,0 +1,180 @@
+"""Networks of the torch backend, as functions of parameter tensors.
+
+Training networks are *views* on a flat ``{name: tensor}`` parameter dict, so one
+definition serves one seed and, under :func:`torch.func.vmap`, a batch of seeds. Their
+operations are ``nn.Linear``'s (``F.linear``). Rollouts use :class:`FrozenMLP`, a
+detached float64 copy with pre-transposed weights and one ``addmm`` per layer: an ODE
+solve calls the network thousands of times on a handful of states, where per-call
+overhead, not arithmetic, decides the cost.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from hnnbench.neural.init import AE_LAYERS
+
+__all__ = [
+    "CC_WEIGHT",
+    "DYNAMICS_WEIGHT",
+    "MLP",
+    "Autoencoder",
+    "FrozenMLP",
+    "activate",
+    "activation_grad",
+    "pixel_objective",
+    "symplectic",
+]
+
+#: Weights of the pixel objective's terms (the paper's).
+CC_WEIGHT = 1.0
+DYNAMICS_WEIGHT = 0.1
+
+
+def symplectic(grad: torch.Tensor) -> torch.Tensor:
+    """``(dH/dq, dH/dp) -> (dH/dp, -dH/dq)`` along the last axis: ``J ∇H``."""
+    n = grad.shape[-1] // 2
+    return torch.cat([grad[..., n:], -grad[..., :n]], dim=-1)
+
+
+def activate(name: str, a: torch.Tensor) -> torch.Tensor:
+    """The activation ``name`` (``tanh``, ``sigmoid`` or ``softplus``) at ``a``."""
+    if name == "tanh":
+        return torch.tanh(a)
+    if name == "sigmoid":
+        return torch.sigmoid(a)
+    return F.softplus(a)
+
+
+def activation_grad(name: str, a: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
+    """Derivative of the activation ``name`` at pre-activation ``a`` (``h`` its value)."""
+    if name == "tanh":
+        return 1.0 - h * h
+    if name == "sigmoid":
+        return h * (1.0 - h)
+    return torch.sigmoid(a)
+
+
+class MLP:
+    """``len(weights)`` linear layers (``(out, in)`` weights) with an activation between
+    them; the last has no bias. Maps ``(N, d_in)`` to ``(N, d_out)``."""
+
+    def __init__(self, weights: Sequence[torch.Tensor], biases: Sequence[torch.Tensor],
+                 activation: str) -> None:
+        self.weights, self.biases, self.activation = list(weights), list(biases), activation
+
+    @classmethod
+    def view(cls, params: Mapping[str, torch.Tensor], net: str, layers: int,
+             activation: str) -> MLP:
+        """The network ``net`` of a flat parameter dict (``"<net>.linears.<i>.weight"``)."""
+        weights = [params[f"{net}.linears.{i}.weight"] for i in range(layers)]
+        biases = [params[f"{net}.linears.{i}.bias"] for i in range(layers - 1)]
+        return cls(weights, biases, activation)
+
+    def __call__(self, x: torch.Tensor) -> torch.Tensor:
+        h = x
+        for w, b in zip(self.weights[:-1], self.biases, strict=True):
+            h = activate(self.activation, F.linear(h, w, b))
+        return F.linear(h, self.weights[-1])
+
+    def input_gradient(self, x: torch.Tensor) -> torch.Tensor:
+        """Gradient ``(N, d_in)`` of the scalar output with respect to ``x``, in closed
+        form (a reverse sweep through the layers), so training on it needs one
+        backward pass instead of a double backward. Requires ``d_out == 1``."""
+        pre, post = [], []
+        h = x
+        for w, b in zip(self.weights[:-1], self.biases, strict=True):
+            a = F.linear(h, w, b)
+            h = activate(self.activation, a)
+            pre.append(a)
+            post.append(h)
+        g = self.weights[-1].expand(x.shape[0], -1)  # (N, hidden)
+        for i in range(len(self.weights) - 2, -1, -1):
+            g = (g * activation_grad(self.activation, pre[i], post[i])) @ self.weights[i]
+        return g
+
+
+class FrozenMLP:
+    """An inference-only MLP from numpy weights, in ``dtype`` (float64 for rollouts):
+    same ``__call__`` and ``input_gradient`` as :class:`MLP`, from detached,
+    pre-transposed weights with one ``addmm`` per layer and no autograd."""
+
+    def __init__(self, weights: Sequence[np.ndarray], biases: Sequence[np.ndarray],
+                 activation: str, dtype: torch.dtype, device: torch.device) -> None:
+        def tensor(a: np.ndarray) -> torch.Tensor:
+            return torch.from_numpy(np.ascontiguousarray(a)).to(device=device, dtype=dtype)
+
+        self.weights = [tensor(w) for w in weights]  # (out, in)
+        self.weights_t = [w.t().contiguous() for w in self.weights]  # (in, out)
+        self.biases = [tensor(b) for b in biases]
+        self.activation = activation
+
+    @classmethod
+    def from_weights(cls, weights: Mapping[str, np.ndarray], net: str, layers: int,
+                     activation: str, dtype: torch.dtype, device: torch.device) -> FrozenMLP:
+        return cls([weights[f"{net}.linears.{i}.weight"] for i in range(layers)],
+                   [weights[f"{net}.linears.{i}.bias"] for i in range(layers - 1)],
+                   activation, dtype, device)
+
+    def __call__(self, x: torch.Tensor) -> torch.Tensor:
+        h = x
+        for w_t, b in zip(self.weights_t[:-1], self.biases, strict=True):
+            h = activate(self.activation, torch.addmm(b, h, w_t))
+        return h @ self.weights_t[-1]
+
+    def input_gradient(self, x: torch.Tensor) -> torch.Tensor:
+        """As :meth:`MLP.input_gradient` ``(N, d_in)``; requires ``d_out == 1``."""
+        pre, post = [], []
+        h = x
+        for w_t, b in zip(self.weights_t[:-1], self.biases, strict=True):
+            a = torch.addmm(b, h, w_t)
+            h = activate(self.activation, a)
+            pre.append(a)
+            post.append(h)
+        g = self.weights[-1]  # (1, hidden), broadcast over the batch
+        for i in range(len(self.weights) - 2, -1, -1):
+            g = (g * activation_grad(self.activation, pre[i], post[i])) @ self.weights[i]
+        return g
+
+
+class Autoencoder:
+    """The 2019 pixel autoencoder over parameter tensors: ``d -> h -> (2 residual h)
+    -> latent`` and a mirrored decoder, ReLU (``"autoencoder.encoder.<i>.weight"``...)."""
+
+    def __init__(self, params: Mapping[str, torch.Tensor]) -> None:
+        def stack(half: str) -> list[tuple[torch.Tensor, torch.Tensor]]:
+            return [(params[f"autoencoder.{half}.{i}.weight"],
+                     params[f"autoencoder.{half}.{i}.bias"]) for i in range(AE_LAYERS)]
+
+        self.encoder, self.decoder = stack("encoder"), stack("decoder")
+
+    @staticmethod
+    def _run(layers: list[tuple[torch.Tensor, torch.Tensor]], x: torch.Tensor) -> torch.Tensor:
+        h = torch.relu(F.linear(x, *layers[0]))
+        for w, b in layers[1:-1]:
+            h = h + torch.relu(F.linear(h, w, b))
+        return F.linear(h, *layers[-1])
+
+    def encode(self, x: torch.Tensor) -> torch.Tensor:
+        return self._run(self.encoder, x)
+
+    def decode(self, z: torch.Tensor) -> torch.Tensor:
+        return self._run(self.decoder, z)
+
+
+def pixel_objective(field: Callable[[Any, torch.Tensor], torch.Tensor], nets: Any,
+                    ae: Autoencoder, x: torch.Tensor, x_next: torch.Tensor) -> torch.Tensor:
+    """The 2019 pixel loss on pairs of consecutive inputs ``x -> x_next`` (scalar):
+    reconstruction + canonical coordinates (``z_p`` tied to the frame-to-frame change
+    of ``z_q``) + 0.1 x one Euler step (dt = 1) of the latent dynamics ``field``."""
+    z, z_next = ae.encode(x), ae.encode(x_next)
+    n = z.shape[1] // 2
+    reconstruction = torch.mean((ae.decode(z) - x) ** 2)
+    canonical = torch.mean((z[:, n:] - (z_next[:, :n] - z[:, :n])) ** 2)
+    dynamics = torch.mean((z_next - (z + field(nets, z))) ** 2)
+    return reconstruction + CC_WEIGHT * canonical + DYNAMICS_WEIGHT * dynamics

@@ -1,0 +1,243 @@
+"""How a neural model sees a system: the coordinates it works in and its training data.
+
+A :class:`View` is chosen once per model, from the system's observation and the
+family's declared coordinates, and composes with any family:
+
+- :class:`CanonicalView`: the family works on the system's states ``(q, p)``;
+- :class:`VelocityView`: the family works on ``(q, q̇)``; the system's
+  :class:`~hnnbench.kinematics.Kinematics` maps states, targets and predicted rates;
+- :class:`PixelView`: the family is the latent dynamics of an autoencoder on
+  observations (the 2019 pixel-pendulum model); latents ``z = (z_q, z_p)``, time in
+  frames.
+
+A view turns a :class:`~hnnbench.api.Dataset` into a :class:`Problem` (numpy arrays
+the backend trains on) and converts between the model API's arrays and the family's
+working coordinates. It is pure numpy.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from hnnbench.api import Dataset, Split, System
+from hnnbench.errors import ConfigError, UnsupportedPair
+from hnnbench.kinematics import Kinematics
+from hnnbench.neural.family import Family
+
+__all__ = [
+    "LOG_TEST_POINTS",
+    "CanonicalView",
+    "PixelView",
+    "Problem",
+    "VelocityView",
+    "View",
+    "trajectory_windows",
+    "view_for",
+]
+
+#: The pixel test loss logged during training is taken on this many evenly spaced test
+#: points (the whole test set costs as much as ~10 training steps).
+LOG_TEST_POINTS = 1024
+#: Relative tolerance for "equally spaced" samples of a trajectory window.
+WINDOW_DT_RTOL = 1e-6
+
+Kind = Literal["derivatives", "windows", "pixels"]
+
+
+@dataclass(frozen=True)
+class Problem:
+    """What a backend trains on: arrays with a common leading dimension (rows are
+    drawn together into minibatches) and the loss that consumes them.
+
+    Attributes:
+        kind: ``"derivatives"``: ``(z, ż)``, loss ``mean((field(z) - ż)^2)``;
+            ``"windows"``: ``(windows (W, L, d), dts (W,))``, the family's
+            ``window_loss``; ``"pixels"``: ``(x, x_next)``, the autoencoder objective.
+        train, test: the arrays of each split (for pixels, at most
+            :data:`LOG_TEST_POINTS` test rows).
+    """
+
+    kind: Kind
+    train: tuple[np.ndarray, ...]
+    test: tuple[np.ndarray, ...]
+
+    @property
+    def n(self) -> int:
+        """Training rows."""
+        return int(self.train[0].shape[0])
+
+
+def trajectory_windows(split: Split, states: np.ndarray, length: int
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Windows of ``length`` consecutive, equally spaced samples of each trajectory.
+
+    Rows of ``states`` (``(N, d)``, aligned with ``split``) are grouped by
+    ``split.traj`` and ordered by ``split.t``; every run of ``length`` rows whose time
+    steps are equal (to :data:`WINDOW_DT_RTOL`) and positive is a window (overlapping,
+    stride 1). Returns ``(windows (W, length, d), dts (W,))``; ``W`` may be 0.
+    """
+    windows: list[np.ndarray] = []
+    dts: list[float] = []
+    traj, t = np.asarray(split.traj), np.asarray(split.t, dtype=np.float64)
+    for tid in np.unique(traj):
+        rows = np.flatnonzero(traj == tid)
+        rows = rows[np.argsort(t[rows], kind="stable")]
+        steps = np.diff(t[rows])
+        for start in range(len(rows) - length + 1):
+            step = steps[start:start + length - 1]
+            if step.size and step[0] > 0 and np.all(
+                    np.abs(step - step[0]) <= WINDOW_DT_RTOL * step[0]):
+                windows.append(states[rows[start:start + length]])
+                dts.append(float(step[0]))
+    if not windows:
+        d = states.shape[1]
+        return np.zeros((0, length, d)), np.zeros((0,))
+    return np.stack(windows), np.asarray(dts)
+
+
+class View:
+    """Base: the family works on the system's own states (identity maps)."""
+
+    #: Time of one model time unit, in system time (pixels: the frame interval).
+    time_unit: float = 1.0
+
+    def __init__(self, family: Family, system: System) -> None:
+        self.family = family
+        self.system = system
+
+    @property
+    def dim(self) -> int:
+        """Dimension ``d`` of the family's working coordinates."""
+        return 2 * self.system.dof
+
+    def to_model(self, x: np.ndarray) -> np.ndarray:
+        """Model-API inputs ``(..., D)`` -> working coordinates ``(..., d)``."""
+        return np.asarray(x, dtype=np.float64)
+
+    def from_model(self, z: np.ndarray) -> np.ndarray:
+        """Working coordinates -> what :meth:`~hnnbench.Model.rollout` returns."""
+        return z
+
+    def rate_out(self, z: np.ndarray, zdot: np.ndarray) -> np.ndarray:
+        """A rate in working coordinates (per model time unit) -> the model API's
+        ``dx/dt`` (per system time unit)."""
+        return zdot / self.time_unit
+
+    def _pairs(self, split: Split) -> tuple[np.ndarray, np.ndarray]:
+        return split.x, split.dxdt
+
+    def problem(self, data: Dataset) -> Problem:
+        """The training problem of ``data`` for this family."""
+        if self.family.data == "windows":
+            length = self.family.window
+            out = []
+            for split in (data.train, data.test):
+                z, _ = self._pairs(split)
+                out.append(trajectory_windows(split, z, length))
+            if out[0][0].shape[0] == 0:
+                raise UnsupportedPair(
+                    f"the {self.system.name} training data has no {length} consecutive, "
+                    "equally spaced samples of one trajectory, which the "
+                    f"{self.family.name} family trains on"
+                )
+            return Problem("windows", out[0], out[1])
+        return Problem("derivatives", self._pairs(data.train), self._pairs(data.test))
+
+
+class CanonicalView(View):
+    """The family works on ``(q, p)``."""
+
+
+class VelocityView(View):
+    """The family works on ``(q, q̇)``: states, targets and rates go through the system's
+    kinematics."""
+
+    def __init__(self, family: Family, system: System, kinematics: Kinematics) -> None:
+        super().__init__(family, system)
+        self.kinematics = kinematics
+
+    def to_model(self, x: np.ndarray) -> np.ndarray:
+        return self.kinematics.to_velocity(x)
+
+    def from_model(self, z: np.ndarray) -> np.ndarray:
+        return self.kinematics.to_canonical(z)
+
+    def rate_out(self, z: np.ndarray, zdot: np.ndarray) -> np.ndarray:
+        return self.kinematics.canonical_rate(z, zdot)
+
+    def _pairs(self, split: Split) -> tuple[np.ndarray, np.ndarray]:
+        return (self.kinematics.to_velocity(split.x),
+                self.kinematics.velocity_rate(split.x, split.dxdt))
+
+
+class PixelView(View):
+    """The family is the latent dynamics of an autoencoder on observations.
+
+    Inputs are flattened pairs of consecutive frames ``x``; the next input ``x'`` is
+    ``extras["x_next"]`` (else ``x + dt * dxdt``). The autoencoder maps ``x`` to
+    ``2n`` latents ``z = (z_q, z_p)``; the family's field ``f`` is trained per frame
+    (``dt = 1``), so the model API reports ``f(z) / dt_frame`` and rolls out over
+    ``t / dt_frame``. ``time_derivative``, ``rollout`` and ``energy`` act on latents;
+    ``encode`` / ``decode`` map observations ``(N, D)`` to latents ``(N, 2n)`` and
+    back. Training and reported losses are the 2019 objective (reconstruction +
+    canonical-coordinates + 0.1 x one Euler step of the latent dynamics).
+    """
+
+    def __init__(self, family: Family, system: System) -> None:
+        super().__init__(family, system)
+        self.time_unit = 1.0
+
+    def set_frame_dt(self, data: Dataset) -> None:
+        if "dt" not in data.meta:
+            raise ConfigError(f"{self.system.name}: pixel datasets must record meta['dt']")
+        self.time_unit = float(data.meta["dt"])
+
+    def pairs(self, x: np.ndarray, dxdt: np.ndarray, extras: dict[str, np.ndarray]
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """``(x, x_next)``: ``extras["x_next"]`` if present, else ``x + dt * dxdt``."""
+        x_next = extras.get("x_next")
+        if x_next is None:
+            x_next = np.asarray(x) + self.time_unit * np.asarray(dxdt)
+        return np.asarray(x), np.asarray(x_next)
+
+    def problem(self, data: Dataset) -> Problem:
+        self.set_frame_dt(data)
+        train = self.pairs(data.train.x, data.train.dxdt, data.train.extras)
+        test = data.test
+        sub = np.unique(np.linspace(0, len(test) - 1,
+                                    min(len(test), LOG_TEST_POINTS)).astype(int))
+        test_pairs = self.pairs(test.x[sub], test.dxdt[sub],
+                                {k: v[sub] for k, v in test.extras.items()})
+        return Problem("pixels", train, test_pairs)
+
+
+def view_for(family: Family, system: System) -> View:
+    """The view of ``family`` on ``system``; raises :class:`UnsupportedPair` where the
+    system lacks what the family needs (callers check
+    :func:`unsupported_reason` first)."""
+    reason = unsupported_reason(family, system)
+    if reason is not None:
+        raise UnsupportedPair(reason)
+    if system.observation == "pixels":
+        return PixelView(family, system)
+    if family.coordinates == "velocity":
+        kinematics = system.kinematics()
+        assert kinematics is not None
+        return VelocityView(family, system, kinematics)
+    return CanonicalView(family, system)
+
+
+def unsupported_reason(family: Family, system: System) -> str | None:
+    """Why ``family`` cannot run on ``system`` (``None`` if it can)."""
+    observations: Sequence[str] = family.observations
+    if system.observation not in observations:
+        return (f"{system.observation} observations are not supported by the {family.name} "
+                f"family (it runs on: {', '.join(observations)})")
+    if family.coordinates == "velocity" and system.kinematics() is None:
+        return (f"the {family.name} family works in velocity coordinates (q, q̇) and "
+                f"{system.name} declares no kinematics (System.kinematics)")
+    return None

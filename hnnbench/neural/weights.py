@@ -1,0 +1,40 @@
+"""Saving and loading neural-model weights: one safetensors file, no pickle, the same
+format for every backend (written and read through safetensors' numpy API)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["FORMAT", "load_weights", "save_weights"]
+
+#: Format tag written into the file's metadata.
+FORMAT = "hnnbench-neural/1"
+
+
+def save_weights(path: Path, weights: dict[str, np.ndarray], meta: dict[str, Any]) -> None:
+    """Write ``weights`` (``{name: array}``) and JSON-serialisable ``meta`` to ``path``
+    exactly (no suffix is added)."""
+    from safetensors.numpy import save_file
+
+    arrays = {k: np.ascontiguousarray(v) for k, v in weights.items()}
+    save_file(arrays, str(path), metadata={"format": FORMAT, "meta": json.dumps(meta)})
+
+
+def load_weights(path: Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """``(weights, meta)`` from a file written by :func:`save_weights`; a file of
+    another format raises ``ValueError``."""
+    from safetensors import safe_open
+
+    try:
+        with safe_open(str(path), framework="numpy") as fh:
+            header = fh.metadata() or {}
+            weights = {key: fh.get_tensor(key) for key in fh.keys()}  # noqa: SIM118
+    except Exception as err:  # safetensors raises its own error types
+        raise ValueError(f"{path} is not a readable weight file: {err}") from None
+    if header.get("format") != FORMAT:
+        raise ValueError(f"{path} is not an {FORMAT} weight file")
+    return weights, json.loads(header.get("meta", "{}"))

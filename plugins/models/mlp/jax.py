@@ -1,0 +1,11 @@
+"""The baseline MLP in JAX: ``ż = f(z)``."""
+
+from __future__ import annotations
+
+import jax
+
+from hnnbench.neural.jax.nets import Nets
+
+
+def field(nets: Nets, z: jax.Array) -> jax.Array:
+    return jax.vmap(nets["f"])(z)
