@@ -16,8 +16,9 @@ import os
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TypeVar
+from typing import Optional, TypeVar, Union
 
+from hnnbench import paths
 from hnnbench.api import Dataset, System, Trajectories
 from hnnbench.records import atomic_path
 
@@ -27,17 +28,15 @@ T = TypeVar("T", Dataset, Trajectories)
 
 __all__ = ["cache_root", "cached", "entry_key", "file_sha256"]
 
+#: Hex SHA-256 of a file (:func:`hnnbench.paths.sha256_file`).
+file_sha256 = paths.sha256_file
 
-def cache_root(explicit: str | None = None) -> Path:
-    """``explicit``, else ``$HNNBENCH_CACHE_DIR``, else the user cache dir."""
-    if explicit:
-        return Path(explicit).expanduser()
-    env = os.environ.get("HNNBENCH_CACHE_DIR")
-    if env:
-        return Path(env).expanduser()
-    from platformdirs import user_cache_dir
 
-    return Path(user_cache_dir("hnnbench"))
+def cache_root(explicit: Optional[Union[str, os.PathLike[str]]] = None) -> Path:
+    """:func:`hnnbench.paths.cache_root`; a non-empty ``explicit`` acts as an override
+    for this one call (kept for callers that pass a ``cache_dir`` setting)."""
+    with paths.cache_root_override(explicit):
+        return paths.cache_root()
 
 
 def entry_key(system: System, seed: int, kind: str) -> str:
@@ -54,28 +53,24 @@ def entry_key(system: System, seed: int, kind: str) -> str:
     return hashlib.sha256(blob).hexdigest()[:20]
 
 
-def file_sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def cached(
     system: System,
     seed: int,
     kind: str,
     build: Callable[[], T],
     loader: Callable[[Path], T],
-    root: Path,
+    root: Optional[Path] = None,
 ) -> tuple[T, Path, bool]:
     """Load the entry from the cache, or ``build()`` and store it.
+
+    ``root`` is the cache root (``None``: :func:`hnnbench.paths.cache_root`, which a job's
+    ``cache_dir`` setting overrides); entries live under ``<root>/datasets/<system>``.
 
     Returns:
         ``(value, path, hit)``; ``hit`` is False when the entry was built now.
     """
-    directory = root / "datasets" / system.name
+    with paths.cache_root_override(root):
+        directory = paths.dataset_cache_dir() / system.name
     path = directory / f"v{system.version}-seed{seed}-{kind}-{entry_key(system, seed, kind)}.npz"
     if path.exists():
         try:

@@ -5,34 +5,40 @@
 1. an explicit path from the config (``system.data_path``): a file, or a directory that
    holds the file. If it is given but the file is not there, that is an error (no silent
    fallback to another copy);
-2. ``$HNNBENCH_DATA_DIR/<filename>``;
+2. the data directories of :func:`hnnbench.paths.data_dirs`: a job's ``data_dir``
+   setting (when set), then ``$HNNBENCH_DATA_DIR``, each as ``<dir>/<filename>``;
 3. the cache, ``<cache root>/data/<filename>``, where the cache root is
-   ``$HNNBENCH_CACHE_DIR`` if set, else ``platformdirs.user_cache_dir("hnnbench")``;
-4. a download from ``url`` (if one is configured) into the cache: streamed into a
-   temporary file in the cache directory, hashed, then moved into place with
-   :func:`os.replace`, so a partial download never looks like a cached file.
+   :func:`hnnbench.paths.cache_root` (a job's ``cache_dir`` setting, else
+   ``$HNNBENCH_CACHE_DIR``, else ``platformdirs.user_cache_dir("hnnbench")``);
+4. a download from ``url`` (if one is configured) into the cache, done by pooch
+   (:func:`pooch.retrieve`): it streams into a temporary file in the cache directory,
+   checks the SHA-256, then moves the file into place, so a partial or wrong download
+   never looks like a cached file. The transfer itself is :class:`_Transfer`: pooch's
+   HTTP downloader for ``http(s)://`` and a plain reader for ``file://``, both bounded
+   in time and size.
 
 Every file found locally and every download is checked against the expected SHA-256.
 A missing file, a failed download or a hash mismatch raises a one-line
 :class:`hnnbench.errors.DataError` that says which file, where it looked and where to put
-it. Successful checks are memoised per process, keyed by path, size and mtime.
+it. Successful checks are memoised per process, keyed by path, size and mtime. pooch's
+log lines about our downloads go to the ``hnnbench`` logger.
 
-This module imports only the standard library and platformdirs (no numpy, torch or JAX).
+This module imports only the standard library and :mod:`hnnbench.paths` (pooch and
+platformdirs on first use); no numpy, torch or JAX.
 """
 
 from __future__ import annotations
 
 import hashlib
-import http.client
-import os
-import tempfile
+import logging
 import time
-import urllib.error
 import urllib.parse
 import urllib.request
+from contextvars import ContextVar
 from pathlib import Path
-from typing import Optional
+from typing import Any, BinaryIO, Optional
 
+from hnnbench import paths
 from hnnbench.errors import DataError
 
 __all__ = [
@@ -45,10 +51,12 @@ __all__ = [
     "verify",
 ]
 
-#: Directory searched for data files before the cache.
-DATA_ENV = "HNNBENCH_DATA_DIR"
+log = logging.getLogger("hnnbench")
+
+#: Directory searched for data files before the cache (after a job's ``data_dir``).
+DATA_ENV = paths.DATA_ENV
 #: Overrides the cache root (data files live under ``<root>/data``).
-CACHE_ENV = "HNNBENCH_CACHE_DIR"
+CACHE_ENV = paths.CACHE_ENV
 #: URL schemes :func:`download` accepts (``file`` is handy for local mirrors and tests).
 URL_SCHEMES = ("https", "http", "file")
 #: Downloads larger than this are abandoned (the files we know of are well below it).
@@ -58,33 +66,17 @@ _CHUNK = 1 << 16
 #: ``(resolved path, size, mtime_ns) -> sha256`` of files already hashed in this process.
 _verified: dict[tuple[str, int, int], str] = {}
 
+#: Hex SHA-256 of a file's bytes (:func:`hnnbench.paths.sha256_file`).
+sha256_file = paths.sha256_file
+
 
 def _one_line(text: object) -> str:
     return " ".join(str(text).split())
 
 
-def _env_dir(name: str) -> Optional[Path]:
-    value = os.environ.get(name, "").strip()
-    return Path(value).expanduser() if value else None
-
-
 def cache_dir() -> Path:
     """The directory holding cached data files (it need not exist yet)."""
-    root = _env_dir(CACHE_ENV)
-    if root is None:
-        import platformdirs
-
-        root = Path(platformdirs.user_cache_dir("hnnbench"))
-    return root / "data"
-
-
-def sha256_file(path: Path) -> str:
-    """Hex SHA-256 of a file's bytes."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(_CHUNK), b""):
-            digest.update(block)
-    return digest.hexdigest()
+    return paths.data_cache_dir()
 
 
 def _mismatch(path: Path, expected: str, actual: str, fix: str) -> DataError:
@@ -118,71 +110,155 @@ def verify(path: Path, sha256: str, *, fix: str = "") -> Path:
     return path
 
 
+def _remember(path: Path, sha256: str) -> None:
+    stat = path.stat()
+    _verified[(str(path.resolve()), stat.st_size, stat.st_mtime_ns)] = sha256.lower()
+
+
+# ----------------------------------------------------------------------------- pooch
+
+#: True while :func:`download` runs pooch in this context: pooch's log lines are then
+#: re-emitted on the ``hnnbench`` logger instead of pooch's own stderr handler.
+_in_download: ContextVar[bool] = ContextVar("hnnbench_in_download", default=False)
+
+
+class _ToHnnbenchLog(logging.Filter):
+    """A filter on pooch's logger that moves the records of our downloads to ours."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if not _in_download.get():
+            return True  # someone else's use of pooch: leave it alone
+        log.log(record.levelno, "%s", _one_line(record.getMessage()))
+        return False
+
+
+_LOG_FILTER = _ToHnnbenchLog()
+
+
+def _pooch() -> Any:
+    """pooch, imported on first use (it costs about 0.1 s), with our log filter."""
+    import pooch
+
+    pooch.get_logger().addFilter(_LOG_FILTER)  # a no-op once added
+    return pooch
+
+
+class _Sink:
+    """A write-only file wrapper that hashes what passes and enforces the size limit
+    and the deadline of one transfer."""
+
+    def __init__(self, out: BinaryIO, name: str, url: str, timeout_s: float) -> None:
+        self.out, self.name, self.url, self.timeout_s = out, name, url, timeout_s
+        self.digest = hashlib.sha256()
+        self.size = 0
+        self.limit = MAX_DOWNLOAD_BYTES
+        self.deadline = time.monotonic() + timeout_s
+
+    def write(self, block: bytes) -> int:
+        self.size += len(block)
+        if self.size > self.limit:
+            raise DataError(
+                f"Download of {self.name} from {self.url} was abandoned: larger than "
+                f"{self.limit} bytes. Check the URL."
+            )
+        if time.monotonic() > self.deadline:
+            raise TimeoutError(f"transfer took longer than {self.timeout_s:g} s")
+        self.digest.update(block)
+        return self.out.write(block)
+
+    def flush(self) -> None:
+        self.out.flush()
+
+
+class _Transfer:
+    """The downloader handed to :func:`pooch.retrieve`: fetches ``url`` into the
+    temporary file pooch names, through a :class:`_Sink`. ``http(s)`` goes through
+    :class:`pooch.HTTPDownloader` (requests); ``file`` URLs, which pooch does not handle,
+    are read with :func:`urllib.request.urlopen`. Every failure becomes a one-line
+    DataError (pooch then deletes the temporary file); :attr:`sha256` is the digest of
+    what was fetched, for the message when pooch finds that it does not match."""
+
+    def __init__(self, dest: Path, timeout_s: float) -> None:
+        self.dest = dest
+        self.timeout_s = timeout_s
+        self.sha256: Optional[str] = None
+
+    def __call__(self, url: str, output_file: Any, pooch: Any, check_only: bool = False) -> None:
+        scheme = urllib.parse.urlsplit(url).scheme.lower()
+        try:
+            with open(output_file, "wb") as out:
+                sink = _Sink(out, self.dest.name, url, self.timeout_s)
+                if scheme == "file":
+                    with urllib.request.urlopen(url, timeout=self.timeout_s) as src:
+                        for block in iter(lambda: src.read(_CHUNK), b""):
+                            sink.write(block)
+                else:
+                    _pooch().HTTPDownloader(timeout=self.timeout_s, chunk_size=_CHUNK)(
+                        url, sink, pooch
+                    )
+        except DataError:
+            raise
+        except (OSError, ValueError) as exc:  # requests' errors are OSErrors too
+            reason = getattr(exc, "reason", None) or exc
+            raise DataError(
+                f"Download of {self.dest.name} from {url} failed: {_one_line(reason)}. "
+                f"Copy the file to {self.dest} instead, or set {DATA_ENV} to a directory "
+                "holding it."
+            ) from None
+        self.sha256 = sink.digest.hexdigest()
+
+
 def download(
     url: str, dest: Path, *, sha256: str, timeout_s: float = 30.0
 ) -> Path:
-    """Fetch ``url`` to ``dest`` atomically, checking its SHA-256; raise DataError on any
-    failure (bad URL, network error, timeout, too large, hash mismatch).
+    """Fetch ``url`` to ``dest`` with pooch, atomically, checking its SHA-256; raise
+    DataError on any failure (bad URL, network error, timeout, too large, hash
+    mismatch, unwritable cache).
 
     ``timeout_s`` bounds each network operation and the whole transfer.
     """
+    dest = Path(dest)
     scheme = urllib.parse.urlsplit(url).scheme.lower()
     if scheme not in URL_SCHEMES:
         raise DataError(
             f"Cannot download {dest.name} from {url!r}: unsupported URL scheme "
             f"{scheme or '(none)'!r}; expected one of {', '.join(URL_SCHEMES)}."
         )
+
+    def unwritable(exc: OSError) -> DataError:
+        return DataError(
+            f"Cannot write to the cache directory {dest.parent}: "
+            f"{_one_line(exc.strerror or exc)}. Set {paths.CACHE_KEY}=<dir> or {CACHE_ENV} "
+            "to a writable directory."
+        )
+
     try:
         dest.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".part",
-                                        dir=dest.parent)
     except OSError as exc:
-        raise DataError(
-            f"Cannot write to the cache directory {dest.parent}: "
-            f"{_one_line(exc.strerror or exc)}. Set {CACHE_ENV} to a writable directory."
-        ) from None
-    tmp = Path(tmp_name)
-    digest = hashlib.sha256()
-    deadline = time.monotonic() + timeout_s
-    size = 0
+        raise unwritable(exc) from None
+    pooch = _pooch()
+    transfer = _Transfer(dest, timeout_s)
+    token = _in_download.set(True)
     try:
-        with os.fdopen(fd, "wb") as out:
-            with urllib.request.urlopen(url, timeout=timeout_s) as response:
-                while True:
-                    block = response.read(_CHUNK)
-                    if not block:
-                        break
-                    size += len(block)
-                    if size > MAX_DOWNLOAD_BYTES:
-                        raise DataError(
-                            f"Download of {dest.name} from {url} was abandoned: larger "
-                            f"than {MAX_DOWNLOAD_BYTES} bytes. Check the URL."
-                        )
-                    if time.monotonic() > deadline:
-                        raise TimeoutError(f"transfer took longer than {timeout_s:g} s")
-                    digest.update(block)
-                    out.write(block)
-        actual = digest.hexdigest()
-        if actual != sha256.lower():
-            raise DataError(
-                f"Downloaded {dest.name} from {url} does not match the expected file: its "
-                f"SHA-256 is {actual[:12]}..., expected {sha256.lower()[:12]}.... The "
-                "mirror holds a different version; use another URL or copy the original "
-                f"file to {dest}."
-            )
-        os.replace(tmp, dest)
+        pooch.retrieve(url, known_hash=f"sha256:{sha256.lower()}", fname=dest.name,
+                       path=dest.parent, downloader=transfer)
     except DataError:
         raise
-    except (OSError, ValueError, urllib.error.URLError, http.client.HTTPException) as exc:
-        reason = getattr(exc, "reason", None) or exc
+    except ValueError:  # pooch's hash check: the transfer itself raises only DataError
+        actual = transfer.sha256 or "?"
         raise DataError(
-            f"Download of {dest.name} from {url} failed: {_one_line(reason)}. "
-            f"Copy the file to {dest} instead, or set {DATA_ENV} to a directory holding it."
+            f"Downloaded {dest.name} from {url} does not match the expected file: its "
+            f"SHA-256 is {actual[:12]}..., expected {sha256.lower()[:12]}.... The "
+            "mirror holds a different version; use another URL or copy the original "
+            f"file to {dest}."
         ) from None
+    except OSError as exc:  # pooch's temporary file or the move into place
+        raise unwritable(exc) from None
     finally:
-        tmp.unlink(missing_ok=True)
-    stat = dest.stat()
-    _verified[(str(dest.resolve()), stat.st_size, stat.st_mtime_ns)] = actual
+        _in_download.reset(token)
+    if transfer.sha256 is None:  # pooch found a matching copy that another process put
+        return verify(dest, sha256)
+    _remember(dest, transfer.sha256)
     return dest
 
 
@@ -196,8 +272,9 @@ def locate(
     explicit_key: str = "system.data_path",
     url_key: str = "system.url",
 ) -> Path:
-    """Find ``filename`` (explicit path, ``$HNNBENCH_DATA_DIR``, cache, download), verify
-    its SHA-256 and return its path. Raises a one-line DataError otherwise.
+    """Find ``filename`` (explicit path, ``data_dir``, ``$HNNBENCH_DATA_DIR``, cache,
+    download), verify its SHA-256 and return its path. Raises a one-line DataError
+    otherwise.
 
     Args:
         filename: the file's name, e.g. ``"real_pend_h_1.txt"``.
@@ -222,14 +299,14 @@ def locate(
                       f"{explicit_key}.")
 
     looked: list[str] = []
-    data_dir = _env_dir(DATA_ENV)
-    if data_dir is not None:
-        path = data_dir / filename
+    for name, directory in paths.data_dirs():
+        if directory is None:
+            looked.append(f"{name} (not set)")
+            continue
+        path = directory / filename
         if path.is_file():
             return verify(path, sha256, fix=f"Replace it with the original {filename}.")
-        looked.append(f"{DATA_ENV} ({path})")
-    else:
-        looked.append(f"{DATA_ENV} (not set)")
+        looked.append(f"{name} ({path})")
 
     if cache.is_file():
         return verify(cache, sha256, fix=f"Delete it and copy the original {filename} to "

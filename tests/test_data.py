@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import functools
 import hashlib
+import http.server
+import logging
 import os
 import socket
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import pytest
@@ -176,3 +180,77 @@ def test_module_imports_no_backend():
         "assert not bad, bad"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+# ------------------------------------------------------------------ downloads via pooch
+
+
+class _QuietHandler(http.server.SimpleHTTPRequestHandler):
+    def log_message(self, *args):  # no access log on stderr
+        pass
+
+
+@pytest.fixture
+def http_server(tmp_path):
+    """An HTTP server on 127.0.0.1 serving ``tmp_path / "www"``; yields its base URL."""
+    root = tmp_path / "www"
+    root.mkdir()
+    handler = functools.partial(_QuietHandler, directory=str(root))
+    with http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler) as server:
+        thread = threading.Thread(target=server.serve_forever, daemon=True)
+        thread.start()
+        try:
+            yield f"http://127.0.0.1:{server.server_address[1]}", root
+        finally:
+            server.shutdown()
+            thread.join(timeout=10)
+
+
+@needs_data
+def test_download_over_http_with_pooch(http_server, caplog, capfd):
+    base, root = http_server
+    copy_to(root)
+    with caplog.at_level(logging.INFO, logger="hnnbench"):
+        path = data.locate(FILENAME, sha256=SHA256, url=f"{base}/{FILENAME}", timeout_s=10)
+    assert path == data.cache_dir() / FILENAME
+    assert path.read_bytes() == SOURCE.read_bytes()
+    assert [p.name for p in path.parent.iterdir()] == [FILENAME]
+    # pooch's "Downloading ..." line goes to the hnnbench logger, not to stderr.
+    assert any(r.name == "hnnbench" and "Downloading" in r.getMessage() and base in
+               r.getMessage() for r in caplog.records)
+    assert "Downloading" not in capfd.readouterr().err
+    # Remembered as verified (hashed while streaming), like a checked local file.
+    assert data._verified and data.verify(path, SHA256) == path
+
+
+def test_http_error_status_is_one_line(http_server):
+    base, _ = http_server
+    with pytest.raises(DataError) as info:
+        data.locate(FILENAME, sha256=SHA256, url=f"{base}/absent.txt", timeout_s=10)
+    msg = str(info.value)
+    assert "404" in msg and "failed" in msg and "\n" not in msg
+    assert list(data.cache_dir().iterdir()) == []
+
+
+@needs_data
+@pytest.mark.parametrize("scheme", ["file", "http"])
+def test_download_larger_than_the_limit_is_abandoned(monkeypatch, http_server, scheme):
+    base, root = http_server
+    copy_to(root)
+    monkeypatch.setattr(data, "MAX_DOWNLOAD_BYTES", 1000)
+    url = SOURCE.as_uri() if scheme == "file" else f"{base}/{FILENAME}"
+    with pytest.raises(DataError, match="larger than 1000 bytes") as info:
+        data.locate(FILENAME, sha256=SHA256, url=url, timeout_s=10)
+    assert "\n" not in str(info.value)
+    assert list(data.cache_dir().iterdir()) == []  # pooch removed its temporary file
+
+
+def test_unwritable_cache_is_one_line(monkeypatch, tmp_path):
+    blocker = tmp_path / "file-not-dir"
+    blocker.write_text("x")
+    monkeypatch.setenv(data.CACHE_ENV, str(blocker))
+    with pytest.raises(DataError) as info:
+        data.locate(FILENAME, sha256=SHA256, url=(tmp_path / "x").as_uri())
+    msg = str(info.value)
+    assert "Cannot write to the cache directory" in msg and "HNNBENCH_CACHE_DIR" in msg
+    assert "\n" not in msg
