@@ -27,10 +27,13 @@ import tempfile
 from pathlib import Path
 from typing import IO, Optional
 
+from hnnbench import launch
+
 __all__ = ["claim_core", "started_by_cli", "CLI_ENV"]
 
-#: Set by the ``hnnbench`` command before it starts Hydra; launcher workers inherit it.
-CLI_ENV = "HNNBENCH_CLI_PID"
+#: Set by the ``hnnbench`` command before it starts Hydra; launcher workers inherit it
+#: (:mod:`hnnbench.launch`).
+CLI_ENV = launch.ENV
 
 _held: dict[str, object] = {}
 log = logging.getLogger("hnnbench")
@@ -40,7 +43,7 @@ def started_by_cli() -> bool:
     """Whether this process runs jobs for the ``hnnbench`` command (its own process
     under the basic launcher, or a launcher's worker), not for a caller of
     :func:`hnnbench.run.run_job` such as a notebook or a test, which is left alone."""
-    return CLI_ENV in os.environ
+    return launch.current() is not None
 
 
 def _lock_dir() -> Path:

@@ -414,6 +414,14 @@ class Model(ABC):
         return "cpu"
 
     @classmethod
+    def requirements_missing(cls) -> Optional[str]:
+        """Why this model cannot run in this environment at all, e.g. an install hint
+        for a missing backend (``None``: it can). Checked by the registry without
+        importing the backend; ``hnnbench list`` shows it and ``all`` leaves the model
+        out."""
+        return None
+
+    @classmethod
     def unsupported_reason(cls, system: System) -> Optional[str]:
         """Why this model cannot run on ``system`` (``None`` if it can)."""
         if system.observation not in cls.observations:

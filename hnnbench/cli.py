@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from hnnbench import registry
-from hnnbench.affinity import CLI_ENV
+from hnnbench import launch
 from hnnbench.errors import ConfigError, HnnbenchError, UnknownNameError
 
 USAGE = """\
@@ -190,9 +190,9 @@ class _Entry:
 def _parse_flags(argv: list[str]) -> argparse.Namespace:
     """Hydra's own argument parser, with flags and overrides in any order, raising a
     one-line :class:`ConfigError` instead of printing usage and exiting."""
-    from hydra._internal.utils import get_args_parser
+    from hnnbench._hydra import args_parser
 
-    parser = get_args_parser()
+    parser = args_parser()
     parser.prog = "hnnbench"
 
     def error(message: str) -> NoReturn:
@@ -431,7 +431,8 @@ def _task(cfg) -> None:  # noqa: ANN001 - Hydra passes a DictConfig
 
     hc = HydraConfig.get()
     multirun = hc.mode == RunMode.MULTIRUN
-    total = int(os.environ.get("HNNBENCH_N_JOBS", "0")) or None
+    context = launch.current()
+    total = context.n_jobs if context is not None else None
     record = run_job(cfg, Path(hc.runtime.output_dir), hc.job.num if multirun else None, total,
                      overrides=list(hc.overrides.task))
     if not multirun:
@@ -447,62 +448,33 @@ def run_hydra(argv: list[str]) -> int:
     register_schema()
     shell = "--shell-completion" in checked.argv
     registry.register_configs("paper" if shell else profile_of(checked.overrides))
-    if checked.n_jobs:
-        os.environ["HNNBENCH_N_JOBS"] = str(checked.n_jobs)
-    else:
-        os.environ.pop("HNNBENCH_N_JOBS", None)
-    # Jobs (here or in launcher workers, which inherit it) may pin a core: hnnbench.affinity.
-    # Restored afterwards, so a notebook's later run_job calls are not pinned.
-    previous_cli = os.environ.get(CLI_ENV)
-    os.environ[CLI_ENV] = str(os.getpid())
-    # The command line as typed, for the records (launchers' workers inherit it).
-    os.environ["HNNBENCH_COMMAND"] = shlex.join(["hnnbench", *argv])
     if checked.multirun and checked.n_jobs:
         print(f"hnnbench: {checked.n_jobs} job(s)", file=sys.stderr)
+    # Jobs (here or in launcher workers) see the command line, the sweep's size, and
+    # that the hnnbench command started them (they then pin a core: hnnbench.affinity).
+    context = launch.LaunchContext(command=shlex.join(["hnnbench", *argv]),
+                                   n_jobs=checked.n_jobs or None, cli_pid=os.getpid())
     saved = sys.argv
     sys.argv = [saved[0] if saved else "hnnbench", *checked.argv]
     _single_run.clear()
     try:
-        with _one_line_hydra_errors():
+        with launch.launched(context), _one_line_hydra_errors():
             hydra.main(version_base="1.3", config_path="pkg://hnnbench_conf",
                        config_name="config")(_task)()
     finally:
         sys.argv = saved
-        if previous_cli is None:
-            os.environ.pop(CLI_ENV, None)
-        else:
-            os.environ[CLI_ENV] = previous_cli
     if _single_run:
         return _report_single(_single_run[-1])
     return 0
 
 
-@contextlib.contextmanager
-def _one_line_hydra_errors():  # noqa: ANN202
+def _one_line_hydra_errors() -> contextlib.AbstractContextManager[None]:
     """A safety net behind :func:`plan`: an error Hydra still finds (it prints several
     lines and exits) becomes a one-line :class:`HnnbenchError`."""
-    import hydra._internal.utils as hydra_utils
+    from hnnbench._hydra import one_line_errors
+    from hnnbench.config import hydra_error_line
 
-    original = getattr(hydra_utils, "run_and_report", None)
-    if original is None or _full_error():
-        yield
-        return
-
-    def run_and_report(func: Any) -> Any:
-        from hnnbench.config import hydra_error_line
-
-        try:
-            return func()
-        except HnnbenchError:
-            raise
-        except Exception as err:
-            raise HnnbenchError(hydra_error_line(err)) from None
-
-    hydra_utils.run_and_report = run_and_report
-    try:
-        yield
-    finally:
-        hydra_utils.run_and_report = original
+    return one_line_errors(hydra_error_line, enabled=not _full_error())
 
 
 def _report_single(record: dict) -> int:

@@ -345,11 +345,9 @@ def _hydra_group_lister(overrides: list[str], parser: Any) -> tuple[Any, Any]:
     """``(list_groups(parent), group_options(group))`` over Hydra's search path plus the
     entries of a ``hydra.searchpath=[...]`` override, so that a user's own option file
     (e.g. ``hydra/launcher/my_slurm.yaml`` in a directory on the search path) is known."""
-    import copy
-
-    from hydra._internal.config_repository import ConfigRepository
     from hydra.core.global_hydra import GlobalHydra
-    from hydra.core.object_type import ObjectType
+
+    from hnnbench._hydra import group_lister
 
     loader = GlobalHydra.instance().config_loader()
     entries: list[str] = []
@@ -362,14 +360,7 @@ def _hydra_group_lister(overrides: list[str], parser: Any) -> tuple[Any, Any]:
             raise ConfigError(f"Cannot parse override '{text}': {hydra_error_line(err)}") from None
         value = ov.value()
         entries += [str(v) for v in (value if isinstance(value, list) else [value])]
-    if not entries:
-        return loader.list_groups, loader.get_group_options
-    search_path = copy.deepcopy(loader.config_search_path)
-    for entry in entries:
-        search_path.append(provider="hydra.searchpath (command line)", path=entry)
-    repo = ConfigRepository(config_search_path=search_path)
-    return (lambda parent: repo.get_group_options(parent, ObjectType.GROUP),
-            lambda group: repo.get_group_options(group, ObjectType.CONFIG))
+    return group_lister(loader, entries)
 
 
 def hydra_error_line(err: BaseException) -> str:

@@ -97,6 +97,10 @@ def _load(kind: str, ep: metadata.EntryPoint) -> PluginInfo:
             f"hnnbench.api.{CONFIG_BASES[kind].__name__}"
         )
         return info
+    missing = getattr(cls, "requirements_missing", lambda: None)()
+    if missing:
+        info.error = str(missing)
+        return info
     info.cls = cls
     return info
 

@@ -26,7 +26,7 @@ import numpy as np
 import threadpoolctl
 from omegaconf import DictConfig, OmegaConf
 
-from hnnbench import affinity, cache, records
+from hnnbench import affinity, cache, launch, paths, records
 from hnnbench.api import Dataset, TrainSettings, Trajectories
 from hnnbench.config import EvaluationConfig, Job, prepare_job
 from hnnbench.errors import HnnbenchError, RolloutDiverged, UnsupportedPair
@@ -75,7 +75,8 @@ def _config_container(cfg: DictConfig) -> Any:
 
 
 def _base_record(cfg: DictConfig, overrides: list[str] | None) -> dict[str, Any]:
-    command = os.environ.get("HNNBENCH_COMMAND")
+    context = launch.current()
+    command = context.command if context is not None else None
     job_overrides = [o for o in overrides or [] if not o.startswith(("hydra.", "hydra/"))]
     return {
         "schema_version": records.SCHEMA_VERSION,
@@ -189,7 +190,10 @@ def run_job(
     log.info("%s%s: start", count, tag)
     try:
         job = prepare_job(cfg)
-        _execute(job, cfg, directory, record, timings)
+        # The job's cache_dir and data_dir settings hold for all it does: the dataset
+        # cache, measured data files (data.locate) and the JAX compilation cache.
+        with paths.overrides(cache_dir=cfg.cache_dir, data_dir=cfg.data_dir):
+            _execute(job, cfg, directory, record, timings)
     except HnnbenchError as err:
         record.update(status="failed", error=str(err))
     except Exception as err:  # isolate the failure; the sweep goes on
@@ -220,19 +224,18 @@ def _execute(
     pin = cfg.get("pin_cpu")
     if pin or (pin is None and int(cfg.threads) == 1 and affinity.started_by_cli()):
         record["cpu_pin"] = affinity.claim_core()
-    root = cache.cache_root(cfg.cache_dir)
     seed = int(cfg.seed)
 
     t0 = time.perf_counter()
     data, data_path, data_hit = cache.cached(system, seed, "dataset", lambda: system.dataset(seed),
-                                             Dataset.load, root)
+                                             Dataset.load)
     traj, traj_path, _ = cache.cached(system, seed, "evaluation",
-                                      lambda: system.evaluation(seed), Trajectories.load, root)
+                                      lambda: system.evaluation(seed), Trajectories.load)
     timings["data_s"] = time.perf_counter() - t0
     record["data"] = {
         "cache_hit": data_hit,
-        "dataset_sha256": cache.file_sha256(data_path),
-        "evaluation_sha256": cache.file_sha256(traj_path),
+        "dataset_sha256": paths.sha256_file(data_path),
+        "evaluation_sha256": paths.sha256_file(traj_path),
         "n_train": len(data.train),
         "n_test": len(data.test),
         "n_eval_traj": int(traj.states.shape[0]),

@@ -2,8 +2,8 @@
 and minibatches -> same training curve and same rollouts.
 
 Both backends build their seeded initial weights from the same numpy draws
-(:func:`hnnbench_plugins.models.neural.init_arrays`) and draw minibatches from the same
-stream (:class:`~hnnbench_plugins.models.neural.BatchStream`). Here they train in
+(:func:`hnnbench.neural.init.init_arrays`) and draw minibatches from the same
+stream (:class:`~hnnbench.neural.init.BatchStream`). Here they train in
 float64 on the spring training set (750 points, paper architecture), full batch and
 minibatch, and log every step.
 """
@@ -17,13 +17,14 @@ pytest.importorskip("torch")
 pytest.importorskip("jax")
 pytest.importorskip("diffrax")
 
+import jax.numpy as jnp  # noqa: E402
+import optax  # noqa: E402
 import torch  # noqa: E402
 
 from hnnbench.api import Dataset, TrainSettings  # noqa: E402
-from hnnbench_plugins.models.jax_base import jnp, optax  # noqa: E402
-from hnnbench_plugins.models.jax_models import HNNJax, MLPJax  # noqa: E402
-from hnnbench_plugins.models.neural import NeuralConfig  # noqa: E402
-from hnnbench_plugins.models.torch_models import HNNTorch, MLPTorch  # noqa: E402
+from hnnbench.neural import NeuralConfig  # noqa: E402
+from hnnbench_plugins.models.hnn import HNNJax, HNNTorch  # noqa: E402
+from hnnbench_plugins.models.mlp import MLPJax, MLPTorch  # noqa: E402
 from hnnbench_plugins.systems.spring import Spring, SpringConfig  # noqa: E402
 
 PAIRS = [(MLPTorch, MLPJax), (HNNTorch, HNNJax)]
@@ -54,24 +55,37 @@ def data(spring: Spring) -> Dataset:
 
 
 def torch_state(model) -> dict[str, np.ndarray]:
-    return {k: v.detach().cpu().numpy() for k, v in model.net.state_dict().items()}
+    return model.get_weights()
+
+
+def built_weights(model, data: Dataset, seed: int) -> dict[str, np.ndarray]:
+    """The weights a model's backend builds from its seeded initial arrays, read back
+    before any training step."""
+    problem = model.view.problem(data)
+    init = [model.initial_weights(seed)]
+    train = TrainSettings(steps=1, batch_size=None, lr=1e-3, weight_decay=0.0)
+    trainer = model._backend.trainer(model.family, model._impl, problem, init, train,
+                                     model.view.dim)
+    (weights,) = model._backend.weights(trainer)
+    return weights
 
 
 @pytest.mark.parametrize("dtype", ["float32", "float64"])
 @pytest.mark.parametrize(("torch_cls", "jax_cls"), PAIRS)
-def test_same_seed_same_initial_weights(torch_cls, jax_cls, spring: Spring, dtype: str):
+def test_same_seed_same_initial_weights(torch_cls, jax_cls, spring: Spring, data: Dataset,
+                                        dtype: str):
     cfg = NeuralConfig(name="parity", dtype=dtype)
     tm, jm = torch_cls(cfg, spring, "cpu"), jax_cls(cfg, spring, "cpu")
     for seed in (0, 7):
-        jm.net = jm.build(2, seed)
-        t_state = {k: v.numpy() for k, v in tm.build(2, seed).state_dict().items()}
-        j_state = jm.numpy_layers()
+        t_state = built_weights(tm, data, seed)
+        j_state = built_weights(jm, data, seed)
         assert t_state.keys() == j_state.keys()
         for key, value in t_state.items():
             assert value.dtype == np.dtype(dtype)
             np.testing.assert_array_equal(value, j_state[key])
-    other = {k: v.numpy() for k, v in tm.build(2, 1).state_dict().items()}
-    assert not np.array_equal(other["linears.1.weight"], t_state["linears.1.weight"])
+    other = built_weights(tm, data, 1)
+    net = next(iter(tm.network_shapes()))
+    assert not np.array_equal(other[f"{net}.linears.1.weight"], t_state[f"{net}.linears.1.weight"])
 
 
 @pytest.fixture(
@@ -100,7 +114,7 @@ def test_loss_curves_agree(trained_pair):
 
 def test_trained_weights_agree(trained_pair):
     tm, jm, _, _ = trained_pair
-    t_state, j_state = torch_state(tm), jm.numpy_layers()
+    t_state, j_state = torch_state(tm), jm.get_weights()
     assert set(t_state) == set(j_state)
     for key, value in t_state.items():
         np.testing.assert_allclose(j_state[key], value, rtol=1e-6, atol=1e-9, err_msg=key)
@@ -108,7 +122,7 @@ def test_trained_weights_agree(trained_pair):
 
 def test_same_weights_same_field_and_rollouts(trained_pair, spring: Spring, data: Dataset):
     tm, jm, _, _ = trained_pair
-    jm.from_numpy_layers(torch_state(tm))  # exactly the same weights
+    jm.set_weights(torch_state(tm))  # exactly the same weights
     x = data.test.x
     np.testing.assert_allclose(jm.time_derivative(x), tm.time_derivative(x),
                                rtol=1e-12, atol=1e-12)
@@ -149,18 +163,28 @@ def test_optax_chain_is_torch_adam(weight_decay: float):
 
 
 
-def test_same_seed_same_autoencoder(spring: Spring):
-    from hnnbench_plugins.models.jax_pixel import init_autoencoder
+def test_same_seed_same_autoencoder():
+    from hnnbench_plugins.systems.pixel_pendulum import PixelPendulum, PixelPendulumConfig
 
+    system = PixelPendulum(PixelPendulumConfig(name="pixel_pendulum", n_traj=10, n_frames=8,
+                                               eval_n_traj=3, eval_n_points=6))
+    data = system.dataset(0)
     cfg = NeuralConfig(name="parity", hidden=16)
-    tm = HNNTorch(cfg, spring, "cpu")
-    t_ae = tm._build_autoencoder(12, seed=3)
-    j_ae = init_autoencoder(3, 12, tm.latent_dim, 16, jnp.float32)
+    tm, jm = HNNTorch(cfg, system, "cpu"), HNNJax(cfg, system, "cpu")
+    t_state, j_state = built_weights_pixels(tm, data, 3), built_weights_pixels(jm, data, 3)
     for half in ("encoder", "decoder"):
-        t_layers, j_layers = getattr(t_ae, half), getattr(j_ae, half)
-        assert len(t_layers) == len(j_layers) == 4
-        for t_layer, j_layer in zip(t_layers, j_layers, strict=True):
-            np.testing.assert_array_equal(t_layer.weight.detach().numpy(),
-                                          np.asarray(j_layer.weight))
-            np.testing.assert_array_equal(t_layer.bias.detach().numpy(),
-                                          np.asarray(j_layer.bias))
+        t_layers = sorted(k for k in t_state if k.startswith(f"autoencoder.{half}."))
+        assert len(t_layers) == 2 * 4  # weight and bias of 4 layers
+        for key in t_layers:
+            assert t_state[key].dtype == np.float32
+            np.testing.assert_array_equal(t_state[key], j_state[key])
+
+
+def built_weights_pixels(model, data: Dataset, seed: int) -> dict[str, np.ndarray]:
+    problem = model.view.problem(data)
+    init = [model.initial_weights(seed, problem.train[0].shape[1])]
+    train = TrainSettings(steps=1, batch_size=None, lr=1e-3, weight_decay=0.0)
+    trainer = model._backend.trainer(model.family, model._impl, problem, init, train,
+                                     model.view.dim)
+    (weights,) = model._backend.weights(trainer)
+    return weights

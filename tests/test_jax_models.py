@@ -17,9 +17,11 @@ pytest.importorskip("diffrax")
 
 from hnnbench.api import Dataset, TrainSettings  # noqa: E402
 from hnnbench.errors import ConfigError, RolloutDiverged  # noqa: E402
-from hnnbench_plugins.models.jax_base import _gpus, mlp_shapes  # noqa: E402
-from hnnbench_plugins.models.jax_models import HNNJax, MLPJax  # noqa: E402
-from hnnbench_plugins.models.neural import NeuralConfig  # noqa: E402
+from hnnbench.neural import NeuralConfig  # noqa: E402
+from hnnbench.neural.init import mlp_shapes  # noqa: E402
+from hnnbench.neural.jax import _gpus  # noqa: E402
+from hnnbench_plugins.models.hnn import HNNJax  # noqa: E402
+from hnnbench_plugins.models.mlp import MLPJax  # noqa: E402
 from hnnbench_plugins.systems.spring import Spring, SpringConfig  # noqa: E402
 
 MODELS = [MLPJax, HNNJax]
@@ -88,7 +90,7 @@ def test_compile_time_recorded_and_cached(spring, data):
 
 
 def test_training_dtype_and_float64_inference(trained, data):
-    leaves = trained.numpy_layers()
+    leaves = trained.get_weights()
     assert all(v.dtype == np.float32 for v in leaves.values())  # cfg.dtype default
     out = trained.time_derivative(data.test.x)
     assert out.shape == data.test.x.shape and out.dtype == np.float64
@@ -175,12 +177,15 @@ def test_rollout_tiny_step_budget_raises(spring, data):
 
 
 def test_save_load_round_trip(trained, spring, data, tmp_path: Path):
-    path = tmp_path / "weights.bin"  # any name: no ".npz" may be appended
+    from safetensors.numpy import load_file
+
+    path = tmp_path / "weights.bin"  # any name: no suffix may be appended
     trained.save(path)
-    assert path.exists()
-    with np.load(path, allow_pickle=False) as npz:  # readable without pickle
-        assert {"linears.0.weight", "linears.0.bias", "linears.2.weight"} <= set(npz.files)
-        assert "linears.2.bias" not in npz.files  # last layer has no bias
+    assert path.exists() and [p.name for p in tmp_path.iterdir()] == ["weights.bin"]
+    files = set(load_file(str(path)))  # readable without pickle
+    net = next(iter(trained.network_shapes()))
+    assert {f"{net}.linears.0.weight", f"{net}.linears.0.bias", f"{net}.linears.2.weight"} <= files
+    assert f"{net}.linears.2.bias" not in files  # last layer has no bias
     fresh = make(type(trained), spring)
     fresh.load(path)
     np.testing.assert_array_equal(fresh.time_derivative(data.test.x),
@@ -196,16 +201,17 @@ def test_load_rejects_other_layout(trained, spring, tmp_path: Path):
 
 def test_weights_of_the_other_model_are_rejected(trained, spring):
     other = HNNJax if isinstance(trained, MLPJax) else MLPJax
-    with pytest.raises(ValueError, match="output"):
-        make(other, spring).from_numpy_layers(trained.numpy_layers())
+    with pytest.raises(ValueError, match="do not match"):
+        make(other, spring).set_weights(trained.get_weights())
 
 
 def test_numpy_layers_round_trip(trained, spring, data):
-    d_out = 1 if trained.output_scalar else 2
-    layers = trained.numpy_layers()  # keyed by tree path, named like torch's state_dict
-    assert {k: v.shape for k, v in layers.items()} == mlp_shapes(2, d_out, trained.cfg)
+    ((net, (d_in, d_out)),) = trained.network_shapes().items()
+    layers = trained.get_weights()  # "<net>.linears.<i>.weight", as the torch backend
+    expected = {f"{net}.{k}": v for k, v in mlp_shapes(d_in, d_out, trained.cfg).items()}
+    assert {k: v.shape for k, v in layers.items()} == expected
     other = make(type(trained), spring)
-    other.from_numpy_layers(trained.numpy_layers())
+    other.set_weights(trained.get_weights())
     np.testing.assert_array_equal(other.time_derivative(data.test.x),
                                   trained.time_derivative(data.test.x))
 
@@ -214,9 +220,9 @@ def test_initial_weights_start_fit(spring, data):
     a = make(MLPJax, spring)
     fit(a, data, steps=5, seed=1)
     b = make(MLPJax, spring)
-    b.initial_weights = a.numpy_layers()
+    b.warm_start = a.get_weights()
     c = make(MLPJax, spring)
-    c.initial_weights = a.numpy_layers()
+    c.warm_start = a.get_weights()
     rb, _ = fit(b, data, steps=5, seed=2)
     rc, _ = fit(c, data, steps=5, seed=7)  # the seed no longer matters (full batch)
     assert rb.history == rc.history
@@ -242,11 +248,17 @@ def test_missing_jax_gives_install_hint():
     code = (
         "import sys; sys.modules['jax'] = None\n"
         "from hnnbench.errors import BackendMissingError\n"
+        "from hnnbench.neural import NeuralConfig\n"
+        "from hnnbench_plugins.models.mlp import MLPJax\n"
+        "from hnnbench_plugins.systems.spring import Spring, SpringConfig\n"
+        "print(MLPJax.requirements_missing())\n"
         "try:\n"
-        "    import hnnbench_plugins.models.jax_models\n"
+        "    MLPJax(NeuralConfig(name='mlp_jax'), Spring(SpringConfig(name='spring')), 'cpu')\n"
         "except BackendMissingError as err:\n"
         "    print(err)\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
-    assert "pip install 'hnnbench[jax]'" in out
+    lines = out.strip().splitlines()
+    assert len(lines) == 2
+    assert all("pip install 'hnnbench[jax]'" in line for line in lines)

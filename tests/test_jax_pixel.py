@@ -1,4 +1,4 @@
-"""The JAX models on the pixel pendulum: autoencoder + latent dynamics (jax_pixel)."""
+"""The JAX models on the pixel pendulum: autoencoder + latent dynamics (PixelView)."""
 
 from __future__ import annotations
 
@@ -26,8 +26,9 @@ def small_system() -> PixelPendulum:
 @pytest.fixture(scope="module")
 def tiny():
     """A tiny pixel dataset and both JAX models fitted for a few steps."""
-    from hnnbench_plugins.models.jax_models import HNNJax, MLPJax
-    from hnnbench_plugins.models.neural import NeuralConfig
+    from hnnbench.neural import NeuralConfig
+    from hnnbench_plugins.models.hnn import HNNJax
+    from hnnbench_plugins.models.mlp import MLPJax
 
     system = small_system()
     data, ev = system.dataset(0), system.evaluation(0)
@@ -51,7 +52,7 @@ def tiny():
 def test_jax_pixel_model_shapes_and_finiteness(tiny, name):
     _system, data, ev, models = tiny
     model = models[name]
-    assert model.frame_dt == data.meta["dt"]
+    assert model.view.time_unit == data.meta["dt"]
     z0 = model.encode(ev.observations[:, 0])
     assert z0.shape == (3, 2) and z0.dtype == np.float64 and np.all(np.isfinite(z0))
     zhat = model.rollout(z0, ev.t)
@@ -86,11 +87,11 @@ def test_jax_pixel_time_units(tiny, name):
 def test_jax_pixel_save_load_round_trip(tiny, tmp_path, name):
     system, _data, ev, models = tiny
     model = models[name]
-    path = tmp_path / "weights.npz"
+    path = tmp_path / "weights.safetensors"
     model.save(path)
     clone = type(model)(model.cfg, system, device="cpu")
     clone.load(path)
-    assert clone.frame_dt == model.frame_dt
+    assert clone.view.time_unit == model.view.time_unit
     obs = ev.observations[:, 0]
     np.testing.assert_array_equal(clone.encode(obs), model.encode(obs))
     z0 = model.encode(obs)

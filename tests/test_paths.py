@@ -180,8 +180,6 @@ def test_data_dir_is_named_where_it_looked(tmp_path):
 
 
 @needs_data
-@pytest.mark.xfail(strict=True, reason="until hnnbench/run.py enters paths.overrides for "
-                   "each job; drop this marker with that change")
 def test_job_settings_reach_data_and_dataset_caches(tmp_path, tmp_path_factory):
     """A job's cache_dir and data_dir settings move every cache it uses."""
     from hnnbench.config import compose

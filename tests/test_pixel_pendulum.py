@@ -170,8 +170,9 @@ def test_profiles_are_valid_and_paper_defaults():
 def tiny():
     """A tiny pixel dataset and both torch models fitted for a few steps."""
     pytest.importorskip("torch")
-    from hnnbench_plugins.models.neural import NeuralConfig
-    from hnnbench_plugins.models.torch_models import HNNTorch, MLPTorch
+    from hnnbench.neural import NeuralConfig
+    from hnnbench_plugins.models.hnn import HNNTorch
+    from hnnbench_plugins.models.mlp import MLPTorch
 
     system = small_system()
     data, ev = system.dataset(0), system.evaluation(0)
@@ -228,7 +229,7 @@ def test_pixel_loss_matches_training_objective(tiny):
     for model in models.values():
         logged = model.loss(data.test.x, data.test.dxdt)
         x_next = data.test.extras["x_next"]
-        exact = model._objective_mean(model._tensor(data.test.x), model._tensor(x_next))
+        exact = model._infer().objective(data.test.x, x_next)
         assert logged == pytest.approx(exact, rel=1e-5)
         # the tiny test set is logged whole: the last logged test loss is loss() on it
         assert model.history["test_loss"][-1] == pytest.approx(logged, rel=1e-5)
@@ -242,7 +243,7 @@ def test_pixel_model_save_load_round_trip(tiny, tmp_path, name):
     model.save(path)
     clone = type(model)(model.cfg, system, device="cpu")
     clone.load(path)
-    assert clone.frame_dt == model.frame_dt
+    assert clone.view.time_unit == model.view.time_unit
     obs = ev.observations[:, 0]
     np.testing.assert_array_equal(clone.encode(obs), model.encode(obs))
     z0 = model.encode(obs)
@@ -252,8 +253,8 @@ def test_pixel_model_save_load_round_trip(tiny, tmp_path, name):
 
 def test_state_systems_still_use_the_plain_models():
     pytest.importorskip("torch")
-    from hnnbench_plugins.models.neural import NeuralConfig
-    from hnnbench_plugins.models.torch_models import HNNTorch
+    from hnnbench.neural import NeuralConfig
+    from hnnbench_plugins.models.hnn import HNNTorch
 
     system = Pendulum(PendulumConfig(name="pendulum", n_traj=4, n_points=10))
     model = HNNTorch(NeuralConfig(name="hnn_torch", hidden=16), system, device="cpu")

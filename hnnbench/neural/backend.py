@@ -17,20 +17,21 @@ only the backend it runs.
 from __future__ import annotations
 
 import importlib
+import importlib.util
 from collections.abc import Sequence
 from types import ModuleType
-from typing import Protocol
+from typing import Optional, Protocol
 
 import numpy as np
 
 from hnnbench.api import TrainSettings
-from hnnbench.errors import HnnbenchError, require_backend
+from hnnbench.errors import BackendMissingError, HnnbenchError
 from hnnbench.neural.config import NeuralConfig
 from hnnbench.neural.family import Family
 from hnnbench.neural.loop import Trainer
 from hnnbench.neural.views import Problem
 
-__all__ = ["BACKENDS", "Backend", "Inference", "Weights", "load_backend"]
+__all__ = ["BACKENDS", "Backend", "Inference", "Weights", "load_backend", "missing_backend"]
 
 #: Flat ``{"<net>.linears.<i>.weight": array, ...}`` of one seed (pixel models add
 #: ``"autoencoder.encoder.<i>.weight"`` etc.), in the training dtype.
@@ -101,6 +102,23 @@ class Backend(Protocol):
         ...
 
 
+def missing_backend(name: str) -> Optional[str]:
+    """Why backend ``name`` cannot be imported (an install hint), without importing it;
+    ``None`` when its modules are installed."""
+    if name not in BACKENDS:
+        return f"unknown neural backend '{name}' (expected one of {', '.join(BACKENDS)})"
+    _, _, needs, extra = BACKENDS[name]
+    for module in needs:
+        try:
+            found = importlib.util.find_spec(module) is not None
+        except (ImportError, ValueError):  # a parent package missing, or a None entry
+            found = False
+        if not found:
+            return (f"This model needs {module}, which is not installed. "
+                    f"Install it with: pip install 'hnnbench[{extra}]'")
+    return None
+
+
 def load_backend(name: str, cfg: NeuralConfig, device: str) -> Backend:
     """Import backend ``name`` (``torch`` / ``jax``) and configure it; a missing
     install raises a one-line :class:`~hnnbench.errors.BackendMissingError`."""
@@ -108,9 +126,10 @@ def load_backend(name: str, cfg: NeuralConfig, device: str) -> Backend:
         raise HnnbenchError(
             f"Unknown neural backend '{name}': expected one of {', '.join(BACKENDS)}"
         )
-    module_name, class_name, needs, extra = BACKENDS[name]
-    for module in needs:
-        require_backend(module, extra)
+    missing = missing_backend(name)
+    if missing is not None:
+        raise BackendMissingError(missing)
+    module_name, class_name, _, _ = BACKENDS[name]
     module = importlib.import_module(module_name)
     backend: Backend = getattr(module, class_name)(cfg, device)
     return backend

@@ -27,7 +27,7 @@ import numpy as np
 from hnnbench.api import Dataset, FitResult, Model, Progress, System, TrainSettings
 from hnnbench.errors import RolloutDiverged
 from hnnbench.neural import views
-from hnnbench.neural.backend import Inference, Weights, load_backend
+from hnnbench.neural.backend import Inference, Weights, load_backend, missing_backend
 from hnnbench.neural.config import NeuralConfig
 from hnnbench.neural.family import Family
 from hnnbench.neural.init import autoencoder_init_arrays, network_init_arrays
@@ -64,6 +64,10 @@ class NeuralModel(Model):
         return super().unsupported_reason(system) or views.unsupported_reason(
             cls.family, system)
 
+    @classmethod
+    def requirements_missing(cls) -> Optional[str]:
+        return missing_backend(cls.backend)
+
     def __init__(self, cfg: NeuralConfig, system: System, device: str = "auto") -> None:
         super().__init__(cfg, system, device)
         self.view = views.view_for(self.family, system)
@@ -72,6 +76,9 @@ class NeuralModel(Model):
         self._weights: Optional[Weights] = None
         self._inference: Optional[Inference] = None
         self.timings = self._backend.timings
+        #: If set, :meth:`fit` starts every seed from these weights (flat names, e.g.
+        #: another model's :meth:`get_weights`) instead of the seeded initial ones.
+        self.warm_start: Optional[Weights] = None
 
     @property
     def device(self) -> str:
@@ -102,10 +109,33 @@ class NeuralModel(Model):
         return dict(self._weights)
 
     def set_weights(self, weights: Weights) -> None:
-        """Use these weights (cast to the training dtype), e.g. another backend's."""
+        """Use these weights (cast to the training dtype), e.g. another backend's.
+
+        Raises:
+            ValueError: the names or shapes are not this model's layout.
+        """
+        self._check_layout(weights)
         dtype = np.dtype(self.cfg.dtype)
         self._weights = {k: np.asarray(v).astype(dtype, copy=False) for k, v in weights.items()}
         self._inference = None
+
+    def _check_layout(self, weights: Weights) -> None:
+        first = weights.get("autoencoder.encoder.0.weight")
+        d_obs = None if first is None else int(np.shape(first)[1])
+        expected = self.initial_weights(0, d_obs) if (
+            d_obs is not None or not isinstance(self.view, views.PixelView)) else None
+        if expected is None:
+            raise ValueError(f"{self.name} is a pixel model: its weights include an "
+                             "autoencoder (autoencoder.encoder.0.weight, ...)")
+        if set(weights) != set(expected):
+            raise ValueError(
+                f"weights do not match {self.name}: missing {sorted(set(expected) - set(weights))}"
+                f", unexpected {sorted(set(weights) - set(expected))}")
+        for key, value in expected.items():
+            if np.shape(weights[key]) != value.shape:
+                raise ValueError(f"weight {key} has shape {np.shape(weights[key])}, expected "
+                                 f"{value.shape} (model.hidden={self.cfg.hidden}, "
+                                 f"model.layers={self.cfg.layers})")
 
     def _infer(self) -> Inference:
         if self._inference is None:
@@ -118,7 +148,11 @@ class NeuralModel(Model):
                progress: Progress) -> tuple[list[Any], list[Weights]]:
         problem = self.view.problem(data)
         d_obs = problem.train[0].shape[1] if problem.kind == "pixels" else None
-        initial = [self.initial_weights(seed, d_obs) for seed in seeds]
+        if self.warm_start is not None:
+            self._check_layout(self.warm_start)
+            initial = [dict(self.warm_start) for _ in seeds]
+        else:
+            initial = [self.initial_weights(seed, d_obs) for seed in seeds]
         trainer = self._backend.trainer(self.family, self._impl, problem, initial, settings,
                                         self.view.dim)
         fits = run_training(trainer, problem.n, settings, seeds,
@@ -220,25 +254,10 @@ class NeuralModel(Model):
     def load(self, path: Path) -> None:
         weights, meta = load_weights(path)
         mine = self._meta()
-        for key in ("family", "activation", "layers", "hidden"):
+        for key in ("family", "activation"):  # layers, hidden: the layout check says
             if key in meta and meta[key] != mine[key]:
                 raise ValueError(f"{path} holds a model with {key}={meta[key]}, but this "
                                  f"model has {key}={mine[key]}")
-        expected = set(self.initial_weights(0, self._obs_size(weights)))
-        if set(weights) != expected:
-            raise ValueError(
-                f"{path} does not match the model: missing {sorted(expected - set(weights))},"
-                f" unexpected {sorted(set(weights) - expected)}")
-        for key, value in self.initial_weights(0, self._obs_size(weights)).items():
-            if weights[key].shape != value.shape:
-                raise ValueError(f"weight {key} has shape {weights[key].shape}, expected "
-                                 f"{value.shape} (model.hidden={self.cfg.hidden}, "
-                                 f"model.layers={self.cfg.layers})")
+        self.set_weights(weights)
         if isinstance(self.view, views.PixelView):
             self.view.time_unit = float(meta.get("time_unit", 1.0))
-        self.set_weights(weights)
-
-    @staticmethod
-    def _obs_size(weights: Weights) -> Optional[int]:
-        first = weights.get("autoencoder.encoder.0.weight")
-        return None if first is None else int(first.shape[1])

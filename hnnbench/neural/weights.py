@@ -21,7 +21,10 @@ def save_weights(path: Path, weights: dict[str, np.ndarray], meta: dict[str, Any
     from safetensors.numpy import save_file
 
     arrays = {k: np.ascontiguousarray(v) for k, v in weights.items()}
-    save_file(arrays, str(path), metadata={"format": FORMAT, "meta": json.dumps(meta)})
+    # One metadata key: safetensors writes several in no fixed order, and the same
+    # weights must give the same bytes.
+    header = json.dumps({"format": FORMAT, "meta": meta}, sort_keys=True)
+    save_file(arrays, str(path), metadata={"hnnbench": header})
 
 
 def load_weights(path: Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
@@ -35,6 +38,10 @@ def load_weights(path: Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
             weights = {key: fh.get_tensor(key) for key in fh.keys()}  # noqa: SIM118
     except Exception as err:  # safetensors raises its own error types
         raise ValueError(f"{path} is not a readable weight file: {err}") from None
-    if header.get("format") != FORMAT:
+    try:
+        info = json.loads(header.get("hnnbench", "{}"))
+    except ValueError:
+        info = {}
+    if info.get("format") != FORMAT:
         raise ValueError(f"{path} is not an {FORMAT} weight file")
-    return weights, json.loads(header.get("meta", "{}"))
+    return weights, dict(info.get("meta") or {})

@@ -15,7 +15,8 @@ torch's, compiled training chunks, diffrax rollouts.
 Importing this module enables 64-bit floats in JAX (``jax_enable_x64``), which float64
 rollouts need; training runs in ``cfg.dtype`` (parameters and data cast explicitly).
 It also turns on JAX's persistent compilation cache in ``<cache root>/jax-compilation``
-(:func:`hnnbench.paths.cache_root`), unless ``JAX_COMPILATION_CACHE_DIR`` names
+(:func:`hnnbench.paths.cache_root`, which a job's ``cache_dir`` moves), unless
+``JAX_COMPILATION_CACHE_DIR`` names
 another place or ``JAX_ENABLE_COMPILATION_CACHE=false`` turns it off. For the rollout
 to be cacheable it must hold no host callbacks, so equinox's in-graph error checks
 answer with NaN (``EQX_ON_ERROR=nan``, unless set otherwise) instead of calling back to
@@ -41,8 +42,8 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import optax  # noqa: E402
 
+from hnnbench import paths  # noqa: E402
 from hnnbench.api import TrainSettings  # noqa: E402
-from hnnbench.cache import cache_root  # noqa: E402
 from hnnbench.errors import ConfigError, RolloutDiverged  # noqa: E402
 from hnnbench.neural.backend import Weights  # noqa: E402
 from hnnbench.neural.config import NeuralConfig  # noqa: E402
@@ -58,9 +59,33 @@ from hnnbench.neural.views import Problem  # noqa: E402
 __all__ = ["JaxBackend", "adam_like_torch", "device_name", "resolve_device"]
 
 jax.config.update("jax_enable_x64", True)
-if not jax.config.jax_compilation_cache_dir:
-    jax.config.update("jax_compilation_cache_dir", str(cache_root() / "jax-compilation"))
+
+#: The compilation-cache folder this module chose (anything else is the user's own).
+_cache_chosen: Optional[str] = None
+
+
+def use_compilation_cache() -> None:
+    """Point JAX's persistent compilation cache at ``<cache root>/jax-compilation``
+    (:func:`hnnbench.paths.jax_compilation_cache_dir`, which follows a job's
+    ``cache_dir``), unless the user chose another folder (``JAX_COMPILATION_CACHE_DIR``
+    or ``jax.config``). Called at import and whenever a JAX model is built."""
+    global _cache_chosen
+    current = jax.config.jax_compilation_cache_dir
+    if current and current != _cache_chosen:
+        return
+    target = str(paths.jax_compilation_cache_dir())
+    if current == target:
+        return
+    jax.config.update("jax_compilation_cache_dir", target)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
+    if current:  # JAX opens its cache once; it would keep writing to the old folder
+        from jax.experimental.compilation_cache import compilation_cache
+
+        compilation_cache.reset_cache()
+    _cache_chosen = target
+
+
+use_compilation_cache()
 # Probing for absent accelerators (TPU, GPU) logs an INFO line per backend, which the
 # CLI's INFO-level logging would print on every run.
 logging.getLogger("jax._src.xla_bridge").setLevel(logging.WARNING)
@@ -357,6 +382,7 @@ class JaxBackend:
     name = "jax"
 
     def __init__(self, cfg: NeuralConfig, device: str) -> None:
+        use_compilation_cache()
         self.cfg = cfg
         self.device = resolve_device(device)
         self.dtype = jnp.dtype(cfg.dtype)

@@ -119,7 +119,7 @@ class TorchTrainer:
         return out.cpu().numpy(), test.reshape(self.seeds).cpu().numpy()
 
     def weights(self) -> list[Weights]:
-        arrays = {k: v.detach().cpu().numpy() for k, v in self.params.items()}
+        arrays = {k: v.detach().cpu().numpy().copy() for k, v in self.params.items()}
         if self.seeds == 1:
             return [arrays]
         return [{k: v[s].copy() for k, v in arrays.items()} for s in range(self.seeds)]

@@ -106,8 +106,8 @@ class FrozenMLP:
 
     def __init__(self, weights: Sequence[np.ndarray], biases: Sequence[np.ndarray],
                  activation: str, dtype: torch.dtype, device: torch.device) -> None:
-        def tensor(a: np.ndarray) -> torch.Tensor:
-            return torch.from_numpy(np.ascontiguousarray(a)).to(device=device, dtype=dtype)
+        def tensor(a: np.ndarray) -> torch.Tensor:  # a copy, never a view of ``a``
+            return torch.from_numpy(np.array(a, copy=True)).to(device=device, dtype=dtype)
 
         self.weights = [tensor(w) for w in weights]  # (out, in)
         self.weights_t = [w.t().contiguous() for w in self.weights]  # (in, out)

@@ -1,0 +1,82 @@
+"""The private Hydra API hnnbench still uses, in one place.
+
+Everything else goes through Hydra's public API (``hydra.main``, ``hydra.compose``,
+the launcher and sweeper plugins, ``hydra.core``). What is here has no public
+equivalent in Hydra 1.3:
+
+- :func:`args_parser`: Hydra's own command-line parser, so ``hnnbench`` accepts
+  exactly Hydra's flags (and can check a command line before Hydra runs it);
+- :func:`one_line_errors`: Hydra prints composition errors over several lines and
+  exits from ``hydra._internal.utils.run_and_report``; while a command runs, that
+  function is replaced by one that raises a one-line :class:`HnnbenchError`;
+- :func:`group_lister`: Hydra's config repository over an extended search path, so
+  that a user's own ``hydra/launcher/<x>.yaml`` on ``hydra.searchpath`` is known
+  before Hydra starts.
+
+``tests/test_hydra_private.py`` pins the behaviour each of these relies on, so a
+Hydra upgrade that moves them fails there, by name.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import copy
+from collections.abc import Callable, Iterator
+from typing import Any
+
+from hnnbench.errors import HnnbenchError
+
+__all__ = ["args_parser", "group_lister", "one_line_errors"]
+
+
+def args_parser() -> argparse.ArgumentParser:
+    """Hydra's argument parser (``hydra._internal.utils.get_args_parser``)."""
+    from hydra._internal.utils import get_args_parser
+
+    return get_args_parser()
+
+
+@contextlib.contextmanager
+def one_line_errors(to_line: Callable[[BaseException], str], enabled: bool = True
+                    ) -> Iterator[None]:
+    """While active, an exception Hydra reports from ``run_and_report`` (composition
+    errors found after hnnbench's own checks) is raised as a one-line
+    :class:`HnnbenchError` built by ``to_line``."""
+    import hydra._internal.utils as hydra_utils
+
+    original = getattr(hydra_utils, "run_and_report", None)
+    if original is None or not enabled:
+        yield
+        return
+
+    def run_and_report(func: Any) -> Any:
+        try:
+            return func()
+        except HnnbenchError:
+            raise
+        except Exception as err:
+            raise HnnbenchError(to_line(err)) from None
+
+    hydra_utils.run_and_report = run_and_report
+    try:
+        yield
+    finally:
+        hydra_utils.run_and_report = original
+
+
+def group_lister(loader: Any, extra_paths: list[str]
+                 ) -> tuple[Callable[[str], list[str]], Callable[[str], list[str]]]:
+    """``(list_groups(parent), group_options(group))`` over ``loader``'s search path
+    (a Hydra config loader) plus ``extra_paths`` (``hydra.searchpath`` entries)."""
+    from hydra._internal.config_repository import ConfigRepository
+    from hydra.core.object_type import ObjectType
+
+    if not extra_paths:
+        return loader.list_groups, loader.get_group_options
+    search_path = copy.deepcopy(loader.config_search_path)
+    for entry in extra_paths:
+        search_path.append(provider="hydra.searchpath (command line)", path=entry)
+    repo = ConfigRepository(config_search_path=search_path)
+    return (lambda parent: repo.get_group_options(parent, ObjectType.GROUP),
+            lambda group: repo.get_group_options(group, ObjectType.CONFIG))

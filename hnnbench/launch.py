@@ -1,0 +1,65 @@
+"""The launch context: what the ``hnnbench`` command tells the jobs it starts.
+
+A sweep's jobs may run in launcher workers (joblib's processes, Slurm tasks), which
+see the command's environment but none of its Python state. Three facts travel
+there, in one environment variable (:data:`ENV`, JSON):
+
+- ``command``: the command line as typed, stored in every record;
+- ``n_jobs``: the sweep's size, for the ``[k/N]`` progress lines;
+- ``cli_pid``: the command's process id. Its presence means "started by the
+  ``hnnbench`` command", which makes a job pin itself to one core
+  (:mod:`hnnbench.affinity`); a notebook or test calling
+  :func:`hnnbench.run.run_job` directly is left alone.
+
+:func:`launched` sets it for the duration of a command and restores what was there
+before, so a notebook's later in-process runs are not affected.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass
+from typing import Optional
+
+__all__ = ["ENV", "LaunchContext", "current", "launched"]
+
+#: The environment variable holding the context (JSON).
+ENV = "HNNBENCH_LAUNCH"
+
+
+@dataclass(frozen=True)
+class LaunchContext:
+    """See the module docstring."""
+
+    command: Optional[str] = None
+    n_jobs: Optional[int] = None
+    cli_pid: Optional[int] = None
+
+
+def current() -> Optional[LaunchContext]:
+    """The context of the ``hnnbench`` command this process works for, or ``None``."""
+    value = os.environ.get(ENV)
+    if not value:
+        return None
+    try:
+        data = json.loads(value)
+        return LaunchContext(**{k: data.get(k) for k in ("command", "n_jobs", "cli_pid")})
+    except (ValueError, TypeError, AttributeError):  # set by hand: "started by the CLI"
+        return LaunchContext()
+
+
+@contextlib.contextmanager
+def launched(context: LaunchContext) -> Iterator[None]:
+    """Set ``context`` for this process and the workers it starts; restore on exit."""
+    previous = os.environ.get(ENV)
+    os.environ[ENV] = json.dumps(asdict(context))
+    try:
+        yield
+    finally:
+        if previous is None:
+            os.environ.pop(ENV, None)
+        else:
+            os.environ[ENV] = previous
