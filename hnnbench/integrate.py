@@ -11,7 +11,6 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from hnnbench.errors import RolloutDiverged
 
@@ -37,6 +36,8 @@ def solve_batch(
     Returns:
         ``(M, T, D)`` float64 states, ``out[:, 0] == x0``.
     """
+    from scipy.integrate import solve_ivp  # imported when used: listing plugins stays fast
+
     x0 = np.asarray(x0, dtype=np.float64)
     t = np.asarray(t, dtype=np.float64)
     m, d = x0.shape
