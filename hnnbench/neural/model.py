@@ -144,9 +144,15 @@ class NeuralModel(Model):
         return self._inference
 
     # -- training -------------------------------------------------------------------
+    def training_options(self) -> tuple[int, tuple[tuple[str, Any], ...]]:
+        """``(window, options)``: states per trajectory window (0: the family's
+        default) and the keyword options of the family's ``window_loss``; a family
+        with its own config fields overrides this."""
+        return 0, ()
+
     def _train(self, data: Dataset, settings: TrainSettings, seeds: Sequence[int],
                progress: Progress) -> tuple[list[Any], list[Weights]]:
-        problem = self.view.problem(data)
+        problem = self.view.problem(data, *self.training_options())
         d_obs = problem.train[0].shape[1] if problem.kind == "pixels" else None
         if self.warm_start is not None:
             self._check_layout(self.warm_start)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -42,8 +42,8 @@ __all__ = [
 #: The pixel test loss logged during training is taken on this many evenly spaced test
 #: points (the whole test set costs as much as ~10 training steps).
 LOG_TEST_POINTS = 1024
-#: Relative tolerance for "equally spaced" samples of a trajectory window.
-WINDOW_DT_RTOL = 1e-6
+#: A time step outside [median / F, median * F] of its trajectory is a gap.
+WINDOW_GAP_FACTOR = 1.5
 
 Kind = Literal["derivatives", "windows", "pixels"]
 
@@ -55,15 +55,18 @@ class Problem:
 
     Attributes:
         kind: ``"derivatives"``: ``(z, ż)``, loss ``mean((field(z) - ż)^2)``;
-            ``"windows"``: ``(windows (W, L, d), dts (W,))``, the family's
+            ``"windows"``: ``(windows (W, L, d), dts (W, L - 1))``, the family's
             ``window_loss``; ``"pixels"``: ``(x, x_next)``, the autoencoder objective.
         train, test: the arrays of each split (for pixels, at most
             :data:`LOG_TEST_POINTS` test rows).
+        options: keyword arguments of the family's ``window_loss`` (hashable, e.g.
+            ``(("substeps", 1),)``).
     """
 
     kind: Kind
     train: tuple[np.ndarray, ...]
     test: tuple[np.ndarray, ...]
+    options: tuple[tuple[str, Any], ...] = ()
 
     @property
     def n(self) -> int:
@@ -73,30 +76,36 @@ class Problem:
 
 def trajectory_windows(split: Split, states: np.ndarray, length: int
                        ) -> tuple[np.ndarray, np.ndarray]:
-    """Windows of ``length`` consecutive, equally spaced samples of each trajectory.
+    """Windows of ``length`` consecutive samples of each trajectory.
 
     Rows of ``states`` (``(N, d)``, aligned with ``split``) are grouped by
     ``split.traj`` and ordered by ``split.t``; every run of ``length`` rows whose time
-    steps are equal (to :data:`WINDOW_DT_RTOL`) and positive is a window (overlapping,
-    stride 1). Returns ``(windows (W, length, d), dts (W,))``; ``W`` may be 0.
+    steps all lie within :data:`WINDOW_GAP_FACTOR` of the trajectory's median step (so
+    no window spans a gap in measured data) is a window (overlapping, stride 1).
+
+    Returns:
+        ``(windows (W, length, d), dts (W, length - 1))``: the states and each
+        interval's own time step (measured data is not exactly equally spaced). ``W``
+        may be 0.
     """
     windows: list[np.ndarray] = []
-    dts: list[float] = []
+    dts: list[np.ndarray] = []
     traj, t = np.asarray(split.traj), np.asarray(split.t, dtype=np.float64)
     for tid in np.unique(traj):
         rows = np.flatnonzero(traj == tid)
         rows = rows[np.argsort(t[rows], kind="stable")]
         steps = np.diff(t[rows])
+        if steps.size < length - 1:
+            continue
+        median = float(np.median(steps))
+        good = (steps > median / WINDOW_GAP_FACTOR) & (steps < median * WINDOW_GAP_FACTOR)
         for start in range(len(rows) - length + 1):
-            step = steps[start:start + length - 1]
-            if step.size and step[0] > 0 and np.all(
-                    np.abs(step - step[0]) <= WINDOW_DT_RTOL * step[0]):
+            if np.all(good[start:start + length - 1]):
                 windows.append(states[rows[start:start + length]])
-                dts.append(float(step[0]))
+                dts.append(steps[start:start + length - 1])
     if not windows:
-        d = states.shape[1]
-        return np.zeros((0, length, d)), np.zeros((0,))
-    return np.stack(windows), np.asarray(dts)
+        return np.zeros((0, length, states.shape[1])), np.zeros((0, length - 1))
+    return np.stack(windows), np.stack(dts)
 
 
 class View:
@@ -130,10 +139,12 @@ class View:
     def _pairs(self, split: Split) -> tuple[np.ndarray, np.ndarray]:
         return split.x, split.dxdt
 
-    def problem(self, data: Dataset) -> Problem:
-        """The training problem of ``data`` for this family."""
+    def problem(self, data: Dataset, window: int = 0,
+                options: tuple[tuple[str, Any], ...] = ()) -> Problem:
+        """The training problem of ``data`` for this family (``window``: states per
+        trajectory window; ``options``: the family's loss options)."""
         if self.family.data == "windows":
-            length = self.family.window
+            length = window or self.family.window
             out = []
             for split in (data.train, data.test):
                 z, _ = self._pairs(split)
@@ -144,7 +155,7 @@ class View:
                     "equally spaced samples of one trajectory, which the "
                     f"{self.family.name} family trains on"
                 )
-            return Problem("windows", out[0], out[1])
+            return Problem("windows", out[0], out[1], options)
         return Problem("derivatives", self._pairs(data.train), self._pairs(data.test))
 
 
@@ -204,7 +215,8 @@ class PixelView(View):
             x_next = np.asarray(x) + self.time_unit * np.asarray(dxdt)
         return np.asarray(x), np.asarray(x_next)
 
-    def problem(self, data: Dataset) -> Problem:
+    def problem(self, data: Dataset, window: int = 0,
+                options: tuple[tuple[str, Any], ...] = ()) -> Problem:
         self.set_frame_dt(data)
         train = self.pairs(data.train.x, data.train.dxdt, data.train.extras)
         test = data.test

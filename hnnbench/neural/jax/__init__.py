@@ -149,15 +149,15 @@ def adam_like_torch(lr: Any, weight_decay: Any) -> optax.GradientTransformation:
     )
 
 
-def _loss(kind: str, impl: ModuleType, static: Any, params: Any, *arrays: jax.Array
-          ) -> jax.Array:
+def _loss(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], static: Any,
+          params: Any, *arrays: jax.Array) -> jax.Array:
     """One seed's loss on a batch of a :class:`~hnnbench.neural.views.Problem`."""
     nets = eqx.combine(params, static)
     if kind == "derivatives":
         z, zdot = arrays
         return jnp.mean((impl.field(nets, z) - zdot) ** 2)
     if kind == "windows":
-        return impl.window_loss(nets, *arrays)
+        return impl.window_loss(nets, *arrays, **dict(options))
     return pixel_objective(impl.field, nets, *arrays)
 
 
@@ -181,7 +181,8 @@ def scan_steps(
     return params, opt_state, losses
 
 
-def _chunk(kind: str, impl: ModuleType, static: Any, length: int, params: Any,
+def _chunk(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], static: Any,
+           length: int, params: Any,
            opt_state: Any, idx: Optional[jax.Array], train: tuple[jax.Array, ...],
            test: tuple[jax.Array, ...], lr: jax.Array, weight_decay: jax.Array
            ) -> tuple[Any, Any, jax.Array, jax.Array]:
@@ -190,27 +191,29 @@ def _chunk(kind: str, impl: ModuleType, static: Any, length: int, params: Any,
     optimizer = adam_like_torch(lr, weight_decay)
 
     def loss_fn(p: Any, *batch: jax.Array) -> jax.Array:
-        return _loss(kind, impl, static, p, *batch)
+        return _loss(kind, impl, options, static, p, *batch)
 
     params, opt_state, losses = scan_steps(loss_fn, optimizer, params, opt_state, idx, train,
                                            length)
     return params, opt_state, losses, loss_fn(params, *test)
 
 
-def _batched_chunk(kind: str, impl: ModuleType, static: Any, length: int, params: Any,
+def _batched_chunk(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...],
+                   static: Any, length: int, params: Any,
                    opt_state: Any, idx: Optional[jax.Array], train: tuple[jax.Array, ...],
                    test: tuple[jax.Array, ...], lr: jax.Array, weight_decay: jax.Array
                    ) -> tuple[Any, Any, jax.Array, jax.Array]:
     """:func:`_chunk` for stacked seeds: ``vmap`` over params, optimizer state and
     indices (data and hyperparameters shared)."""
     def one(p: Any, o: Any, i: Optional[jax.Array]) -> Any:
-        return _chunk(kind, impl, static, length, p, o, i, train, test, lr, weight_decay)
+        return _chunk(kind, impl, options, static, length, p, o, i, train, test, lr,
+                      weight_decay)
 
     return jax.vmap(one, in_axes=(0, 0, None if idx is None else 0))(params, opt_state, idx)
 
 
-_CHUNKS = {False: jax.jit(_chunk, static_argnums=(0, 1, 2, 3)),
-           True: jax.jit(_batched_chunk, static_argnums=(0, 1, 2, 3))}
+_CHUNKS = {False: jax.jit(_chunk, static_argnums=(0, 1, 2, 3, 4)),
+           True: jax.jit(_batched_chunk, static_argnums=(0, 1, 2, 3, 4))}
 #: Compiled chunks of this process, keyed by loss, layout, length, argument shapes and
 #: device: a sweep reuses them across seeds.
 _COMPILED: dict[Any, Any] = {}
@@ -260,7 +263,7 @@ class JaxTrainer:
         self.train = tuple(backend.array(a) for a in problem.train)
         self.test = tuple(backend.array(a) for a in problem.test)
         self.hyper = (backend.array(settings.lr), backend.array(settings.weight_decay))
-        self.statics = (problem.kind, impl, self.static)
+        self.statics = (problem.kind, impl, problem.options, self.static)
 
     def run_chunk(self, indices: Optional[np.ndarray], length: int) -> tuple[Any, Any]:
         idx = None

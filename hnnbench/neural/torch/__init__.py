@@ -48,8 +48,8 @@ def networks(family: Family, params: Mapping[str, Any], d: int, cfg: NeuralConfi
             for name in family.networks(d)}
 
 
-def make_loss(family: Family, impl: ModuleType, kind: str, d: int, cfg: NeuralConfig
-              ) -> Callable[..., torch.Tensor]:
+def make_loss(family: Family, impl: ModuleType, kind: str, d: int, cfg: NeuralConfig,
+              options: tuple[tuple[str, Any], ...] = ()) -> Callable[..., torch.Tensor]:
     """``loss(params, *arrays) -> scalar`` of one seed for a :class:`Problem` kind."""
 
     def nets_of(params: Params) -> dict[str, MLP]:
@@ -60,7 +60,7 @@ def make_loss(family: Family, impl: ModuleType, kind: str, d: int, cfg: NeuralCo
             return torch.mean((impl.field(nets_of(params), z) - zdot) ** 2)
     elif kind == "windows":
         def loss(params: Params, windows: torch.Tensor, dts: torch.Tensor) -> torch.Tensor:
-            return impl.window_loss(nets_of(params), windows, dts)
+            return impl.window_loss(nets_of(params), windows, dts, **dict(options))
     else:
         def loss(params: Params, x: torch.Tensor, x_next: torch.Tensor) -> torch.Tensor:
             return pixel_objective(impl.field, nets_of(params), Autoencoder(params), x, x_next)
@@ -75,7 +75,7 @@ class TorchTrainer:
                  d: int) -> None:
         dev, dtype = backend.device, backend.dtype
         self.seeds = len(initial)
-        self.loss = make_loss(family, impl, problem.kind, d, backend.cfg)
+        self.loss = make_loss(family, impl, problem.kind, d, backend.cfg, problem.options)
 
         def tensor(a: np.ndarray) -> torch.Tensor:
             return torch.as_tensor(np.ascontiguousarray(a), device=dev).to(dtype)

@@ -1,0 +1,12 @@
+"""The second-order NODE in torch: ``(q, q̇)' = (q̇, g(q, q̇))``."""
+
+from __future__ import annotations
+
+import torch
+
+from hnnbench.neural.torch.nets import MLP
+
+
+def field(nets: dict[str, MLP], z: torch.Tensor) -> torch.Tensor:
+    n = z.shape[-1] // 2
+    return torch.cat([z[:, n:], nets["g"](z)], dim=-1)

@@ -1,0 +1,78 @@
+"""The symplectic recurrent neural network (Chen, Zhang, Arjovsky, Bottou, ICLR 2020).
+
+A separable Hamiltonian ``H(q, p) = T(p) + V(q)`` from two scalar networks, trained
+*through a leapfrog integrator*: from the first state of a window of consecutive
+observed states of a training trajectory, ``substeps`` leapfrog steps per observed
+interval (each interval's own measured time step) predict the next states, and the
+loss is their mean squared error against the observations. No ``dx/dt`` target is
+used. Leapfrog (Störmer-Verlet) is symplectic for separable ``H``:
+
+    p ← p − (h/2) ∇V(q);   q ← q + h ∇T(p);   p ← p − (h/2) ∇V(q)
+
+Rollouts for the metrics integrate the learned ``ż = (∂T/∂p, −∂V/∂q)`` with the
+harness's adaptive Dormand-Prince, like every other model, so all models are evaluated
+by the same solver; leapfrog is the training integrator only. The learned energy is
+``T + V``. The original also optimised the initial states of noisy trajectories; that
+is not done here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from hnnbench.api import check_int_at_least
+from hnnbench.neural import Family, NeuralConfig, NeuralModel
+
+SRNN = Family(
+    name="srnn",
+    title="Symplectic recurrent NN: H = T(p) + V(q) trained through leapfrog",
+    reference="Chen, Zhang, Arjovsky, Bottou, Symplectic Recurrent Neural Networks, "
+              "ICLR 2020",
+    networks=lambda d: {"T": (d // 2, 1), "V": (d // 2, 1)},
+    implementations={"torch": "hnnbench_plugins.models.srnn.torch",
+                     "jax": "hnnbench_plugins.models.srnn.jax"},
+    data="windows",
+    window=5,
+    learned_energy=True,
+)
+
+
+@dataclass
+class SRNNConfig(NeuralConfig):
+    """Attributes:
+        window: observed states per training window (the first is the start).
+        substeps: leapfrog steps per observed interval.
+    """
+
+    window: int = 5
+    substeps: int = 1
+
+    def validate(self) -> None:
+        super().validate()
+        check_int_at_least("model", 2, window=self.window)
+        check_int_at_least("model", 1, substeps=self.substeps)
+
+
+class _SRNN(NeuralModel):
+    Config = SRNNConfig
+    cfg: SRNNConfig
+
+    def training_options(self) -> tuple[int, tuple[tuple[str, Any], ...]]:
+        return self.cfg.window, (("substeps", int(self.cfg.substeps)),)
+
+
+class SRNNTorch(_SRNN):
+    """Symplectic recurrent NN (PyTorch)."""
+
+    family = SRNN
+    backend = "torch"
+    version = "1"
+
+
+class SRNNJax(_SRNN):
+    """Symplectic recurrent NN (JAX)."""
+
+    family = SRNN
+    backend = "jax"
+    version = "1"
