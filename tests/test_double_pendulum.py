@@ -251,16 +251,21 @@ def test_dataset_shapes_split_wrapping_and_targets():
     assert set(ds.train.traj) == set(range(8)) and set(ds.test.traj) == {8, 9}
     for split in (ds.train, ds.test):
         assert split.x.shape == split.dxdt.shape == (len(split), 4)
+        np.testing.assert_array_equal(split.dxdt, system.vector_field(split.x))
+    # continuous by default: consecutive samples of a trajectory never jump by a turn
+    q = ds.train.x[:, :2].reshape(8, 11, 2)
+    assert np.max(np.abs(np.diff(q, axis=1))) < np.pi
+    assert ds.meta["dt"] == pytest.approx(1.0) and ds.meta["wrap_angles"] is False
+    # wrapped: the same points by whole turns, inside [-π, π); the field is 2π-periodic
+    # in the angles, so the targets stay exact at the wrapped inputs
+    wrapped = make(n_traj=10, test_split=0.2, wrap_angles=True).dataset(0)
+    for split in (wrapped.train, wrapped.test):
         assert np.all((split.x[:, :2] >= -np.pi) & (split.x[:, :2] < np.pi))
-        # the field is 2π-periodic in the angles: the targets are exact at wrapped inputs
         np.testing.assert_allclose(split.dxdt, system.vector_field(split.x), rtol=1e-9,
                                    atol=1e-9)
-    # unwrapped, the same points (the default data leaves [-π, π) when a rod turns over)
-    raw = make(n_traj=10, test_split=0.2, wrap_angles=False).dataset(0)
-    np.testing.assert_allclose(dp.wrap_angle(raw.train.x[:, :2]), ds.train.x[:, :2],
+    np.testing.assert_allclose(dp.wrap_angle(ds.train.x[:, :2]), wrapped.train.x[:, :2],
                                atol=1e-12)
-    np.testing.assert_array_equal(raw.train.dxdt, ds.train.dxdt)
-    assert ds.meta["dt"] == pytest.approx(1.0) and ds.meta["wrap_angles"] is True
+    np.testing.assert_array_equal(wrapped.train.dxdt, ds.train.dxdt)
 
 
 def test_dataset_is_deterministic_noise_keeps_clean_targets():
@@ -313,6 +318,7 @@ def test_defaults_profiles_and_entry_point():
     assert (cfg.m1, cfg.m2, cfg.l1, cfg.l2, cfg.g) == (1.0, 1.0, 1.0, 1.0, 1.0)
     assert (cfg.energy_min, cfg.energy_max) == (3.0, 4.0)
     assert (cfg.n_traj, cfg.n_points, cfg.t_end, cfg.noise_std) == (200, 51, 10.0, 0.0)
+    assert cfg.wrap_angles is False
     assert (cfg.eval_n_traj, cfg.eval_t_end, cfg.eval_n_points) == (15, 10.0, 101)
     assert cfg.data_rtol == cfg.eval_rtol == 1e-12
     names = {f.name for f in dataclasses.fields(DoublePendulumConfig)}

@@ -3,9 +3,9 @@
 Two point masses ``m1``, ``m2`` on massless rigid rods of lengths ``l1``, ``l2`` under
 gravity ``g`` (defaults 1: dimensionless units, time in units of ``sqrt(l1 / g)``). The
 angles ``q = (q1, q2)`` are measured from the downward vertical, each rod's own angle
-(not the angle between the rods), counter-clockwise positive, in radians. Trajectories
-keep them continuous (a rod that goes over the top keeps counting turns); the data
-points' angles are wrapped into ``[-π, π)`` (``wrap_angles``, see below).
+(not the angle between the rods), counter-clockwise positive, in radians. They are
+continuous (a rod that goes over the top keeps counting turns), in the data and the
+evaluation alike; ``wrap_angles`` wraps the data points' angles instead (see below).
 ``p = (p1, p2)`` are the canonical momenta conjugate to them, ``p = M(q) q̇``, with the
 mass matrix
 
@@ -30,14 +30,17 @@ direction uniform on the circle, and the momenta scaled so that ``H = E`` exactl
 
 Data: ``n_traj`` trajectories of ``n_points`` samples over ``[0, t_end]`` (DOP853, rtol =
 atol = ``data_rtol``); the dx/dt targets are the analytic field at the clean states.
-With ``wrap_angles`` (default) each point's angles are then wrapped into ``[-π, π)``:
-the field is 2π-periodic in each angle, so the targets stay exact, and the training
-inputs fill one compact domain instead of spreading over every turn the outer rod makes
-(unwrapped, 46% of the default data's q2 values lie beyond ±π, up to ±26 rad).
-Gaussian noise of std ``noise_std`` (default 0) is added to the inputs; the first
-``1 - test_split`` of the trajectories train, the rest test. Evaluation:
+The angles stay continuous by default, so the training points come from the same
+distribution as the evaluation trajectories (46% of the default data's q2 values lie
+beyond ±π, up to ±26 rad, as the outer rod turns over). With ``wrap_angles`` each
+point's angles are wrapped into ``[-π, π)`` (the field is 2π-periodic, so the targets
+stay exact): the training domain is compact and the derivative fit better, but
+evaluation trajectories then leave it whenever a rod turns over (measured trade-off in
+docs/SYSTEMS_DOUBLE_PENDULUM.md). Gaussian noise of std ``noise_std`` (default 0) is
+added to the inputs; the first ``1 - test_split`` of the trajectories train, the rest
+test. Evaluation:
 ``eval_n_traj`` fresh trajectories (their own seed stream) over ``[0, eval_t_end]``,
-continuous (not wrapped: rollouts are compared with them), starting in ``[-π, π)²``.
+continuous (rollouts are compared with them), starting in ``[-π, π]²``.
 
 The default regime (``E ∈ [3, 4]``, unit parameters) is chaotic: all 256 states of the
 Lyapunov estimate have exponents of 0.25-0.46, Lyapunov time 2.83 (:data:`LYAPUNOV_TIME`,
@@ -320,7 +323,7 @@ class DoublePendulumConfig(SystemConfig):
     t_end: float = 10.0
     n_points: int = 51
     #: Wrap the data points' angles into [-π, π) (evaluation trajectories stay continuous).
-    wrap_angles: bool = True
+    wrap_angles: bool = False
     #: Gaussian noise added to the model inputs (targets stay clean).
     noise_std: float = 0.0
     #: Fraction of the trajectories (the last ones) held out as the test set.
