@@ -503,11 +503,17 @@ def _main() -> None:
             np.array([model.mass_ratio, model.length_ratio, model.g_over_l1, *model.damping]),
             test[:, THETA], test[:, OMEGA]) - test[:, ALPHA]) ** 2, 0,
     ) / np.mean(test[:, ALPHA] ** 2, 0))
-    energy = {}
+    energy, ranges = {}, {}
     for trial in np.unique(table[:, 0]):
         rows = table[table[:, 0] == trial]
         e = model.energy(np.concatenate([rows[:, THETA], rows[:, OMEGA]], 1))
         slope = np.polyfit(rows[:, 1] - rows[0, 1], np.log(e), 1)[0]
+        ranges[f"trial_{int(trial)}"] = {
+            "theta1": [float(rows[:, 2].min()), float(rows[:, 2].max())],
+            "theta2": [float(rows[:, 3].min()), float(rows[:, 3].max())],
+            "max_abs_omega": [float(v) for v in np.abs(rows[:, OMEGA]).max(0)],
+            "t": [float(rows[0, 1]), float(rows[-1, 1])],
+        }
         energy[f"trial_{int(trial)}"] = {
             "mean": float(e.mean()), "min": float(e.min()), "max": float(e.max()),
             "first_20_mean": float(e[:20].mean()), "last_20_mean": float(e[-20:].mean()),
@@ -517,12 +523,14 @@ def _main() -> None:
     report = {
         "structure": {"rows": s["n_rows"], "dt": s["dt"], "gaps": int(s["gap"].sum()),
                       "split_row": split_row, "split_time": float(table[split_row, 1])},
+        "ranges": ranges,
         "derivatives": derivative_consistency(table, cfg.max_gap_factor),
         "energy_model": {**model.__dict__, "coefficients": model.coefficients,
                          "test_relative_residual": list(test_rms)},
         "energy_along_trials": energy,
         "evaluation": {k: traj.meta[k] for k in ("n_traj", "chunk_points", "horizon",
-                                                 "chunk_start_times", "unused_test_rows")},
+                                                 "chunk_start_times", "unused_test_rows",
+                                                 "max_grid_deviation")},
         "evaluation_states_beyond_pi": float(np.mean(np.abs(traj.states[..., :2]) > np.pi)),
     }
     print(json.dumps(report, indent=1, default=float))
