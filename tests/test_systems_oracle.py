@@ -1,0 +1,30 @@
+"""The new built-in systems end to end with the oracle: the true field integrated by the
+core's evaluation must reproduce each system's energy (energy MSE < 1e-10)."""
+
+from __future__ import annotations
+
+import pytest
+
+from hnnbench.config import compose
+from hnnbench.run import run_job
+
+SIMULATED = ["double_pendulum", "damped_spring", "damped_pendulum", "spring_chain"]
+
+
+@pytest.mark.parametrize("profile", ["quick", "paper"])
+@pytest.mark.parametrize("system", SIMULATED)
+def test_oracle_reproduces_the_energy(tmp_path, system, profile):
+    overrides = [f"system={system}", "model=oracle", f"profile={profile}"]
+    record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)
+    assert record["status"] == "ok", record["error"]
+    metrics = record["metrics"]
+    assert metrics["energy_mse"]["mean"] < 1e-10
+    assert metrics["test_loss"]["mean"] < 1e-20 or system.startswith("damped")  # noisy inputs
+    assert metrics["rollout_mse"]["mean"] < 1e-10
+
+
+def test_the_oracle_is_skipped_on_measured_data(tmp_path):
+    overrides = ["system=real_double_pendulum", "model=oracle", "profile=quick"]
+    record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)
+    assert record["status"] == "skipped"
+    assert "no known vector field" in record["error"]
