@@ -111,11 +111,22 @@ def test_batched_leading_dimensions_and_reversal():
         three_body().energy(np.zeros((2, 8)))
 
 
-@pytest.mark.parametrize("n_bodies", [2, 3, 5])
-def test_ring_speed_is_circular(n_bodies):
-    """Without noise the ring rotates rigidly: centripetal acceleration = v^2 / r."""
+def noiseless_states(sampler: str, n_bodies: int, n: int = 7) -> np.ndarray:
     rng = np.random.default_rng(0)
-    x = nbody.ring_states(rng, 7, n_bodies, 0.5, 1.5, velocity_noise=0.0)
+    if sampler == "ring":
+        return nbody.ring_states(rng, n, n_bodies, 0.5, 1.5, velocity_noise=0.0)
+    if n_bodies == 2:
+        return nbody.box_mirror_states(rng, n, 0.5, 1.5, velocity_noise=0.0)
+    return nbody.triangle_states(rng, n, 0.9, 1.2, velocity_noise=0.0)
+
+
+@pytest.mark.parametrize(
+    "sampler, n_bodies", [("ring", 2), ("ring", 3), ("ring", 5), ("2019", 2), ("2019", 3)]
+)
+def test_speed_before_the_factor_is_circular(sampler, n_bodies):
+    """Without noise every sampler gives a rigidly rotating, centred configuration:
+    tangential velocities and centripetal acceleration = v^2 / r for every body."""
+    x = noiseless_states(sampler, n_bodies)
     system = NBody(NBodyConfig(name="nbody", n_bodies=n_bodies))
     q = x[:, : 2 * n_bodies].reshape(7, n_bodies, 2)
     p = x[:, 2 * n_bodies :].reshape(7, n_bodies, 2)
@@ -124,7 +135,10 @@ def test_ring_speed_is_circular(n_bodies):
     v2 = np.sum(p**2, axis=-1)
     np.testing.assert_allclose(np.sum(a * q, axis=-1) / r, -v2 / r, rtol=1e-12)
     np.testing.assert_allclose(np.sum(q * p, axis=-1), 0.0, atol=1e-12)  # tangential
-    np.testing.assert_allclose(q.sum(axis=1), 0.0, atol=1e-12)  # centred ring
+    np.testing.assert_allclose(q[..., 0] * p[..., 1] - q[..., 1] * p[..., 0], r * np.sqrt(v2),
+                               rtol=1e-12)  # counter-clockwise
+    np.testing.assert_allclose(q.sum(axis=1), 0.0, atol=1e-12)  # centred
+    np.testing.assert_allclose(r - r[:, :1], 0.0, atol=1e-12)  # one ring
     if n_bodies == 2:
         np.testing.assert_allclose(q[:, 1], -q[:, 0])  # mirrored through the origin
 
@@ -140,9 +154,10 @@ def test_rebound_orbits_flags_a_collision():
 # --------------------------------------------------------------------------- data
 
 
-@pytest.mark.parametrize("make", [two_body, three_body])
-def test_dataset_shapes_split_and_targets(make):
-    system = make()
+@pytest.mark.parametrize("make, init", [(two_body, "2019"), (three_body, "2019"),
+                                         (two_body, "ring"), (three_body, "ring")])
+def test_dataset_shapes_split_and_targets(make, init):
+    system = make(init=init)
     c = system.cfg
     data = system.dataset(0)
     d = 4 * c.n_bodies
@@ -159,6 +174,7 @@ def test_dataset_shapes_split_and_targets(make):
     np.testing.assert_array_equal(data.test.dxdt, system.vector_field(data.test.x))
     meta = data.meta
     assert meta["reference"] == "REBOUND IAS15"
+    assert meta["init"] == init
     assert meta["ias15_adaptive_mode"] == "global"
     assert 0 <= meta["max_rel_energy_drift"] < 1e-10
     assert meta["n_train_traj"] == c.n_orbits - n_test and meta["n_test_traj"] == n_test
@@ -190,19 +206,124 @@ def test_input_noise_option_keeps_clean_targets():
     assert 0.05 < np.std(noisy.train.x - clean.train.x) < 0.15
 
 
-def test_initial_state_distribution():
-    system = TwoBody(TwoBodyConfig(name="two_body"))
+def test_ring_initial_state_distribution():
+    """init=ring: hnnbench's sampler up to version 1 (radius U[a, b], per-body factor)."""
+    system = TwoBody(TwoBodyConfig(name="two_body", init="ring"))
     x0 = system.initial_states(np.random.default_rng(0), 2000)
     r = np.linalg.norm(x0[:, :2], axis=1)
     assert 0.5 <= r.min() and r.max() <= 1.5
     speed_ratio = np.linalg.norm(x0[:, 4:6], axis=1) / nbody.circular_speed(r, 2)
     assert abs(np.std(speed_ratio) - 0.05) < 0.005
-    x3 = ThreeBody(ThreeBodyConfig(name="three_body")).initial_states(
+    # each body has its own factor: the total momentum is not zero
+    assert np.std(x0[:, 4:6] + x0[:, 6:8]) > 0.01
+    x3 = ThreeBody(ThreeBodyConfig(name="three_body", init="ring")).initial_states(
         np.random.default_rng(0), 2000
     )
     r3 = np.linalg.norm(x3[:, :6].reshape(-1, 3, 2), axis=-1)
     assert 0.9 <= r3.min() and r3.max() <= 1.2
     np.testing.assert_allclose(r3 - r3[:, :1], 0.0, atol=1e-12)  # all three on one ring
+    x_ring = nbody.ring_states(np.random.default_rng(0), 2000, 3, 0.9, 1.2, 0.2)
+    np.testing.assert_array_equal(x3, x_ring)  # bit for bit the version-1 sampler
+
+
+def test_2019_two_body_distribution():
+    """Default two-body sampler = the 2019 code's: body 1 in the box [0.5, 1.5]^2, body 2
+    at (-q, -v), circular speed times ONE Gaussian factor, centre of mass at rest."""
+    n = 4000
+    x0 = TwoBody(TwoBodyConfig(name="two_body")).initial_states(np.random.default_rng(0), n)
+    q1, q2, p1, p2 = x0[:, 0:2], x0[:, 2:4], x0[:, 4:6], x0[:, 6:8]
+    # position box per coordinate (not a radius): first quadrant, filled to the corners
+    assert q1.min() >= 0.5 and q1.max() <= 1.5
+    assert q1.min() < 0.502 and q1.max() > 1.498
+    r = np.linalg.norm(q1, axis=1)
+    assert r.min() < 0.75 and r.max() > 2.05  # radii up to 1.5 sqrt(2)
+    # mirror point and centre of mass at rest (exactly)
+    np.testing.assert_array_equal(q2, -q1)
+    np.testing.assert_array_equal(p2, -p1)
+    np.testing.assert_array_equal(q1 + q2, 0.0)
+    np.testing.assert_array_equal(p1 + p2, 0.0)
+    # tangential, counter-clockwise, circular speed times 1 + 0.05 N(0, 1)
+    np.testing.assert_allclose(np.sum(q1 * p1, axis=1), 0.0, atol=1e-12)
+    assert np.all(q1[:, 0] * p1[:, 1] - q1[:, 1] * p1[:, 0] > 0)
+    factor = np.linalg.norm(p1, axis=1) / nbody.circular_speed(r, 2)
+    assert abs(np.mean(factor) - 1.0) < 0.003 and abs(np.std(factor) - 0.05) < 0.003
+    assert 0.03 < np.mean(np.abs(factor - 1) > 0.1) < 0.065  # Gaussian: 4.6% beyond 2 sigma
+    assert np.mean(factor < 0.95) > 0.1  # factors below 1 - 0.05 exist (not a U(-1, 1) law)
+
+
+def test_2019_three_body_distribution():
+    """Default three-body sampler = the 2019 code's: radius U[0.9, 1.2], direction of a
+    uniform point of [-1, 1]^2, bodies 120 degrees apart, circular speed, and each
+    velocity COMPONENT times its own 1 + 0.2 U(-1, 1)."""
+    n = 4000
+    x0 = ThreeBody(ThreeBodyConfig(name="three_body")).initial_states(
+        np.random.default_rng(0), n
+    )
+    q = x0[:, :6].reshape(n, 3, 2)
+    p = x0[:, 6:].reshape(n, 3, 2)
+    r = np.linalg.norm(q, axis=-1)
+    assert 0.9 <= r.min() and r.max() <= 1.2 and r.min() < 0.901 and r.max() > 1.199
+    np.testing.assert_allclose(r - r[:, :1], 0.0, atol=1e-12)
+    for k in (1, 2):  # body k+1 = body 1 rotated by k * 120 degrees
+        c, s = np.cos(2 * np.pi * k / 3), np.sin(2 * np.pi * k / 3)
+        rotated = np.stack([c * q[:, 0, 0] - s * q[:, 0, 1], s * q[:, 0, 0] + c * q[:, 0, 1]], 1)
+        np.testing.assert_allclose(q[:, k], rotated, atol=1e-12)
+    np.testing.assert_allclose(q.sum(axis=1), 0.0, atol=1e-12)
+    # per-component factors: v = factor * (circular velocity), factor in [0.8, 1.2]
+    tangent = np.stack([-q[..., 1], q[..., 0]], axis=-1) / r[..., None]
+    v_circ = nbody.circular_speed(r, 3)[..., None] * tangent
+    factor = p / v_circ
+    assert factor.min() >= 0.8 and factor.max() <= 1.2
+    assert factor.min() < 0.801 and factor.max() > 1.199
+    flat = factor.reshape(n, 6)
+    assert np.all(np.abs(flat.mean(axis=0) - 1) < 0.01)
+    np.testing.assert_allclose(flat.std(axis=0), 0.2 / np.sqrt(3), rtol=0.05)  # uniform
+    corr = np.corrcoef(flat.T) - np.eye(6)
+    assert np.max(np.abs(corr)) < 0.06  # independent components
+    # ... so the total momentum is not zero (the 2019 triangle drifts)
+    assert np.std(p.sum(axis=1)) > 0.05
+    # direction of a uniform point of the square: near-diagonal angles are favoured
+    angle = np.arctan2(q[:, 0, 1], q[:, 0, 0]) % (np.pi / 2)
+    near_diagonal = np.mean(np.abs(angle - np.pi / 4) < np.pi / 8)
+    assert abs(near_diagonal - (1 - np.tan(np.pi / 8))) < 0.03  # 0.586 (uniform angle: 0.5)
+
+
+class Replay:
+    """A Generator stand-in returning fixed numbers, to pin the 2019 formulas."""
+
+    def __init__(self, uniforms, normals=()):
+        self.uniforms, self.normals = list(uniforms), list(normals)
+
+    def uniform(self, lo, hi, size):
+        u = np.array([self.uniforms.pop(0) for _ in range(int(np.prod(size)))])
+        return lo + (hi - lo) * u.reshape(size)
+
+    def standard_normal(self, size):
+        return np.array([self.normals.pop(0) for _ in range(int(np.prod(size)))]).reshape(size)
+
+
+def test_2019_samplers_pin_the_original_formulas():
+    # two bodies: pos = (0.6, 0.8) (r = 1), factor 1 + 0.05 * 0.5; v = (-y, x) / (2 r^1.5)
+    x = nbody.box_mirror_states(Replay([0.1, 0.3], [0.5]), 1, 0.5, 1.5, 0.05)[0]
+    v = np.array([-0.8, 0.6]) / 2.0 * 1.025
+    np.testing.assert_allclose(x, [0.6, 0.8, -0.6, -0.8, *v, *-v], atol=1e-15)
+    # three bodies: p1 = 2 u - 1 = (0.3, -0.4) -> direction (0.6, -0.8), r = 0.9 + 0.3 * 0.5,
+    # v1 = rot90(p1) / r^1.5 * sqrt(sin(pi/3) / (2 cos(pi/6)^2)), times 1 + 0.2 (2 u - 1)
+    u_factor = [0.5, 1.0, 0.0, 0.75, 0.25, 0.5]
+    x = nbody.triangle_states(Replay([0.65, 0.3, 0.5, *u_factor]), 1, 0.9, 1.2, 0.2)[0]
+    r = 1.05
+    p1 = np.array([0.6, -0.8]) * r
+    v1 = np.array([0.8, 0.6]) * r / r**1.5 * np.sqrt(np.sin(np.pi / 3) /
+                                                   (2 * np.cos(np.pi / 6) ** 2))
+
+    def rot(v, k):
+        c, s = np.cos(2 * np.pi * k / 3), np.sin(2 * np.pi * k / 3)
+        return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+
+    factors = 1 + 0.2 * (2 * np.array(u_factor) - 1)
+    expected_q = np.concatenate([rot(p1, k) for k in range(3)])
+    expected_v = np.concatenate([rot(v1, k) for k in range(3)]) * factors
+    np.testing.assert_allclose(x, np.concatenate([expected_q, expected_v]), atol=1e-14)
 
 
 @pytest.mark.parametrize("make", [two_body, three_body])
@@ -259,12 +380,16 @@ def test_paper_defaults_and_profiles():
     assert (three.steps, three.batch_size, three.weight_decay) == (10000, 600, 1e-4)
     assert (three.eval_n_orbits, three.eval_t_end, three.eval_n_points) == (15, 3.0, 500)
     assert two.noise_std == three.noise_std == 0.0
+    assert two.init == three.init == "2019" and NBodyConfig().init == "ring"
+    assert (two.radius_min, two.radius_max, two.velocity_noise) == (0.5, 1.5, 0.05)
+    assert (three.radius_min, three.radius_max, three.velocity_noise) == (0.9, 1.2, 0.2)
     for cls in (TwoBody, ThreeBody):
         names = {f.name for f in dataclasses.fields(cls.Config)}
         for profile in cls.profiles.values():
             assert set(profile) <= names
             cls.Config(name="x", **profile).validate()
-        assert cls.version == "1" and cls.description and "\n" not in cls.description
+        # 2: the 2019 samplers became the default (init="2019")
+        assert cls.version == "2" and cls.description and "\n" not in cls.description
 
 
 @pytest.mark.parametrize(
@@ -285,6 +410,8 @@ def test_paper_defaults_and_profiles():
         ({"noise_std": float("nan")}, "noise_std=nan"),
         ({"n_orbits": 3, "test_split": 0.1}, "empty train or test"),
         ({"steps": 0}, "steps=0"),
+        ({"init": "circle"}, "init='circle'"),
+        ({"init": "2019", "n_bodies": 4}, "init=2019 with system.n_bodies=4"),
     ],
 )
 def test_validate_rejects_bad_values(override, match):

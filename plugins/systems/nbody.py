@@ -14,14 +14,29 @@ potential accumulated outside its loop), and the vector field is ``dq_i/dt = p_i
 ``dp_i/dt = sum_{j != i} G m^2 (q_j - q_i) / |q_j - q_i|^3``. Both are vectorised over any
 leading batch dimensions.
 
-Initial states: the N bodies sit on a ring of radius ``r ~ U[radius_min, radius_max]``,
-evenly spaced (360/N degrees apart) at a uniformly random rotation, so two bodies are
-mirrored through the origin and three form an equilateral triangle. Each body moves
-tangentially (counter-clockwise) at the speed of the circular orbit of that ring,
-``v = sqrt(S / (4 r))`` with ``S = sum_{k=1}^{N-1} 1 / sin(pi k / N)`` (G = m = 1), times its
-own factor ``1 + velocity_noise * N(0, 1)``. "Positions in [0.5, 1.5]" (REFERENCE.md) is read
-as a random direction scaled to a random radius. Each body's factor is drawn
-independently, so the centre of mass may drift slowly.
+Initial states (``init``; docs/SYSTEMS_NBODY.md has the formulas):
+
+- ``"2019"`` (default of :class:`TwoBody` and :class:`ThreeBody`): the samplers of the
+  2019 code (``experiment-2body/data.py`` and ``experiment-3body/data.py``,
+  ``random_config``). Two bodies (:func:`box_mirror_states`): both coordinates of body
+  1's position uniform in ``[radius_min, radius_max]`` (the original's ``min_radius`` and
+  ``max_radius`` bound each coordinate, not the radius), body 2 at ``(-q, -v)``, the
+  circular speed times ONE factor ``1 + velocity_noise * N(0, 1)`` shared by both bodies,
+  so the centre of mass stays at the origin, at rest. Three bodies
+  (:func:`triangle_states`): body 1 at radius ``U[radius_min, radius_max]`` in the
+  direction of a uniform point of the square ``[-1, 1]^2`` (not a uniform angle), the
+  others rotated by 120 and 240 degrees, circular speed, and each velocity COMPONENT
+  times its own ``1 + velocity_noise * U(-1, 1)``.
+- ``"ring"`` (hnnbench's sampler up to system version 1, any N; :func:`ring_states`):
+  the N bodies sit on a ring of radius ``r ~ U[radius_min, radius_max]``, evenly spaced
+  (360/N degrees apart) at a uniformly random rotation, each moving tangentially at the
+  circular speed times its own factor ``1 + velocity_noise * N(0, 1)``, so the centre of
+  mass may drift.
+
+Bodies move counter-clockwise at the speed of the circular orbit of their ring,
+``v = sqrt(S / (4 r))`` with ``S = sum_{k=1}^{N-1} 1 / sin(pi k / N)`` (G = m = 1): for
+two bodies ``1 / (2 sqrt(r))``, for three ``sqrt(1 / (sqrt(3) r))``, the speeds the
+original wrote as ``r / (2 r^1.5)`` and ``r / r^1.5 * sqrt(sin(pi/3) / (2 cos(pi/6)^2))``.
 
 Ground truth: every trajectory is integrated by REBOUND with IAS15 (``adaptive_mode =
 "global"``, default epsilon), stopping exactly at each sample time. The worst relative
@@ -67,6 +82,7 @@ from hnnbench.errors import ConfigError, DataError
 from hnnbench.kinematics import Kinematics, LinearKinematics
 
 __all__ = [
+    "INITS",
     "MAX_REL_ENERGY_DRIFT",
     "NBody",
     "NBodyConfig",
@@ -74,10 +90,13 @@ __all__ = [
     "ThreeBodyConfig",
     "TwoBody",
     "TwoBodyConfig",
+    "box_mirror_states",
     "circular_speed",
     "hamiltonian",
+    "initial_states",
     "rebound_orbits",
     "ring_states",
+    "triangle_states",
     "vector_field",
 ]
 
@@ -96,21 +115,33 @@ ENCOUNTER_DISTANCE = 1e-6
 DATA_STREAM = 0
 EVAL_STREAM = 1
 
+#: Initial-state samplers (``NBodyConfig.init``): the 2019 code's (two or three bodies)
+#: and hnnbench's earlier evenly spaced ring (any N).
+INITS = ("2019", "ring")
+
 
 # --------------------------------------------------------------------------- config
 
 
 @dataclass
 class NBodyConfig(SystemConfig):
-    """Data and evaluation protocol of N bodies on a perturbed circular ring."""
+    """Data and evaluation protocol of N bodies on a perturbed circular orbit."""
 
     n_bodies: int = 2
+    #: Initial-state sampler: ``"2019"`` (the 2019 code's, two or three bodies only) or
+    #: ``"ring"`` (any N); see the module docstring. The generic class defaults to
+    #: ``"ring"``; :class:`TwoBodyConfig` and :class:`ThreeBodyConfig` to ``"2019"``.
+    init: str = "ring"
     n_orbits: int = 1000
     t_end: float = 20.0
     n_points: int = 50
+    #: Radius bounds of the ring; for ``init="2019"`` with two bodies, the bounds of EACH
+    #: coordinate of body 1's position (as the original's ``min_radius``/``max_radius``).
     radius_min: float = 0.5
     radius_max: float = 1.5
-    #: Std of each body's relative speed perturbation ``1 + velocity_noise * N(0, 1)``.
+    #: Relative speed perturbation: the std of ``1 + velocity_noise * N(0, 1)`` (ring;
+    #: 2019 two bodies) or the half-width of ``1 + velocity_noise * U(-1, 1)`` (2019
+    #: three bodies).
     velocity_noise: float = 0.05
     #: Gaussian noise added to the model inputs (targets stay clean); 0 as in the paper.
     noise_std: float = 0.0
@@ -131,6 +162,16 @@ class NBodyConfig(SystemConfig):
         )
         check_fraction("system", "test_split", self.test_split, 0.2)
         check_ordered("system", "radius_min", self.radius_min, "radius_max", self.radius_max)
+        if str(self.init) not in INITS:
+            raise ConfigError(
+                f"system.init='{self.init}' is invalid: expected one of {', '.join(INITS)} "
+                "(see docs/SYSTEMS_NBODY.md)."
+            )
+        if str(self.init) == "2019" and self.n_bodies not in (2, 3):
+            raise ConfigError(
+                f"system.init=2019 with system.n_bodies={self.n_bodies} is invalid: the 2019 "
+                "samplers exist for two and three bodies only. Use system.init=ring."
+            )
         for key in ("velocity_noise", "noise_std"):
             if not getattr(self, key) >= 0:
                 raise ConfigError(
@@ -147,9 +188,10 @@ class NBodyConfig(SystemConfig):
 
 @dataclass
 class TwoBodyConfig(NBodyConfig):
-    """Paper settings: 1000 orbits x 50 points over [0, 20], radius U[0.5, 1.5]."""
+    """Paper settings: 1000 orbits x 50 points over [0, 20]; body 1 in [0.5, 1.5]^2."""
 
     n_bodies: int = 2
+    init: str = "2019"
     n_orbits: int = 1000
     t_end: float = 20.0
     n_points: int = 50
@@ -169,6 +211,7 @@ class ThreeBodyConfig(NBodyConfig):
     """Paper settings: 5000 orbits x 20 points over [0, 5], radius U[0.9, 1.2]."""
 
     n_bodies: int = 3
+    init: str = "2019"
     n_orbits: int = 5000
     t_end: float = 5.0
     n_points: int = 20
@@ -264,6 +307,82 @@ def ring_states(
     return np.concatenate([q.reshape(n, -1), p.reshape(n, -1)], axis=1)
 
 
+def _rotate(v: np.ndarray, angle: np.ndarray | float) -> np.ndarray:
+    """``(..., 2)`` vectors rotated counter-clockwise by ``angle`` (broadcast over ``...``)."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.stack([c * v[..., 0] - s * v[..., 1], s * v[..., 0] + c * v[..., 1]], axis=-1)
+
+
+def box_mirror_states(
+    rng: np.random.Generator, n: int, box_min: float, box_max: float, velocity_noise: float
+) -> np.ndarray:
+    """``(n, 8)`` two-body initial states as the 2019 code drew them (``init="2019"``).
+
+    Body 1 at ``q`` with both coordinates ``U[box_min, box_max]``, moving counter-clockwise
+    (perpendicular to ``q``) at the circular speed ``1 / (2 sqrt(|q|))`` times ONE factor
+    ``1 + velocity_noise * N(0, 1)``; body 2 at ``(-q, -v)``. The centre of mass is at the
+    origin and at rest.
+    """
+    q1 = rng.uniform(box_min, box_max, size=(n, 2))
+    factor = 1.0 + velocity_noise * rng.standard_normal(n)
+    r = np.linalg.norm(q1, axis=1)
+    speed = circular_speed(r, 2) * factor
+    v1 = _rotate(q1, np.pi / 2) * (speed / r)[:, None]
+    q = np.stack([q1, -q1], axis=1)  # (n, 2, 2)
+    p = MASS * np.stack([v1, -v1], axis=1)
+    return np.concatenate([q.reshape(n, -1), p.reshape(n, -1)], axis=1)
+
+
+def triangle_states(
+    rng: np.random.Generator,
+    n: int,
+    radius_min: float,
+    radius_max: float,
+    velocity_noise: float,
+) -> np.ndarray:
+    """``(n, 12)`` three-body initial states as the 2019 code drew them (``init="2019"``).
+
+    Body 1 at radius ``U[radius_min, radius_max]`` in the direction of a uniform point of
+    the square ``[-1, 1]^2`` (so diagonal directions are twice as likely as the axes),
+    bodies 2 and 3 rotated by 120 and 240 degrees; each moves counter-clockwise at the
+    circular speed of the triangle, and each velocity component is then multiplied by its
+    own ``1 + velocity_noise * U(-1, 1)``. Positions sum to zero; velocities need not.
+    """
+    u = rng.uniform(-1.0, 1.0, size=(n, 2))
+    radius = rng.uniform(radius_min, radius_max, size=n)
+    factor = 1.0 + velocity_noise * rng.uniform(-1.0, 1.0, size=(n, 3, 2))
+    q1 = u * (radius / np.linalg.norm(u, axis=1))[:, None]
+    angles = 2.0 * np.pi * np.arange(3) / 3.0
+    q = _rotate(q1[:, None, :], angles[None, :])  # (n, 3, 2)
+    speed = circular_speed(radius, 3)
+    v = _rotate(q, np.pi / 2) * (speed / radius)[:, None, None] * factor
+    p = MASS * v
+    return np.concatenate([q.reshape(n, -1), p.reshape(n, -1)], axis=1)
+
+
+def initial_states(
+    rng: np.random.Generator,
+    n: int,
+    n_bodies: int,
+    init: str,
+    radius_min: float,
+    radius_max: float,
+    velocity_noise: float,
+) -> np.ndarray:
+    """``(n, 4N)`` initial states from the sampler ``init`` (one of :data:`INITS`)."""
+    init = str(init)
+    if init == "ring":
+        return ring_states(rng, n, n_bodies, radius_min, radius_max, velocity_noise)
+    if init == "2019" and n_bodies == 2:
+        return box_mirror_states(rng, n, radius_min, radius_max, velocity_noise)
+    if init == "2019" and n_bodies == 3:
+        return triangle_states(rng, n, radius_min, radius_max, velocity_noise)
+    raise ConfigError(
+        f"system.init='{init}' with system.n_bodies={n_bodies} has no sampler: "
+        "init=2019 exists for two and three bodies, init=ring for any number."
+    )
+
+
 # --------------------------------------------------------------------------- REBOUND
 
 
@@ -354,7 +473,9 @@ class NBody(System):
 
     Config: ClassVar[type[SystemConfig]] = NBodyConfig
     cfg: NBodyConfig
-    version = "1"
+    # 2: TwoBody and ThreeBody draw initial states with the 2019 code's samplers
+    # (init="2019"); init="ring" reproduces version 1's data bit for bit.
+    version = "2"
     description = "N bodies in 2-D under Newtonian gravity, G = m = 1 (REBOUND IAS15 data)"
     time_reversible = True
     profiles: ClassVar[dict[str, dict[str, Any]]] = {
@@ -382,8 +503,8 @@ class NBody(System):
     def initial_states(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """``(n, 4N)`` initial states drawn from the protocol's distribution."""
         c = self.cfg
-        return ring_states(
-            rng, n, self.n_bodies, c.radius_min, c.radius_max, c.velocity_noise
+        return initial_states(
+            rng, n, self.n_bodies, c.init, c.radius_min, c.radius_max, c.velocity_noise
         )
 
     @property
@@ -425,6 +546,7 @@ class NBody(System):
                 f"above {MAX_REL_ENERGY_DRIFT:g}."
             )
         info = {
+            "init": str(self.cfg.init),
             **_reference_meta(),
             "max_rel_energy_drift": float(drift[worst]),
             "n_rejected_orbits": n_rejected,
