@@ -310,6 +310,8 @@ class System(ABC):
         profiles: per-profile overrides of the config defaults, e.g.
             ``{"quick": {"steps": 200, "n_traj": 20}}``. The ``paper`` profile is the
             dataclass defaults; ``quick`` is the only other profile.
+        order: position in listings and tables (lower first; ``None``: after the
+            plugins that set one, by name).
 
     Optional methods and properties a subclass may override: :meth:`vector_field`
     (where the dynamics are known), :meth:`kinematics` (for second-order models),
@@ -323,6 +325,7 @@ class System(ABC):
     time_reversible: ClassVar[bool] = True
     conservative: ClassVar[bool] = True
     profiles: ClassVar[dict[str, dict[str, Any]]] = {}
+    order: ClassVar[Optional[float]] = None
 
     def __init__(self, cfg: SystemConfig) -> None:
         self.cfg = cfg
@@ -387,6 +390,9 @@ class Model(ABC):
         observations: the system observations it handles (``"state"``, ``"pixels"``).
         weights_file: the file name :meth:`save` writes in the job's directory, e.g.
             ``"weights.safetensors"``; ``None`` (the default): nothing to save.
+        order: position in listings and tables, as for :class:`System`.
+        ranked: ``False`` for a reference that is not a competitor (the oracle): its
+            rows are shown but never ranked or highlighted as best.
     """
 
     Config: ClassVar[type[ModelConfig]] = ModelConfig
@@ -396,6 +402,8 @@ class Model(ABC):
     observations: ClassVar[tuple[str, ...]] = ("state",)
     profiles: ClassVar[dict[str, dict[str, Any]]] = {}
     weights_file: ClassVar[Optional[str]] = None
+    order: ClassVar[Optional[float]] = None
+    ranked: ClassVar[bool] = True
 
     def __init__(self, cfg: ModelConfig, system: System, device: str = "auto") -> None:
         self.cfg = cfg

@@ -17,16 +17,22 @@ __all__ = ["SweepSummary", "print_summary"]
 def print_summary(sweep_dir: Path) -> None:
     """Print the Markdown summary of the records under ``sweep_dir``; write summary.csv."""
     from hnnbench import records
-    from hnnbench.table import records_frame, summary_frame
+    from hnnbench.table import records_frame, summary_frame, summary_metrics
 
-    frame = summary_frame(records_frame(records.load_records(sweep_dir)))
+    recs, bad = records.scan_records(sweep_dir)
+    for item in bad:
+        log.warning("unreadable record left out: %s", item)
+    frames = records_frame(recs)
+    frame = summary_frame(frames)  # every metric, for summary.csv
     if frame.empty:
         log.warning("no run records under %s", sweep_dir)
         return
     frame.to_csv(sweep_dir / "summary.csv", index=False)
     counts = frame["status"].value_counts().to_dict()
+    shown = summary_frame(frames, summary_metrics())
+    shown = shown[[c for c in shown.columns if not shown[c].isna().all()]]
     print()
-    print(frame.to_markdown(index=False, floatfmt=".3g"))
+    print(shown.to_markdown(index=False, floatfmt=".3g"))
     print()
     print(f"{len(frame)} jobs: " + ", ".join(f"{n} {s}" for s, n in sorted(counts.items())))
     print(f"records and summary.csv in {sweep_dir}")

@@ -1,16 +1,24 @@
-"""``hnnbench check DIR --reference CSV``: the leaderboard regression gate.
+"""``hnnbench check DIR [DIR ...] --reference CSV``: the leaderboard regression gate
+and the validation of submitted records.
 
-The leaderboard of DIR (:func:`hnnbench.table.leaderboard`) is compared with a
-reference in the same format (a ``leaderboard.csv``), row by row on (profile, system,
-model, variant) (the variant is empty where the runs vary in nothing but seeds;
-:func:`hnnbench.table.variant_labels`):
+The records of the directories are validated, then their leaderboard
+(:func:`hnnbench.table.leaderboard`) is compared with a reference in the same format (a
+``leaderboard.csv``), row by row on (profile, system, model, variant) (the variant is
+empty where the runs vary in nothing but seeds; :func:`hnnbench.table.variant_labels`):
 
-- metrics: each ``<metric>_mean`` by the rules of ``resources/check_rules.yaml``
-  (direction, tolerated factor in log space, noise floor), overridable with ``--rules``;
+- records: every ``result.json`` must be readable and valid against the record schema
+  (:func:`hnnbench.records.validate`), carry provenance (hnnbench version, date,
+  platform) and, where the plugin is installed, its current version;
+- metrics: each ``<metric>_mean`` by the metric's declared rule
+  (:class:`hnnbench.metric.CheckRule`: direction, tolerated factor in log space, noise
+  floor), overridable with ``--rules FILE`` (YAML: ``default:`` and ``metrics:``);
 - statuses: a pair whose share of ``ok`` runs fell (ok -> diverged / failed / skipped);
-- coverage: a reference pair with no run in DIR (``--allow-missing`` accepts that);
-- the paper's claims (:mod:`hnnbench.claims`): one reproduced in the reference must still
-  be reproduced; the others are reported as information.
+- coverage: a reference pair with no run in DIR (``--allow-missing`` accepts that, for
+  a sweep that ran only some systems or models);
+- claims (:mod:`hnnbench.claims`): one reproduced in the reference must still be
+  reproduced; the others are reported as information;
+- ``--rerun SYSTEM/MODEL/SEED``: that job is run again from its record's config, and
+  its metrics must agree with the record's by the same rules.
 
 Exit status: 0 when nothing regressed, 1 on a regression (with a table of what and by
 how much); user errors raise :class:`~hnnbench.errors.HnnbenchError` (the CLI exits 2).
@@ -23,7 +31,6 @@ import argparse
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any, Optional
 
@@ -46,8 +53,10 @@ __all__ = [
     "read_reference",
 ]
 
-RULES_FILE = "check_rules.yaml"
 KEY = ("profile", "system", "model")
+#: Wall times depend on the machine: shown, never gating.
+TIMING_RULE = {"better": "lower", "factor": 3.0, "floor": 1.0, "gate": False}
+TIMINGS = ("fit_s", "eval_s", "total_s")
 REQUIRED_COLUMNS = (*KEY, "n_seeds", "n_ok", "n_diverged", "n_failed", "n_skipped")
 RULE_KEYS = {"better", "factor", "floor", "gate"}
 
@@ -165,10 +174,20 @@ def _apply(data: dict[str, Any], source: str, default: Rule,
     return default, metrics
 
 
+def declared_rules() -> dict[str, Rule]:
+    """The rule of every registered metric (its declaration), and of the timings."""
+    from hnnbench import registry
+
+    rules = {m.name: Rule(better=m.better, factor=m.check.factor, floor=m.check.floor,
+                          gate=m.check.gate) for m in registry.metrics()}
+    rules.update({t: Rule(**TIMING_RULE) for t in TIMINGS})  # type: ignore[arg-type]
+    return rules
+
+
 def load_rules(path: Optional[Path | str] = None) -> tuple[Rule, dict[str, Rule]]:
-    """The built-in rules, with those of ``path`` (a YAML file) on top."""
-    text = resources.files("hnnbench").joinpath("resources").joinpath(RULES_FILE).read_text("utf-8")
-    default, metrics = _apply(_read_yaml(text, RULES_FILE), RULES_FILE, Rule(), {})
+    """The declared rules (:func:`declared_rules`; metrics no installed plugin declares
+    get the default), with those of ``path`` (a YAML file) on top."""
+    default, metrics = Rule(), declared_rules()
     if path is not None:
         path = Path(path)
         try:
@@ -261,14 +280,15 @@ def _status_text(row: Any) -> str:
     return ", ".join(parts) or "no runs"
 
 
-def _claims_by_key(board: pd.DataFrame) -> dict[tuple[str, str], C.ClaimResult]:
-    from hnnbench.report import board_lookup
+def _claims_by_key(board: pd.DataFrame) -> dict[tuple[str, str, str], C.ClaimResult]:
+    from hnnbench.report.published import board_lookup
 
     out = {}
+    claims = C.all_claims()
     for profile in dict.fromkeys(board["profile"].astype(str)):
-        for res in C.evaluate_claims(board_lookup(board, profile)):
+        for res in C.evaluate_claims(board_lookup(board, profile), claims):
             out[(profile, res.claim.id, res.backend)] = res
-    return out  # type: ignore[return-value]
+    return out
 
 
 def _keys(frame: pd.DataFrame) -> tuple[str, ...]:
@@ -355,8 +375,8 @@ def compare(reference: pd.DataFrame, current: pd.DataFrame,
         pair = f"{backend} pair" if backend != "-" else "-"
         now = cc.outcome if cc is not None else C.NOT_RUN
         finding = Finding("claim", claim.metric, claim.system, pair,
-                          f"{rc.outcome} ({C._fmt_ratio(rc.ratio)})",
-                          f"{now} ({C._fmt_ratio(cc.ratio) if cc is not None else 'n/a'})",
+                          f"{rc.outcome} ({C.fmt_ratio(rc.ratio)})",
+                          f"{now} ({C.fmt_ratio(cc.ratio) if cc is not None else 'n/a'})",
                           "", claim.requirement())
         if rc.outcome == C.REPRODUCED:
             result.n_claims += 1
@@ -382,44 +402,133 @@ class _Parser(argparse.ArgumentParser):
 
 def _parser() -> _Parser:
     p = _Parser(prog="hnnbench check",
-                description="Compare a sweep's leaderboard with a reference leaderboard.csv; "
-                            "exit 1 on a regression.")
-    p.add_argument("dir", metavar="DIR", help="sweep directory with run records")
+                description="Validate run records and compare their leaderboard with a "
+                            "reference leaderboard.csv; exit 1 on a regression.")
+    p.add_argument("dirs", metavar="DIR", nargs="+",
+                   help="sweep or record directories (their records merge)")
     p.add_argument("--reference", metavar="CSV", required=True,
                    help="reference leaderboard.csv (e.g. results/reference/quick.csv)")
     p.add_argument("--update", action="store_true",
                    help="rewrite the reference from DIR instead of checking")
     p.add_argument("--rules", metavar="FILE", default=None,
-                   help="YAML tolerances overriding the built-in check_rules.yaml")
+                   help="YAML tolerances overriding the metrics' declared rules")
     p.add_argument("--allow-missing", action="store_true",
-                   help="a reference pair with no run in DIR is information, not a regression")
+                   help="a reference pair with no run in DIR is information, not a "
+                        "regression (for a sweep of only some systems or models)")
+    p.add_argument("--rerun", metavar="SYSTEM/MODEL/SEED", action="append", default=[],
+                   help="run this job again from its record and compare (repeatable)")
     return p
+
+
+def validate_records(recs: Sequence[dict[str, Any]], bad: Sequence[R.Unreadable]
+                     ) -> list[Finding]:
+    """Findings about the records themselves: unreadable files, schema violations,
+    missing provenance, plugin versions that differ from the installed ones."""
+    from hnnbench import registry
+
+    out = [Finding("unreadable", "-", "-", str(item.path), "", item.reason) for item in bad]
+    installed = {kind: {name: info.version for name, info in registry.discover(kind).items()
+                        if info.ok} for kind in ("system", "model")}
+    for rec in recs:
+        where = str(rec.get("path", "?"))
+        system, model = str(rec.get("system")), str(rec.get("model"))
+        for problem in R.validate(rec)[:3]:
+            out.append(Finding("schema", "-", system, model, where, problem))
+        env = rec.get("environment") or {}
+        missing = [k for k, v in (("environment.hnnbench", env.get("hnnbench")),
+                                  ("environment.python", env.get("python")),
+                                  ("environment.platform", env.get("platform")),
+                                  ("created_at", rec.get("created_at"))) if not v]
+        if missing:
+            out.append(Finding("provenance", "-", system, model, where,
+                               f"missing {', '.join(missing)}"))
+        for kind, name, key in (("system", system, "system_version"),
+                                ("model", model, "model_version")):
+            have = installed[kind].get(name)
+            if have is not None and rec.get(key) not in (None, have):
+                out.append(Finding("version", key, system, model, f"record {rec.get(key)}",
+                                   f"installed {have}", "", "same plugin version"))
+    return out
+
+
+def rerun(recs: Sequence[dict[str, Any]], spec: str, rules: tuple[Rule, dict[str, Rule]]
+          ) -> list[Finding]:
+    """Run the job ``SYSTEM/MODEL/SEED`` of ``recs`` again (its recorded config, in a
+    temporary directory) and compare each metric with the record's by ``rules``."""
+    import tempfile
+
+    from omegaconf import OmegaConf
+
+    from hnnbench.run import run_job
+
+    parts = spec.split("/")
+    if len(parts) != 3 or not parts[2].isdigit():
+        raise CheckError(f"--rerun {spec}: expected SYSTEM/MODEL/SEED, e.g. spring/hnn_jax/0")
+    system, model, seed = parts[0], parts[1], int(parts[2])
+    match = [r for r in recs if r.get("system") == system and r.get("model") == model
+             and r.get("seed") == seed]
+    if not match:
+        raise CheckError(f"--rerun {spec}: no record of that job in the checked directories")
+    rec = match[0]
+    config = rec.get("config")
+    if not isinstance(config, dict) or "system" not in config:
+        raise CheckError(f"--rerun {spec}: the record holds no resolved config to run again")
+    cfg = OmegaConf.create({**config, "rerun": True, "save_model": False})
+    with tempfile.TemporaryDirectory(prefix="hnnbench-rerun-") as tmp:
+        again = run_job(cfg, Path(tmp), overrides=rec.get("overrides"))
+    default, by_metric = rules
+    out = []
+    if again.get("status") != rec.get("status"):
+        out.append(Finding("rerun", "status", system, model, str(rec.get("status")),
+                           str(again.get("status")), "", "same status"))
+    for name, value in (rec.get("metrics") or {}).items():
+        rule = by_metric.get(name, default)
+        ref = float(value.get("mean", math.nan))
+        cur = float((again.get("metrics") or {}).get(name, {}).get("mean", math.nan))
+        if math.isnan(ref) and math.isnan(cur):
+            continue
+        # A re-run must agree with the record both ways, not merely be no worse.
+        worst = max(rule.worsening(ref, cur), rule.worsening(cur, ref))
+        if math.isnan(cur) or worst > rule.factor:
+            out.append(Finding("rerun", name, system, model, _fmt(ref), _fmt(cur),
+                               f"{_fmt(worst)}x apart", f"within {rule.factor:g}x"))
+    return out
 
 
 def main(args: Sequence[str]) -> int:
     from tabulate import tabulate
 
-    from hnnbench.report import load_sweep
+    from hnnbench.report.inputs import load_sweeps
 
     ns = _parser().parse_args(list(args))
-    board = leaderboard(load_sweep(Path(ns.dir)))
+    dirs = [Path(d) for d in ns.dirs]
+    recs, bad = load_sweeps(dirs)
+    board = leaderboard(recs)
     rules = load_rules(ns.rules)
     reference = Path(ns.reference)
+    where = " ".join(ns.dirs)
     if ns.update:
+        if bad:
+            raise CheckError(f"{len(bad)} unreadable record(s), e.g. {bad[0]}: fix or remove "
+                             "them before writing a reference")
         if reference.is_dir():
             raise CheckError(f"Reference {reference} is a directory; give a CSV file path")
         try:
             R.atomic_write_text(reference, board.to_csv(index=False))
         except OSError as err:
             raise CheckError(f"Cannot write reference {reference}: {err.strerror}") from None
-        print(f"hnnbench check: wrote reference {reference} from {ns.dir} "
+        print(f"hnnbench check: wrote reference {reference} from {where} "
               f"({len(board)} system x model pairs)")
         return 0
     result = compare(read_reference(reference), board, rules, allow_missing=ns.allow_missing)
-    print(f"hnnbench check: {ns.dir} vs {reference}"
-          + (f" (rules: built-in + {ns.rules})" if ns.rules else " (rules: built-in)"))
-    print(f"compared {result.n_pairs} pair(s), {result.n_metrics} gated metric value(s), "
-          f"{result.n_claims} claim(s) reproduced in the reference")
+    result.regressions[:0] = validate_records(recs, bad)
+    for spec in ns.rerun:
+        result.regressions += rerun(recs, spec, rules)
+    print(f"hnnbench check: {where} vs {reference}"
+          + (f" (rules: declared + {ns.rules})" if ns.rules else " (rules: declared)"))
+    print(f"validated {len(recs) + len(bad)} record(s); compared {result.n_pairs} pair(s), "
+          f"{result.n_metrics} gated metric value(s), {result.n_claims} claim(s) reproduced "
+          f"in the reference" + (f"; re-ran {len(ns.rerun)} job(s)" if ns.rerun else ""))
     if result.info:
         print()
         print("information (not failing):")
@@ -431,8 +540,12 @@ def main(args: Sequence[str]) -> int:
         print(tabulate([f.row() for f in result.regressions], headers=HEADERS,
                        tablefmt="simple", disable_numparse=True))
         print()
-        print(f"hnnbench check: FAILED, {len(result.regressions)} regression(s). If a change "
-              "is intended, rewrite the reference with --update.")
+        missing_only = all(f.check == "missing" for f in result.regressions)
+        hint = (" Every regression is a reference pair this sweep did not run: for a sweep "
+                "of only some systems or models, pass --allow-missing (or make a reference "
+                "of your own with --update)." if missing_only else
+                " If a change is intended, rewrite the reference with --update.")
+        print(f"hnnbench check: FAILED, {len(result.regressions)} regression(s).{hint}")
         return 1
     print()
     print("hnnbench check: OK, no regressions")

@@ -1,13 +1,19 @@
-"""The evaluation pipeline: one implementation of every metric for every model.
+"""The evaluation: every registered metric, computed the same way for every model.
 
-:func:`evaluate` rolls the model out from the evaluation trajectories' initial states,
-maps its rollouts to physical states (identity for state models; a linear probe for
-models with an encoder), and computes the metrics of :mod:`hnnbench.metrics`.
-docs/METRICS.md is the reference for what each number means.
+:func:`evaluate` builds an :class:`EvalContext` for one trained model and asks each
+registered :class:`~hnnbench.metric.Metric` (``hnnbench.metrics`` entry points) for
+its value. The context computes what metrics share, once and only when asked: the
+rollout from the evaluation trajectories' initial states, the map from a model's
+latents to physical states (identity for state models; a linear probe fitted on the
+training set for models with an encoder), energies along both. docs/METRICS.md is the
+reference for what each number means.
 """
 
 from __future__ import annotations
 
+import logging
+import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
@@ -17,37 +23,11 @@ from hnnbench import metrics as M
 from hnnbench.api import Dataset, Model, System, Trajectories
 from hnnbench.config import EvaluationConfig
 from hnnbench.errors import RolloutDiverged
-from hnnbench.integrate import rk4
+from hnnbench.metric import Metric
 
-__all__ = [
-    "HIGHER_IS_BETTER",
-    "ROLLOUT_METRICS",
-    "Evaluation",
-    "LinearProbe",
-    "evaluate",
-    "loss_metrics",
-    "worst",
-]
+log = logging.getLogger("hnnbench")
 
-#: Metrics that come from rollouts; ``inf`` when the rollout diverges.
-ROLLOUT_METRICS = (
-    "energy_mse",
-    "rollout_mse",
-    "reversibility_error",
-    "time_reversal_error",
-    "valid_prediction_time",
-    "pixel_mse",
-)
-
-
-#: Metrics where higher is better; a diverged run gets 0 for them instead of inf.
-HIGHER_IS_BETTER = ("valid_prediction_time",)
-
-
-def worst(metric: str) -> dict[str, float]:
-    """The value recorded for ``metric`` when the run diverged: ``inf`` for errors,
-    ``0`` for metrics where higher is better (a diverged model predicts nothing)."""
-    return {"mean": 0.0 if metric in HIGHER_IS_BETTER else float("inf"), "sem": float("nan")}
+__all__ = ["EvalContext", "Evaluation", "LinearProbe", "evaluate", "failed_metrics"]
 
 
 @dataclass
@@ -69,114 +49,200 @@ class LinearProbe:
 
 @dataclass
 class Evaluation:
-    """Metrics (``{name: {"mean", "sem"}}``), divergence, and arrays for figures."""
+    """Metrics (``{name: {"mean", "sem"}}``), divergence, arrays for figures, and the
+    metrics whose computation raised (a plugin bug: recorded, not fatal)."""
 
     metrics: dict[str, dict[str, float]]
     diverged: Optional[str] = None
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
+    errors: dict[str, str] = field(default_factory=dict)
 
 
-def loss_metrics(system: System, model: Model, data: Dataset) -> dict[str, dict[str, float]]:
-    """train_loss / test_loss with their standard error over points.
+class EvalContext:
+    """What the metrics of one trained model share, computed on first use.
 
-    State systems: the MSE of predicted vs target dx/dt. Observation (pixel) systems:
-    the model's full training objective (``Model.loss``), as the paper reports it.
+    Attributes:
+        system, model, data, traj, cfg: the job's objects.
+        pixels: whether the model sees observations (its rollouts are latents).
     """
-    out = {}
-    for split_name in ("train", "test"):
-        split = getattr(data, split_name)
-        if system.observation == "state":
-            per_point = M.per_point_squared_error(model.time_derivative(split.x), split.dxdt)
-            out[f"{split_name}_loss"] = M.summarize(per_point)
+
+    def __init__(self, system: System, model: Model, data: Dataset, traj: Trajectories,
+                 cfg: EvaluationConfig) -> None:
+        self.system, self.model, self.data, self.traj, self.cfg = system, model, data, traj, cfg
+        self.pixels = traj.observations is not None
+        self._memo: dict[str, Any] = {}
+        self.arrays: dict[str, np.ndarray] = {"t": traj.t, "states_true": traj.states}
+
+    def _once(self, key: str, make: Callable[[], Any]) -> Any:
+        """``make()`` cached, a raised :class:`RolloutDiverged` included (so a failed
+        rollout is attempted once, whatever asks for it)."""
+        if key not in self._memo:
+            try:
+                self._memo[key] = (True, make())
+            except RolloutDiverged as err:
+                self._memo[key] = (False, err)
+        ok, value = self._memo[key]
+        if not ok:
+            raise value
+        return value
+
+    # -- losses -----------------------------------------------------------------------
+    def loss_values(self, split: str) -> Any:
+        """Per-point squared errors of ``time_derivative`` on a split (state systems);
+        the model's own objective on pixel systems (a mean, no standard error)."""
+        data = getattr(self.data, split)
+        if self.system.observation == "state":
+            return M.per_point_squared_error(self.model.time_derivative(data.x), data.dxdt)
+        return {"mean": float(self.model.loss(data.x, data.dxdt)), "sem": math.nan}
+
+    # -- rollouts ---------------------------------------------------------------------
+    def z0(self) -> np.ndarray:
+        """Initial states in the model's coordinates (latents for pixel models)."""
+        def make() -> np.ndarray:
+            if self.traj.observations is not None:
+                return self.model.encode(self.traj.observations[:, 0])
+            return self.traj.x0
+        return self._once("z0", make)
+
+    def probe(self) -> Optional[LinearProbe]:
+        """The latent -> state probe of pixel models, fitted on the training set."""
+        def make() -> Optional[LinearProbe]:
+            if not self.pixels:
+                return None
+            return LinearProbe.fit(self.model.encode(self.data.train.x),
+                                   self.data.train.extras["state"])
+        return self._once("probe", make)
+
+    def roll(self, z0: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """A rollout of the model (``(M, T, d)``); non-finite states raise."""
+        out = self.model.rollout(z0, t, rtol=self.cfg.rtol, atol=self.cfg.atol)
+        if not np.all(np.isfinite(out)):
+            raise RolloutDiverged("rollout produced non-finite states")
+        return out
+
+    def rollout(self) -> np.ndarray:
+        """The main rollout, from :meth:`z0` over the evaluation grid."""
+        return self._once("rollout", lambda: self.roll(self.z0(), self.traj.t))
+
+    def to_states(self, z: np.ndarray) -> np.ndarray:
+        """Model coordinates ``(..., d)`` -> physical states ``(..., 2n)``."""
+        probe = self.probe()
+        if probe is None:
+            return z
+        shape = z.shape
+        return probe(z.reshape(-1, shape[-1])).reshape(*shape[:-1], -1)
+
+    def reverse(self, z: np.ndarray) -> np.ndarray:
+        """Time reversal R in the model's coordinates: the system's (flip momenta), or
+        for latents ``(z_q, z_p)`` flipping ``z_p``."""
+        if not self.pixels:
+            return self.system.reverse(z)
+        out = np.array(z, dtype=np.float64, copy=True)
+        out[..., out.shape[-1] // 2:] *= -1.0
+        return out
+
+    def states_hat(self) -> np.ndarray:
+        """``(M, T, 2n)`` physical states along the main rollout."""
+        def make() -> np.ndarray:
+            states = self.to_states(self.rollout())
+            self.arrays["states_hat"] = states
+            learned = self.model.energy(self.rollout().reshape(-1, self.rollout().shape[-1]))
+            if learned is not None:
+                m, t_len = states.shape[:2]
+                self.arrays["learned_energy"] = np.asarray(learned).reshape(m, t_len)
+            return states
+        return self._once("states_hat", make)
+
+    def _energies(self, states: np.ndarray) -> np.ndarray:
+        m, t, d = states.shape
+        with np.errstate(all="ignore"):
+            return self.system.energy(states.reshape(m * t, d)).reshape(m, t)
+
+    def energy_true(self) -> np.ndarray:
+        """``(M, T)`` true energy along the true trajectories."""
+        def make() -> np.ndarray:
+            self.arrays["energy_true"] = self._energies(self.traj.states)
+            return self.arrays["energy_true"]
+        return self._once("energy_true", make)
+
+    def energy_hat(self) -> np.ndarray:
+        """``(M, T)`` true energy along the model's rollout."""
+        def make() -> np.ndarray:
+            self.arrays["energy_hat"] = self._energies(self.states_hat())
+            return self.arrays["energy_hat"]
+        return self._once("energy_hat", make)
+
+    def pixel_errors(self) -> Optional[np.ndarray]:
+        """``(M,)`` MSE of the decoded latent rollout against the true frames; ``None``
+        for a model without a decoder."""
+        if self.traj.observations is None:
+            return None
+        z = self.rollout()
+        m, t_len, d = z.shape
+        decoded = self.model.decode(z.reshape(m * t_len, d))
+        if decoded is None:
+            return None
+        obs = self.traj.observations.reshape(m * t_len, -1)
+        return np.mean(((decoded - obs) ** 2).reshape(m, -1), axis=1)
+
+
+def _nan() -> dict[str, float]:
+    return {"mean": math.nan, "sem": math.nan}
+
+
+def failed_metrics(system: System, metrics: Sequence[Metric],
+                   keep: Optional[dict[str, dict[str, float]]] = None
+                   ) -> dict[str, dict[str, float]]:
+    """The record of a model that diverged: each applicable metric's worst value (NaN
+    where it does not apply); values in ``keep`` (e.g. finite losses) stay."""
+    out: dict[str, dict[str, float]] = {}
+    for metric in metrics:
+        if keep and metric.name in keep:
+            out[metric.name] = keep[metric.name]
+        elif metric.applies(system):
+            out[metric.name] = {"mean": metric.worst(), "sem": math.nan}
         else:
-            value = float(model.loss(split.x, split.dxdt))
-            out[f"{split_name}_loss"] = {"mean": value, "sem": float("nan")}
+            out[metric.name] = _nan()
     return out
 
 
-def _energies(system: System, states: np.ndarray) -> np.ndarray:
-    """``(M, T)`` true energy along ``(M, T, 2n)`` states."""
-    m, t, d = states.shape
-    with np.errstate(all="ignore"):
-        return system.energy(states.reshape(m * t, d)).reshape(m, t)
+def evaluate(system: System, model: Model, data: Dataset, traj: Trajectories,
+             cfg: EvaluationConfig, metrics: Optional[Sequence[Metric]] = None
+             ) -> Evaluation:
+    """Compute every metric (default: all registered) of ``model`` on ``system``."""
+    if metrics is None:
+        from hnnbench.registry import metrics as registered
 
-
-def evaluate(
-    system: System, model: Model, data: Dataset, traj: Trajectories, ev: EvaluationConfig
-) -> Evaluation:
-    """Compute every metric of ``model`` on ``system``'s evaluation ``traj``."""
-    result: dict[str, Any] = dict(loss_metrics(system, model, data))
-    arrays: dict[str, np.ndarray] = {"t": traj.t, "states_true": traj.states}
-    pixels = traj.observations is not None
-
-    if pixels:
-        assert traj.observations is not None
-        z0 = model.encode(traj.observations[:, 0])
-        probe = LinearProbe.fit(model.encode(data.train.x), data.train.extras["state"])
-    else:
-        z0 = traj.x0
-        probe = None
-
+        metrics = registered()
+    ctx = EvalContext(system, model, data, traj, cfg)
+    result: dict[str, dict[str, float]] = {}
+    errors: dict[str, str] = {}
     diverged: Optional[str] = None
-    try:
-        z_hat = model.rollout(z0, traj.t, rtol=ev.rtol, atol=ev.atol)
-        if not np.all(np.isfinite(z_hat)):
-            raise RolloutDiverged("rollout produced non-finite states")
-    except RolloutDiverged as err:
-        diverged = f"rollout diverged: {err}"
-        for key in ROLLOUT_METRICS:
-            result[key] = worst(key)
-        if not system.time_reversible:
-            result["time_reversal_error"] = {"mean": float("nan"), "sem": float("nan")}
-        return Evaluation(metrics=result, diverged=diverged, arrays=arrays)
-
-    m, t_len, _ = z_hat.shape
-    states_hat = probe(z_hat.reshape(m * t_len, -1)).reshape(m, t_len, -1) if probe else z_hat
-    e_true, e_hat = _energies(system, traj.states), _energies(system, states_hat)
-    result["energy_mse"] = M.summarize(M.energy_error_per_traj(e_hat, e_true))
-    result["rollout_mse"] = M.summarize(M.rollout_error_per_traj(states_hat, traj.states))
-    result["valid_prediction_time"] = M.summarize(
-        M.valid_prediction_time(states_hat, traj.states, traj.t, ev.vpt_threshold)
-    )
-    arrays.update(states_hat=states_hat, energy_true=e_true, energy_hat=e_hat)
-    learned = model.energy(z_hat.reshape(m * t_len, -1))
-    if learned is not None:
-        arrays["learned_energy"] = np.asarray(learned).reshape(m, t_len)
-    if pixels:
-        assert traj.observations is not None
-        decoded = model.decode(z_hat.reshape(m * t_len, -1))
-        if decoded is not None:
-            obs = traj.observations.reshape(m * t_len, -1)
-            per_traj = np.mean(((decoded - obs) ** 2).reshape(m, -1), axis=1)
-            result["pixel_mse"] = M.summarize(per_traj)
-
-    # Reversibility: fixed-step RK4 forward over the horizon at the data's dt, then back.
-    horizon = float(traj.t[-1] - traj.t[0])
-    n_steps = max(1, int(round(horizon / traj.dt)))
-    dt = horizon / n_steps
-    forward = rk4(model.time_derivative, z0, dt, n_steps)
-    back = rk4(model.time_derivative, forward, -dt, n_steps)
-    result["reversibility_error"] = M.summarize(M.reversibility_per_traj(back, z0))
-
-    # Time reversal R o Phi_T o R o Phi_T, where the system is reversible (state space).
-    if system.time_reversible and not pixels:
-        # Only the end state is used, but the grid is the evaluation grid: adaptive solvers
-        # choose their steps independently of the output times, and a JAX model then
-        # compiles one rollout for both uses instead of two.
-        t_grid = traj.t
+    for metric in metrics:
+        if not metric.applies(system):
+            result[metric.name] = _nan()
+            continue
         try:
-            end = model.rollout(z0, t_grid, rtol=ev.rtol, atol=ev.atol)[:, -1]
-            again = model.rollout(system.reverse(end), t_grid, rtol=ev.rtol, atol=ev.atol)
-            returned = system.reverse(again[:, -1])
-            result["time_reversal_error"] = M.summarize(M.reversibility_per_traj(returned, z0))
+            values = metric.compute(ctx)
         except RolloutDiverged as err:
-            diverged = f"time-reversal rollout diverged: {err}"
-            result["time_reversal_error"] = worst("time_reversal_error")
-    else:
-        result["time_reversal_error"] = {"mean": float("nan"), "sem": float("nan")}
-
-    for key in ROLLOUT_METRICS:
-        value = result.get(key, {}).get("mean")
-        if value is not None and np.isinf(value) and diverged is None:
-            diverged = f"{key} is not finite"
-    return Evaluation(metrics=result, diverged=diverged, arrays=arrays)
+            result[metric.name] = {"mean": metric.worst(), "sem": math.nan}
+            if metric.required and diverged is None:
+                diverged = f"rollout diverged ({metric.name}): {err}"
+            continue
+        except Exception as err:  # a metric's own bug must not cost the job
+            errors[metric.name] = f"{type(err).__name__}: {err}".splitlines()[0]
+            log.warning("metric %s failed: %s", metric.name, errors[metric.name])
+            result[metric.name] = _nan()
+            continue
+        if values is None:
+            result[metric.name] = _nan()
+        elif isinstance(values, dict):
+            result[metric.name] = {"mean": float(values["mean"]),
+                                   "sem": float(values.get("sem", math.nan))}
+        else:
+            result[metric.name] = M.summarize(np.asarray(values, dtype=np.float64))
+        mean = result[metric.name]["mean"]
+        if metric.required and not math.isfinite(mean) and not math.isnan(mean) \
+                and diverged is None:
+            diverged = f"{metric.name} is not finite"
+    return Evaluation(metrics=result, diverged=diverged, arrays=ctx.arrays, errors=errors)

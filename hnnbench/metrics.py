@@ -1,15 +1,41 @@
-"""Metric definitions: pure numpy, one function each.
+"""hnnbench's own metrics: pure-numpy definitions and their :class:`Metric`
+declarations.
 
-Per-trajectory functions return one value per evaluation trajectory, shape ``(M,)``;
-:func:`summarize` turns those into the mean and its standard error. docs/METRICS.md
-gives the precise definitions and the evaluation protocol.
+The first half holds one numpy function per definition: per-trajectory functions
+return one value per evaluation trajectory, shape ``(M,)``, and :func:`summarize` turns
+those into the mean and its standard error. The second half declares each built-in
+metric (:class:`hnnbench.metric.Metric`): how it is computed from an
+:class:`~hnnbench.evaluate.EvalContext`, where it applies, which way is better, and its
+regression tolerance. They are registered through the entry-point group
+``hnnbench.metrics`` in hnnbench's pyproject.toml, as a third party's would be.
+docs/METRICS.md gives the precise definitions and the evaluation protocol.
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any, Optional
+
 import numpy as np
 
+from hnnbench.metric import CheckRule, Metric
+
+if TYPE_CHECKING:
+    from hnnbench.api import System
+    from hnnbench.evaluate import EvalContext
+
 __all__ = [
+    "BUILTIN",
+    "ENERGY_DRIFT_LONG",
+    "ENERGY_MSE",
+    "LONG_HORIZON_FACTOR",
+    "PIXEL_MSE",
+    "REVERSIBILITY_ERROR",
+    "ROLLOUT_MSE",
+    "TEST_LOSS",
+    "TRAIN_LOSS",
+    "VALID_PREDICTION_TIME",
+    "VPT_LYAPUNOV",
+    "energy_drift_per_traj",
     "energy_error_per_traj",
     "mse",
     "per_point_squared_error",
@@ -83,3 +109,117 @@ def summarize(values: np.ndarray) -> dict[str, float]:
     values = np.asarray(values, dtype=np.float64)
     mean = float(np.mean(values)) if np.all(np.isfinite(values)) else float("inf")
     return {"mean": mean, "sem": sem(values)}
+
+
+def energy_drift_per_traj(energy_end: np.ndarray, energy_start: np.ndarray) -> np.ndarray:
+    """``(M,)`` relative drift ``|E_end - E_start| / |E_start|``."""
+    start = np.asarray(energy_start, dtype=np.float64)
+    return np.abs(np.asarray(energy_end) - start) / np.maximum(np.abs(start), 1e-300)
+
+
+# --------------------------------------------------------------------------- declarations
+
+#: The long-horizon metric rolls out over this many evaluation horizons.
+LONG_HORIZON_FACTOR = 10
+
+
+def _loss(split: str) -> Any:
+    def compute(ctx: EvalContext) -> Any:
+        return ctx.loss_values(split)
+
+    return compute
+
+
+def _energy_mse(ctx: EvalContext) -> np.ndarray:
+    return energy_error_per_traj(ctx.energy_hat(), ctx.energy_true())
+
+
+def _rollout_mse(ctx: EvalContext) -> np.ndarray:
+    return rollout_error_per_traj(ctx.states_hat(), ctx.traj.states)
+
+
+def _vpt(ctx: EvalContext) -> np.ndarray:
+    return valid_prediction_time(ctx.states_hat(), ctx.traj.states, ctx.traj.t,
+                                 ctx.cfg.vpt_threshold)
+
+
+def _vpt_lyapunov(ctx: EvalContext) -> np.ndarray:
+    lyapunov = ctx.system.lyapunov_time
+    assert lyapunov is not None
+    return _vpt(ctx) / float(lyapunov)
+
+
+def _reversibility(ctx: EvalContext) -> np.ndarray:
+    """``R Φ_T R Φ_T z0`` against ``z0``: the main rollout's end state, reversed, rolled
+    out over the same grid (so one compiled solve serves both), reversed again."""
+    z0 = ctx.z0()
+    end = ctx.rollout()[:, -1]
+    again = ctx.roll(ctx.reverse(end), ctx.traj.t)
+    return reversibility_per_traj(ctx.reverse(again[:, -1]), z0)
+
+
+def _energy_drift_long(ctx: EvalContext) -> np.ndarray:
+    t = ctx.traj.t
+    long_t = t[0] + LONG_HORIZON_FACTOR * (t - t[0])  # same grid length: no new compile
+    end = ctx.to_states(ctx.roll(ctx.z0(), long_t)[:, -1])
+    with np.errstate(all="ignore"):
+        e_end = ctx.system.energy(end)
+    return energy_drift_per_traj(e_end, ctx.energy_true()[:, 0])
+
+
+def _pixel_mse(ctx: EvalContext) -> Optional[np.ndarray]:
+    return ctx.pixel_errors()
+
+
+def _has_lyapunov_time(system: System) -> bool:
+    return system.lyapunov_time is not None
+
+
+def _time_reversible(system: System) -> bool:
+    return bool(system.time_reversible)
+
+
+def _conservative(system: System) -> bool:
+    return bool(system.conservative)
+
+
+def _pixels(system: System) -> bool:
+    return system.observation == "pixels"
+
+
+TRAIN_LOSS = Metric(
+    "train_loss", "MSE of predicted vs target dx/dt on the training set (pixels: the "
+    "training objective)", _loss("train"), check=CheckRule(2, 1e-12), order=10)
+TEST_LOSS = Metric(
+    "test_loss", "MSE of predicted vs target dx/dt on the test set (pixels: the training "
+    "objective)", _loss("test"), check=CheckRule(2, 1e-12), order=20)
+ENERGY_MSE = Metric(
+    "energy_mse", "Mean squared error of the true energy along the model's rollout vs "
+    "along the true trajectory", _energy_mse, check=CheckRule(10, 1e-10), order=30)
+ROLLOUT_MSE = Metric(
+    "rollout_mse", "Mean squared state error along the rollout", _rollout_mse,
+    check=CheckRule(3, 1e-8), order=40)
+REVERSIBILITY_ERROR = Metric(
+    "reversibility_error", "Time-reversal test of the learned flow: mean |R Phi_T R Phi_T "
+    "x0 - x0|^2 (R flips momenta; pixels: latent momenta)", _reversibility,
+    check=CheckRule(10, 1e-10), applies=_time_reversible, order=50)
+VALID_PREDICTION_TIME = Metric(
+    "valid_prediction_time", "Time until the rollout's relative state error first exceeds "
+    "evaluation.vpt_threshold", _vpt, better="higher", scale="linear",
+    check=CheckRule(3, 0.0), order=60)
+VPT_LYAPUNOV = Metric(
+    "vpt_lyapunov", "Valid prediction time in Lyapunov times (chaotic systems)",
+    _vpt_lyapunov, better="higher", scale="linear", check=CheckRule(3, 0.0),
+    applies=_has_lyapunov_time, order=70)
+ENERGY_DRIFT_LONG = Metric(
+    "energy_drift_long", f"Relative true-energy drift at the end of a rollout "
+    f"{LONG_HORIZON_FACTOR}x the evaluation horizon (conservative systems)",
+    _energy_drift_long, check=CheckRule(10, 1e-10), applies=_conservative, required=False,
+    order=80)
+PIXEL_MSE = Metric(
+    "pixel_mse", "MSE of the decoded latent rollout against the true frames",
+    _pixel_mse, check=CheckRule(2, 1e-12), applies=_pixels, summary=False, order=90)
+
+#: hnnbench's own metrics, in table order (registered by entry points, not from here).
+BUILTIN = (TRAIN_LOSS, TEST_LOSS, ENERGY_MSE, ROLLOUT_MSE, REVERSIBILITY_ERROR,
+           VALID_PREDICTION_TIME, VPT_LYAPUNOV, ENERGY_DRIFT_LONG, PIXEL_MSE)

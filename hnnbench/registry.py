@@ -1,9 +1,13 @@
 """Plugin discovery through entry points, and their Hydra config registration.
 
-Systems are entry points of the group ``hnnbench.systems`` and models of
-``hnnbench.models``; built-ins are declared in hnnbench's own pyproject.toml exactly like
-third-party plugins. A plugin whose import fails is kept with its error (``hnnbench
-list`` shows it) and left out of everything else.
+Systems are entry points of the group ``hnnbench.systems``, models of
+``hnnbench.models`` (each names a class) and metrics of ``hnnbench.metrics`` (each names
+a :class:`~hnnbench.metric.Metric` instance); built-ins are declared in hnnbench's own
+pyproject.toml exactly like third-party plugins. A plugin whose import fails is kept
+with its error (``hnnbench list`` shows it) and left out of everything else.
+
+Order: listings, ``all`` and tables follow :func:`ordered`: a plugin's ``order``
+attribute (lower first; built-ins set it), then its name.
 """
 
 from __future__ import annotations
@@ -16,11 +20,16 @@ from typing import Any, Literal
 
 from hnnbench.api import Model, ModelConfig, System, SystemConfig
 from hnnbench.errors import ConfigError, HnnbenchError, UnknownNameError
+from hnnbench.claims import ClaimSet
+from hnnbench.metric import Metric
 
-Kind = Literal["system", "model"]
-GROUPS: dict[str, str] = {"system": "hnnbench.systems", "model": "hnnbench.models"}
+Kind = Literal["system", "model", "metric", "claims"]
+GROUPS: dict[str, str] = {"system": "hnnbench.systems", "model": "hnnbench.models",
+                          "metric": "hnnbench.metrics", "claims": "hnnbench.claims"}
 BASES: dict[str, type] = {"system": System, "model": Model}
 CONFIG_BASES: dict[str, type] = {"system": SystemConfig, "model": ModelConfig}
+#: Kinds whose entry points name an instance, not a class.
+INSTANCE_KINDS: dict[str, type] = {"metric": Metric, "claims": ClaimSet}
 #: Profiles that ship with hnnbench (conf/profile/*.yaml). ``paper`` is the default.
 PROFILES = ("paper", "quick")
 
@@ -32,6 +41,8 @@ __all__ = [
     "config_defaults",
     "discover",
     "get_class",
+    "metrics",
+    "ordered",
     "refresh",
     "register_configs",
     "validate_profile",
@@ -69,6 +80,12 @@ class PluginInfo:
     def backend(self) -> str:
         return str(getattr(self.cls, "backend", "-")) if self.kind == "model" and self.cls else "-"
 
+    @property
+    def family(self) -> str:
+        """A neural model's family name (``hnn``), else ``-``."""
+        family = getattr(self.cls, "family", None) if self.kind == "model" else None
+        return str(getattr(family, "name", "-")) if family is not None else "-"
+
 
 def _load(kind: str, ep: metadata.EntryPoint) -> PluginInfo:
     dist = getattr(ep, "dist", None)
@@ -85,6 +102,16 @@ def _load(kind: str, ep: metadata.EntryPoint) -> PluginInfo:
     except Exception as err:  # a broken plugin must not break the others
         info.error = f"import failed: {type(err).__name__}: {err}".splitlines()[0]
         return info
+    if kind in INSTANCE_KINDS:
+        expected = INSTANCE_KINDS[kind]
+        if not isinstance(cls, expected):
+            info.error = f"{ep.value} is not a {expected.__module__}.{expected.__name__}"
+        elif cls.name != ep.name:
+            info.error = (f"{ep.value} is named '{cls.name}' but is registered as "
+                          f"'{ep.name}': use the same name")
+        else:
+            info.cls = cls
+        return info
     base = BASES[kind]
     if not (isinstance(cls, type) and issubclass(cls, base)):
         info.error = f"{ep.value} is not a subclass of hnnbench.api.{base.__name__}"
@@ -97,12 +124,32 @@ def _load(kind: str, ep: metadata.EntryPoint) -> PluginInfo:
             f"hnnbench.api.{CONFIG_BASES[kind].__name__}"
         )
         return info
+    unknown_profiles = sorted(set(getattr(cls, "profiles", {}) or {}) - set(PROFILES))
+    if unknown_profiles:
+        info.error = (f"{ep.value}.profiles declares {unknown_profiles}, but hnnbench's "
+                      f"profiles are {', '.join(PROFILES)}; rename or remove them")
+        return info
     missing = getattr(cls, "requirements_missing", lambda: None)()
     if missing:
         info.error = str(missing)
         return info
     info.cls = cls
     return info
+
+
+def ordered(kind: Kind, names: Any) -> list[str]:
+    """``names`` in listing order: the plugins' ``order`` (lower first; none: after
+    those that have one), then by name; names not installed come last, by name."""
+    plugins = _discover(kind)
+
+    def key(name: str) -> tuple[int, float, str]:
+        info = plugins.get(name)
+        if info is None or info.cls is None:
+            return (1, 0.0, name)
+        order = getattr(info.cls, "order", None)
+        return (0, float("inf") if order is None else float(order), name)
+
+    return sorted(dict.fromkeys(names), key=key)
 
 
 @cache
@@ -119,7 +166,16 @@ def _discover(kind: str) -> dict[str, PluginInfo]:
                 other.cls = None
             continue
         found[ep.name] = _load(kind, ep)
-    return found
+    order = {name: i for i, name in enumerate(_sorted_by_order(found))}
+    return dict(sorted(found.items(), key=lambda item: order[item[0]]))
+
+
+def _sorted_by_order(found: dict[str, PluginInfo]) -> list[str]:
+    def key(name: str) -> tuple[float, str]:
+        order = getattr(found[name].cls, "order", None) if found[name].cls else None
+        return (float("inf") if order is None else float(order), name)
+
+    return sorted(found, key=key)
 
 
 def discover(kind: Kind) -> dict[str, PluginInfo]:
@@ -133,8 +189,13 @@ def refresh() -> None:
 
 
 def available(kind: Kind) -> list[str]:
-    """Names of the plugins of ``kind`` that loaded."""
+    """Names of the plugins of ``kind`` that loaded, in listing order."""
     return [name for name, info in discover(kind).items() if info.ok]
+
+
+def metrics() -> list[Metric]:
+    """Every registered metric that loaded, in table order."""
+    return [info.cls for info in discover("metric").values() if info.cls is not None]
 
 
 def get_class(kind: Kind, name: str) -> type[Any]:

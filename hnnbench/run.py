@@ -26,11 +26,11 @@ import numpy as np
 import threadpoolctl
 from omegaconf import DictConfig, OmegaConf
 
-from hnnbench import affinity, cache, launch, paths, records
+from hnnbench import affinity, cache, launch, paths, records, registry
 from hnnbench.api import Dataset, TrainSettings, Trajectories
 from hnnbench.config import EvaluationConfig, Job, prepare_job
 from hnnbench.errors import HnnbenchError, RolloutDiverged, UnsupportedPair
-from hnnbench.evaluate import ROLLOUT_METRICS, evaluate, worst
+from hnnbench.evaluate import evaluate, failed_metrics
 from hnnbench.progress import TrainingProgress
 
 log = logging.getLogger("hnnbench")
@@ -214,8 +214,10 @@ def _execute(
     timings: dict[str, float],
 ) -> None:
     system = job.system_cls(job.system_cfg)
+    family = getattr(job.model_cls, "family", None)
     record.update(system_version=system.version, model_version=job.model_cls.version,
-                  backend=job.model_cls.backend)
+                  backend=job.model_cls.backend, family=getattr(family, "name", None),
+                  ranked=bool(getattr(job.model_cls, "ranked", True)))
     reason = job.model_cls.unsupported_reason(system)
     if reason is not None:
         record.update(status="skipped", error=f"{cfg.model.name} on {cfg.system.name}: {reason}")
@@ -262,13 +264,13 @@ def _execute(
     except RolloutDiverged as err:
         timings["fit_s"] = time.perf_counter() - t0
         timings.update(model.timings)
-        _diverged(record, f"training diverged: {err}")
+        _diverged(record, system, f"training diverged: {err}")
         return
     timings["fit_s"] = time.perf_counter() - t0
     if _history_diverged(history):
         timings.update(model.timings)
         record["history"] = history
-        _diverged(record, f"training diverged: {_history_diverged(history)}")
+        _diverged(record, system, f"training diverged: {_history_diverged(history)}")
         return
     if cfg.save_model:
         record["weights_file"] = _save_model(model, directory)
@@ -279,6 +281,8 @@ def _execute(
     timings["eval_s"] = time.perf_counter() - t0
     timings.update(model.timings)
     record["metrics"] = result.metrics
+    if result.errors:
+        record["metric_errors"] = result.errors
     record["history"] = history
     _save_arrays(directory, result.arrays, history)
     if result.diverged:
@@ -300,8 +304,8 @@ def _history_diverged(history: dict) -> str | None:
     return None
 
 
-def _diverged(record: dict[str, Any], error: str) -> None:
-    record["metrics"] = {k: worst(k) for k in ("train_loss", "test_loss", *ROLLOUT_METRICS)}
+def _diverged(record: dict[str, Any], system: Any, error: str) -> None:
+    record["metrics"] = failed_metrics(system, registry.metrics())
     record.update(status="diverged", error=error)
 
 

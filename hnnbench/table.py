@@ -1,4 +1,10 @@
-"""Flatten run records into pandas tables."""
+"""Flatten run records into pandas tables: one row per record, per seed, or per
+(profile, system, model, variant) for the leaderboard.
+
+Systems, models and metrics are ordered as the registry orders them
+(:func:`hnnbench.registry.ordered`); what a metric is (direction, scale) comes from its
+declaration (:class:`hnnbench.metric.Metric`). Nothing here names a plugin.
+"""
 
 from __future__ import annotations
 
@@ -9,11 +15,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from hnnbench import registry
+from hnnbench.metric import Metric
 from hnnbench.records import STATUSES
 
 __all__ = [
-    "SUMMARY_METRICS",
     "display_frame",
+    "summary_metrics",
     "format_value",
     "leaderboard",
     "leaderboard_frame",
@@ -22,16 +30,14 @@ __all__ = [
     "variant_labels",
 ]
 
-#: Metrics shown in the end-of-sweep summary, in order.
-SUMMARY_METRICS = (
-    "train_loss",
-    "test_loss",
-    "energy_mse",
-    "reversibility_error",
-    "rollout_mse",
-    "time_reversal_error",
-    "valid_prediction_time",
-)
+def summary_metrics() -> list[str]:
+    """The metrics shown in the end-of-sweep summary table, in table order."""
+    return [m.name for m in registry.metrics() if m.summary]
+
+
+def metric_declarations() -> dict[str, Metric]:
+    """``{name: Metric}`` of the registered metrics."""
+    return {m.name: m for m in registry.metrics()}
 
 
 #: Override keys that do not define a variant: the identity columns, and settings that
@@ -95,11 +101,14 @@ def records_frame(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
     variants = variant_labels([rec.get("overrides") for rec in records])
     rows = []
     for rec, variant in zip(records, variants, strict=True):
+        env = rec.get("environment") or {}
         row: dict[str, Any] = {
             "system": rec.get("system"),
             "model": rec.get("model"),
             "variant": variant,
             "backend": rec.get("backend"),
+            "family": rec.get("family"),
+            "ranked": _ranked(rec),
             "seed": rec.get("seed"),
             "profile": rec.get("profile"),
             "status": rec.get("status"),
@@ -107,6 +116,10 @@ def records_frame(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
             "steps": rec.get("steps"),
             "device": rec.get("device"),
             "path": rec.get("path"),
+            "source": rec.get("source"),
+            "git_commit": env.get("git_commit"),
+            "machine": env.get("host") or env.get("platform"),
+            "created_at": rec.get("created_at"),
         }
         for name, value in (rec.get("metrics") or {}).items():
             row[name] = value.get("mean")
@@ -117,21 +130,34 @@ def records_frame(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def summary_frame(frame: pd.DataFrame) -> pd.DataFrame:
-    """One row per (system, model, variant, seed) with the summary metrics and status;
-    the ``variant`` column only when some run has one."""
+def _ranked(rec: dict[str, Any]) -> bool:
+    """Whether the record's model competes (records before schema 2 lack the field:
+    the installed class says)."""
+    if rec.get("ranked") is not None:
+        return bool(rec["ranked"])
+    info = registry.discover("model").get(str(rec.get("model")))
+    return bool(getattr(info.cls, "ranked", True)) if info is not None and info.ok else True
+
+
+def summary_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None) -> pd.DataFrame:
+    """One row per (system, model, variant, seed) with the status and every metric
+    (``metrics``: a subset, e.g. :func:`summary_metrics` for a printed table); the
+    ``variant`` column only when some run has one."""
     if frame.empty:
         return frame
     ids = ["system", "model", *(["variant"] if _has_variants(frame) else []), "seed"]
     cols = [*ids, "status"]
-    cols += [m for m in SUMMARY_METRICS if m in frame.columns]
+    names = metric_names(frame) if metrics is None else list(metrics)
+    cols += [m for m in names if m in frame.columns]
     cols += [c for c in ("total_s",) if c in frame.columns]
     out = frame[cols].reset_index(drop=True)
+    systems = registry.ordered("system", out["system"].astype(str))
+    models = registry.ordered("model", out["model"].astype(str))
 
     def key(i: int) -> tuple[Any, ...]:  # leaderboard order, then variant, then seed
         r = out.iloc[i]
         seed = pd.to_numeric(r["seed"], errors="coerce")
-        return (order_key(str(r["system"]), SYSTEM_ORDER), order_key(str(r["model"]), MODEL_ORDER),
+        return (systems.index(str(r["system"])), models.index(str(r["model"])),
                 variant_sort_key(r["variant"]) if "variant" in out else (),
                 math.inf if pd.isna(seed) else float(seed))
 
@@ -140,31 +166,32 @@ def summary_frame(frame: pd.DataFrame) -> pd.DataFrame:
 
 # --------------------------------------------------------------------------- leaderboard
 
-#: Canonical order of systems and models in tables; unknown names follow, sorted.
-SYSTEM_ORDER = ("spring", "pendulum", "real_pendulum", "two_body", "three_body",
-                "pixel_pendulum")
-MODEL_ORDER = ("mlp_torch", "hnn_torch", "mlp_jax", "hnn_jax", "oracle")
 #: Timings averaged into the leaderboard (``<name>_mean``).
 TIMINGS = ("fit_s", "eval_s", "total_s")
 #: Identity and status columns of a leaderboard, in order.
-ID_COLUMNS = ("profile", "system", "model", "backend")
+ID_COLUMNS = ("profile", "system", "model", "backend", "family", "ranked")
 STATUS_COLUMNS = ("n_seeds", "seeds", "n_ok", "n_diverged", "n_failed", "n_skipped", "status")
-#: Metrics shown on a linear scale (others are errors spanning decades: log scale).
-LINEAR_METRICS = frozenset({"valid_prediction_time"})
+#: Provenance columns of a leaderboard: distinct values over the pair's records.
+PROVENANCE_COLUMNS = ("git_commits", "machines", "dates")
+#: Columns of a records frame that are not metrics.
+RESERVED = frozenset({"system", "model", "variant", "backend", "family", "ranked", "seed",
+                      "profile",
+                      "status", "error", "steps", "device", "path", "source", "git_commit",
+                      "machine", "created_at"})
 
 
-def order_key(name: str, order: Sequence[str]) -> tuple[int, str]:
-    return (order.index(name), "") if name in order else (len(order), str(name))
+def linear_metrics() -> frozenset[str]:
+    """Metrics shown on a linear scale (the others span decades: log scale)."""
+    return frozenset(m.name for m in registry.metrics() if m.scale == "linear")
 
 
 def metric_names(frame: pd.DataFrame) -> list[str]:
-    """Metric names present in a records frame, summary metrics first."""
-    reserved = {"system", "model", "variant", "backend", "seed", "profile", "status", "error",
-                "steps", "device", "path", "data_s", "rollout_s", *TIMINGS}
-    found = [c for c in frame.columns if c not in reserved and not c.endswith("_sem")
+    """Metric names present in a records frame, in the registry's table order (metrics
+    no installed plugin declares follow, by name)."""
+    found = [c for c in frame.columns if c not in RESERVED and not c.endswith("_sem")
              and not c.endswith("_s")]
-    first = [m for m in SUMMARY_METRICS if m in found]
-    return first + sorted(m for m in found if m not in first)
+    declared = [m.name for m in registry.metrics()]
+    return [m for m in declared if m in found] + sorted(m for m in found if m not in declared)
 
 
 def _agg(values: pd.Series) -> tuple[float, float]:
@@ -190,12 +217,7 @@ def status_text(counts: dict[str, int]) -> str:
 
 def leaderboard(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
     """The leaderboard of run records (see :func:`leaderboard_frame`)."""
-    records = list(records)
-    names: list[str] = []
-    for rec in records:
-        names += [k for k in (rec.get("metrics") or {}) if k not in names]
-    first = [m for m in SUMMARY_METRICS if m in names]
-    return leaderboard_frame(records_frame(records), first + sorted(set(names) - set(first)))
+    return leaderboard_frame(records_frame(list(records)))
 
 
 def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None) -> pd.DataFrame:
@@ -218,6 +240,7 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
     for m in metrics:
         columns += [f"{m}_mean", f"{m}_std"]
     columns += [f"{t}_mean" for t in TIMINGS]
+    columns += list(PROVENANCE_COLUMNS)
     if frame.empty:
         return pd.DataFrame(columns=columns)
     frame = frame.copy()
@@ -229,9 +252,12 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
         counts = {s: int((group["status"] == s).sum()) for s in STATUSES}
         seeds = sorted({int(s) for s in group["seed"].dropna()})
         backends = [b for b in group["backend"].dropna().unique()] if "backend" in group else []
+        families = [f for f in group["family"].dropna().unique()] if "family" in group else []
+        ranked = bool(group["ranked"].fillna(True).all()) if "ranked" in group else True
         row: dict[str, Any] = {
             "profile": profile, "system": system, "model": model, "variant": variant,
             "backend": backends[0] if backends else "",
+            "family": families[0] if families else "", "ranked": ranked,
             "n_seeds": len(group), "seeds": ";".join(str(s) for s in seeds),
             **{f"n_{s}": counts[s] for s in STATUSES},
             "status": status_text(counts),
@@ -246,12 +272,26 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
         for t in TIMINGS:
             vals = pd.to_numeric(timed[t], errors="coerce") if t in timed else pd.Series([])
             row[f"{t}_mean"] = float(vals.mean()) if vals.notna().any() else math.nan
+        row["git_commits"] = _distinct(group.get("git_commit"))
+        row["machines"] = _distinct(group.get("machine"))
+        row["dates"] = _distinct(None if "created_at" not in group else
+                                 group["created_at"].astype(str).str[:10])
         rows.append(row)
     out = pd.DataFrame(rows, columns=columns)
-    keys = out.apply(lambda r: (str(r["profile"]), order_key(r["system"], SYSTEM_ORDER),
-                                order_key(r["model"], MODEL_ORDER),
+    systems = registry.ordered("system", out["system"].astype(str))
+    models = registry.ordered("model", out["model"].astype(str))
+    keys = out.apply(lambda r: (str(r["profile"]), systems.index(str(r["system"])),
+                                models.index(str(r["model"])),
                                 variant_sort_key(r["variant"]) if variants else ()), axis=1)
     return out.iloc[sorted(range(len(out)), key=lambda i: keys.iloc[i])].reset_index(drop=True)
+
+
+def _distinct(values: Any) -> str:
+    """Distinct non-empty values, sorted, ``;``-joined."""
+    if values is None:
+        return ""
+    return ";".join(sorted({str(v) for v in values if v is not None and str(v) not in
+                            ("", "nan", "None")}))
 
 
 def format_value(mean: float, std: float = math.nan, linear: bool = False) -> str:
@@ -273,6 +313,7 @@ def display_frame(board: pd.DataFrame, timings: bool = True) -> pd.DataFrame:
     """The leaderboard with ``mean ± std`` strings, for Markdown and HTML."""
     metrics = [c[: -len("_mean")] for c in board.columns
                if c.endswith("_mean") and c[: -len("_mean")] not in TIMINGS]
+    linear = linear_metrics()
     rows = []
     for _, r in board.iterrows():
         row: dict[str, Any] = {"system": r["system"], "model": r["model"]}
@@ -282,7 +323,7 @@ def display_frame(board: pd.DataFrame, timings: bool = True) -> pd.DataFrame:
         for m in metrics:
             if board[f"{m}_mean"].isna().all():  # not applicable anywhere
                 continue
-            row[m] = format_value(r[f"{m}_mean"], r[f"{m}_std"], linear=m in LINEAR_METRICS)
+            row[m] = format_value(r[f"{m}_mean"], r[f"{m}_std"], linear=m in linear)
         if timings:
             row["total_s"] = format_value(r.get("total_s_mean", math.nan), linear=True)
         rows.append(row)

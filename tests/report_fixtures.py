@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from hnnbench import records
+from hnnbench import records, registry
 
 INF = float("inf")
 NAN = float("nan")
@@ -72,6 +72,12 @@ def _arrays(system: str, model: str, seed: int, n_traj: int = 3, n_t: int = 25,
     return arrays
 
 
+def _installed_version(kind: str, name: str) -> str:
+    """The installed plugin's version (records of other versions fail hnnbench check)."""
+    info = registry.discover(kind).get(name)  # type: ignore[arg-type]
+    return info.version if info is not None and info.ok else "1"
+
+
 def write_run(root: Path, system: str, model: str, seed: int, status: str = "ok",
               metrics: dict[str, float] | None = None, profile: str = "quick",
               rollout: bool = True, overrides: tuple[str, ...] = ()) -> Path:
@@ -87,8 +93,12 @@ def write_run(root: Path, system: str, model: str, seed: int, status: str = "ok"
     if status in ("failed", "skipped"):
         values = {}
     record: dict[str, Any] = {
-        "schema_version": records.SCHEMA_VERSION, "system": system, "system_version": "1",
-        "model": model, "model_version": "1", "backend": BACKEND.get(model, "torch"),
+        "schema_version": records.SCHEMA_VERSION, "system": system,
+        "system_version": _installed_version("system", system),
+        "model": model, "model_version": _installed_version("model", model),
+        "backend": BACKEND.get(model, "torch"),
+        "family": model.rsplit("_", 1)[0] if model != "oracle" else None,
+        "ranked": model != "oracle",
         "seed": seed, "profile": profile, "status": status,
         "error": None if status == "ok" else f"synthetic {status}",
         "metrics": {k: {"mean": v, "sem": 0.1 * v} for k, v in values.items()},

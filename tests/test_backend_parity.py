@@ -22,12 +22,18 @@ import optax  # noqa: E402
 import torch  # noqa: E402
 
 from hnnbench.api import Dataset, TrainSettings  # noqa: E402
+from hnnbench.errors import RolloutDiverged  # noqa: E402
 from hnnbench.neural import NeuralConfig  # noqa: E402
+from hnnbench_plugins.models.dhnn import DHNNJax, DHNNTorch  # noqa: E402
 from hnnbench_plugins.models.hnn import HNNJax, HNNTorch  # noqa: E402
+from hnnbench_plugins.models.lnn import LNNJax, LNNTorch  # noqa: E402
 from hnnbench_plugins.models.mlp import MLPJax, MLPTorch  # noqa: E402
+from hnnbench_plugins.models.node2 import NODE2Jax, NODE2Torch  # noqa: E402
+from hnnbench_plugins.models.srnn import SRNNJax, SRNNTorch  # noqa: E402
 from hnnbench_plugins.systems.spring import Spring, SpringConfig  # noqa: E402
 
-PAIRS = [(MLPTorch, MLPJax), (HNNTorch, HNNJax)]
+PAIRS = [(MLPTorch, MLPJax), (HNNTorch, HNNJax), (DHNNTorch, DHNNJax), (LNNTorch, LNNJax),
+         (NODE2Torch, NODE2Jax), (SRNNTorch, SRNNJax)]
 STEPS = 50
 SEED = 0
 
@@ -74,7 +80,7 @@ def built_weights(model, data: Dataset, seed: int) -> dict[str, np.ndarray]:
 @pytest.mark.parametrize(("torch_cls", "jax_cls"), PAIRS)
 def test_same_seed_same_initial_weights(torch_cls, jax_cls, spring: Spring, data: Dataset,
                                         dtype: str):
-    cfg = NeuralConfig(name="parity", dtype=dtype)
+    cfg = torch_cls.Config(name="parity", dtype=dtype)
     tm, jm = torch_cls(cfg, spring, "cpu"), jax_cls(cfg, spring, "cpu")
     for seed in (0, 7):
         t_state = built_weights(tm, data, seed)
@@ -95,7 +101,7 @@ def test_same_seed_same_initial_weights(torch_cls, jax_cls, spring: Spring, data
 )
 def trained_pair(request, spring: Spring, data: Dataset):
     torch_cls, jax_cls, batch = request.param
-    cfg = NeuralConfig(name="parity", dtype="float64", log_every=1)
+    cfg = torch_cls.Config(name="parity", dtype="float64", log_every=1)
     train = TrainSettings(steps=STEPS, batch_size=batch, lr=1e-3, weight_decay=1e-4)
     tm, jm = torch_cls(cfg, spring, "cpu"), jax_cls(cfg, spring, "cpu")
     t_hist = tm.fit(data, train, SEED, lambda *_: None).history
@@ -126,10 +132,20 @@ def test_same_weights_same_field_and_rollouts(trained_pair, spring: Spring, data
     x = data.test.x
     np.testing.assert_allclose(jm.time_derivative(x), tm.time_derivative(x),
                                rtol=1e-12, atol=1e-12)
-    if isinstance(jm, HNNJax):
-        np.testing.assert_allclose(jm.energy(x), tm.energy(x), rtol=1e-12, atol=1e-12)
+    if jm.family.learned_energy:
+        np.testing.assert_allclose(jm.energy(x), tm.energy(x), rtol=1e-10, atol=1e-10)
     ev = spring.evaluation(SEED)
     x0, t = ev.x0[:5], ev.t[:26]  # t in [0, 5], to keep the test short
+    gave_up = []
+    for model in (tm, jm):
+        try:
+            model.rollout(x0, t)
+        except RolloutDiverged:
+            gave_up.append(model.backend)
+    # A stiff learned field (the LNN after 50 steps) makes both solvers give up, or none.
+    assert gave_up in ([], ["torch", "jax"]), gave_up
+    if gave_up:
+        t = ev.t[:6]  # [0, 1]: the horizon both reach
     fwd_t, fwd_j = tm.rollout(x0, t), jm.rollout(x0, t)  # rtol = atol = 1e-9
     assert fwd_j.shape == fwd_t.shape
     np.testing.assert_allclose(fwd_j, fwd_t, rtol=0, atol=1e-6)

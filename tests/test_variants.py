@@ -9,6 +9,8 @@ from report_fixtures import write_run
 
 from hnnbench import check, report
 from hnnbench.records import load_records
+from hnnbench.report.figures import slug
+from hnnbench.report.published import ours_cell
 from hnnbench.table import leaderboard, records_frame, summary_frame, variant_labels
 
 
@@ -114,13 +116,13 @@ def test_check_matches_rows_by_variant(hidden_sweep, tmp_path):
 
 def test_paper_comparison_shows_only_the_plain_runs(hidden_sweep):
     board = leaderboard(load_records(hidden_sweep))
-    assert report._ours_cell(board, "quick", "spring", "hnn_torch", "energy_mse") == "—"
-    assert report._ours_cell(board, "quick", "spring", "mlp_torch", "energy_mse") != "—"
+    assert ours_cell(board, "quick", "spring", "hnn_torch", "energy_mse") == "—"
+    assert ours_cell(board, "quick", "spring", "mlp_torch", "energy_mse") != "—"
 
 
 def test_long_variants_get_distinct_file_names():
     common = " ".join(f"system.option_number_{i}=1" for i in range(6))
-    a = report._variant_slug(f"{common} system.eval_t_end=40")
-    b = report._variant_slug(f"{common} system.eval_t_end=80")
+    a = slug(f"{common} system.eval_t_end=40")
+    b = slug(f"{common} system.eval_t_end=80")
     assert a != b and len(a) <= 91
-    assert report._variant_slug("model.hidden=100") == "model.hidden-100"
+    assert slug("model.hidden=100") == "model.hidden-100"

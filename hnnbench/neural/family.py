@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Literal, Optional
 
 __all__ = ["Family"]
 
@@ -49,6 +49,8 @@ class Family:
         window: states per training window, first included (``data == "windows"``).
         observations: the system observations it runs on (``"state"``, ``"pixels"``).
         learned_energy: whether the implementation defines ``energy``.
+        order: position of the family's models in listings and tables (each backend's
+            model at ``order + 0.1 * k`` in :data:`BACKEND_ORDER`).
     """
 
     name: str
@@ -61,3 +63,8 @@ class Family:
     window: int = 0
     observations: tuple[str, ...] = ("state",)
     learned_energy: bool = False
+    order: Optional[float] = None
+
+
+#: Backends in listing order within a family.
+BACKEND_ORDER = ("torch", "jax")

@@ -29,7 +29,7 @@ from hnnbench.errors import RolloutDiverged
 from hnnbench.neural import views
 from hnnbench.neural.backend import Inference, Weights, load_backend, missing_backend
 from hnnbench.neural.config import NeuralConfig
-from hnnbench.neural.family import Family
+from hnnbench.neural.family import BACKEND_ORDER, Family
 from hnnbench.neural.init import autoencoder_init_arrays, network_init_arrays
 from hnnbench.neural.loop import train as run_training
 from hnnbench.neural.weights import load_weights, save_weights
@@ -56,6 +56,10 @@ class NeuralModel(Model):
         family = cls.__dict__.get("family")
         if family is not None:
             cls.observations = tuple(family.observations)
+            if family.order is not None and "order" not in cls.__dict__:
+                offset = BACKEND_ORDER.index(cls.backend) if cls.backend in BACKEND_ORDER \
+                    else len(BACKEND_ORDER)
+                cls.order = family.order + 0.1 * offset
             if not cls.__dict__.get("description"):
                 cls.description = f"{family.title} ({cls.backend})"
 

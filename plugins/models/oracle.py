@@ -16,6 +16,8 @@ class Oracle(Model):
     Config = ModelConfig
     version = "1"
     backend = "numpy"
+    order = 100
+    ranked = False
     description = "True vector field (no training): the floor of every metric"
 
     @classmethod

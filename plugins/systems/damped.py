@@ -86,6 +86,7 @@ class Damped(ToySystem):
 class DampedSpring(Damped, Spring):
     """Damped mass-spring: ``H = q² + p²`` decaying under ``dp/dt = -2 q - γ p``."""
 
+    order = 70
     Config = DampedSpringConfig
     cfg: DampedSpringConfig
     version = "1"
@@ -97,6 +98,7 @@ class DampedPendulum(Damped, Pendulum):
     """Damped pendulum: ``H = 3 (1 - cos q) + p²`` decaying under
     ``dp/dt = -3 sin q - γ p``."""
 
+    order = 80
     Config = DampedPendulumConfig
     cfg: DampedPendulumConfig
     version = "1"

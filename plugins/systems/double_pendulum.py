@@ -376,6 +376,8 @@ class DoublePendulumConfig(SystemConfig):
 class DoublePendulum(System):
     """Ideal double pendulum in canonical coordinates, chaotic energies by default."""
 
+    order = 90
+
     Config: ClassVar[type[SystemConfig]] = DoublePendulumConfig
     cfg: DoublePendulumConfig
     version = "1"

@@ -611,6 +611,7 @@ def max_rejections(n: int) -> int:
 class TwoBody(NBody):
     """Two bodies on perturbed circular orbits; the paper's task 4."""
 
+    order = 40
     Config = TwoBodyConfig
     cfg: TwoBodyConfig
     description = "Two bodies in 2-D, Newtonian gravity G = m = 1 (HNN paper, task 4; REBOUND)"
@@ -622,6 +623,7 @@ class TwoBody(NBody):
 class ThreeBody(NBody):
     """Three bodies from a perturbed rotating triangle; the paper's three-body task."""
 
+    order = 50
     Config = ThreeBodyConfig
     cfg: ThreeBodyConfig
     description = "Three bodies in 2-D, Newtonian gravity G = m = 1 (HNN repo README; REBOUND)"

@@ -27,6 +27,7 @@ class Pendulum(ToySystem):
     """
 
     Config = PendulumConfig
+    order = 20
     # 2: evaluation initial states drawn as the 2019 notebooks did (eval_init="box").
     version = "2"
     description = "Ideal pendulum, H = 3(1 - cos q) + p^2 (HNN paper, task 2)"

@@ -186,6 +186,7 @@ class PixelPendulum(System):
     """The ideal pendulum observed as pairs of 28 x 28 frames (HNN paper, task 5)."""
 
     Config = PixelPendulumConfig
+    order = 60
     cfg: PixelPendulumConfig
     version = "1"
     description = "Pendulum seen as 28x28 frame pairs, H = 3(1 - cos q) + p^2 (HNN paper, task 5)"

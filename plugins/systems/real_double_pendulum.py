@@ -323,6 +323,7 @@ class RealDoublePendulum(System):
     """Measured double pendulum (Schmidt & Lipson 2009), state (θ1, θ2, ω1, ω2)."""
 
     Config = RealDoublePendulumConfig
+    order = 100
     cfg: RealDoublePendulumConfig
     version = "1"
     description = "Measured double pendulum, Schmidt & Lipson 2009, state (theta1, theta2, w1, w2)"

@@ -175,6 +175,7 @@ class RealPendulum(System):
     """Measured pendulum (Schmidt & Lipson 2009); the HNN paper's real-pendulum task."""
 
     Config = RealPendulumConfig
+    order = 30
     cfg: RealPendulumConfig
     version = "1"
     description = "Measured pendulum, Schmidt & Lipson 2009, E = 2.4(1 - cos q) + p^2 (task 3)"

@@ -24,6 +24,7 @@ class Spring(ToySystem):
     """Ideal mass-spring, H = q^2 + p^2; the paper's task 1."""
 
     Config = SpringConfig
+    order = 10
     # 2: evaluation initial states drawn as the 2019 notebooks did (eval_init="box").
     version = "2"
     description = "Ideal mass-spring, H = q^2 + p^2 (HNN paper, task 1)"

@@ -161,6 +161,8 @@ class SpringChainConfig(SystemConfig):
 class SpringChain(System):
     """N unit masses, nearest-neighbour unit springs, fixed walls at both ends."""
 
+    order = 110
+
     Config: ClassVar[type[SystemConfig]] = SpringChainConfig
     cfg: SpringChainConfig
     version = "1"

@@ -18,6 +18,7 @@ DHNN = Family(
     networks=lambda d: {"H": (d, 1), "D": (d, 1)},
     implementations={"torch": "hnnbench_plugins.models.dhnn.torch",
                      "jax": "hnnbench_plugins.models.dhnn.jax"},
+    order=30,
     learned_energy=True,
 )
 

@@ -17,6 +17,7 @@ HNN = Family(
     networks=lambda d: {"H": (d, 1)},
     implementations={"torch": "hnnbench_plugins.models.hnn.torch",
                      "jax": "hnnbench_plugins.models.hnn.jax"},
+    order=20,
     observations=("state", "pixels"),
     learned_energy=True,
 )

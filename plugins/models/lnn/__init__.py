@@ -12,7 +12,9 @@ solved per state (a linear system of the n×n velocity Hessian). The learned ene
 
 from __future__ import annotations
 
-from hnnbench.neural import Family, NeuralModel
+from dataclasses import dataclass
+
+from hnnbench.neural import Family, NeuralConfig, NeuralModel
 
 LNN = Family(
     name="lnn",
@@ -22,14 +24,27 @@ LNN = Family(
     networks=lambda d: {"L": (d, 1)},
     implementations={"torch": "hnnbench_plugins.models.lnn.torch",
                      "jax": "hnnbench_plugins.models.lnn.jax"},
+    order=40,
     coordinates="velocity",
     learned_energy=True,
 )
 
 
+@dataclass
+class LNNConfig(NeuralConfig):
+    """The shared architecture with the LNN paper's activation: softplus, whose second
+    derivatives (the Euler-Lagrange equations need them) are smooth and nowhere
+    flat. The paper's other choices (3 x 600 units, a searched initialisation, L1
+    loss, one-cycle learning rate, ~10^8 samples) are not used: like every family,
+    the LNN trains under each system's protocol (docs/MODELS.md)."""
+
+    activation: str = "softplus"
+
+
 class LNNTorch(NeuralModel):
     """Lagrangian NN (PyTorch; ``torch.func`` derivatives)."""
 
+    Config = LNNConfig
     family = LNN
     backend = "torch"
     version = "1"
@@ -38,6 +53,7 @@ class LNNTorch(NeuralModel):
 class LNNJax(NeuralModel):
     """Lagrangian NN (JAX)."""
 
+    Config = LNNConfig
     family = LNN
     backend = "jax"
     version = "1"

@@ -15,6 +15,7 @@ MLP = Family(
     networks=lambda d: {"f": (d, d)},
     implementations={"torch": "hnnbench_plugins.models.mlp.torch",
                      "jax": "hnnbench_plugins.models.mlp.jax"},
+    order=10,
     observations=("state", "pixels"),
 )
 

@@ -20,6 +20,7 @@ NODE2 = Family(
     networks=lambda d: {"g": (d, d // 2)},
     implementations={"torch": "hnnbench_plugins.models.node2.torch",
                      "jax": "hnnbench_plugins.models.node2.jax"},
+    order=50,
     coordinates="velocity",
 )
 

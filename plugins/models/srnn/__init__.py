@@ -32,6 +32,7 @@ SRNN = Family(
     networks=lambda d: {"T": (d // 2, 1), "V": (d // 2, 1)},
     implementations={"torch": "hnnbench_plugins.models.srnn.torch",
                      "jax": "hnnbench_plugins.models.srnn.jax"},
+    order=60,
     data="windows",
     window=5,
     learned_energy=True,

@@ -1,0 +1,42 @@
+"""Reports from run records: the leaderboard as CSV, Markdown and HTML, comparisons
+with published results and claims, and figures.
+
+``hnnbench report DIR [DIR ...]`` and :func:`write_report` build everything; the
+pieces are importable: :mod:`~hnnbench.report.inputs` (records, provenance),
+:mod:`~hnnbench.report.tables`, :mod:`~hnnbench.report.published`,
+:mod:`~hnnbench.report.figures` (the figure registry), :mod:`~hnnbench.report.html`.
+"""
+
+from hnnbench.report.build import Report, on_sweep_end, write_report
+from hnnbench.report.cli import main
+from hnnbench.report.figures import FIGURES, figure, make_figures, runs_for_figures
+from hnnbench.report.inputs import ReportError, load_sweep, load_sweeps, provenance
+from hnnbench.report.published import (
+    board_lookup,
+    claim_results,
+    claims_frame,
+    comparison_frame,
+    paper_claim_ratios,
+    paper_table,
+)
+
+__all__ = [
+    "FIGURES",
+    "Report",
+    "ReportError",
+    "board_lookup",
+    "claim_results",
+    "claims_frame",
+    "comparison_frame",
+    "figure",
+    "load_sweep",
+    "load_sweeps",
+    "main",
+    "make_figures",
+    "on_sweep_end",
+    "paper_claim_ratios",
+    "paper_table",
+    "provenance",
+    "runs_for_figures",
+    "write_report",
+]

@@ -1,0 +1,90 @@
+"""``write_report``: every table and figure of one or more sweeps, into one directory.
+
+Writes into ``out`` (default: the only sweep directory):
+
+- ``leaderboard.csv``: one row per (profile, system, model, variant): status counts,
+  mean and std over seeds of every metric (``<metric>_mean``, ``<metric>_std``), mean
+  wall times, provenance (commits, machines, dates). Also the reference format of
+  ``hnnbench check``.
+- ``leaderboard.md``: the same table, ``mean ± std``, best values in bold.
+- ``paper_comparison.md``: published values next to ours, and every claim.
+- ``figures/``: the registered figures (:mod:`hnnbench.report.figures`).
+- ``leaderboard.html``: one self-contained page with all of the above.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from hnnbench import records as R
+from hnnbench.report.figures import Made, make_figures
+from hnnbench.report.html import page
+from hnnbench.report.inputs import ReportError, load_sweeps, provenance
+from hnnbench.report.published import comparison_markdown
+from hnnbench.report.tables import leaderboard_markdown
+from hnnbench.table import leaderboard
+
+log = logging.getLogger("hnnbench")
+
+__all__ = ["Report", "on_sweep_end", "write_report"]
+
+
+@dataclass
+class Report:
+    out: Path
+    board: pd.DataFrame
+    files: dict[str, Path] = field(default_factory=dict)
+    figures: list[Made] = field(default_factory=list)
+    records: list[dict[str, Any]] = field(default_factory=list)
+    unreadable: list[R.Unreadable] = field(default_factory=list)
+
+
+def write_report(sweep_dir: Path | str | Sequence[Path | str], out: Path | str | None = None,
+                 figures: bool = True) -> Report:
+    """Build every table and figure of the sweep directories into ``out`` (default: the
+    sweep, when there is one); ``figures=False`` skips the figures."""
+    dirs = [Path(sweep_dir)] if isinstance(sweep_dir, (str, Path)) else [Path(d) for d in
+                                                                        sweep_dir]
+    recs, bad = load_sweeps(dirs)
+    if out is None:
+        if len(dirs) != 1:
+            raise ReportError("Several directories merge into one report: give --out OUT")
+        out = dirs[0]
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ReportError(f"--out {out} exists and is not a directory")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ReportError(f"Cannot create output directory {out}: {err.strerror}") from None
+    board = leaderboard(recs)
+    report = Report(out=out, board=board, records=recs, unreadable=bad)
+    report.files["csv"] = out / "leaderboard.csv"
+    R.atomic_write_text(report.files["csv"], board.to_csv(index=False))
+    report.figures = make_figures(recs, board, out / "figures") if figures else []
+    prov = provenance(recs)
+    heatmaps = tuple(m.path.stem for m in report.figures if m.kind == "heatmap")
+    report.files["md"] = out / "leaderboard.md"
+    R.atomic_write_text(report.files["md"], leaderboard_markdown(board, prov, heatmaps))
+    report.files["paper"] = out / "paper_comparison.md"
+    R.atomic_write_text(report.files["paper"], comparison_markdown(board))
+    report.files["html"] = out / "leaderboard.html"
+    R.atomic_write_text(report.files["html"], page(board, report.figures, prov, recs, bad))
+    return report
+
+
+def on_sweep_end(sweep_dir: Path | str) -> None:
+    """End-of-multirun hook: write the report into the sweep directory."""
+    try:
+        report = write_report(sweep_dir)
+    except ReportError as err:
+        log.warning("no report: %s", err)
+        return
+    print(f"report: {report.files['html']} (leaderboard.csv/.md, paper_comparison.md, "
+          f"{len(report.figures)} figures)")

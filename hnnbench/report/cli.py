@@ -1,0 +1,49 @@
+"""``hnnbench report DIR [DIR ...] [--out OUT] [--no-figures]``."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from hnnbench.errors import HnnbenchError
+from hnnbench.report.build import write_report
+from hnnbench.report.tables import md_table
+from hnnbench.table import display_frame
+
+__all__ = ["main"]
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that raises a one-line :class:`HnnbenchError` instead of exiting."""
+
+    def error(self, message: str) -> Any:  # type: ignore[override]
+        usage = " ".join(self.format_usage().split()[1:])
+        raise HnnbenchError(f"{message} (usage: {usage})")
+
+
+def _parser() -> _Parser:
+    p = _Parser(prog="hnnbench report",
+                description="Tables (CSV, Markdown, HTML) and figures from run records; "
+                            "several directories merge into one leaderboard.")
+    p.add_argument("dirs", metavar="DIR", nargs="+",
+                   help="sweep or record directories (searched for result.json)")
+    p.add_argument("--out", metavar="OUT", default=None,
+                   help="output directory (default: DIR, when there is one)")
+    p.add_argument("--no-figures", action="store_true", help="tables only (faster)")
+    return p
+
+
+def main(args: Sequence[str]) -> int:
+    ns = _parser().parse_args(list(args))
+    report = write_report([Path(d) for d in ns.dirs], ns.out, figures=not ns.no_figures)
+    print(md_table(display_frame(report.board)))
+    print()
+    for item in report.unreadable:
+        print(f"warning: unreadable record left out: {item}")
+    print(f"wrote {report.files['csv']}, {report.files['md'].name}, "
+          f"{report.files['paper'].name}, {report.files['html'].name} and "
+          f"{len(report.figures)} figure(s) in {report.out / 'figures'} from "
+          f"{len(report.records)} record(s)")
+    return 0

@@ -1,0 +1,453 @@
+"""Report figures, declared in a registry (:data:`FIGURES`, :func:`figure`).
+
+Two scopes:
+
+- ``"system"``: one figure per (profile, system, variant) from the runs' rollout arrays
+  (``rollout.npz``) of the lowest seed: phase portraits, the true energy along each
+  rollout, the learned conserved quantity, loss curves;
+- ``"board"``: figures of the whole leaderboard, or of records across variants: rank
+  heatmaps (models x systems) and the metric against a swept numeric setting (e.g. the
+  training-set size, ``system.n_traj=10,25,50,100``).
+
+Styles come from record fields (family, backend; :mod:`hnnbench.report.style`) and
+order from the registry; nothing here names a model or system.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import re
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal, Optional
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+
+from hnnbench import registry
+from hnnbench.report import style
+from hnnbench.table import format_value, metric_declarations, variant_labels
+
+log = logging.getLogger("hnnbench")
+
+__all__ = ["FIGURES", "FigureKind", "Made", "Run", "SystemRuns", "figure", "make_figures",
+           "rank_table", "runs_for_figures", "slug"]
+
+#: How many evaluation trajectories the rollout figures show.
+N_TRAJ_SHOWN = 3
+_TRAJ_COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c")
+#: Metrics of the rank heatmaps.
+HEATMAP_METRICS = ("energy_mse", "rollout_mse")
+
+
+@dataclass(eq=False)  # compared by identity: the arrays make field equality ambiguous
+class Run:
+    model: str
+    backend: str
+    family: str
+    seed: int
+    status: str
+    arrays: dict[str, np.ndarray]
+
+
+@dataclass
+class SystemRuns:
+    """The runs a system-scope figure draws: one per model, of the lowest seed."""
+
+    label: str
+    seed: int
+    runs: list[Run]
+
+    @property
+    def models(self) -> list[str]:
+        return [r.model for r in self.runs]
+
+    def families(self) -> dict[str, str]:
+        return {r.model: r.family for r in self.runs if r.family}
+
+    def line(self, run: Run) -> dict[str, Any]:
+        backends = list(dict.fromkeys(r.backend for r in self.runs))  # runs: registry order
+        return style.line(run.model, run.backend, self.families(), self.models, backends)
+
+    def color(self, model: str) -> str:
+        return style.color(model, self.families(), self.models)
+
+
+@dataclass(frozen=True)
+class FigureKind:
+    """One kind of figure: its file-name part, title and drawing function."""
+
+    name: str
+    title: str
+    scope: Literal["system", "board"]
+    make: Callable[..., Any]
+
+
+#: Every figure kind, in page order.
+FIGURES: dict[str, FigureKind] = {}
+
+
+def figure(name: str, title: str, scope: Literal["system", "board"] = "system"
+           ) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Register a figure kind. A ``"system"`` figure is ``make(SystemRuns) -> Figure |
+    None``; a ``"board"`` figure is ``make(board, records) -> {file stem: Figure}``."""
+    def register(make: Callable[..., Any]) -> Callable[..., Any]:
+        FIGURES[name] = FigureKind(name, title, scope, make)
+        return make
+
+    return register
+
+
+# --------------------------------------------------------------------------- inputs
+
+
+def _load_npz(path: Path) -> dict[str, np.ndarray]:
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {k: np.asarray(z[k]) for k in z.files}
+    except (OSError, ValueError) as err:
+        log.warning("cannot read %s: %s", path, err)
+        return {}
+
+
+def runs_for_figures(recs: list[dict[str, Any]]) -> tuple[Optional[int], list[Run]]:
+    """The lowest seed with a rollout file, and each model's run of that seed, in
+    registry order."""
+    seeds = sorted({int(r["seed"]) for r in recs if r.get("seed") is not None
+                    and r.get("path") and (Path(r["path"]) / "rollout.npz").exists()})
+    if not seeds:
+        return None, []
+    seed = seeds[0]
+    runs = []
+    for rec in recs:
+        if rec.get("seed") != seed or rec.get("status") not in ("ok", "diverged"):
+            continue
+        arrays = _load_npz(Path(rec["path"]) / "rollout.npz")
+        if arrays:
+            runs.append(Run(str(rec.get("model")), str(rec.get("backend") or ""),
+                            str(rec.get("family") or ""), seed, str(rec.get("status")),
+                            arrays))
+    order = registry.ordered("model", [r.model for r in runs])
+    runs.sort(key=lambda r: order.index(r.model))
+    return seed, runs
+
+
+def _new_figure(n_panels: int, width: float = 4.6, height: float = 3.6) -> Any:
+    fig = Figure(figsize=(max(width * n_panels, 5.0), height), layout="constrained")
+    axes = fig.subplots(1, n_panels, squeeze=False)[0]
+    return fig, list(axes)
+
+
+def _save(fig: Any, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.stem}.tmp.png")
+    fig.savefig(tmp, dpi=100, format="png")
+    tmp.replace(path)
+    return path
+
+
+# --------------------------------------------------------------------------- system scope
+
+
+@figure("phase", "Phase portraits (q1 vs p1)")
+def phase_figure(ctx: SystemRuns) -> Any:
+    shown = [r for r in ctx.runs if "states_hat" in r.arrays and "states_true" in r.arrays]
+    if not shown:
+        return None
+    n_traj = min(N_TRAJ_SHOWN, shown[0].arrays["states_true"].shape[0])
+    fig, axes = _new_figure(len(shown), width=3.8)
+    for ax, run in zip(axes, shown, strict=True):
+        true, hat = run.arrays["states_true"], run.arrays["states_hat"]
+        n = true.shape[-1] // 2
+        for k in range(min(n_traj, true.shape[0])):
+            c = _TRAJ_COLORS[k % len(_TRAJ_COLORS)]
+            ax.plot(hat[k, :, 0], hat[k, :, n], "-", color=c, lw=2.0, alpha=0.75, zorder=2)
+            ax.plot(true[k, :, 0], true[k, :, n], "--", color="k", lw=0.9, zorder=3)
+            ax.plot(true[k, 0, 0], true[k, 0, n], "o", color=c, ms=5, mec="k", zorder=4)
+        ax.set_title(run.model, color=ctx.color(run.model))
+        ax.set_xlabel("q1")
+        ax.set_ylabel("p1")
+        ax.grid(alpha=0.3)
+    handles = [Line2D([], [], color="k", ls="--", lw=0.9, label="true")]
+    handles += [Line2D([], [], color=_TRAJ_COLORS[k], lw=2.0, label=f"rollout, trajectory {k + 1}")
+                for k in range(n_traj)]
+    handles.append(Line2D([], [], color="w", marker="o", mec="k", mfc="0.6", label="start"))
+    fig.legend(handles=handles, loc="outside right upper", fontsize=8)
+    fig.suptitle(f"{ctx.label}: phase portraits (q1, p1) of evaluation trajectories 1–{n_traj}, "
+                 f"true vs model rollout (seed {ctx.seed})")
+    return fig
+
+
+@figure("energy", "True energy along rollouts")
+def energy_figure(ctx: SystemRuns) -> Any:
+    shown = [r for r in ctx.runs if "energy_hat" in r.arrays]
+    if not shown:
+        return None
+    ref = shown[0].arrays
+    t, e_true = ref["t"], ref["energy_true"]
+    n_traj = min(N_TRAJ_SHOWN, e_true.shape[0])
+    fig, axes = _new_figure(n_traj)
+    for k, ax in enumerate(axes):
+        ax.plot(t, e_true[k], "k--", lw=2.0, label="ground truth")
+        for run in shown:
+            ax.plot(run.arrays["t"], run.arrays["energy_hat"][k], label=run.model,
+                    **ctx.line(run))
+        ax.set_title(f"trajectory {k + 1}")
+        ax.set_xlabel("time")
+        ax.set_ylabel("true energy E(x̂(t))")
+        ax.grid(alpha=0.3)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside right upper", fontsize=8)
+    missing = [r.model for r in ctx.runs if r not in shown]
+    note = f"; no rollout: {', '.join(missing)}" if missing else ""
+    fig.suptitle(f"{ctx.label}: true energy along each model's rollout (seed {ctx.seed}){note}")
+    return fig
+
+
+@figure("learned_energy", "Learned conserved quantity")
+def learned_energy_figure(ctx: SystemRuns) -> Any:
+    shown = [r for r in ctx.runs if "learned_energy" in r.arrays]
+    if not shown:
+        return None
+    n_traj = min(N_TRAJ_SHOWN, shown[0].arrays["learned_energy"].shape[0])
+    fig, axes = _new_figure(n_traj)
+    for k, ax in enumerate(axes):
+        for run in shown:
+            h = run.arrays["learned_energy"][k]
+            ax.plot(run.arrays["t"], h - h[0], label=run.model, **ctx.line(run))
+        ax.axhline(0.0, color="k", lw=0.8, ls=":")
+        ax.set_title(f"trajectory {k + 1}")
+        ax.set_xlabel("time")
+        ax.set_ylabel("H(x̂(t)) − H(x̂(0))")
+        ax.grid(alpha=0.3)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside right upper", fontsize=8)
+    fig.suptitle(f"{ctx.label}: learned conserved quantity along its own rollout, shifted to "
+                 f"start at 0 (seed {ctx.seed})")
+    return fig
+
+
+@figure("loss", "Loss curves")
+def loss_figure(ctx: SystemRuns) -> Any:
+    shown = [r for r in ctx.runs if "history.step" in r.arrays and r.arrays["history.step"].size]
+    if not shown:
+        return None
+    fig, axes = _new_figure(1, width=7.0, height=4.2)
+    ax = axes[0]
+    for run in shown:
+        step = run.arrays["history.step"]
+        color = ctx.color(run.model)
+        for key, ls, label in (("history.train_loss", "-", "train"),
+                               ("history.test_loss", "--", "test")):
+            if key in run.arrays and run.arrays[key].size == step.size:
+                y = np.where(run.arrays[key] > 0, run.arrays[key], np.nan)
+                ax.plot(step, y, ls, color=color, lw=1.3, label=f"{run.model} {label}")
+    ax.set_yscale("log")
+    ax.set_xlabel("training step")
+    ax.set_ylabel("loss")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(loc="best", fontsize=7, ncol=2)
+    ax.set_title(f"{ctx.label}: training and test loss (seed {ctx.seed})")
+    return fig
+
+
+# --------------------------------------------------------------------------- board scope
+
+
+def rank_table(board: pd.DataFrame, metric: str) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """``(ranks, values)``: models x systems; rank 1 is the best ranked model of the
+    system (ties share a rank; ``inf``, a diverged rollout, ranks last), NaN where the
+    pair has no value."""
+    declared = metric_declarations()
+    higher = declared[metric].better == "higher" if metric in declared else False
+    rows = board[board["ranked"].fillna(True).astype(bool)] if "ranked" in board else board
+    if "variant" in rows:
+        rows = rows[rows["variant"].fillna("").astype(str) == ""]
+    systems = registry.ordered("system", rows["system"].astype(str))
+    models = registry.ordered("model", rows["model"].astype(str))
+    values = rows.pivot_table(index="model", columns="system", values=f"{metric}_mean",
+                              aggfunc="first", dropna=False).reindex(index=models,
+                                                                     columns=systems)
+    ranks = values.rank(axis=0, ascending=not higher, method="min")
+    return ranks, values
+
+
+@figure("heatmap", "Which model wins where: rank by metric", scope="board")
+def heatmap_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    out = {}
+    for metric in HEATMAP_METRICS:
+        if f"{metric}_mean" not in board or board[f"{metric}_mean"].isna().all():
+            continue
+        ranks, values = rank_table(board, metric)
+        if ranks.shape[0] < 2 or values.isna().all().all():
+            continue  # a ranking needs two models
+        out[f"heatmap_{metric}"] = _heatmap(ranks, values, metric)
+    return out
+
+
+def _heatmap(ranks: pd.DataFrame, values: pd.DataFrame, metric: str) -> Any:
+    import matplotlib as mpl
+
+    n_models, n_systems = ranks.shape
+    fig, (ax,) = _new_figure(1, width=max(6.0, 1.05 * n_systems + 2.5),
+                             height=max(3.0, 0.42 * n_models + 1.6))
+    worst = max(float(np.nanmax(ranks.to_numpy())), 2.0) if ranks.notna().any().any() else 2.0
+    shade = (ranks - 1) / (worst - 1)
+    cmap = mpl.colormaps["RdYlGn_r"].with_extremes(bad="#eeeeee")
+    ax.imshow(np.ma.masked_invalid(shade.to_numpy(dtype=float)), cmap=cmap, vmin=0, vmax=1,
+              aspect="auto")
+    linear = metric_declarations().get(metric)
+    lin = linear is not None and linear.scale == "linear"
+    for i in range(n_models):
+        for j in range(n_systems):
+            v, r = values.iat[i, j], ranks.iat[i, j]
+            if pd.isna(v):
+                ax.text(j, i, "—", ha="center", va="center", fontsize=7, color="0.5")
+                continue
+            text = format_value(float(v), linear=lin)
+            ax.text(j, i, f"{int(r)}\n{text}", ha="center", va="center", fontsize=6.5,
+                    color="k")
+    ax.set_xticks(range(n_systems), [str(s) for s in values.columns], rotation=35,
+                  ha="right", fontsize=8)
+    ax.set_yticks(range(n_models), [str(m) for m in values.index], fontsize=8)
+    ax.set_title(f"Rank by {metric} within each system (1 = best; value below the rank; "
+                 "grey: no value)", fontsize=9)
+    return fig
+
+
+def _swept_key(recs: Sequence[dict[str, Any]]) -> Optional[str]:
+    """The one numeric override whose value differs between the records, or None."""
+    labels = variant_labels([r.get("overrides") for r in recs])
+    keys: set[str] = set()
+    for label in labels:
+        for token in label.split():
+            keys.add(token.split("=", 1)[0])
+    if len(keys) != 1:
+        return None
+    key = next(iter(keys))
+    for label in labels:
+        value = label.partition("=")[2]
+        try:
+            float(value)
+        except ValueError:
+            return None
+    return key
+
+
+@figure("sweep", "Metric against a swept setting (e.g. the training-set size)",
+        scope="board")
+def sweep_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """Per system, each metric of interest against the value of the one numeric setting
+    the sweep varied, one line per model (mean ± std over seeds)."""
+    key = _swept_key(recs)
+    if key is None or "variant" not in board:
+        return {}
+    out = {}
+    declared = metric_declarations()
+    for system in registry.ordered("system", board["system"].astype(str)):
+        rows = board[board["system"] == system].copy()
+        rows["x"] = rows["variant"].astype(str).str.partition("=")[2].astype(float)
+        metrics = [m for m in ("test_loss", "energy_mse", "rollout_mse")
+                   if f"{m}_mean" in rows and rows[f"{m}_mean"].notna().any()]
+        if not metrics or rows["x"].nunique() < 2:
+            continue
+        fig, axes = _new_figure(len(metrics), width=4.2)
+        models = registry.ordered("model", rows["model"].astype(str))
+        families = {str(r["model"]): str(r.get("family") or "") for _, r in rows.iterrows()}
+        backends = list(dict.fromkeys(str(rows[rows["model"] == m]["backend"].iloc[0])
+                                      for m in models))
+        for ax, metric in zip(axes, metrics, strict=True):
+            for model in models:
+                sel = rows[rows["model"] == model].sort_values("x")
+                backend = str(sel["backend"].iloc[0])
+                y = sel[f"{metric}_mean"].to_numpy(dtype=float)
+                err = sel[f"{metric}_std"].to_numpy(dtype=float)
+                props = style.line(model, backend, families, models, backends)
+                ax.errorbar(sel["x"], y, yerr=np.nan_to_num(err), label=model, marker="o",
+                            ms=3, capsize=2, **props)
+            if metric in declared and declared[metric].scale == "log":
+                ax.set_yscale("log")
+            ax.set_xscale("log")
+            ax.set_xlabel(key)
+            ax.set_ylabel(metric)
+            ax.grid(alpha=0.3, which="both")
+        handles, labels = axes[0].get_legend_handles_labels()
+        fig.legend(handles, labels, loc="outside right upper", fontsize=7)
+        fig.suptitle(f"{system}: metrics against {key} (mean ± std over seeds)")
+        out[f"{system}_sweep_{slug(key)}"] = fig
+    return out
+
+
+# --------------------------------------------------------------------------- driver
+
+
+def slug(text: str, limit: int = 80) -> str:
+    """A file-name form of ``text``; a long one is cut and given a hash of the whole."""
+    slug = re.sub(r"[^A-Za-z0-9._-]+", "_", text.replace("=", "-"))
+    if len(slug) <= limit:
+        return slug
+    return f"{slug[:limit]}-{hashlib.sha1(text.encode()).hexdigest()[:10]}"
+
+
+@dataclass
+class Made:
+    """One figure written: its section label, kind, and file."""
+
+    label: str
+    kind: str
+    path: Path
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def __iter__(self) -> Any:  # ``label, kind, path = made``
+        return iter((self.label, self.kind, self.path))
+
+
+def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Path
+                 ) -> list[Made]:
+    """Every registered figure into ``directory``."""
+    directory = Path(directory)
+    made: list[Made] = []
+    for kind in FIGURES.values():
+        if kind.scope != "board":
+            continue
+        try:
+            figures = kind.make(board, recs)
+        except Exception as err:  # one broken figure must not stop the report
+            log.warning("figure %s failed: %s", kind.name, err)
+            continue
+        for stem, fig in figures.items():
+            made.append(Made("all systems", kind.name, _save(fig, directory / f"{stem}.png")))
+    profiles = sorted({str(r.get("profile")) for r in recs})
+    groups: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    for rec, variant in zip(recs, variant_labels([r.get("overrides") for r in recs]),
+                            strict=True):
+        groups.setdefault((str(rec.get("profile")), str(rec.get("system")), variant),
+                          []).append(rec)
+    systems = registry.ordered("system", [k[1] for k in groups])
+    for profile, system, variant in sorted(groups, key=lambda k: (k[0], systems.index(k[1]),
+                                                                   k[2])):
+        seed, runs = runs_for_figures(groups[(profile, system, variant)])
+        if seed is None:
+            continue
+        label = system if len(profiles) == 1 else f"{system} ({profile})"
+        label += f" [{variant}]" if variant else ""
+        stem = system if len(profiles) == 1 else f"{profile}_{system}"
+        if variant:
+            stem += "__" + slug(variant)
+        ctx = SystemRuns(f"{system} [{variant}]" if variant else system, seed, runs)
+        for kind in FIGURES.values():
+            if kind.scope != "system":
+                continue
+            try:
+                fig = kind.make(ctx)
+            except Exception as err:
+                log.warning("figure %s/%s failed: %s", system, kind.name, err)
+                continue
+            if fig is not None:
+                made.append(Made(label, kind.name, _save(fig, directory / f"{stem}_{kind.name}.png")))
+    return made
+
