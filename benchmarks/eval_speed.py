@@ -15,7 +15,7 @@ evaluation trajectories:
     ``model.rollout(x0_all, t, rtol, atol)`` call from every initial state at once,
     the batch integrated as one system by the backend's adaptive Dormand-Prince 5(4)
     in float64 (hnnbench's own batched ``dopri5`` for torch, diffrax ``Dopri5`` for JAX), then the
-    energy MSE with hnnbench's own functions (``evaluate._energies``,
+    energy MSE with hnnbench's own functions (the true energy along each rollout,
     ``metrics.energy_error_per_traj``, ``metrics.summarize``).
 (b) **scipy loop** (the 2019 code's way): for each trajectory separately,
     ``scipy.integrate.solve_ivp(fun, (t0, t1), x0, t_eval=t, method="RK45", ...)``
@@ -103,7 +103,9 @@ def energy_mse(system: Any, traj: Any, states_hat: np.ndarray) -> float:
     """The ``energy_mse`` metric's mean, computed as :func:`hnnbench.evaluate.evaluate`
     does: true energy along the rollout vs along the true trajectories."""
     from hnnbench import metrics as M
-    from hnnbench.evaluate import _energies
+    def _energies(system, states):  # (M, T, 2n) -> (M, T), as hnnbench.evaluate does
+        m, t, d = states.shape
+        return system.energy(states.reshape(m * t, d)).reshape(m, t)
 
     e_true, e_hat = _energies(system, traj.states), _energies(system, states_hat)
     return M.summarize(M.energy_error_per_traj(e_hat, e_true))["mean"]

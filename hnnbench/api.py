@@ -446,9 +446,11 @@ class Model(ABC):
         """Train on ``data.train``; report losses through ``progress``."""
 
     def fit_seeds(
-        self, data: Dataset, train: TrainSettings, seeds: Sequence[int], progress: Progress
+        self, data: Sequence[Dataset], train: TrainSettings, seeds: Sequence[int],
+        progress: Progress
     ) -> list[tuple[Model, FitResult]]:
-        """Train one model per seed, in ``seeds`` order: ``[(trained model, result)]``.
+        """Train one model per seed (seed ``seeds[k]`` on ``data[k]``, the system's
+        dataset of that seed), in order: ``[(trained model, result)]``.
 
         A seed whose training diverges gets a result with ``diverged`` set; the others
         are unaffected. The default trains a fresh instance per seed, one after the
@@ -456,12 +458,12 @@ class Model(ABC):
         overrides it. Used when a job trains several seeds (``seeds_per_job``).
         """
         out: list[tuple[Model, FitResult]] = []
-        for seed in seeds:
+        for seed, seed_data in zip(seeds, data, strict=True):
             model = type(self)(self.cfg, self.system, self.requested_device)
             try:
-                result = model.fit(data, train, seed, progress)
+                result = model.fit(seed_data, train, seed, progress)
             except RolloutDiverged as err:
-                result = FitResult(diverged=f"training diverged: {err}")
+                result = FitResult(diverged=str(err))
             out.append((model, result))
         return out
 

@@ -310,6 +310,35 @@ def _parse_override(parser: Any, text: str) -> _Entry:
     return _Entry(text, prefix, key, values, True)
 
 
+def _batch_seeds(entries: list[_Entry]) -> list[_Entry]:
+    """With ``seeds_per_job=N`` (N > 1), a sweep ``seed=a,b,c,...`` becomes one job per
+    N seeds: ``seed_batch=[a,b,c],[d,...]`` with ``seed=${seed_batch.0}``, the first of
+    each batch (its records' directories stay ``seed<k>``; hnnbench.run.seed_directory)."""
+    per_job = [e for e in entries if e.key == "seeds_per_job" and not e.sweep and e.values]
+    if not per_job:
+        return entries
+    try:
+        size = int(str(per_job[-1].values[0]))  # type: ignore[index]
+    except ValueError:
+        return entries  # validation reports the bad value
+    where = [i for i, e in enumerate(entries) if e.key == "seed"]
+    if size <= 1 or not where:
+        return entries
+    i = where[-1]
+    seed = entries[i]
+    if not seed.sweep or not seed.values or len(seed.values) < 2:
+        return entries
+    try:
+        values = [int(str(v)) for v in seed.values]
+    except ValueError:
+        raise ConfigError(f"{seed.text}: seeds must be integers, e.g. seed=0,1,2") from None
+    groups = [values[k:k + size] for k in range(0, len(values), size)]
+    texts = ["[" + ",".join(map(str, g)) + "]" for g in groups]
+    batch = _Entry(f"seed_batch={','.join(texts)}", "", "seed_batch", texts, len(texts) > 1)
+    leader = _Entry("seed=${seed_batch.0}", "", "seed", ["${seed_batch.0}"], False)
+    return [*entries[:i], leader, batch, *entries[i + 1:]]
+
+
 def _trial(entries: list[_Entry], choice: dict[int, Any]) -> list[str]:
     """Overrides of one job: each sweep replaced by its chosen value (or its first)."""
     out = []
@@ -353,6 +382,8 @@ def plan(argv: list[str]) -> Plan:
     profile_of(list(ns.overrides))
     parser = OverridesParser.create()
     entries = [_parse_override(parser, text) for text in ns.overrides]
+    if multirun:
+        entries = _batch_seeds(entries)
     rewritten = [e.text for e in entries]
     sweeps = {i: e for i, e in enumerate(entries) if e.sweep and (e.values is None
                                                                   or len(e.values) > 1)}

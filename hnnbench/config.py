@@ -88,8 +88,14 @@ class RunConfig:
             ``null`` (default): pin when ``threads=1`` and the ``hnnbench`` command
             started the job (not when a notebook calls ``run_job``).
         save_model: write the trained weights next to the record.
-        cache_dir: dataset cache (default ``$HNNBENCH_CACHE_DIR`` or the user cache).
+        cache_dir: every cache: datasets, measured data, JAX's compiled executables
+            (default ``$HNNBENCH_CACHE_DIR`` or the user cache; :mod:`hnnbench.paths`).
         data_dir: where measured data files are looked up before ``$HNNBENCH_DATA_DIR``.
+        seeds_per_job: a sweep over ``seed`` trains this many seeds of a (system, model)
+            pair as one batch, in one job (the CLI groups the seeds into
+            ``seed_batch``); each seed still gets its own record. 1: one seed per job.
+        seed_batch: the seeds this job trains as one batch (set by the CLI from
+            ``seeds_per_job``; ``seed`` is its first); ``null``: just ``seed``.
     """
 
     system: Any = MISSING
@@ -103,6 +109,8 @@ class RunConfig:
     save_model: bool = True
     cache_dir: Optional[str] = None
     data_dir: Optional[str] = None
+    seeds_per_job: int = 1
+    seed_batch: Optional[list[int]] = None
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
 
 
@@ -160,6 +168,21 @@ def validate_run(cfg: Any) -> None:
         raise ConfigError(
             f"seed={seed} is invalid: expected an integer from 0 to {MAX_SEED}, e.g. seed=0."
         )
+    spj = cfg.seeds_per_job
+    if isinstance(spj, bool) or not isinstance(spj, int) or spj < 1:
+        raise ConfigError(
+            f"seeds_per_job={spj} is invalid: expected an integer >= 1, e.g. seeds_per_job=3."
+        )
+    batch = cfg.get("seed_batch")
+    if batch is not None:
+        values = list(batch)
+        if not values or any(isinstance(v, bool) or not isinstance(v, int)
+                             or not 0 <= v <= MAX_SEED for v in values):
+            raise ConfigError(f"seed_batch={values} is invalid: expected a list of seeds, "
+                              "e.g. seed_batch=[0,1,2] (normally set by seeds_per_job).")
+        if len(set(values)) != len(values) or values[0] != seed:
+            raise ConfigError(f"seed_batch={values} must hold distinct seeds starting with "
+                              f"seed={seed}; let seeds_per_job set it.")
     if not DEVICE_RE.match(str(cfg.device)):
         raise ConfigError(
             f"device={cfg.device} is invalid: expected auto, cpu, cuda or cuda:N."

@@ -10,6 +10,7 @@ run it. It never raises for a problem of its own run: a diverging model is recor
 from __future__ import annotations
 
 import contextlib
+import copy
 import dataclasses
 import logging
 import os
@@ -24,10 +25,10 @@ from typing import Any, Optional
 
 import numpy as np
 import threadpoolctl
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, OmegaConf, open_dict
 
 from hnnbench import affinity, cache, launch, paths, records, registry
-from hnnbench.api import Dataset, TrainSettings, Trajectories
+from hnnbench.api import Dataset, FitResult, TrainSettings, Trajectories
 from hnnbench.config import EvaluationConfig, Job, prepare_job
 from hnnbench.errors import HnnbenchError, RolloutDiverged, UnsupportedPair
 from hnnbench.evaluate import evaluate, failed_metrics
@@ -35,7 +36,7 @@ from hnnbench.progress import TrainingProgress
 
 log = logging.getLogger("hnnbench")
 
-__all__ = ["run_job"]
+__all__ = ["run_job", "run_seeds", "seed_directory"]
 
 
 def _set_threads(threads: int) -> None:
@@ -163,110 +164,208 @@ def _check_finite(record: dict[str, Any]) -> None:
         record.update(status="diverged", error=f"non-finite {' and '.join(bad)}")
 
 
+def seed_directory(directory: Path, leader: int, seed: int) -> Path:
+    """Where the record of ``seed`` goes when a job trains a batch led by ``leader``
+    (whose directory Hydra chose): the same path with its ``seed<leader>`` component
+    replaced, so every seed's record sits where a job of its own would put it."""
+    directory = Path(directory)
+    if seed == leader:
+        return directory
+    parts = list(directory.parts)
+    for i in range(len(parts) - 1, -1, -1):
+        if parts[i] == f"seed{leader}":
+            parts[i] = f"seed{seed}"
+            return Path(*parts)
+    return directory / f"seed{seed}"
+
+
+def _seed_config(cfg: DictConfig, seed: int) -> DictConfig:
+    """The config of one seed of a batch: as if it had run alone."""
+    one = copy.deepcopy(cfg)
+    with open_dict(one):
+        one.seed = seed
+        if "seed_batch" in one:
+            one.seed_batch = None
+    return one
+
+
+def _seed_overrides(overrides: list[str] | None, seed: int) -> list[str] | None:
+    if overrides is None:
+        return None
+    keep = [o for o in overrides
+            if o.lstrip("+~").split("=", 1)[0] not in ("seed", "seed_batch")]
+    return [*keep, f"seed={seed}"]
+
+
 def run_job(
     cfg: DictConfig, directory: Path, index: int | None = None, total: int | None = None,
     overrides: list[str] | None = None,
 ) -> dict[str, Any]:
-    """Run one job and write its record into ``directory``; return the record.
+    """Run one job and write its record into ``directory``; return the record (of the
+    first seed, for a job that trains a batch of seeds: :func:`run_seeds`).
 
     Never raises for a problem of the job itself (bad config, data, model, NaNs): the
     record says ``failed`` or ``diverged``. ``overrides`` (Hydra's task overrides) are
     stored in the record so the job can be re-run exactly.
     """
-    directory = Path(directory)
-    system, model, seed = (_select(cfg, k) for k in ("system.name", "model.name", "seed"))
-    tag = f"{system} x {model} seed={seed}"
-    count = f"[{index + 1}/{total}] " if index is not None and total else ""
-    existing = records.read_record(directory / records.RECORD_NAME)
-    if existing and existing.get("status") in records.FINISHED and not _select(cfg, "rerun"):
-        log.info("%s%s: already finished (%s), skipped; rerun=true redoes it",
-                 count, tag, existing["status"])
-        return existing
+    return run_seeds(cfg, directory, index, total, overrides)[0]
 
-    _clean_stale(directory)
-    record = _base_record(cfg, overrides)
-    timings: dict[str, float] = record["timings"]
+
+def run_seeds(
+    cfg: DictConfig, directory: Path, index: int | None = None, total: int | None = None,
+    overrides: list[str] | None = None,
+) -> list[dict[str, Any]]:
+    """Run the job's seed, or its batch of seeds (``seed_batch``, from
+    ``seeds_per_job``), and write one record per seed; return them in seed order.
+
+    A batch trains all its seeds in one program (:meth:`hnnbench.api.Model.fit_seeds`)
+    and writes each seed's record where a job of its own would (:func:`seed_directory`),
+    as if it had run alone (``seed_batch`` records the batch). Seeds already finished
+    are not run again (resume); one seed that diverges or fails leaves the others'
+    records unaffected.
+    """
+    directory = Path(directory)
+    batch = _select(cfg, "seed_batch")
+    seeds = [int(s) for s in batch] if batch else [int(_select(cfg, "seed") or 0)]
+    system, model = (_select(cfg, k) for k in ("system.name", "model.name"))
+    count = f"[{index + 1}/{total}] " if index is not None and total else ""
+    dirs = {seed: seed_directory(directory, seeds[0], seed) for seed in seeds}
+    done: dict[int, dict[str, Any]] = {}
+    for seed in seeds:
+        existing = records.read_record(dirs[seed] / records.RECORD_NAME)
+        if existing and existing.get("status") in records.FINISHED and not _select(cfg, "rerun"):
+            log.info("%s%s x %s seed=%s: already finished (%s), skipped; rerun=true redoes it",
+                     count, system, model, seed, existing["status"])
+            done[seed] = existing
+    pending = [s for s in seeds if s not in done]
+    if not pending:
+        return [done[s] for s in seeds]
+
+    batch_text = f" (seeds {','.join(map(str, pending))} as one batch)" if len(pending) > 1 else ""
+    tags = {s: f"{system} x {model} seed={s}" for s in pending}
+    runs: dict[int, dict[str, Any]] = {}
+    for seed in pending:
+        _clean_stale(dirs[seed])
+        one_cfg = _seed_config(cfg, seed) if batch else cfg
+        runs[seed] = _base_record(one_cfg, _seed_overrides(overrides, seed) if batch
+                                  else overrides)
+        if len(seeds) > 1:
+            runs[seed]["seed_batch"] = seeds
     start = time.perf_counter()
-    log.info("%s%s: start", count, tag)
+    log.info("%s%s x %s seed=%s: start%s", count, system, model,
+             ",".join(map(str, pending)), batch_text)
     try:
         job = prepare_job(cfg)
         # The job's cache_dir and data_dir settings hold for all it does: the dataset
         # cache, measured data files (data.locate) and the JAX compilation cache.
         with paths.overrides(cache_dir=cfg.cache_dir, data_dir=cfg.data_dir):
-            _execute(job, cfg, directory, record, timings)
+            _execute(job, cfg, pending, dirs, runs)
     except HnnbenchError as err:
-        record.update(status="failed", error=str(err))
+        for record in runs.values():
+            if record["status"] == "failed" and not record.get("error"):
+                record.update(status="failed", error=str(err))
     except Exception as err:  # isolate the failure; the sweep goes on
-        record.update(status="failed", error=f"{type(err).__name__}: {err}".splitlines()[0])
-        record["traceback"] = traceback.format_exc()
-    timings["total_s"] = time.perf_counter() - start
-    try:
-        records.write_record(directory, record)
-    except Exception as err:  # e.g. a full disk: say so, and let the sweep go on
-        log.error("%s%s: could not write %s: %s", count, tag,
-                  directory / records.RECORD_NAME, err)
-    _log_outcome(count, tag, record)
-    return record
+        for record in runs.values():
+            if record["status"] == "failed" and not record.get("error"):
+                record.update(status="failed",
+                              error=f"{type(err).__name__}: {err}".splitlines()[0])
+                record["traceback"] = traceback.format_exc()
+    elapsed = time.perf_counter() - start
+    for seed, record in runs.items():
+        record["timings"]["total_s"] = elapsed / len(pending)
+        if len(pending) > 1:
+            record["timings"]["batch_total_s"] = elapsed
+        try:
+            records.write_record(dirs[seed], record)
+        except Exception as err:  # e.g. a full disk: say so, and let the sweep go on
+            log.error("%s%s: could not write %s: %s", count, tags[seed],
+                      dirs[seed] / records.RECORD_NAME, err)
+        _log_outcome(count, tags[seed], record)
+    return [done[s] if s in done else runs[s] for s in seeds]
 
 
-def _execute(
-    job: Job, cfg: DictConfig, directory: Path, record: dict[str, Any],
-    timings: dict[str, float],
-) -> None:
+def _execute(job: Job, cfg: DictConfig, seeds: list[int], dirs: dict[int, Path],
+             runs: dict[int, dict[str, Any]]) -> None:
     system = job.system_cls(job.system_cfg)
     family = getattr(job.model_cls, "family", None)
-    record.update(system_version=system.version, model_version=job.model_cls.version,
-                  backend=job.model_cls.backend, family=getattr(family, "name", None),
-                  ranked=bool(getattr(job.model_cls, "ranked", True)))
+    for record in runs.values():
+        record.update(system_version=system.version, model_version=job.model_cls.version,
+                      backend=job.model_cls.backend, family=getattr(family, "name", None),
+                      ranked=bool(getattr(job.model_cls, "ranked", True)))
     reason = job.model_cls.unsupported_reason(system)
     if reason is not None:
-        record.update(status="skipped", error=f"{cfg.model.name} on {cfg.system.name}: {reason}")
+        for record in runs.values():
+            record.update(status="skipped",
+                          error=f"{cfg.model.name} on {cfg.system.name}: {reason}")
         return
     _set_threads(int(cfg.threads))
     pin = cfg.get("pin_cpu")
     if pin or (pin is None and int(cfg.threads) == 1 and affinity.started_by_cli()):
-        record["cpu_pin"] = affinity.claim_core()
-    seed = int(cfg.seed)
+        core = affinity.claim_core()
+        for record in runs.values():
+            record["cpu_pin"] = core
 
-    t0 = time.perf_counter()
-    data, data_path, data_hit = cache.cached(system, seed, "dataset", lambda: system.dataset(seed),
-                                             Dataset.load)
-    traj, traj_path, _ = cache.cached(system, seed, "evaluation",
-                                      lambda: system.evaluation(seed), Trajectories.load)
-    timings["data_s"] = time.perf_counter() - t0
-    record["data"] = {
-        "cache_hit": data_hit,
-        "dataset_sha256": paths.sha256_file(data_path),
-        "evaluation_sha256": paths.sha256_file(traj_path),
-        "n_train": len(data.train),
-        "n_test": len(data.test),
-        "n_eval_traj": int(traj.states.shape[0]),
-        "meta": data.meta,
-        "evaluation_meta": traj.meta,
-    }
+    datas, trajs = {}, {}
+    for seed in seeds:
+        t0 = time.perf_counter()
+        data, data_path, data_hit = cache.cached(
+            system, seed, "dataset", lambda s=seed: system.dataset(s), Dataset.load)
+        traj, traj_path, _ = cache.cached(
+            system, seed, "evaluation", lambda s=seed: system.evaluation(s), Trajectories.load)
+        runs[seed]["timings"]["data_s"] = time.perf_counter() - t0
+        runs[seed]["data"] = {
+            "cache_hit": data_hit,
+            "dataset_sha256": paths.sha256_file(data_path),
+            "evaluation_sha256": paths.sha256_file(traj_path),
+            "n_train": len(data.train),
+            "n_test": len(data.test),
+            "n_eval_traj": int(traj.states.shape[0]),
+            "meta": data.meta,
+            "evaluation_meta": traj.meta,
+        }
+        datas[seed], trajs[seed] = data, traj
 
     train = TrainSettings.resolve(job.system_cfg, job.model_cfg)
-    record["train"] = dataclasses.asdict(train)
+    for record in runs.values():
+        record["train"] = dataclasses.asdict(train)
+    label = f"{cfg.system.name}/{cfg.model.name} s{','.join(map(str, seeds))}"
     t0 = time.perf_counter()
-    history: dict = {}
     try:
         model = job.model_cls(job.model_cfg, system, str(cfg.device))
-        record["device"] = model.device
-        with TrainingProgress(f"{cfg.system.name}/{cfg.model.name} s{seed}", train.steps) as bar:
-            fit = model.fit(data, train, seed, bar.update)
-        history = fit.history
-        record["steps"] = fit.steps
-        if fit.steps == 0:  # no training loop (closed form, oracle): no protocol used
-            record["train"] = None
+        with TrainingProgress(label, train.steps) as bar:
+            if len(seeds) == 1:
+                try:
+                    fits = [(model, model.fit(datas[seeds[0]], train, seeds[0], bar.update))]
+                except RolloutDiverged as err:
+                    fits = [(model, FitResult(diverged=str(err)))]
+            else:
+                fits = model.fit_seeds([datas[s] for s in seeds], train, seeds, bar.update)
     except UnsupportedPair as err:
-        record.update(status="skipped", error=f"{cfg.model.name} on {cfg.system.name}: {err}")
+        for record in runs.values():
+            record.update(status="skipped", error=f"{cfg.model.name} on {cfg.system.name}: {err}")
         return
-    except RolloutDiverged as err:
-        timings["fit_s"] = time.perf_counter() - t0
+    fit_s = (time.perf_counter() - t0) / len(seeds)
+    for seed, (trained, fit) in zip(seeds, fits, strict=True):
+        record = runs[seed]
+        record["device"] = model.device
+        record["timings"]["fit_s"] = fit_s
+        if len(seeds) > 1:
+            record["timings"]["batch_fit_s"] = fit_s * len(seeds)
+        _finish(record, system, trained, fit, datas[seed], trajs[seed], cfg, dirs[seed])
+
+
+def _finish(record: dict[str, Any], system: Any, model: Any, fit: FitResult, data: Dataset,
+            traj: Trajectories, cfg: DictConfig, directory: Path) -> None:
+    """Record one trained seed: its training log, weights, evaluation and status."""
+    timings: dict[str, float] = record["timings"]
+    if fit.diverged is not None:
         timings.update(model.timings)
-        _diverged(record, system, f"training diverged: {err}")
+        _diverged(record, system, f"training diverged: {fit.diverged}")
         return
-    timings["fit_s"] = time.perf_counter() - t0
+    history = fit.history
+    record["steps"] = fit.steps
+    if fit.steps == 0:  # no training loop (closed form, oracle): no protocol used
+        record["train"] = None
     if _history_diverged(history):
         timings.update(model.timings)
         record["history"] = history
@@ -279,7 +378,7 @@ def _execute(
     ev = EvaluationConfig(**OmegaConf.to_container(cfg.evaluation, resolve=True))  # type: ignore[arg-type]
     result = evaluate(system, model, data, traj, ev)
     timings["eval_s"] = time.perf_counter() - t0
-    timings.update(model.timings)
+    timings.update({k: v for k, v in model.timings.items() if k not in timings})
     record["metrics"] = result.metrics
     if result.errors:
         record["metric_errors"] = result.errors

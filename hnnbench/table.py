@@ -44,7 +44,7 @@ def metric_declarations() -> dict[str, Metric]:
 #: say where and how a job runs rather than what it computes.
 NON_VARIANT_KEYS = frozenset({
     "system", "model", "seed", "profile", "rerun", "device", "threads", "pin_cpu",
-    "save_model", "cache_dir", "data_dir",
+    "save_model", "cache_dir", "data_dir", "seeds_per_job", "seed_batch",
 })
 
 

@@ -101,7 +101,7 @@ def test_same_seed_same_initial_weights(torch_cls, jax_cls, spring: Spring, data
 )
 def trained_pair(request, spring: Spring, data: Dataset):
     torch_cls, jax_cls, batch = request.param
-    cfg = torch_cls.Config(name="parity", dtype="float64", log_every=1)
+    cfg = torch_cls.Config(name="parity", dtype="float64", log_every=1, rollout_max_steps=3000)
     train = TrainSettings(steps=STEPS, batch_size=batch, lr=1e-3, weight_decay=1e-4)
     tm, jm = torch_cls(cfg, spring, "cpu"), jax_cls(cfg, spring, "cpu")
     t_hist = tm.fit(data, train, SEED, lambda *_: None).history

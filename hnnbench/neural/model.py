@@ -32,6 +32,7 @@ from hnnbench.neural.config import NeuralConfig
 from hnnbench.neural.family import BACKEND_ORDER, Family
 from hnnbench.neural.init import autoencoder_init_arrays, network_init_arrays
 from hnnbench.neural.loop import train as run_training
+from hnnbench.neural.views import Problem
 from hnnbench.neural.weights import load_weights, save_weights
 
 __all__ = ["NeuralModel"]
@@ -50,6 +51,9 @@ class NeuralModel(Model):
     cfg: NeuralConfig
     family: ClassVar[Family]
     weights_file: ClassVar[Optional[str]] = "weights.safetensors"
+    #: The smoke profile caps rollouts: a model that needs more steps than this over a
+    #: quick evaluation horizon has diverged in all but name.
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"rollout_max_steps": 5000}}
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -154,10 +158,12 @@ class NeuralModel(Model):
         with its own config fields overrides this."""
         return 0, ()
 
-    def _train(self, data: Dataset, settings: TrainSettings, seeds: Sequence[int],
+    def _train(self, data: Sequence[Dataset], settings: TrainSettings, seeds: Sequence[int],
                progress: Progress) -> tuple[list[Any], list[Weights]]:
-        problem = self.view.problem(data, *self.training_options())
-        d_obs = problem.train[0].shape[1] if problem.kind == "pixels" else None
+        """Train ``seeds`` (seed ``k`` on ``data[k]``) in one program."""
+        problems = [self.view.problem(d, *self.training_options()) for d in data]
+        problem = problems[0] if len(problems) == 1 else Problem.stack(problems)
+        d_obs = problems[0].train[0].shape[1] if problem.kind == "pixels" else None
         if self.warm_start is not None:
             self._check_layout(self.warm_start)
             initial = [dict(self.warm_start) for _ in seeds]
@@ -171,18 +177,24 @@ class NeuralModel(Model):
 
     def fit(self, data: Dataset, train: TrainSettings, seed: int,
             progress: Progress) -> FitResult:
-        (fit,), (weights,) = self._train(data, train, [seed], progress)
+        (fit,), (weights,) = self._train([data], train, [seed], progress)
         self.set_weights(weights)
         if fit.diverged is not None:
             raise RolloutDiverged(fit.diverged)
         return FitResult(history=fit.history, steps=fit.steps)
 
-    def fit_seeds(self, data: Dataset, train: TrainSettings, seeds: Sequence[int],
+    def fit_seeds(self, data: Sequence[Dataset], train: TrainSettings, seeds: Sequence[int],
                   progress: Progress) -> list[tuple[Model, FitResult]]:
-        """Train every seed in one program (their networks as one batch); each seed
-        starts from its own initial weights and sees its own minibatches, exactly as
-        when it runs alone."""
-        fits, weights = self._train(data, train, seeds, progress)
+        """Train every seed in one program, their networks as one batch (``vmap``): each
+        seed starts from its own initial weights and trains on its own data with its own
+        minibatches, exactly as when it runs alone. Seeds whose data differ in shape
+        train one after the other instead."""
+        try:
+            fits, weights = self._train(data, train, seeds, progress)
+        except ValueError as err:
+            if "differ in shape" not in str(err):
+                raise
+            return super().fit_seeds(data, train, seeds, progress)
         out: list[tuple[Model, FitResult]] = []
         for fit, w in zip(fits, weights, strict=True):
             model = self.copy()

@@ -61,6 +61,8 @@ class Problem:
             :data:`LOG_TEST_POINTS` test rows).
         options: keyword arguments of the family's ``window_loss`` (hashable, e.g.
             ``(("substeps", 1),)``).
+        stacked: the arrays carry a leading seed axis (:meth:`stack`): each seed of a
+            batch trains on its own data.
     """
 
     kind: Kind
@@ -68,10 +70,34 @@ class Problem:
     test: tuple[np.ndarray, ...]
     options: tuple[tuple[str, Any], ...] = ()
 
+    #: Whether the arrays hold one leading axis per seed (``S`` problems stacked).
+    stacked: bool = False
+
     @property
     def n(self) -> int:
-        """Training rows."""
-        return int(self.train[0].shape[0])
+        """Training rows (of each seed)."""
+        return int(self.train[0].shape[1 if self.stacked else 0])
+
+    @staticmethod
+    def stack(problems: Sequence[Problem]) -> Problem:
+        """The problems of several seeds as one, each array with a leading seed axis.
+
+        Raises:
+            ValueError: the problems differ in kind, options or array shapes (they
+                cannot be trained as one batch).
+        """
+        first = problems[0]
+        for other in problems[1:]:
+            if (other.kind, other.options) != (first.kind, first.options) or any(
+                    a.shape != b.shape for a, b in zip(other.train + other.test,
+                                                       first.train + first.test, strict=True)):
+                raise ValueError("the seeds' training data differ in shape")
+        return Problem(first.kind,
+                       tuple(np.stack(arrays) for arrays in zip(*(p.train for p in problems),
+                                                                strict=True)),
+                       tuple(np.stack(arrays) for arrays in zip(*(p.test for p in problems),
+                                                                strict=True)),
+                       first.options, stacked=True)
 
 
 def trajectory_windows(split: Split, states: np.ndarray, length: int

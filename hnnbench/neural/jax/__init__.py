@@ -199,21 +199,22 @@ def _chunk(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], st
 
 
 def _batched_chunk(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...],
-                   static: Any, length: int, params: Any,
-                   opt_state: Any, idx: Optional[jax.Array], train: tuple[jax.Array, ...],
+                   static: Any, length: int, stacked: bool, params: Any, opt_state: Any,
+                   idx: Optional[jax.Array], train: tuple[jax.Array, ...],
                    test: tuple[jax.Array, ...], lr: jax.Array, weight_decay: jax.Array
                    ) -> tuple[Any, Any, jax.Array, jax.Array]:
-    """:func:`_chunk` for stacked seeds: ``vmap`` over params, optimizer state and
-    indices (data and hyperparameters shared)."""
-    def one(p: Any, o: Any, i: Optional[jax.Array]) -> Any:
-        return _chunk(kind, impl, options, static, length, p, o, i, train, test, lr,
-                      weight_decay)
+    """:func:`_chunk` for stacked seeds: ``vmap`` over params, optimizer state, indices
+    and, when ``stacked``, each seed's own data (hyperparameters shared)."""
+    def one(p: Any, o: Any, i: Optional[jax.Array], tr: Any, te: Any) -> Any:
+        return _chunk(kind, impl, options, static, length, p, o, i, tr, te, lr, weight_decay)
 
-    return jax.vmap(one, in_axes=(0, 0, None if idx is None else 0))(params, opt_state, idx)
+    data = 0 if stacked else None
+    return jax.vmap(one, in_axes=(0, 0, None if idx is None else 0, data, data))(
+        params, opt_state, idx, train, test)
 
 
 _CHUNKS = {False: jax.jit(_chunk, static_argnums=(0, 1, 2, 3, 4)),
-           True: jax.jit(_batched_chunk, static_argnums=(0, 1, 2, 3, 4))}
+           True: jax.jit(_batched_chunk, static_argnums=(0, 1, 2, 3, 4, 5))}
 #: Compiled chunks of this process, keyed by loss, layout, length, argument shapes and
 #: device: a sweep reuses them across seeds.
 _COMPILED: dict[Any, Any] = {}
@@ -260,6 +261,7 @@ class JaxTrainer:
         opt_state = (optimizer.init(params) if self.seeds == 1
                      else jax.vmap(optimizer.init)(params))
         self.params, self.opt_state = backend.place(params), backend.place(opt_state)
+        self.stacked = problem.stacked
         self.train = tuple(backend.array(a) for a in problem.train)
         self.test = tuple(backend.array(a) for a in problem.test)
         self.hyper = (backend.array(settings.lr), backend.array(settings.weight_decay))
@@ -271,7 +273,9 @@ class JaxTrainer:
             block = indices[0] if self.seeds == 1 else indices
             idx = self.backend.place(jnp.asarray(block, dtype=jnp.int32))
         args = (self.params, self.opt_state, idx, self.train, self.test, *self.hyper)
-        compiled, seconds = _compiled(self.seeds > 1, (*self.statics, length), args)
+        batched = self.seeds > 1
+        statics = (*self.statics, length, *((self.stacked,) if batched else ()))
+        compiled, seconds = _compiled(batched, statics, args)
         timings = self.backend.timings
         timings["compile_s"] = timings.get("compile_s", 0.0) + seconds
         self.params, self.opt_state, losses, test = compiled(*args)

@@ -85,6 +85,7 @@ class TorchTrainer:
         else:
             self.params = {k: tensor(np.stack([w[k] for w in initial])).requires_grad_()
                            for k in initial[0]}
+        self.stacked = problem.stacked
         self.train = tuple(tensor(a) for a in problem.train)
         self.test = tuple(tensor(a) for a in problem.test)
         self.opt = torch.optim.Adam(list(self.params.values()), lr=settings.lr,
@@ -98,23 +99,31 @@ class TorchTrainer:
         dims = (0, *([0 if per_seed_rows else None] * len(arrays)))
         return torch.func.vmap(self.loss, in_dims=dims)(self.params, *arrays)
 
+    def _rows(self, indices: np.ndarray) -> tuple[torch.Tensor, ...]:
+        """The minibatch of one step: ``indices`` ``(S, B)`` into each seed's data."""
+        idx = torch.from_numpy(indices).to(self.device)
+        if self.seeds == 1:
+            return tuple(a[idx[0]] for a in self.train)
+        if self.stacked:  # each seed's rows of its own data: (S, B, ...)
+            seed = torch.arange(self.seeds, device=self.device)[:, None]
+            return tuple(a[seed, idx] for a in self.train)
+        return tuple(a[idx] for a in self.train)  # shared data, per-seed rows
+
     def run_chunk(self, indices: Optional[np.ndarray], length: int
                   ) -> tuple[np.ndarray, np.ndarray]:
         losses = []
         for j in range(length):
             if indices is None:
-                batch, per_seed = self.train, False
+                batch, per_seed = self.train, self.stacked
             else:
-                idx = torch.from_numpy(indices[:, j]).to(self.device)
-                rows = idx[0] if self.seeds == 1 else idx  # (B,) or (S, B)
-                batch, per_seed = tuple(a[rows] for a in self.train), self.seeds > 1
+                batch, per_seed = self._rows(indices[:, j]), self.seeds > 1
             loss = self._losses(batch, per_seed)
             self.opt.zero_grad(set_to_none=True)
             (loss if self.seeds == 1 else loss.sum()).backward()
             self.opt.step()
             losses.append(loss.detach())
         with torch.no_grad():
-            test = self._losses(self.test, False)
+            test = self._losses(self.test, self.stacked)
         out = torch.stack(losses).reshape(length, self.seeds).T
         return out.cpu().numpy(), test.reshape(self.seeds).cpu().numpy()
 

@@ -30,6 +30,10 @@ LNN = Family(
 )
 
 
+#: The smoke profile: a narrow network (its second derivatives or leapfrog windows make
+#: a step several times the HNN's), so quick jobs stay at seconds.
+QUICK = {"quick": {"hidden": 32, "rollout_max_steps": 5000}}
+
 @dataclass
 class LNNConfig(NeuralConfig):
     """The shared architecture with the LNN paper's activation: softplus, whose second
@@ -48,6 +52,7 @@ class LNNTorch(NeuralModel):
     family = LNN
     backend = "torch"
     version = "1"
+    profiles = QUICK
 
 
 class LNNJax(NeuralModel):
@@ -57,3 +62,4 @@ class LNNJax(NeuralModel):
     family = LNN
     backend = "jax"
     version = "1"
+    profiles = QUICK

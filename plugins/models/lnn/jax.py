@@ -18,14 +18,23 @@ def _lagrangian(net: Net) -> Callable[[jax.Array, jax.Array], jax.Array]:
 
 
 def acceleration(net: Net, z: jax.Array) -> jax.Array:
-    """``q̈`` ``(n,)`` of one velocity state ``z = (q, q̇)`` ``(2n,)``."""
+    """``q̈`` ``(n,)`` of one velocity state ``z = (q, q̇)`` ``(2n,)``.
+
+    One reverse pass gives ``∇_z L``; its forward-mode derivative along ``q̇`` alone
+    (``n`` tangents) is the ``(2n, n)`` matrix ``∂(∇_z L)/∂q̇`` whose rows hold
+    ``∂²L/∂q∂q̇`` (the transposed mixed block) and ``∂²L/∂q̇∂q̇``.
+    """
     n = z.shape[0] // 2
     q, qdot = z[:n], z[n:]
-    lag = _lagrangian(net)
-    grad_q = jax.grad(lag, argnums=0)(q, qdot)
-    hess = jax.hessian(lag, argnums=1)(q, qdot)  # ∂²L/∂q̇∂q̇
-    mixed = jax.jacfwd(jax.grad(lag, argnums=1), argnums=0)(q, qdot)  # ∂²L/∂q̇_i∂q_j
-    return jnp.linalg.solve(hess, grad_q - mixed @ qdot)
+    grad_z = jax.grad(lambda zz: net(zz)[0])
+
+    def along_qdot(v: jax.Array) -> tuple[jax.Array, jax.Array]:
+        g = grad_z(jnp.concatenate([q, v]))
+        return g, g
+
+    jac, g = jax.jacfwd(along_qdot, has_aux=True)(qdot)  # (2n, n), (2n,)
+    mixed, hess = jac[:n].T, jac[n:]
+    return jnp.linalg.solve(hess, g[:n] - mixed @ qdot)
 
 
 def field(nets: Nets | dict[str, Net], z: jax.Array) -> jax.Array:

@@ -17,14 +17,23 @@ def _lagrangian(net: Net, n: int) -> Callable[[torch.Tensor, torch.Tensor], torc
 
 
 def acceleration(net: Net, z: torch.Tensor) -> torch.Tensor:
-    """``q̈`` ``(n,)`` of one velocity state ``z = (q, q̇)`` ``(2n,)``."""
+    """``q̈`` ``(n,)`` of one velocity state ``z = (q, q̇)`` ``(2n,)``.
+
+    One reverse pass gives ``∇_z L``; its forward-mode derivative along ``q̇`` alone
+    (``n`` tangents) is the ``(2n, n)`` matrix ``∂(∇_z L)/∂q̇`` whose rows hold
+    ``∂²L/∂q∂q̇`` (the transposed mixed block) and ``∂²L/∂q̇∂q̇``.
+    """
     n = z.shape[0] // 2
     q, qdot = z[:n], z[n:]
-    lag = _lagrangian(net, n)
-    grad_q = grad(lag, argnums=0)(q, qdot)
-    hess = jacfwd(grad(lag, argnums=1), argnums=1)(q, qdot)  # ∂²L/∂q̇∂q̇
-    mixed = jacfwd(grad(lag, argnums=1), argnums=0)(q, qdot)  # [i, j] = ∂²L/∂q̇_i∂q_j
-    return torch.linalg.solve(hess, grad_q - mixed @ qdot)
+    grad_z = grad(lambda zz: net(zz[None])[0, 0])
+
+    def along_qdot(v: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        g = grad_z(torch.cat([q, v]))
+        return g, g
+
+    jac, g = jacfwd(along_qdot, has_aux=True)(qdot)  # (2n, n), (2n,)
+    mixed, hess = jac[:n].T, jac[n:]  # [i, j] = ∂²L/∂q̇_i∂q_j ; ∂²L/∂q̇∂q̇
+    return torch.linalg.solve(hess, g[:n] - mixed @ qdot)
 
 
 def field(nets: dict[str, Net], z: torch.Tensor) -> torch.Tensor:

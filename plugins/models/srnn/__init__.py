@@ -39,6 +39,10 @@ SRNN = Family(
 )
 
 
+#: The smoke profile: a narrow network (its second derivatives or leapfrog windows make
+#: a step several times the HNN's), so quick jobs stay at seconds.
+QUICK = {"quick": {"hidden": 32, "rollout_max_steps": 5000}}
+
 @dataclass
 class SRNNConfig(NeuralConfig):
     """Attributes:
@@ -69,6 +73,7 @@ class SRNNTorch(_SRNN):
     family = SRNN
     backend = "torch"
     version = "1"
+    profiles = QUICK
 
 
 class SRNNJax(_SRNN):
@@ -77,3 +82,4 @@ class SRNNJax(_SRNN):
     family = SRNN
     backend = "jax"
     version = "1"
+    profiles = QUICK
