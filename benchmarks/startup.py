@@ -29,7 +29,7 @@ BIN = Path(sys.executable).parent
 JOB = """
 import sys, pathlib
 from hnnbench.config import compose
-from hnnbench.run import run_job
+from hnnbench.job import run_job
 overrides = ["system=spring", "model={model}", "profile=quick", "system.steps=20",
              "device=cpu", "save_model=false"]
 record = run_job(compose(overrides), pathlib.Path(sys.argv[1]), overrides=overrides)

@@ -1,7 +1,15 @@
 """hnnbench: physics-informed models of dynamics vs plain networks, as a benchmark.
 
-The public API for plugin authors is re-exported here. Importing hnnbench imports
-neither torch nor JAX.
+Running things (the ``hnnbench`` command's twins, :mod:`hnnbench.frontend`):
+:func:`run`, :func:`sweep`, :func:`load`, :func:`leaderboard`; :func:`register` adds a
+plugin to this process (a notebook's own model or system).
+
+Writing plugins (docs/PLUGINS.md): :class:`System` and :class:`Model` with their config
+dataclasses, the data containers, kinematics for second-order models, :class:`Metric`
+declarations, the validation helpers and the errors. Neural model families build on
+:mod:`hnnbench.neural`.
+
+Importing hnnbench imports neither torch nor JAX (nor pandas).
 """
 
 from hnnbench.api import (
@@ -15,6 +23,9 @@ from hnnbench.api import (
     SystemConfig,
     TrainSettings,
     Trajectories,
+    check_fraction,
+    check_int_at_least,
+    check_ordered,
     check_positive,
 )
 from hnnbench.errors import (
@@ -24,17 +35,32 @@ from hnnbench.errors import (
     HnnbenchError,
     RolloutDiverged,
     UnknownNameError,
+    UnsupportedPair,
 )
+from hnnbench.frontend import leaderboard, load, run, sweep
+from hnnbench.kinematics import (
+    Kinematics,
+    LinearKinematics,
+    MassMatrixKinematics,
+    identity_kinematics,
+)
+from hnnbench.metric import CheckRule, Metric
+from hnnbench.registry import register
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 __all__ = [
     "BackendMissingError",
+    "CheckRule",
     "ConfigError",
     "DataError",
     "Dataset",
     "FitResult",
     "HnnbenchError",
+    "Kinematics",
+    "LinearKinematics",
+    "MassMatrixKinematics",
+    "Metric",
     "Model",
     "ModelConfig",
     "Progress",
@@ -45,6 +71,16 @@ __all__ = [
     "TrainSettings",
     "Trajectories",
     "UnknownNameError",
+    "UnsupportedPair",
     "__version__",
+    "check_fraction",
+    "check_int_at_least",
+    "check_ordered",
     "check_positive",
+    "identity_kinematics",
+    "leaderboard",
+    "load",
+    "register",
+    "run",
+    "sweep",
 ]

@@ -42,7 +42,7 @@ log = logging.getLogger("hnnbench")
 def started_by_cli() -> bool:
     """Whether this process runs jobs for the ``hnnbench`` command (its own process
     under the basic launcher, or a launcher's worker), not for a caller of
-    :func:`hnnbench.run.run_job` such as a notebook or a test, which is left alone."""
+    :func:`hnnbench.job.run_job` such as a notebook or a test, which is left alone."""
     return launch.current() is not None
 
 

@@ -426,14 +426,13 @@ def validate_records(recs: Sequence[dict[str, Any]], bad: Sequence[R.Unreadable]
     missing provenance, plugin versions that differ from the installed ones."""
     from hnnbench import registry
 
-    out = [Finding("unreadable", "-", "-", str(item.path), "", item.reason) for item in bad]
+    out = [Finding("invalid" if item.reason.startswith("invalid") else "unreadable", "-", "-",
+                   str(item.path), "", item.reason) for item in bad]
     installed = {kind: {name: info.version for name, info in registry.discover(kind).items()
                         if info.ok} for kind in ("system", "model")}
     for rec in recs:
         where = str(rec.get("path", "?"))
         system, model = str(rec.get("system")), str(rec.get("model"))
-        for problem in R.validate(rec)[:3]:
-            out.append(Finding("schema", "-", system, model, where, problem))
         env = rec.get("environment") or {}
         missing = [k for k, v in (("environment.hnnbench", env.get("hnnbench")),
                                   ("environment.python", env.get("python")),
@@ -459,7 +458,7 @@ def rerun(recs: Sequence[dict[str, Any]], spec: str, rules: tuple[Rule, dict[str
 
     from omegaconf import OmegaConf
 
-    from hnnbench.run import run_job
+    from hnnbench.job import run_job
 
     parts = spec.split("/")
     if len(parts) != 3 or not parts[2].isdigit():

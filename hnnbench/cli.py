@@ -313,7 +313,7 @@ def _parse_override(parser: Any, text: str) -> _Entry:
 def _batch_seeds(entries: list[_Entry]) -> list[_Entry]:
     """With ``seeds_per_job=N`` (N > 1), a sweep ``seed=a,b,c,...`` becomes one job per
     N seeds: ``seed_batch=[a,b,c],[d,...]`` with ``seed=${seed_batch.0}``, the first of
-    each batch (its records' directories stay ``seed<k>``; hnnbench.run.seed_directory)."""
+    each batch (its records' directories stay ``seed<k>``; hnnbench.job.seed_directory)."""
     per_job = [e for e in entries if e.key == "seeds_per_job" and not e.sweep and e.values]
     if not per_job:
         return entries
@@ -458,19 +458,32 @@ def _task(cfg) -> None:  # noqa: ANN001 - Hydra passes a DictConfig
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
 
-    from hnnbench.run import run_job
+    from hnnbench.job import run_seeds
 
     hc = HydraConfig.get()
     multirun = hc.mode == RunMode.MULTIRUN
     context = launch.current()
     total = context.n_jobs if context is not None else None
-    record = run_job(cfg, Path(hc.runtime.output_dir), hc.job.num if multirun else None, total,
+    recs = run_seeds(cfg, Path(hc.runtime.output_dir), hc.job.num if multirun else None, total,
                      overrides=list(hc.overrides.task))
     if not multirun:
-        _single_run.append(record)
+        _single_run.extend(recs)
 
 
-def run_hydra(argv: list[str]) -> int:
+@dataclass
+class Execution:
+    """What a Hydra command line ran: the records of a single run (a sweep's are on
+    disk under ``sweep_dir``)."""
+
+    multirun: bool
+    records: list[dict[str, Any]]
+    sweep_dir: Path | None = None
+
+
+def execute(argv: list[str], command: str | None = None) -> Execution:
+    """Check and run a Hydra command line (``hnnbench`` without a subcommand) in this
+    process; raise :class:`HnnbenchError` (one line) for bad input. ``command`` is the
+    command line stored in the records (default: ``hnnbench`` and ``argv``)."""
     import hydra
 
     from hnnbench.config import profile_of, register_schema
@@ -483,7 +496,7 @@ def run_hydra(argv: list[str]) -> int:
         print(f"hnnbench: {checked.n_jobs} job(s)", file=sys.stderr)
     # Jobs (here or in launcher workers) see the command line, the sweep's size, and
     # that the hnnbench command started them (they then pin a core: hnnbench.affinity).
-    context = launch.LaunchContext(command=shlex.join(["hnnbench", *argv]),
+    context = launch.LaunchContext(command=command or shlex.join(["hnnbench", *argv]),
                                    n_jobs=checked.n_jobs or None, cli_pid=os.getpid())
     saved = sys.argv
     sys.argv = [saved[0] if saved else "hnnbench", *checked.argv]
@@ -494,8 +507,13 @@ def run_hydra(argv: list[str]) -> int:
                        config_name="config")(_task)()
     finally:
         sys.argv = saved
-    if _single_run:
-        return _report_single(_single_run[-1])
+    return Execution(multirun=checked.multirun, records=list(_single_run))
+
+
+def run_hydra(argv: list[str]) -> int:
+    result = execute(argv)
+    if result.records and not result.multirun:
+        return _report_single(result.records[0])
     return 0
 
 

@@ -305,9 +305,45 @@ def compose(
     except ConfigError:
         raise
     except Exception as err:
-        raise ConfigError(hydra_error_line(err)) from None
+        raise (_unknown_setting(err, overrides) or ConfigError(hydra_error_line(err))) \
+            from None
     finally:
         GlobalHydra.instance().clear()
+
+
+_NOT_IN = re.compile(r"Key '([^']+)' not in '([^']+)'")
+
+
+def _unknown_setting(err: BaseException, overrides: list[str]) -> ConfigError | None:
+    """Hydra's "Key 'x' not in 'SomeConfig'" for a plugin's config, as the one-line
+    did-you-mean of :func:`_not_a_setting` (``None`` for any other error)."""
+    text = hydra_error_line(err)
+    match = _NOT_IN.search(text)
+    if match is None:
+        return None
+    key, config_name = match.groups()
+    full = re.search(r"\(key: ([^)]+)\)", text)
+    full_key = full.group(1) if full else key
+    chosen = {"system": "spring", "model": "hnn_torch"}  # conf/config.yaml's defaults
+    for item in overrides:
+        name, sep, value = item.lstrip("+~").partition("=")
+        if sep and name in chosen:
+            chosen[name] = value
+    for kind in ("system", "model"):
+        plugins = registry.discover(kind)  # type: ignore[arg-type]
+        candidates = [chosen[kind], *(n for n in plugins if n != chosen[kind])]
+        for name in candidates:
+            info = plugins.get(name)
+            config = getattr(info.cls, "Config", None) if info is not None else None
+            if info is not None and info.ok and config is not None \
+                    and config.__name__ == config_name:
+                known = [f.name for f in fields(config)]
+                return _not_a_setting(f"{full_key} is not a setting of {kind} '{name}'", key,
+                                      known)
+    if config_name == RunConfig.__name__:
+        return _not_a_setting(f"{key} is not an hnnbench setting", key,
+                              [f.name for f in fields(RunConfig)])
+    return None
 
 
 def _needs_running_hydra(err: BaseException) -> bool:

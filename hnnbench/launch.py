@@ -9,7 +9,7 @@ there, in one environment variable (:data:`ENV`, JSON):
 - ``cli_pid``: the command's process id. Its presence means "started by the
   ``hnnbench`` command", which makes a job pin itself to one core
   (:mod:`hnnbench.affinity`); a notebook or test calling
-  :func:`hnnbench.run.run_job` directly is left alone.
+  :func:`hnnbench.job.run_job` directly is left alone.
 
 :func:`launched` sets it for the duration of a command and restores what was there
 before, so a notebook's later in-process runs are not affected.

@@ -44,6 +44,7 @@ __all__ = [
     "metrics",
     "ordered",
     "refresh",
+    "register",
     "register_configs",
     "validate_profile",
 ]
@@ -166,6 +167,8 @@ def _discover(kind: str) -> dict[str, PluginInfo]:
                 other.cls = None
             continue
         found[ep.name] = _load(kind, ep)
+    for name, obj in _REGISTERED[kind].items():
+        found[name] = _load(kind, _InProcess(name, obj))  # type: ignore[arg-type]
     order = {name: i for i, name in enumerate(_sorted_by_order(found))}
     return dict(sorted(found.items(), key=lambda item: order[item[0]]))
 
@@ -176,6 +179,53 @@ def _sorted_by_order(found: dict[str, PluginInfo]) -> list[str]:
         return (float("inf") if order is None else float(order), name)
 
     return sorted(found, key=key)
+
+
+@dataclass
+class _InProcess:
+    """What :func:`_load` needs of an entry point, for a plugin registered in-process."""
+
+    name: str
+    obj: Any
+    dist: None = None
+
+    @property
+    def value(self) -> str:
+        return f"(registered in this process) {getattr(self.obj, '__qualname__', self.name)}"
+
+    def load(self) -> Any:
+        return self.obj
+
+
+#: Plugins registered in this process (:func:`register`), by kind.
+_REGISTERED: dict[str, dict[str, Any]] = {kind: {} for kind in GROUPS}
+
+
+def register(kind: Kind, name: str, obj: Any) -> None:
+    """Add a plugin to this process without packaging it: a :class:`System` or
+    :class:`Model` subclass, a :class:`~hnnbench.metric.Metric` or a
+    :class:`~hnnbench.claims.ClaimSet`. It then takes part in ``all``, sweeps and
+    reports exactly like an installed one, in this process: with the basic launcher
+    (other launchers start processes that only know installed plugins). For notebooks
+    and tests; a package declares entry points instead (docs/PLUGINS.md).
+
+    Raises:
+        ConfigError: ``name`` is taken by an installed plugin, or ``obj`` is not a
+            plugin of ``kind`` (the message says why).
+    """
+    if kind not in GROUPS:
+        raise ConfigError(f"register: unknown kind '{kind}'; expected one of "
+                          f"{', '.join(GROUPS)}")
+    installed = {ep.name for ep in metadata.entry_points(group=GROUPS[kind])}
+    if name in installed:
+        raise ConfigError(f"register: the {kind} name '{name}' is taken by an installed "
+                          "plugin; choose another name")
+
+    info = _load(kind, _InProcess(name, obj))  # type: ignore[arg-type]
+    if info.cls is None:
+        raise ConfigError(f"register: {info.error}")
+    _REGISTERED[kind][name] = obj
+    refresh()
 
 
 def discover(kind: Kind) -> dict[str, PluginInfo]:

@@ -1,6 +1,6 @@
 """Synthetic sweep directories for the report and check tests: real ``result.json``
 records (via :func:`hnnbench.records.write_record`) and ``rollout.npz`` arrays in the
-layout that :mod:`hnnbench.run` writes."""
+layout that :mod:`hnnbench.job` writes."""
 
 from __future__ import annotations
 

@@ -12,7 +12,7 @@ import pytest
 
 from hnnbench import affinity
 from hnnbench.config import compose
-from hnnbench.run import run_job
+from hnnbench.job import run_job
 
 pytestmark = pytest.mark.skipif(
     not hasattr(os, "sched_setaffinity") or len(os.sched_getaffinity(0)) < 2,

@@ -101,7 +101,7 @@ def test_jax_pixel_save_load_round_trip(tiny, tmp_path, name):
 
 def test_jax_pixel_end_to_end(tmp_path):
     from hnnbench.config import compose
-    from hnnbench.run import run_job
+    from hnnbench.job import run_job
 
     # the fixture's data, network and chunk shapes: the compiled steps and solver are reused
     overrides = ["system=pixel_pendulum", "model=hnn_jax", "profile=quick", "system.steps=21",

@@ -22,7 +22,7 @@ print("IMPORTED", "torch" in sys.modules, "jax" in sys.modules)
 JOB = """
 import sys, pathlib
 from hnnbench.config import compose
-from hnnbench.run import run_job
+from hnnbench.job import run_job
 overrides = ["system=spring", "model={model}", "profile=quick", "system.steps=10",
              "device=cpu", "save_model=false", "system.eval_n_points=10"]
 record = run_job(compose(overrides), pathlib.Path(sys.argv[1]), overrides=overrides)

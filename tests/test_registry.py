@@ -63,7 +63,7 @@ def test_broken_plugin_is_reported_and_others_work(tmp_path, monkeypatch):
 def test_core_import_does_not_import_backends():
     import subprocess
 
-    code = ("import sys, hnnbench, hnnbench.registry, hnnbench.config, hnnbench.run, "
+    code = ("import sys, hnnbench, hnnbench.registry, hnnbench.config, hnnbench.job, "
             "hnnbench.evaluate, hnnbench.cli; "
             "print(sorted(m for m in ('torch', 'jax') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from hnnbench.config import compose
-from hnnbench.run import run_job
+from hnnbench.job import run_job
 
 SIMULATED = ["double_pendulum", "damped_spring", "damped_pendulum", "spring_chain"]
 

@@ -13,7 +13,7 @@ import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
 from hnnbench.config import compose
-from hnnbench.run import run_job
+from hnnbench.job import run_job
 
 
 def _blas_threads() -> set[int]:

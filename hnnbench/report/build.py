@@ -46,12 +46,13 @@ class Report:
 
 
 def write_report(sweep_dir: Path | str | Sequence[Path | str], out: Path | str | None = None,
-                 figures: bool = True) -> Report:
+                 figures: bool = True, strict: bool = False) -> Report:
     """Build every table and figure of the sweep directories into ``out`` (default: the
-    sweep, when there is one); ``figures=False`` skips the figures."""
+    sweep, when there is one); ``figures=False`` skips the figures; ``strict``: an
+    unreadable or invalid record is an error instead of a warning."""
     dirs = [Path(sweep_dir)] if isinstance(sweep_dir, (str, Path)) else [Path(d) for d in
                                                                         sweep_dir]
-    recs, bad = load_sweeps(dirs)
+    recs, bad = load_sweeps(dirs, strict=strict)
     if out is None:
         if len(dirs) != 1:
             raise ReportError("Several directories merge into one report: give --out OUT")

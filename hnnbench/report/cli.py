@@ -32,16 +32,20 @@ def _parser() -> _Parser:
     p.add_argument("--out", metavar="OUT", default=None,
                    help="output directory (default: DIR, when there is one)")
     p.add_argument("--no-figures", action="store_true", help="tables only (faster)")
+    p.add_argument("--strict", action="store_true",
+                   help="an unreadable or invalid record is an error (default: left out "
+                        "with a warning)")
     return p
 
 
 def main(args: Sequence[str]) -> int:
     ns = _parser().parse_args(list(args))
-    report = write_report([Path(d) for d in ns.dirs], ns.out, figures=not ns.no_figures)
+    report = write_report([Path(d) for d in ns.dirs], ns.out, figures=not ns.no_figures,
+                          strict=ns.strict)
     print(md_table(display_frame(report.board)))
     print()
     for item in report.unreadable:
-        print(f"warning: unreadable record left out: {item}")
+        print(f"warning: record left out: {item}")
     print(f"wrote {report.files['csv']}, {report.files['md'].name}, "
           f"{report.files['paper'].name}, {report.files['html'].name} and "
           f"{len(report.figures)} figure(s) in {report.out / 'figures'} from "

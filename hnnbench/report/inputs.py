@@ -23,8 +23,9 @@ class ReportError(HnnbenchError):
 def load_sweeps(directories: Sequence[Path | str], *, strict: bool = False
                 ) -> tuple[list[dict[str, Any]], list[R.Unreadable]]:
     """The records under every directory (several sweeps merge into one leaderboard),
-    and the ``result.json`` files that could not be read: each is named in a warning,
-    and ``strict`` makes any of them a :class:`ReportError`."""
+    and the ``result.json`` files left out, unreadable or invalid against the record
+    schema (:func:`hnnbench.records.validate`): each is named in a warning, and
+    ``strict`` makes any of them a :class:`ReportError`."""
     if not directories:
         raise ReportError("No sweep directory given: expected one or more directories "
                           "holding result.json records")
@@ -34,10 +35,19 @@ def load_sweeps(directories: Sequence[Path | str], *, strict: bool = False
         if not directory.is_dir():
             raise ReportError(f"{directory} is not a directory (expected a sweep directory)")
     recs, bad = R.scan_records(*directories)
+    valid = []
+    for rec in recs:
+        problems = R.validate(rec)
+        if problems:
+            path = Path(str(rec.get("path", "?"))) / R.RECORD_NAME
+            bad.append(R.Unreadable(path, f"invalid record: {problems[0]}"))
+        else:
+            valid.append(rec)
+    recs = valid
     for item in bad:
-        log.warning("unreadable record left out: %s", item)
+        log.warning("record left out: %s", item)
     if bad and strict:
-        raise ReportError(f"{len(bad)} unreadable record(s), e.g. {bad[0]}")
+        raise ReportError(f"{len(bad)} record(s) unreadable or invalid, e.g. {bad[0]}")
     if not recs:
         where = ", ".join(str(d) for d in directories)
         raise ReportError(

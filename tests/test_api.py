@@ -1,0 +1,96 @@
+"""The Python API (hnnbench.run / sweep / load / leaderboard) is the CLI's twin, and the
+HTML leaderboard ranks at a glance (structure checked without a browser)."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+
+import pytest
+from conftest import hnnbench as cli
+from report_fixtures import make_sweep
+
+import hnnbench
+from hnnbench.report import write_report
+
+QUICK = dict(profile="quick", device="cpu", system__eval_n_traj=3, system__steps=40)
+
+
+def _metrics(record: dict) -> dict[str, float]:
+    return {k: v["mean"] for k, v in record["metrics"].items()}
+
+
+def _same(a: dict[str, float], b: dict[str, float]) -> bool:
+    return a.keys() == b.keys() and all(
+        (math.isnan(a[k]) and math.isnan(b[k])) or a[k] == b[k] for k in a)
+
+
+@pytest.mark.slow
+def test_run_writes_the_record_the_cli_writes(tmp_path):
+    rec = hnnbench.run("spring", "hnn_jax", seed=1, out=tmp_path / "api", **QUICK)
+    assert rec["status"] == "ok"
+    proc = cli("system=spring", "model=hnn_jax", "seed=1", "profile=quick", "device=cpu",
+               "system.eval_n_traj=3", "system.steps=40", f"hydra.run.dir={tmp_path / 'cli'}")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    on_disk = [json.loads((tmp_path / d / "result.json").read_text()) for d in ("api", "cli")]
+    assert _same(_metrics(rec), _metrics(hnnbench.records.decode(on_disk[0])))
+    assert _same(*(_metrics(hnnbench.records.decode(r)) for r in on_disk))
+    assert on_disk[0]["config"] == on_disk[1]["config"]
+    assert on_disk[0]["command"].startswith("hnnbench system=spring model=hnn_jax seed=1")
+
+
+def test_sweep_with_a_bad_model_raises_the_typed_one_line_error(tmp_path):
+    with pytest.raises(hnnbench.UnknownNameError) as err:
+        hnnbench.sweep("spring", ["mlp_torch", "hnn_jx"], out=tmp_path / "s")
+    assert "Did you mean 'hnn_jax'?" in str(err.value) and "\n" not in str(err.value)
+    with pytest.raises(hnnbench.ConfigError, match="model.hiden is not a setting"):
+        hnnbench.run("spring", "hnn_torch", out=tmp_path / "r", model__hiden=5)
+    assert not (tmp_path / "s").exists()
+
+
+def test_overrides_become_hydra_values():
+    from hnnbench.frontend import _overrides
+
+    assert _overrides({"model__steps": 5, "device": "cpu", "save_model": False,
+                       "cache_dir": None, "model__hidden": "100,200"}) == [
+        "model.steps=5", "device=cpu", "save_model=false", "cache_dir=null",
+        "model.hidden=100,200"]
+
+
+def test_load_and_leaderboard_read_records_back(tmp_path):
+    sweep = make_sweep(tmp_path / "s")
+    frame = hnnbench.load(sweep)
+    assert len(frame) == 10 and {"system", "model", "seed", "energy_mse"} <= set(frame.columns)
+    board = hnnbench.leaderboard(frame)
+    assert len(board) == 5 and (board["n_seeds"] == 2).all()
+    assert board.equals(hnnbench.leaderboard(hnnbench.records.load_records(sweep)))
+    with pytest.raises(hnnbench.HnnbenchError, match="does not exist"):
+        hnnbench.load(tmp_path / "nope")
+
+
+def test_the_page_ranks_at_a_glance(tmp_path):
+    sweep = make_sweep(tmp_path / "s")
+    report = write_report(sweep)
+    page = (sweep / "leaderboard.html").read_text()
+    # heatmaps first, inline, for both metrics
+    assert page.index("Which model wins where") < page.index("<h2>Leaderboard</h2>")
+    assert page.count('alt="heatmap_') == 2
+    # the leaderboard table sorts on click, with numeric keys, by a few lines of JS
+    table = re.search(r'<table class="board sortable">.*?</table>', page, re.S).group(0)
+    assert "<script>" in page and "localeCompare" in page and "sortable" in page
+    assert "http" not in page.split("<script>")[1]  # no CDN: self-contained
+    assert re.search(r'data-v="[0-9.e+-]+"', table)
+    # best value of each system highlighted: spring energy_mse -> hnn_torch, not oracle
+    rows = re.findall(r"<tr>(.*?)</tr>", table, re.S)
+    best = [r for r in rows if 'class="best"' in r]
+    assert best and not any(">oracle<" in r for r in best)
+    spring_hnn = next(r for r in rows if ">spring<" in r and ">hnn_torch<" in r)
+    header = re.findall(r"<th[^>]*>(.*?)</th>", table)
+    cells = re.findall(r"<td([^>]*)>(.*?)</td>", spring_hnn)
+    energy = cells[header.index("energy_mse")]
+    assert "best" in energy[0]
+    # the Markdown marks the same cell in bold
+    md = (sweep / "leaderboard.md").read_text()
+    assert re.search(r"\| spring\s+\| hnn_torch .*\*\*2\.\de-05", md)
+    assert report.figures and all(m.path.exists() for m in report.figures)
