@@ -123,7 +123,7 @@ def test_bad_input_console_script(args, needles, tmp_path):
         (["=x"], ["Cannot parse override '=x'"]),
         (["system.steps=[1"], ["Cannot parse override 'system.steps=[1'"]),
         (["++foo"], ["Cannot parse override '++foo'"]),
-        (["foo=1"], ["Key 'foo' not in"]),
+        (["foo=1"], ["foo is not an hnnbench setting"]),
         (["+foo=1"], ["foo is not an hnnbench setting"]),
         (["+sed=1"], ["Did you mean 'seed'"]),
         (["+system.extra=0"], ["system.extra is not a setting of system 'spring'"]),
