@@ -4,21 +4,30 @@ SHELL := /bin/bash
 VENV := .venv/bin
 # The measured-pendulum data: $HNNBENCH_DATA_DIR, else ../shared/... beside the clone.
 export HNNBENCH_DATA_DIR ?= $(abspath ../shared/data/schmidt-lipson-2009)
+# Parallel jobs of `make benchmark`: one per usable core (each job pins itself to one).
+JOBS ?= $(shell nproc 2>/dev/null || echo 1)
 PYTEST_ARGS ?=
 
-.PHONY: setup benchmark quick test test-fast lint ci-sweep clean
+.PHONY: setup benchmark benchmark-serial quick test test-fast lint typecheck clean
 
 setup:
 	@scripts/setup.sh
 
+# Every system x every model, paper settings, seed 0; one joblib worker per core.
+# The records are the same as a serial run's (tests/test_launchers.py).
 benchmark: setup
+	$(VENV)/hnnbench -m system=all model=all hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS)
+
+# The same, one job at a time in this process.
+benchmark-serial: setup
 	$(VENV)/hnnbench -m system=all model=all
 
 quick: setup
-	$(VENV)/hnnbench -m system=all model=all profile=quick
+	$(VENV)/hnnbench -m system=all model=all profile=quick hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS)
 
 test: setup
 	$(VENV)/ruff check .
+	$(VENV)/mypy
 	$(VENV)/python -m pytest $(PYTEST_ARGS)
 
 test-fast: setup
@@ -27,5 +36,8 @@ test-fast: setup
 lint: setup
 	$(VENV)/ruff check .
 
+typecheck: setup
+	$(VENV)/mypy
+
 clean:
-	rm -rf .venv build dist *.egg-info .pytest_cache .ruff_cache
+	rm -rf .venv build dist *.egg-info .pytest_cache .ruff_cache .mypy_cache

@@ -44,6 +44,63 @@ def median_time(fn: Any, repeats: int) -> tuple[float, Any]:
     return statistics.median(times), out
 
 
+def measure(system_name: str, model_name: str, steps: int, repeats: int
+            ) -> tuple[str, str, float, float, int, int, float]:
+    """Train one model briefly; time both solvers on its evaluation rollouts."""
+    import torch
+    import torchode as to
+
+    from hnnbench import cache
+    from hnnbench.api import Dataset, TrainSettings, Trajectories
+    from hnnbench.config import compose, prepare_job
+    from hnnbench.neural.torch.ode import dopri5
+
+    job = prepare_job(compose([f"system={system_name}", f"model={model_name}"]))
+    system = job.system_cls(job.system_cfg)
+    data, _, _ = cache.cached(system, 0, "dataset", lambda: system.dataset(0), Dataset.load)
+    traj, _, _ = cache.cached(system, 0, "evaluation", lambda: system.evaluation(0),
+                              Trajectories.load)
+    protocol = TrainSettings.resolve(job.system_cfg, job.model_cfg)
+    model = job.model_cls(job.model_cfg, system, "cpu")
+    model.fit(data, TrainSettings(steps, protocol.batch_size, protocol.lr,
+                                  protocol.weight_decay), 0, lambda *_: None)
+    infer = model._infer()
+    field, nets = infer.impl.field, infer.nets64  # type: ignore[attr-defined]
+    y0 = torch.as_tensor(model.view.to_model(traj.x0), dtype=torch.float64)
+    t = np.asarray(traj.t, dtype=np.float64)
+    calls = {"own": 0, "torchode": 0}
+
+    def f_own(y: torch.Tensor) -> torch.Tensor:
+        calls["own"] += 1
+        return field(nets, y)
+
+    def own() -> np.ndarray:
+        with torch.no_grad():
+            ys = dopri5(f_own, y0, t, rtol=1e-9, atol=1e-9, max_steps=50_000)
+        return ys.permute(1, 0, 2).numpy()
+
+    def f_to(_t: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+        calls["torchode"] += 1
+        return field(nets, y)
+
+    term = to.ODETerm(f_to)
+    solver = to.AutoDiffAdjoint(to.Dopri5(term=term),
+                                to.IntegralController(atol=1e-9, rtol=1e-9, term=term))
+    t_eval = torch.as_tensor(t).expand(y0.shape[0], -1)
+
+    def torchode() -> np.ndarray:
+        with torch.no_grad():
+            sol = solver.solve(to.InitialValueProblem(y0=y0, t_eval=t_eval))
+        return sol.ys.numpy()
+
+    t_own, a = median_time(own, repeats)
+    calls_own = calls["own"] // (repeats + 1)
+    t_to, b = median_time(torchode, repeats)
+    calls_to = calls["torchode"] // (repeats + 1)
+    return (system_name, model_name, t_own, t_to, calls_own, calls_to,
+            float(np.max(np.abs(a - b))))
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--systems", nargs="+", default=["spring", "two_body"])
@@ -53,64 +110,10 @@ def main() -> int:
     args = parser.parse_args()
 
     import torch
-    import torchode as to
-
-    from hnnbench import cache
-    from hnnbench.api import Dataset, TrainSettings, Trajectories
-    from hnnbench.config import compose, prepare_job
-    from hnnbench.neural.torch.ode import dopri5
 
     torch.set_num_threads(1)
-    rows = []
-    for system_name in args.systems:
-        for model_name in args.models:
-            job = prepare_job(compose([f"system={system_name}", f"model={model_name}"]))
-            system = job.system_cls(job.system_cfg)
-            data, _, _ = cache.cached(system, 0, "dataset", lambda s=system: s.dataset(0),
-                                      Dataset.load)
-            traj, _, _ = cache.cached(system, 0, "evaluation",
-                                      lambda s=system: s.evaluation(0), Trajectories.load)
-            protocol = TrainSettings.resolve(job.system_cfg, job.model_cfg)
-            train = TrainSettings(args.steps, protocol.batch_size, protocol.lr,
-                                  protocol.weight_decay)
-            model = job.model_cls(job.model_cfg, system, "cpu")
-            model.fit(data, train, 0, lambda *_: None)
-            infer = model._infer()
-            field = infer.impl.field  # type: ignore[attr-defined]
-            nets = infer.nets64  # type: ignore[attr-defined]
-            y0 = torch.as_tensor(model.view.to_model(traj.x0), dtype=torch.float64)
-            t = np.asarray(traj.t, dtype=np.float64)
-            calls = {"own": 0, "torchode": 0}
-
-            def f_own(y: torch.Tensor) -> torch.Tensor:
-                calls["own"] += 1
-                return field(nets, y)
-
-            def own() -> np.ndarray:
-                with torch.no_grad():
-                    ys = dopri5(f_own, y0, t, rtol=1e-9, atol=1e-9, max_steps=50_000)
-                return ys.permute(1, 0, 2).numpy()
-
-            def f_to(_t: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
-                calls["torchode"] += 1
-                return field(nets, y)
-
-            term = to.ODETerm(f_to)
-            solver = to.AutoDiffAdjoint(to.Dopri5(term=term),
-                                        to.IntegralController(atol=1e-9, rtol=1e-9, term=term))
-            t_eval = torch.as_tensor(t).expand(y0.shape[0], -1)
-
-            def torchode() -> np.ndarray:
-                with torch.no_grad():
-                    sol = solver.solve(to.InitialValueProblem(y0=y0, t_eval=t_eval))
-                return sol.ys.numpy()
-
-            t_own, a = median_time(own, args.repeats)
-            calls_own = calls["own"] // (args.repeats + 1)
-            t_to, b = median_time(torchode, args.repeats)
-            calls_to = calls["torchode"] // (args.repeats + 1)
-            rows.append((system_name, model_name, t_own, t_to, calls_own, calls_to,
-                         float(np.max(np.abs(a - b)))))
+    rows = [measure(system_name, model_name, args.steps, args.repeats)
+            for system_name in args.systems for model_name in args.models]
     print("| system | model | own dopri5 ms | torchode ms | torchode / own | field calls own"
           " / torchode | max abs difference |")
     print("|---|---|---|---|---|---|---|")

@@ -230,10 +230,8 @@ class Dataset:
                 for key, value in arrays.items()
                 if key.startswith(f"{prefix}.extras.")
             }
-            return Split(
-                *(arrays[f"{prefix}.{key}"] for key in ("x", "dxdt", "traj", "t")),
-                extras=extras,
-            )
+            return Split(x=arrays[f"{prefix}.x"], dxdt=arrays[f"{prefix}.dxdt"],
+                         traj=arrays[f"{prefix}.traj"], t=arrays[f"{prefix}.t"], extras=extras)
 
         return cls(train=split("train"), test=split("test"), meta=meta)
 
@@ -286,8 +284,9 @@ class Trajectories:
 
 
 def _savez(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    savez: Any = np.savez  # numpy's stub reads **arrays as its allow_pickle keyword
     with open(path, "wb") as fh:
-        np.savez(fh, **arrays)
+        savez(fh, **arrays)
 
 
 # --------------------------------------------------------------------------- plugins

@@ -395,7 +395,7 @@ HEADERS = ["check", "metric", "system", "model", "reference", "current", "factor
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> Any:  # type: ignore[override]
+    def error(self, message: str) -> Any:
         usage = " ".join(self.format_usage().split()[1:])
         raise CheckError(f"{message} (usage: {usage})")
 

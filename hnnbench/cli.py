@@ -21,8 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NoReturn
 
-from hnnbench import registry
-from hnnbench import launch
+from hnnbench import launch, registry
 from hnnbench.errors import ConfigError, HnnbenchError, UnknownNameError
 
 USAGE = """\
@@ -117,7 +116,7 @@ def cmd_list(args: list[str]) -> int:
              "package": f"{i.distribution} {i.dist_version}" if i.distribution else "?",
              "status": "ok" if i.ok else "error", "description": i.description,
              "error": i.error}
-            for i in registry.discover(kind).values()  # type: ignore[arg-type]
+            for i in registry.discover(kind).values()
         ]
     if "--json" in args:
         print(json.dumps(out, indent=2))
@@ -293,11 +292,11 @@ def _parse_override(parser: Any, text: str) -> _Entry:
         value = ov.value()
         values = None
         if key in ("system", "model") and isinstance(value, Glob):
-            values = value.filter(registry.available(key))  # type: ignore[arg-type]
+            values = value.filter(registry.available(key))
             if not values:
                 raise ConfigError(
                     f"{text}: the pattern matches no registered {key} "
-                    f"(available: {', '.join(registry.available(key))})"  # type: ignore[arg-type]
+                    f"(available: {', '.join(registry.available(key))})"
                 ) from None
         elif ov.value_type is not None and ov.value_type.name == "INTERVAL_SWEEP":
             raise ConfigError(

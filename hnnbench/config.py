@@ -199,17 +199,17 @@ def validate_run(cfg: Any) -> None:
 
 def _instantiate_config(kind: str, node: Any) -> Any:
     """The plugin config dataclass for a composed ``system`` / ``model`` node."""
-    name = node.name
+    name = str(node.name)
     cls = registry.get_class(kind, name)  # type: ignore[arg-type]
     values = OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
     assert isinstance(values, dict)
     known = [f.name for f in fields(cls.Config)]
-    for key in values:
+    for key in map(str, values):
         if key not in known:
             raise _not_a_setting(f"{kind}.{key} is not a setting of {kind} '{name}'", key,
                                  known)
     try:
-        return cls.Config(**values)
+        return cls.Config(**{str(k): v for k, v in values.items()})
     except TypeError as err:
         raise ConfigError(f"{kind} '{name}': {err}") from None
 
@@ -293,6 +293,7 @@ def compose(
     register_schema()
     registry.register_configs(profile_of(overrides))
     GlobalHydra.instance().clear()
+    context: Any
     if config_dir is None:
         context = initialize_config_module("hnnbench_conf", version_base="1.3")
     else:
@@ -330,7 +331,7 @@ def _unknown_setting(err: BaseException, overrides: list[str]) -> ConfigError | 
         if sep and name in chosen:
             chosen[name] = value
     for kind in ("system", "model"):
-        plugins = registry.discover(kind)  # type: ignore[arg-type]
+        plugins = registry.discover(kind)
         candidates = [chosen[kind], *(n for n in plugins if n != chosen[kind])]
         for name in candidates:
             info = plugins.get(name)

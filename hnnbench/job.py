@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import dataclasses
+import functools
 import logging
 import os
 import shlex
@@ -110,8 +111,9 @@ def _base_record(cfg: DictConfig, overrides: list[str] | None) -> dict[str, Any]
 def _save_arrays(directory: Path, arrays: dict[str, np.ndarray], history: dict) -> None:
     payload = {k: np.asarray(v) for k, v in arrays.items()}
     payload.update({f"history.{k}": np.asarray(v, dtype=np.float64) for k, v in history.items()})
+    savez: Any = np.savez_compressed  # numpy's stub reads **payload as allow_pickle
     with records.atomic_path(directory / "rollout.npz") as tmp, open(tmp, "wb") as fh:
-        np.savez_compressed(fh, **payload)
+        savez(fh, **payload)
 
 
 def _save_model(model: Any, directory: Path) -> Optional[str]:
@@ -309,9 +311,10 @@ def _execute(job: Job, cfg: DictConfig, seeds: list[int], dirs: dict[int, Path],
     for seed in seeds:
         t0 = time.perf_counter()
         data, data_path, data_hit = cache.cached(
-            system, seed, "dataset", lambda s=seed: system.dataset(s), Dataset.load)
+            system, seed, "dataset", functools.partial(system.dataset, seed), Dataset.load)
         traj, traj_path, _ = cache.cached(
-            system, seed, "evaluation", lambda s=seed: system.evaluation(s), Trajectories.load)
+            system, seed, "evaluation", functools.partial(system.evaluation, seed),
+            Trajectories.load)
         runs[seed]["timings"]["data_s"] = time.perf_counter() - t0
         runs[seed]["data"] = {
             "cache_hit": data_hit,

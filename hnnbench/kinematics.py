@@ -82,6 +82,8 @@ class LinearKinematics(Kinematics):
 
     def __init__(self, velocity_per_momentum: float | np.ndarray) -> None:
         a = np.asarray(velocity_per_momentum, dtype=np.float64)
+        self.a: np.ndarray
+        self.a_inv: np.ndarray
         self.scalar = a.ndim == 0
         if self.scalar:
             if not a != 0:

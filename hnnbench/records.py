@@ -11,9 +11,9 @@ docs/ARCHITECTURE.md lists the fields). Non-finite numbers are encoded: ``inf`` 
 from __future__ import annotations
 
 import contextlib
-import math
 import datetime as _dt
 import json
+import math
 import os
 import platform
 import subprocess

@@ -19,8 +19,8 @@ from importlib import metadata
 from typing import Any, Literal
 
 from hnnbench.api import Model, ModelConfig, System, SystemConfig
-from hnnbench.errors import ConfigError, HnnbenchError, UnknownNameError
 from hnnbench.claims import ClaimSet
+from hnnbench.errors import ConfigError, HnnbenchError, UnknownNameError
 from hnnbench.metric import Metric
 
 Kind = Literal["system", "model", "metric", "claims"]
@@ -59,7 +59,8 @@ class PluginInfo:
     target: str
     distribution: str | None
     dist_version: str | None
-    cls: type | None = None
+    #: The loaded class (systems, models) or instance (metrics, claim sets).
+    cls: Any = None
     error: str | None = None
 
     @property
@@ -107,9 +108,9 @@ def _load(kind: str, ep: metadata.EntryPoint) -> PluginInfo:
         expected = INSTANCE_KINDS[kind]
         if not isinstance(cls, expected):
             info.error = f"{ep.value} is not a {expected.__module__}.{expected.__name__}"
-        elif cls.name != ep.name:
-            info.error = (f"{ep.value} is named '{cls.name}' but is registered as "
-                          f"'{ep.name}': use the same name")
+        elif getattr(cls, "name", None) != ep.name:
+            info.error = (f"{ep.value} is named '{getattr(cls, 'name', '?')}' but is "
+                          f"registered as '{ep.name}': use the same name")
         else:
             info.cls = cls
         return info
@@ -292,11 +293,11 @@ def register_configs(profile: str = "paper") -> None:
     validate_profile(profile)
     store = ConfigStore.instance()
     for kind in ("system", "model"):
-        for name in available(kind):  # type: ignore[arg-type]
+        for name in available(kind):
             try:
-                node = config_defaults(kind, name, profile)  # type: ignore[arg-type]
+                node = config_defaults(kind, name, profile)
             except HnnbenchError as err:
-                info = discover(kind)[name]  # type: ignore[arg-type]
+                info = discover(kind)[name]
                 info.error, info.cls = str(err), None
                 continue
             store.store(group=kind, name=name, node=node, provider="hnnbench")

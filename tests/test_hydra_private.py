@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 import pytest
+
 from hnnbench import _hydra, launch
 from hnnbench.errors import HnnbenchError
 

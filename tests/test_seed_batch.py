@@ -23,7 +23,8 @@ pytest.importorskip("jax")
 def test_seed_directory_replaces_the_leaders_component(tmp_path):
     leader = tmp_path / "spring" / "hnn_jax" / "seed0" / "model.hidden=8"
     assert seed_directory(leader, 0, 0) == leader
-    assert seed_directory(leader, 0, 2) == tmp_path / "spring" / "hnn_jax" / "seed2" / "model.hidden=8"
+    other = tmp_path / "spring" / "hnn_jax" / "seed2" / "model.hidden=8"
+    assert seed_directory(leader, 0, 2) == other
     assert seed_directory(tmp_path / "job", 0, 1) == tmp_path / "job" / "seed1"
 
 

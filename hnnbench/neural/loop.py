@@ -84,9 +84,9 @@ def train(
 ) -> list[SeedFit]:
     """Train every seed of ``trainer`` for ``settings.steps`` steps; one
     :class:`SeedFit` per seed, in ``seeds`` order."""
-    full = settings.batch_size is None or settings.batch_size >= n_train
-    streams = None if full else [BatchStream(seed, n_train, int(settings.batch_size))
-                                 for seed in seeds]
+    batch = settings.batch_size
+    streams = None if batch is None or batch >= n_train else [
+        BatchStream(seed, n_train, int(batch)) for seed in seeds]
 
     def draw(length: int) -> Optional[np.ndarray]:
         if streams is None:

@@ -18,7 +18,7 @@ __all__ = ["main"]
 class _Parser(argparse.ArgumentParser):
     """argparse that raises a one-line :class:`HnnbenchError` instead of exiting."""
 
-    def error(self, message: str) -> Any:  # type: ignore[override]
+    def error(self, message: str) -> Any:
         usage = " ".join(self.format_usage().split()[1:])
         raise HnnbenchError(f"{message} (usage: {usage})")
 

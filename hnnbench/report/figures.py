@@ -17,11 +17,12 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import math
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal, Optional
+from typing import Any, Literal, Optional, cast
 
 import numpy as np
 import pandas as pd
@@ -304,11 +305,11 @@ def _heatmap(ranks: pd.DataFrame, values: pd.DataFrame, metric: str) -> Any:
     lin = linear is not None and linear.scale == "linear"
     for i in range(n_models):
         for j in range(n_systems):
-            v, r = values.iat[i, j], ranks.iat[i, j]
-            if pd.isna(v):
+            v, r = float(cast(float, values.iat[i, j])), float(cast(float, ranks.iat[i, j]))
+            if math.isnan(v):
                 ax.text(j, i, "—", ha="center", va="center", fontsize=7, color="0.5")
                 continue
-            text = format_value(float(v), linear=lin)
+            text = format_value(v, linear=lin)
             ax.text(j, i, f"{int(r)}\n{text}", ha="center", va="center", fontsize=6.5,
                     color="k")
     ax.set_xticks(range(n_systems), [str(s) for s in values.columns], rotation=35,
@@ -448,6 +449,7 @@ def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Pat
                 log.warning("figure %s/%s failed: %s", system, kind.name, err)
                 continue
             if fig is not None:
-                made.append(Made(label, kind.name, _save(fig, directory / f"{stem}_{kind.name}.png")))
+                path = _save(fig, directory / f"{stem}_{kind.name}.png")
+                made.append(Made(label, kind.name, path))
     return made
 

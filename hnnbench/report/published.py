@@ -144,7 +144,8 @@ def comparison_frame(board: pd.DataFrame, claim_set: Optional[C.ClaimSet] = None
             for backend in backends:
                 for role in roles:
                     model = pairs[backend].get(family_of[role])
-                    row[f"ours {role} ({backend})"] = ours_cell(board, profile, system, model, metric)
+                    row[f"ours {role} ({backend})"] = ours_cell(board, profile, system, model,
+                                                                metric)
             row["source"] = first.source.split(" (")[0]
             rows.append(row)
     return pd.DataFrame(rows)

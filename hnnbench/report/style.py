@@ -22,7 +22,7 @@ def model_keys(models: Sequence[str], families: dict[str, str]) -> list[str]:
     (so a family keeps its colour across figures and sweeps)."""
     keys = [families.get(m) or m for m in models]
     ordered_models = registry.ordered("model", models)
-    first = {}
+    first: dict[str, int] = {}
     for m in ordered_models:
         first.setdefault(families.get(m) or m, len(first))
     return sorted(set(keys), key=lambda k: first[k])

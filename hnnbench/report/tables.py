@@ -4,7 +4,7 @@ with the best value of each system marked."""
 from __future__ import annotations
 
 import math
-from typing import Optional
+from typing import Optional, cast
 
 import pandas as pd
 
@@ -17,8 +17,8 @@ __all__ = ["best_cells", "leaderboard_markdown", "md_table", "seed_line"]
 def md_table(frame: pd.DataFrame) -> str:
     from tabulate import tabulate
 
-    return tabulate(frame, headers="keys", tablefmt="github", showindex=False,
-                    disable_numparse=True)
+    return tabulate(frame.to_dict(orient="list"), headers="keys", tablefmt="github",
+                    showindex=False, disable_numparse=True)
 
 
 def seed_line(board: pd.DataFrame) -> str:
@@ -51,7 +51,7 @@ def best_cells(board: pd.DataFrame) -> set[tuple[int, str]]:
             if len(values) < 2:
                 continue
             pick = values.idxmax() if declared[metric].better == "higher" else values.idxmin()
-            out.add((int(pick), metric))
+            out.add((int(cast(int, pick)), metric))
     return out
 
 
@@ -59,7 +59,7 @@ def _marked(board: pd.DataFrame, bold: str = "**") -> pd.DataFrame:
     shown = display_frame(board)
     for row, metric in best_cells(board):
         if metric in shown.columns:
-            shown.at[row, metric] = f"{bold}{shown.at[row, metric]}{bold}"
+            shown.at[row, metric] = f"{bold}{str(shown.at[row, metric])}{bold}"
     return shown
 
 

@@ -170,9 +170,9 @@ def parse_table(path: Path) -> np.ndarray:
     trial, t = table[:, 0], table[:, 1]
     same = trial[1:] == trial[:-1]
     if np.any(np.diff(t)[same] <= 0):
-        line = int(np.flatnonzero(same & (np.diff(t) <= 0))[0]) + 2
+        row = int(np.flatnonzero(same & (np.diff(t) <= 0))[0]) + 2
         raise DataError(
-            f"Data file {path}: times do not increase within a trial (data row {line}). "
+            f"Data file {path}: times do not increase within a trial (data row {row}). "
             f"Replace it with the original {FILENAME}."
         )
     return table

@@ -70,7 +70,7 @@ def use_compilation_cache() -> None:
     ``cache_dir``), unless the user chose another folder (``JAX_COMPILATION_CACHE_DIR``
     or ``jax.config``). Called at import and whenever a JAX model is built."""
     global _cache_chosen
-    current = jax.config.jax_compilation_cache_dir
+    current = getattr(jax.config, "jax_compilation_cache_dir", None)
     if current and current != _cache_chosen:
         return
     target = str(paths.jax_compilation_cache_dir())

@@ -55,16 +55,16 @@ def make_loss(family: Family, impl: ModuleType, kind: str, d: int, cfg: NeuralCo
     def nets_of(params: Params) -> dict[str, MLP]:
         return networks(family, params, d, cfg, MLP.view)
 
-    if kind == "derivatives":
-        def loss(params: Params, z: torch.Tensor, zdot: torch.Tensor) -> torch.Tensor:
-            return torch.mean((impl.field(nets_of(params), z) - zdot) ** 2)
-    elif kind == "windows":
-        def loss(params: Params, windows: torch.Tensor, dts: torch.Tensor) -> torch.Tensor:
-            return impl.window_loss(nets_of(params), windows, dts, **dict(options))
-    else:
-        def loss(params: Params, x: torch.Tensor, x_next: torch.Tensor) -> torch.Tensor:
-            return pixel_objective(impl.field, nets_of(params), Autoencoder(params), x, x_next)
-    return loss
+    def derivatives(params: Params, z: torch.Tensor, zdot: torch.Tensor) -> torch.Tensor:
+        return torch.mean((impl.field(nets_of(params), z) - zdot) ** 2)
+
+    def windows(params: Params, windows: torch.Tensor, dts: torch.Tensor) -> torch.Tensor:
+        return impl.window_loss(nets_of(params), windows, dts, **dict(options))
+
+    def pixels(params: Params, x: torch.Tensor, x_next: torch.Tensor) -> torch.Tensor:
+        return pixel_objective(impl.field, nets_of(params), Autoencoder(params), x, x_next)
+
+    return {"derivatives": derivatives, "windows": windows, "pixels": pixels}[kind]
 
 
 class TorchTrainer:
