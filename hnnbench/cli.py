@@ -109,28 +109,28 @@ def cmd_list(args: list[str]) -> int:
 
     if any(a not in ("--json",) for a in args):
         raise ConfigError(f"hnnbench list: unknown argument {args}; expected: [--json]")
-    out = {}
-    for kind in ("system", "model"):
+    out: dict[str, list[dict[str, Any]]] = {}
+    for kind in ("system", "model", "metric", "claims"):
         out[kind] = [
             {"name": i.name, "version": i.version, "backend": i.backend,
+             "family": i.family,
              "package": f"{i.distribution} {i.dist_version}" if i.distribution else "?",
              "status": "ok" if i.ok else "error", "description": i.description,
              "error": i.error}
-            for i in registry.discover(kind).values()
+            for i in registry.discover(kind).values()  # type: ignore[arg-type]
         ]
     if "--json" in args:
         print(json.dumps(out, indent=2))
         return 0
-    for kind, title in (("system", "Systems"), ("model", "Models")):
-        rows = [
-            [r["name"], r["version"], r["backend"], r["package"],
-             r["description"] if r["status"] == "ok" else f"ERROR: {r['error']}"]
-            for r in out[kind]
-        ]
-        headers = ["name", "version", "backend", "package", "description"]
-        if kind == "system":
-            rows = [r[:2] + r[3:] for r in rows]
-            headers = ["name", "version", "package", "description"]
+    layouts = {
+        "system": ("Systems", ["name", "version", "package", "description"]),
+        "model": ("Models", ["name", "version", "backend", "family", "package", "description"]),
+        "metric": ("Metrics", ["name", "package", "description"]),
+        "claims": ("Claim sets", ["name", "package", "description"]),
+    }
+    for kind, (title, headers) in layouts.items():
+        rows = [[r[h] if h != "description" or r["status"] == "ok" else f"ERROR: {r['error']}"
+                 for h in headers] for r in out[kind]]
         print(f"{title} (entry points: {registry.GROUPS[kind]})")
         print(tabulate(rows, headers=headers, tablefmt="simple"))
         print()

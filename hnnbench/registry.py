@@ -75,7 +75,8 @@ class PluginInfo:
     def description(self) -> str:
         if self.cls is None:
             return ""
-        doc = getattr(self.cls, "description", "") or (self.cls.__doc__ or "")
+        doc = getattr(self.cls, "description", "") or getattr(self.cls, "title", "") or (
+            self.cls.__doc__ or "")
         return doc.strip().splitlines()[0] if doc.strip() else ""
 
     @property
