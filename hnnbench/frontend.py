@@ -126,7 +126,11 @@ def load(*dirs: Union[str, Path]) -> pd.DataFrame:
 
     if not dirs:
         raise TypeError("load() needs at least one directory")
-    recs, _ = load_sweeps([Path(d) for d in dirs])
+    import logging
+
+    recs, bad = load_sweeps([Path(d) for d in dirs])
+    for item in bad:
+        logging.getLogger("hnnbench").warning("record left out: %s", item)
     return records_frame(recs)
 
 

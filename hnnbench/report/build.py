@@ -87,5 +87,7 @@ def on_sweep_end(sweep_dir: Path | str) -> None:
     except ReportError as err:
         log.warning("no report: %s", err)
         return
+    for item in report.unreadable:
+        log.warning("record left out: %s", item)
     print(f"report: {report.files['html']} (leaderboard.csv/.md, paper_comparison.md, "
           f"{len(report.figures)} figures)")

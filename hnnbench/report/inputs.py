@@ -24,8 +24,8 @@ def load_sweeps(directories: Sequence[Path | str], *, strict: bool = False
                 ) -> tuple[list[dict[str, Any]], list[R.Unreadable]]:
     """The records under every directory (several sweeps merge into one leaderboard),
     and the ``result.json`` files left out, unreadable or invalid against the record
-    schema (:func:`hnnbench.records.validate`): each is named in a warning, and
-    ``strict`` makes any of them a :class:`ReportError`."""
+    schema (:func:`hnnbench.records.validate`; the caller names them), and ``strict``
+    makes any of them a :class:`ReportError`."""
     if not directories:
         raise ReportError("No sweep directory given: expected one or more directories "
                           "holding result.json records")
@@ -44,8 +44,6 @@ def load_sweeps(directories: Sequence[Path | str], *, strict: bool = False
         else:
             valid.append(rec)
     recs = valid
-    for item in bad:
-        log.warning("record left out: %s", item)
     if bad and strict:
         raise ReportError(f"{len(bad)} record(s) unreadable or invalid, e.g. {bad[0]}")
     if not recs:
@@ -58,8 +56,12 @@ def load_sweeps(directories: Sequence[Path | str], *, strict: bool = False
 
 
 def load_sweep(*directories: Path | str) -> list[dict[str, Any]]:
-    """The readable records under the directories (see :func:`load_sweeps`)."""
-    return load_sweeps(list(directories))[0]
+    """The valid records under the directories (see :func:`load_sweeps`); a warning
+    names each file left out."""
+    recs, bad = load_sweeps(list(directories))
+    for item in bad:
+        log.warning("record left out: %s", item)
+    return recs
 
 
 def provenance(recs: Sequence[dict[str, Any]]) -> dict[str, list[str]]:

@@ -1,0 +1,136 @@
+"""Seeds trained as one batch against seeds trained one after the other.
+
+    python benchmarks/seed_batch.py [--systems two_body real_pendulum] [--steps 1000]
+    python benchmarks/seed_batch.py --jobs      # also whole jobs through the CLI
+
+**Training** (default): for each (system, model), the same three seeds (each its own
+data, initial weights and minibatches, at the system's paper settings, ``--steps``
+steps) are trained (a) by three ``Model.fit`` calls in a row and (b) by one
+``Model.fit_seeds`` call, the batch. Both run once untimed first (JAX compilation, torch
+warm-up), then ``--repeats`` timed rounds, interleaved; the medians give the throughput
+ratio (a) / (b).
+
+**Jobs** (``--jobs``): the whole command a user runs,
+``hnnbench -m system=S model=M seed=0,1,2`` against the same with ``seeds_per_job=3``
+(each in a fresh process, caches warm: a warm-up run fills the dataset and JAX
+compilation caches), so data loading, compilation, evaluation and process start-up
+count too.
+
+Everything runs on one core with one thread (``taskset`` the script, as the harness
+pins its jobs); the issue's target: three seeds in one job at least 2.5x the throughput
+of three separate jobs on two_body (batch 200) and real_pendulum.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+TARGET = 2.5
+SEEDS = (0, 1, 2)
+
+
+def training(system_name: str, model_name: str, steps: int, repeats: int
+             ) -> tuple[float, float]:
+    """Median seconds of three separate fits and of one batched fit."""
+    from hnnbench import cache
+    from hnnbench.api import Dataset, TrainSettings
+    from hnnbench.config import compose, prepare_job
+    from hnnbench.job import _set_threads
+
+    _set_threads(1)
+    job = prepare_job(compose([f"system={system_name}", f"model={model_name}"]))
+    system = job.system_cls(job.system_cfg)
+    datas = [cache.cached(system, s, "dataset", lambda s=s: system.dataset(s),
+                          Dataset.load)[0] for s in SEEDS]
+    protocol = TrainSettings.resolve(job.system_cfg, job.model_cfg)
+    train = TrainSettings(steps, protocol.batch_size, protocol.lr, protocol.weight_decay)
+
+    def separate() -> None:
+        for seed, data in zip(SEEDS, datas, strict=True):
+            job.model_cls(job.model_cfg, system, "cpu").fit(data, train, seed,
+                                                            lambda *_: None)
+
+    def batched() -> None:
+        job.model_cls(job.model_cfg, system, "cpu").fit_seeds(datas, train, list(SEEDS),
+                                                              lambda *_: None)
+
+    separate()
+    batched()
+    times: dict[str, list[float]] = {"separate": [], "batched": []}
+    for _ in range(repeats):
+        for name, fn in (("separate", separate), ("batched", batched)):
+            start = time.perf_counter()
+            fn()
+            times[name].append(time.perf_counter() - start)
+    return statistics.median(times["separate"]), statistics.median(times["batched"])
+
+
+def jobs(system_name: str, model_name: str, steps: int) -> tuple[float, float]:
+    """Wall seconds of the CLI sweep of three seeds without and with seeds_per_job=3."""
+    exe = str(Path(sys.executable).parent / "hnnbench")
+    common = ["-m", f"system={system_name}", f"model={model_name}", "seed=0,1,2",
+              f"system.steps={steps}", "device=cpu", "save_model=false"]
+    env = {**os.environ, "HNNBENCH_PROGRESS": "off"}
+    out: list[float] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        subprocess.run([exe, *common, f"hydra.sweep.dir={tmp}/warm"], check=True,
+                       capture_output=True, env=env)
+        for i, extra in enumerate(([], ["seeds_per_job=3"])):
+            start = time.perf_counter()
+            subprocess.run([exe, *common, *extra, f"hydra.sweep.dir={tmp}/run{i}"], check=True,
+                           capture_output=True, env=env)
+            out.append(time.perf_counter() - start)
+    return out[0], out[1]
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--systems", nargs="+", default=["two_body", "real_pendulum"])
+    parser.add_argument("--models", nargs="+",
+                        default=["mlp_jax", "hnn_jax", "mlp_torch", "hnn_torch"])
+    parser.add_argument("--steps", type=int, default=1000)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--jobs", action="store_true", help="also time whole CLI sweeps")
+    args = parser.parse_args()
+
+    rows: list[tuple[Any, ...]] = []
+    for system_name in args.systems:
+        for model_name in args.models:
+            sep, bat = training(system_name, model_name, args.steps, args.repeats)
+            row: tuple[Any, ...] = (system_name, model_name, sep, bat)
+            if args.jobs:
+                row += jobs(system_name, model_name, args.steps)
+            rows.append(row)
+            print(f"  measured {system_name} x {model_name}", file=sys.stderr, flush=True)
+    head = "| system | model | 3 fits s | 1 batched fit s | training ratio |"
+    rule = "|---|---|---|---|---|"
+    if args.jobs:
+        head += " 3 jobs s | 1 batched job s | job ratio |"
+        rule += "---|---|---|"
+    print(f"\n{len(SEEDS)} seeds, {args.steps} steps each, paper batch sizes; one core\n")
+    print(head)
+    print(rule)
+    for row in rows:
+        text = f"| {row[0]} | {row[1]} | {row[2]:.2f} | {row[3]:.2f} | {row[2] / row[3]:.2f}x |"
+        if args.jobs:
+            text += f" {row[4]:.1f} | {row[5]:.1f} | {row[4] / row[5]:.2f}x |"
+        print(text)
+    best = {s: max(r[2] / r[3] for r in rows if r[0] == s) for s in args.systems}
+    print("\nbest training ratio per system: " + ", ".join(
+        f"{s} {v:.2f}x ({'meets' if v >= TARGET else 'below'} the {TARGET}x target)"
+        for s, v in best.items()))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
