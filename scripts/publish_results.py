@@ -1,28 +1,33 @@
-"""Publish a paper-profile sweep as the committed leaderboard.
+"""Publish paper-profile sweeps as the committed leaderboard.
 
-    python scripts/publish_results.py SWEEP_DIR [--figure two_body_energy]
+    python scripts/publish_results.py SWEEP_DIR [SWEEP_DIR ...] [--figure two_body_energy]
 
-1. ``hnnbench report SWEEP_DIR --out results/``: leaderboard.{csv,md,html},
-   paper_comparison.md and figures/ (all written by code).
-2. Replaces the block between ``<!-- leaderboard:begin -->`` and
-   ``<!-- leaderboard:end -->`` in README.md with the Markdown table, its provenance
-   (command, commit, device) and one figure, and the block between
-   ``<!-- provenance:begin -->`` and ``<!-- provenance:end -->`` in results/README.md
-   with the provenance.
-
-``tests/test_published.py`` checks that README.md and results/ agree, so the README
-table cannot drift from the committed records.
+1. Copies every ``result.json`` of the sweeps into ``results/records/<system>/<model>/
+   seed<k>/result.json`` (records only: they are small; rollouts and weights stay in the
+   sweeps). Sweeps of different systems, run at different times or on different
+   machines, merge there; a record already present for the same job is replaced.
+2. ``hnnbench report`` over the sweeps (their rollouts draw the figures) into
+   ``results/``: leaderboard.{csv,md,html}, paper_comparison.md, figures/. The
+   leaderboard is the one of ``results/records`` (tests/test_published.py rebuilds it
+   from the committed records and compares).
+3. Replaces the block between ``<!-- leaderboard:begin -->`` and
+   ``<!-- leaderboard:end -->`` in README.md with the Markdown table, its provenance and
+   the heatmap, and the block between ``<!-- provenance:begin -->`` and
+   ``<!-- provenance:end -->`` in results/README.md with the provenance and the list of
+   systems published so far.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import re
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "results"
+RECORDS = RESULTS / "records"
 BEGIN, END = "<!-- {name}:begin -->", "<!-- {name}:end -->"
 
 
@@ -44,20 +49,58 @@ def table_and_provenance(markdown: str) -> tuple[str, str]:
     return table, prov
 
 
+def copy_records(sweeps: list[Path]) -> int:
+    """Copy each sweep's records into results/records; returns how many."""
+    from hnnbench import records as R
+
+    count = 0
+    for sweep in sweeps:
+        recs, bad = R.scan_records(sweep)
+        if bad:
+            raise SystemExit(f"publish: {len(bad)} unreadable record(s) in {sweep}, e.g. "
+                             f"{bad[0]}")
+        for rec in recs:
+            if rec.get("profile") != "paper":
+                raise SystemExit(f"publish: {rec['path']} is profile {rec.get('profile')}, "
+                                 "not paper")
+            problems = R.validate(rec)
+            if problems:
+                raise SystemExit(f"publish: {rec['path']}: invalid record: {problems[0]}")
+            source = Path(rec["path"]) / R.RECORD_NAME
+            target = RECORDS / str(rec["system"]) / str(rec["model"]) / f"seed{rec['seed']}"
+            target.mkdir(parents=True, exist_ok=True)
+            R.atomic_write_text(target / R.RECORD_NAME, source.read_text())
+            count += 1
+    return count
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("sweep", type=Path, help="sweep directory with result.json records")
-    parser.add_argument("--figure", default="two_body_energy",
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("sweeps", type=Path, nargs="+",
+                        help="sweep directories with result.json records and rollouts")
+    parser.add_argument("--figure", default="heatmap_energy_mse",
                         help="figure embedded in README.md (a name under results/figures/)")
     args = parser.parse_args(argv)
 
     from hnnbench.errors import HnnbenchError
     from hnnbench.report import write_report
 
+    copied = copy_records(args.sweeps)
+    # Figures need the rollouts, which only the sweeps keep; every published record
+    # must be in one of them so that the page and the records agree.
+    published = sorted(p.parent.relative_to(RECORDS) for p in RECORDS.rglob("result.json"))
     try:
-        report = write_report(args.sweep, RESULTS)
+        report = write_report(args.sweeps, RESULTS)
     except HnnbenchError as err:
         print(f"publish: {err}", file=sys.stderr)
+        return 2
+    in_sweeps = {(r["system"], r["model"], int(r["seed"])) for r in report.records}
+    on_record = {(p.parts[0], p.parts[1], int(p.parts[2].removeprefix("seed")))
+                 for p in published}
+    if in_sweeps != on_record:
+        print(f"publish: results/records holds jobs the sweeps given here do not "
+              f"({sorted(on_record - in_sweeps)[:5]} ...): pass every sweep that was "
+              "published", file=sys.stderr)
         return 2
     figure = RESULTS / "figures" / f"{args.figure}.png"
     if not figure.exists():
@@ -66,16 +109,19 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 2
     table, prov = table_and_provenance(report.files["md"].read_text())
+    systems = sorted({p.parts[0] for p in published})
     readme = ROOT / "README.md"
     body = "\n\n".join([
         prov, table,
-        f"![True energy along rollouts]({figure.relative_to(ROOT).as_posix()})",
+        f"![Which model wins where: rank by energy MSE]({figure.relative_to(ROOT).as_posix()})",
     ])
     readme.write_text(replace_block(readme.read_text(), "leaderboard", body))
     results_readme = RESULTS / "README.md"
-    results_readme.write_text(replace_block(results_readme.read_text(), "provenance", prov))
-    print(f"published {report.out}: {len(report.figures)} figures; README.md and "
-          "results/README.md updated")
+    listing = f"- Systems published: {', '.join(f'`{s}`' for s in systems)}"
+    results_readme.write_text(replace_block(results_readme.read_text(), "provenance",
+                                            f"{prov}\n{listing}"))
+    print(json.dumps({"copied_records": copied, "published_records": len(published),
+                      "systems": systems, "figures": len(report.figures)}))
     return 0
 
 
