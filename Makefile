@@ -5,7 +5,8 @@ VENV := .venv/bin
 # The measured-pendulum data: $HNNBENCH_DATA_DIR, else ../shared/... beside the clone.
 export HNNBENCH_DATA_DIR ?= $(abspath ../shared/data/schmidt-lipson-2009)
 # Parallel jobs of `make benchmark`: one per usable core (each job pins itself to one).
-JOBS ?= $(shell nproc 2>/dev/null || echo 1)
+# (GNU nproc honours OMP_NUM_THREADS, which hnnbench sets to 1 for its jobs: ignore it.)
+JOBS ?= $(shell env -u OMP_NUM_THREADS nproc 2>/dev/null || echo 1)
 PYTEST_ARGS ?=
 
 .PHONY: setup benchmark benchmark-serial quick test test-fast lint typecheck clean

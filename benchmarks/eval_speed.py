@@ -103,7 +103,9 @@ def energy_mse(system: Any, traj: Any, states_hat: np.ndarray) -> float:
     """The ``energy_mse`` metric's mean, computed as :func:`hnnbench.evaluate.evaluate`
     does: true energy along the rollout vs along the true trajectories."""
     from hnnbench import metrics as M
-    def _energies(system, states):  # (M, T, 2n) -> (M, T), as hnnbench.evaluate does
+
+    def _energies(system: Any, states: np.ndarray) -> np.ndarray:
+        # (M, T, 2n) -> (M, T), as hnnbench.evaluate does
         m, t, d = states.shape
         return system.energy(states.reshape(m * t, d)).reshape(m, t)
 
@@ -166,21 +168,35 @@ def timed(fn: Callable[[], T], repeats: int) -> tuple[float, float, T]:
 
 @contextmanager
 def counting_field_calls(model: Any) -> Iterator[list[int]]:
-    """Count a torch model's calls of its vector field ``model.field`` (its batched
-    rollout calls it once per right-hand-side evaluation). Yields a one-element list
-    holding the count."""
+    """Count a neural model's calls of its family's vector field during a batched
+    rollout (its solver calls the field once per right-hand-side evaluation, on the whole
+    batch). Yields a one-element list holding the count.
+
+    The hook is on the model's float64 :class:`~hnnbench.neural.backend.Inference`
+    (``NeuralModel._infer()``): the torch backend's ``TorchInference.rollout`` calls
+    ``self.impl.field(nets, y)`` (``impl`` is the family's torch module) at every
+    evaluation, so ``impl`` is swapped, on that one object, for a proxy whose ``field``
+    counts. Only meaningful for torch: a JAX rollout is one compiled program (diffrax),
+    which calls the Python field once, while tracing.
+    """
     count = [0]
-    original = model.field
+    infer = model._infer()
+    impl = infer.impl
 
-    def counted(*args: Any, **kwargs: Any) -> Any:
-        count[0] += 1
-        return original(*args, **kwargs)
+    class Counted:
+        def __getattr__(self, name: str) -> Any:
+            return getattr(impl, name)
 
-    model.field = counted
+        @staticmethod
+        def field(*args: Any, **kwargs: Any) -> Any:
+            count[0] += 1
+            return impl.field(*args, **kwargs)
+
+    infer.impl = Counted()
     try:
         yield count
     finally:
-        del model.field  # back to the class's method
+        infer.impl = impl
 
 
 # --------------------------------------------------------------------------- one pair
@@ -242,7 +258,8 @@ def measure(
         lambda: loop_energy_mse(system, model, traj, rtol, atol), repeats)
 
     rhs_calls: Optional[int] = None
-    if job.model_cls.backend == "torch":  # untimed: how many batched field calls
+    if job.model_cls.backend == "torch" and hasattr(model, "_infer"):  # untimed: how
+        # many batched field calls (neural torch models)
         with counting_field_calls(model) as count:
             model.rollout(traj.x0, traj.t, rtol=rtol, atol=atol)
         rhs_calls = count[0]

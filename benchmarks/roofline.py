@@ -7,9 +7,10 @@ measured on this machine for the same shapes.
   one step and for two steps (both logging the test loss once, at the end): the
   difference is one training step (forward + backward + Adam), the rest is one test-loss
   evaluation. It is cross-checked with ``torch.utils.flop_counter.FlopCounterMode``.
-- :func:`jax_fit_flops` compiles hnnbench's JAX training chunk for one step, as
-  ``fit`` does, and reads XLA's ``cost_analysis()`` (all ops, dots and elementwise) and
-  the dot FLOPs from the optimised HLO, split into the step and the test evaluation.
+- :func:`jax_fit_flops` runs hnnbench's own JAX ``Model.fit`` for one step, keeps
+  the training chunk it compiles (one ``lax.scan`` step plus the test loss), and reads
+  XLA's ``cost_analysis()`` (all ops, dots and elementwise) and the dot FLOPs from the
+  optimised HLO, split into the step and the test evaluation.
 - :func:`measure_rates` times each distinct ``(M, K) x (K, N)`` product, single thread,
   with torch (``torch.mm(..., out=)`` in a loop, the recorded operand layouts) and with
   JAX (``R`` dots inside one jitted ``fori_loop``, so dispatch is amortised); the best
@@ -200,40 +201,61 @@ def _cost(compiled: Any) -> dict[str, float]:
     return dict(cost or {})
 
 
-def jax_fit_flops(model: Any, data: Any, train: Any, seed: int = 0) -> dict[str, float]:
-    """FLOPs of one training step and one test evaluation of the JAX model's ``fit``,
-    from the chunk it compiles (here of length 1). Returns ``step_dot``/``eval_dot``
-    (dot FLOPs in the optimised HLO) and ``step_xla``/``eval_xla`` (XLA's
-    ``cost_analysis()["flops"]``, all ops; XLA counts a ``while`` body once, so the
-    chunk's figure is one step plus the evaluation, and the evaluation is compiled
-    alone to split them)."""
-    import equinox as eqx
+def jax_fit_flops(
+    model_cls: Any, model_cfg: Any, system: Any, data: Any, train: Any, seed: int = 0
+) -> dict[str, float]:
+    """FLOPs of one training step and one test evaluation of the JAX model's own
+    ``fit``, from the chunk it compiles (here of length 1). Returns ``step_dot`` /
+    ``eval_dot`` (dot FLOPs in the optimised HLO: the step's dots sit in the ``while``
+    of the chunk's ``lax.scan``, the test loss after it) and ``step_xla`` / ``eval_xla``
+    (XLA's ``cost_analysis()["flops"]``, all ops; XLA counts a ``while`` body once, so
+    the chunk's figure is one step plus the evaluation, and the evaluation is compiled
+    alone to split them). A loop inside the loss (SRNN's leapfrog ``lax.scan``) is a
+    ``while`` too, whose dots are counted once, not once per iteration: for such a
+    family the JAX figures are per loop iteration, below the torch count.
+
+    The hook: ``fit`` runs for one step (one chunk of length 1) while the JAX backend's
+    ``_compiled`` (which lowers and compiles, or finds in its cache, the executable of a
+    training chunk) is wrapped to keep the executable and its arguments; the test
+    loss is then compiled alone from the same loss (``hnnbench.neural.jax._loss``), the
+    same parameters and the same test arrays.
+    """
+    import functools
+
     import jax
-    import jax.numpy as jnp
 
-    from hnnbench_plugins.models import jax_base as jb
+    import hnnbench.neural.jax as jx
 
-    x, y = model._array(data.train.x), model._array(data.train.dxdt)
-    x_test, y_test = model._array(data.test.x), model._array(data.test.dxdt)
-    net = model.build(int(x.shape[1]), seed)
-    params, static = eqx.partition(net, eqx.is_inexact_array)
-    opt_state = jb.adam_like_torch(train.lr, train.weight_decay).init(params)
-    hyper = (model._array(train.lr), model._array(train.weight_decay))
-    n = int(x.shape[0])
-    full = train.batch_size is None or train.batch_size >= n
-    idx = None if full else jnp.zeros((1, train.batch_size), jnp.int32)
-    args = (params, opt_state, idx, x, y, x_test, y_test, *hyper)
-    field = model.field
-    with jax.default_matmul_precision("highest"):
-        chunk = jb._train_chunk_jit.lower(field, static, 1, *args).compile()
+    seen: dict[str, Any] = {}
+    original = jx._compiled
 
-        def test_loss(p: Any, xt: Any, yt: Any) -> Any:
-            return jnp.mean((field(eqx.combine(p, static), xt) - yt) ** 2)
+    def keep(batched: bool, statics: tuple[Any, ...], args: tuple[Any, ...]) -> Any:
+        compiled, seconds = original(batched, statics, args)
+        seen.update(compiled=compiled, statics=statics, args=args)
+        return compiled, seconds
 
-        evaluation = jax.jit(test_loss).lower(params, x_test, y_test).compile()
+    cfg = dataclasses.replace(model_cfg, log_every=10**9)  # one chunk: one step
+    jx._compiled = keep
+    try:
+        model = model_cls(cfg, system, "cpu")
+        model.fit(data, dataclasses.replace(train, steps=1), seed, lambda *_: None)
+    finally:
+        jx._compiled = original
+    if "compiled" not in seen:
+        raise RuntimeError(f"{model_cls.__name__}: fit compiled no JAX training chunk")
+    chunk = seen["compiled"]
+    kind, impl, options, static = seen["statics"][:4]
+    params, test = seen["args"][0], seen["args"][4]
+    loss = functools.partial(jx._loss, kind, impl, options, static)
+    with jax.default_matmul_precision("highest"):  # as the backend compiles its chunks
+        evaluation = jax.jit(loss).lower(params, *test).compile()
     dots = hlo_dot_flops(chunk.as_text())
-    step_dot = sum(f for f, name in dots if "/while/" in name)
-    eval_dot = sum(f for f, name in dots if "/while/" not in name)
+
+    def in_step(name: str) -> bool:  # "jit(_chunk)/while/...": the scan over the steps
+        return name.split("/")[1:2] == ["while"]
+
+    step_dot = sum(f for f, name in dots if in_step(name))
+    eval_dot = sum(f for f, name in dots if not in_step(name))
     eval_alone = sum(f for f, _ in hlo_dot_flops(evaluation.as_text()))
     chunk_xla = _cost(chunk).get("flops", float("nan"))
     eval_xla = _cost(evaluation).get("flops", float("nan"))

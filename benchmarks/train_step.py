@@ -5,9 +5,15 @@ and against this machine's fp32 matmul roofline, measured side by side.
     python benchmarks/train_step.py --systems spring --steps 500 --repeats 5
     python benchmarks/train_step.py --steps 100 --repeats 1 --steps-2019 50   # quick check
     python benchmarks/train_step.py --skip-2019           # hnnbench and roofline only
+    python benchmarks/train_step.py --systems spring --skip-2019 --models \
+        mlp_torch mlp_jax hnn_torch hnn_jax dhnn_torch dhnn_jax lnn_torch lnn_jax \
+        node2_torch node2_jax srnn_torch srnn_jax       # ms/step of every family
 
-For each system it builds the paper-profile dataset (``system.dataset(0)``, the same
-cache entry a real run uses) and, for each model, times ``Model.fit`` for ``--steps``
+``--models`` takes any neural model (``<family>_<backend>``: the families mlp, hnn,
+dhnn, lnn, node2, srnn, each as torch and jax; default: mlp and hnn on both backends);
+a model that cannot run on a system (``hnnbench list`` says why) is skipped with a
+note. For each system it builds the paper-profile dataset (``system.dataset(0)``, the
+same cache entry a real run uses) and, for each model, times ``Model.fit`` for ``--steps``
 steps ``--repeats`` times, after one untimed warm-up fit (JAX compilation and torch's
 first-call costs are excluded; compile time is measured inside ``fit`` and printed
 separately, never counted in a step). The batch size, learning rate and weight decay
@@ -32,12 +38,16 @@ Compared with:
    gradient vector concatenated every step. It is slow, so it runs ``--steps-2019``
    steps per repeat (after 5 warm-up steps; its "best" is the fastest block of as many
    steps as hnnbench's logging interval); a paper-length total (two_body: 10,000
-   steps) is *extrapolated* as per-step x steps, for both loops.
+   steps) is *extrapolated* as per-step x steps, for both loops. The 2019 code had
+   only the baseline MLP and the HNN, so the other families get no 2019 figure ("—").
 2. **The matmul roofline** (``benchmarks/roofline.py``): the matrix products of one
    hnnbench training step plus 1/``log_every`` of a test-loss evaluation (what a
    step of the timed fit does on average), recorded from the torch model's own ``fit``
-   (and checked with ``FlopCounterMode``; the JAX step's dot FLOPs are read from XLA's
-   optimised HLO and must agree), each divided by the best fp32 rate measured on this
+   (and checked with ``FlopCounterMode``; the JAX step's dot FLOPs are read from the
+   optimised HLO of the training chunk JAX ``fit`` compiles and agree for mlp, hnn and
+   dhnn; lnn, node2 and srnn compute their derivatives differently in the two
+   backends, or loop inside the loss, and a warning says where they differ), each
+   divided by the best fp32 rate measured on this
    machine, single thread, for that ``(M, K) x (K, N)`` shape (torch ``mm`` or JAX
    ``dot_general``, any operand layout, either orientation ``C`` or ``C.T``; the
    roofline as dispatched, without the orientation freedom, and ``total FLOPs / peak
@@ -75,6 +85,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 #: The "Speed and scale" issue's targets.
 TARGET_ROOFLINE = 0.70  # spring, full batch, HNN, faster backend: >= 70% of the roofline
 TARGET_SPEEDUP = 5.0  # two_body, batch 200, 10k steps: >= 5x faster than the 2019 loop
+#: The architectures of the 2019 code (benchmarks/loop2019.py).
+ARCHS_2019 = ("mlp", "hnn")
 
 
 @dataclass
@@ -138,6 +150,10 @@ class Arch:
             return min(self.blocks_2019_ms)
         return min(self.times_2019_ms) if self.times_2019_ms else None
 
+    @property
+    def has_2019(self) -> bool:
+        return self.arch in ARCHS_2019
+
     def flops_per_step(self) -> float:
         from roofline import total_flops
 
@@ -177,6 +193,14 @@ def time_fit(entry: Entry, system: Any, data: Any, rep: int
     return elapsed - compile_s, compile_s, intervals
 
 
+def training_rows(job: Any, system: Any, data: Any) -> int:
+    """Rows the model's training loop draws its minibatches from: the training points,
+    or, for a family trained on trajectory windows (srnn), the windows. Raises
+    :class:`~hnnbench.errors.UnsupportedPair` where the data has none."""
+    model = job.model_cls(job.model_cfg, system, "cpu")
+    return model.view.problem(data, *model.training_options()).n
+
+
 def bench_system(system_name: str, models: Sequence[str], args: argparse.Namespace
                  ) -> tuple[list[Entry], list[Arch]]:
     from loop2019 import fit_2019, make_2019
@@ -184,6 +208,7 @@ def bench_system(system_name: str, models: Sequence[str], args: argparse.Namespa
 
     from hnnbench.api import TrainSettings
     from hnnbench.config import compose, prepare_job
+    from hnnbench.errors import UnsupportedPair
 
     entries: list[Entry] = []
     system = data = None
@@ -192,12 +217,22 @@ def bench_system(system_name: str, models: Sequence[str], args: argparse.Namespa
         if system is None:
             system = job.system_cls(job.system_cfg)
             data = system.dataset(0)
+        family = getattr(job.model_cls, "family", None)
+        reason = (f"{model_name} is not a neural model (no training loop)" if family is None
+                  else job.model_cls.unsupported_reason(system))
+        if reason is None:
+            try:
+                n = training_rows(job, system, data)
+            except UnsupportedPair as err:
+                reason = str(err)
+        if reason is not None:
+            print(f"  skipped {system_name} {model_name}: {reason}", flush=True)
+            continue
         paper = TrainSettings.resolve(job.system_cfg, job.model_cfg)
-        n = len(data.train)
         paper = dataclasses.replace(
             paper, batch_size=n if paper.batch_size is None else min(paper.batch_size, n))
         every = job.model_cfg.log_interval(paper.steps)
-        arch, backend = model_name.split("_", 1)
+        arch, backend = family.name, job.model_cls.backend
         entries.append(Entry(
             system_name, model_name, arch, backend, job,
             dataclasses.replace(job.model_cfg, log_every=every),
@@ -207,6 +242,7 @@ def bench_system(system_name: str, models: Sequence[str], args: argparse.Namespa
         if e.arch not in archs:
             archs[e.arch] = Arch(system_name, e.arch, e.batch, len(data.train),
                                  e.paper_steps, e.every, e.train.lr, e.train.weight_decay)
+    archs_2019 = [ar for ar in archs.values() if ar.has_2019] if not args.skip_2019 else []
 
     def batch_2019(ar: Arch) -> Optional[int]:
         return None if ar.batch >= ar.n_train else ar.batch
@@ -220,9 +256,8 @@ def bench_system(system_name: str, models: Sequence[str], args: argparse.Namespa
     for e in entries:
         _, e.compile_s, _ = time_fit(e, system, data, 0)
         print(f"  warm-up {system_name} {e.model}: compile {e.compile_s:.2f} s", flush=True)
-    if not args.skip_2019:
-        for ar in archs.values():
-            run_2019(ar, 2)
+    for ar in archs_2019:
+        run_2019(ar, 2)
     for rep in range(1, args.repeats + 1):
         for e in entries:
             seconds, comp, intervals = time_fit(e, system, data, rep)
@@ -232,17 +267,17 @@ def bench_system(system_name: str, models: Sequence[str], args: argparse.Namespa
             e.interval_ms += [1e3 * t for t in intervals]
             print(f"  {system_name:9s} {e.model:10s} rep {rep}: {e.times_ms[-1]:8.3f} "
                   f"ms/step (best interval so far {e.best:.3f})", flush=True)
-        if not args.skip_2019:
-            for ar in archs.values():
-                blocks: list[float] = []
-                ar.times_2019_ms.append(run_2019(ar, args.steps_2019, blocks))
-                ar.blocks_2019_ms += [1e3 * t for t in blocks]
-                print(f"  {system_name:9s} 2019-{ar.arch:5s} rep {rep}: "
-                      f"{ar.times_2019_ms[-1]:8.3f} ms/step (best block so far "
-                      f"{_fmt(ar.best_2019, '.3f')})", flush=True)
+        for ar in archs_2019:
+            blocks: list[float] = []
+            ar.times_2019_ms.append(run_2019(ar, args.steps_2019, blocks))
+            ar.blocks_2019_ms += [1e3 * t for t in blocks]
+            print(f"  {system_name:9s} 2019-{ar.arch:5s} rep {rep}: "
+                  f"{ar.times_2019_ms[-1]:8.3f} ms/step (best block so far "
+                  f"{_fmt(ar.best_2019, '.3f')})", flush=True)
 
     # FLOP counts: torch twin's fit (recorded), JAX chunk (XLA), 2019 step (recorded)
     for ar in archs.values():
+        print(f"  counting FLOPs of {system_name} {ar.arch} ...", flush=True)
         twin = prepare_job(compose([f"system={system_name}", f"model={ar.arch}_torch"]))
         train = next(e.train for e in entries if e.arch == ar.arch)
         ar.torch_mm = torch_fit_matmuls(twin.model_cls, twin.model_cfg, system, data,
@@ -257,11 +292,12 @@ def bench_system(system_name: str, models: Sequence[str], args: argparse.Namespa
             except Exception:  # noqa: BLE001  JAX not installed: no XLA count
                 jax_job = None
         if jax_job is not None:
-            jax_model = jax_job.model_cls(jax_job.model_cfg, system, "cpu")
-            ar.jax_flops = jax_fit_flops(jax_model, data, train)
-        step, _ = make_2019(data, ar.arch, batch_2019(ar), ar.lr, ar.weight_decay)
-        step()
-        ar.mm_2019, _ = record_matmuls(step, flop_counter=False)
+            ar.jax_flops = jax_fit_flops(jax_job.model_cls, jax_job.model_cfg, system, data,
+                                         train)
+        if ar.has_2019:
+            step, _ = make_2019(data, ar.arch, batch_2019(ar), ar.lr, ar.weight_decay)
+            step()
+            ar.mm_2019, _ = record_matmuls(step, flop_counter=False)
     return entries, list(archs.values())
 
 
@@ -315,6 +351,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         e, a = bench_system(system_name, args.models, args)
         entries += e
         archs += a
+    if not entries:
+        print("no model to time (every one was skipped)")
+        return 1
 
     # rates for every product of every step, evaluation and 2019 step
     all_mm: set[Any] = set()
@@ -393,7 +432,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
               f"{mega(t['step_flopcounter'])} | {mega(j.get('step_dot'))} | "
               f"{mega(j.get('step_xla'))} | {mega(total_flops(t['eval']))} / "
               f"{mega(j.get('eval_dot'))} | {ar.every} | {mega(ar.flops_per_step())} | "
-              f"{mega(total_flops(ar.mm_2019))} | {ar.roofline_ms:.3f} | "
+              f"{mega(total_flops(ar.mm_2019) if ar.has_2019 else None)} | "
+              f"{ar.roofline_ms:.3f} | "
               f"{ar.dispatched_roofline_ms:.3f} | {ar.peak_roofline_ms:.3f} |")
     for ar in archs:
         t, j = ar.torch_mm, ar.jax_flops
@@ -402,7 +442,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                   "disagree")
         if j and (j["step_dot"] != total_flops(t["step"])
                   or j["eval_dot"] != total_flops(t["eval"])):
-            print(f"WARNING: {ar.system} {ar.arch}: torch and JAX dot FLOPs differ")
+            print(f"WARNING: {ar.system} {ar.arch}: torch and JAX dot FLOPs differ (see "
+                  "roofline.jax_fit_flops; the roofline uses the torch count)")
 
     print("\n## fp32 matmul rates, one thread (GFLOP/s; ᵀ: the operand is a transposed "
           "view; 'shape best' is over every layout and both orientations)\n")
@@ -420,17 +461,22 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
               f"{shape_rate(rates, mm) / 1e9:.1f} | {', '.join(where)} |")
     print(f"\nPeak over all shapes: {peak / 1e9:.1f} GFLOP/s.")
 
-    print("\n## torch / JAX time per step (median; best)\n")
-    print("| system | arch | torch / JAX median | best |")
-    print("|---|---|---|---|")
-    by_model = {(e.system, e.model): e for e in entries}
+    def cell(e: Optional[Entry]) -> str:
+        return "—" if e is None else f"{e.median:.3f} / {e.best:.3f}"
+
+    print("\n## ms per training step by family, torch / JAX (median; best)\n")
+    print("| system | family | torch ms/step median / best | JAX ms/step median / best | "
+          "torch / JAX median | best |")
+    print("|---|---|---|---|---|---|")
+    by_model = {(e.system, e.arch, e.backend): e for e in entries}
     for system_name in args.systems:
-        for arch in ("mlp", "hnn"):
-            t_e, j_e = by_model.get((system_name, f"{arch}_torch")), by_model.get(
-                (system_name, f"{arch}_jax"))
-            if t_e and j_e:
-                print(f"| {system_name} | {arch} | {t_e.median / j_e.median:.2f}x | "
-                      f"{t_e.best / j_e.best:.2f}x |")
+        for arch in dict.fromkeys(e.arch for e in entries if e.system == system_name):
+            t_e = by_model.get((system_name, arch, "torch"))
+            j_e = by_model.get((system_name, arch, "jax"))
+            both = t_e is not None and j_e is not None
+            print(f"| {system_name} | {arch} | {cell(t_e)} | {cell(j_e)} | "
+                  f"{_ratio(t_e.median, j_e.median, '.2f') if both else '—'} | "
+                  f"{_ratio(t_e.best, j_e.best, '.2f') if both else '—'} |")
 
     print("\n## Targets (issue \"Speed and scale\")\n")
     for (system_name, arch), b in best_entry.items():

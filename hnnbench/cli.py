@@ -472,11 +472,10 @@ def _task(cfg) -> None:  # noqa: ANN001 - Hydra passes a DictConfig
 @dataclass
 class Execution:
     """What a Hydra command line ran: the records of a single run (a sweep's are on
-    disk under ``sweep_dir``)."""
+    disk under its ``hydra.sweep.dir``)."""
 
     multirun: bool
     records: list[dict[str, Any]]
-    sweep_dir: Path | None = None
 
 
 def execute(argv: list[str], command: str | None = None) -> Execution:

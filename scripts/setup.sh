@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Create .venv and install hnnbench with every backend and the test tools.
 # Idempotent: re-running after a change of pyproject.toml reinstalls, else does nothing.
-#   TORCH_SPEC  torch requirement (default torch==2.13.0, the CPU build; set e.g.
-#               TORCH_SPEC="torch" on a GPU machine to get the CUDA build)
+#   TORCH_SPEC  torch requirement (default torch==2.13.0: on the project's CI machines
+#               pip resolves it to the CPU build found locally; elsewhere pip picks
+#               its default build). On a GPU machine set e.g. TORCH_SPEC="torch"
+#               for the newest CUDA build; a change of TORCH_SPEC upgrades torch.
 #   PYTHON      interpreter used to create the venv (default python3)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -17,7 +19,9 @@ echo "setup: creating .venv and installing hnnbench[all,test] ($TORCH_SPEC) ..."
 [ -x .venv/bin/python ] || "$PYTHON" -m venv .venv
 .venv/bin/python -m pip install -q --upgrade pip setuptools wheel
 # torch first and pinned, so that no later requirement pulls a different build.
-.venv/bin/python -m pip install -q "$TORCH_SPEC"
+# --upgrade: a TORCH_SPEC changed on an existing .venv (e.g. "torch" after the pinned
+# CPU build) replaces the installed torch instead of counting as already met.
+.venv/bin/python -m pip install -q --upgrade "$TORCH_SPEC"
 .venv/bin/python -m pip install -q -e ".[all,test]"
 echo "$want" > "$stamp"
 echo "setup: done (.venv)" >&2

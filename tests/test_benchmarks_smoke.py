@@ -4,7 +4,8 @@ The fast test runs ``benchmarks/eval_speed.py`` in-process with the oracle (the 
 vector field, numpy only, no training) at a loose tolerance. The slow ones run the
 scripts as subprocesses: eval_speed.py with briefly trained torch and JAX models (the
 batched rollout and the per-trajectory scipy loop must compute the same energy MSE),
-train_step.py at tiny settings, and sweep.py --warm on two oracle jobs.
+train_step.py at tiny settings, chain_scaling.py at two tiny chains, and sweep.py --warm
+on two oracle jobs.
 """
 
 from __future__ import annotations
@@ -123,6 +124,61 @@ def test_train_step_benchmark_prints_2019_and_roofline_columns():
     assert "2019 loop" in out and "roofline" in out.lower()
     rows = [line for line in out.splitlines() if line.startswith("| spring | hnn_")]
     assert {line.split("|")[2].strip() for line in rows} >= {"hnn_torch", "hnn_jax"}
+
+
+@pytest.mark.slow
+def test_train_step_benchmark_times_other_families():
+    """train_step.py --models takes any family: rows for node2 (torch) and srnn (JAX,
+    trained on trajectory windows), no 2019 figure for them, a per-family table."""
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "train_step.py"), "--systems", "spring",
+         "--models", "node2_torch", "srnn_jax", "--steps", "20", "--repeats", "1",
+         "--rate-budget", "0.05", "--no-pin"],
+        capture_output=True, text=True, timeout=600, env=env, cwd=REPO,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    rows = {line.split("|")[2].strip(): [c.strip() for c in line.split("|")[1:-1]]
+            for line in proc.stdout.splitlines() if line.startswith("| spring | ")}
+    assert {"node2_torch", "srnn_jax", "node2", "srnn"} <= set(rows), proc.stdout
+    assert rows["node2_torch"][6] == "— / —" and rows["srnn_jax"][6] == "— / —"
+    assert float(rows["node2_torch"][4].split("/")[0]) > 0
+    assert rows["srnn_jax"][2] == "650"  # batch: every trajectory window (full batch)
+    node2, srnn = rows["node2"], rows["srnn"]  # the family table
+    assert node2[3] == "—" and float(node2[2].split("/")[0]) > 0  # torch only
+    assert srnn[2] == "—" and float(srnn[3].split("/")[0]) > 0  # JAX only
+
+
+@pytest.mark.slow
+def test_chain_scaling_benchmark_prints_one_row_per_size_and_model():
+    """benchmarks/chain_scaling.py at two tiny chains and two models: a table row per
+    (N, model), the ratio 1.00x at the smallest N, a finite energy MSE everywhere."""
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "chain_scaling.py"), "--sizes", "2", "3",
+         "--models", "hnn_torch", "mlp_torch", "--steps", "20", "--timing-steps", "10",
+         "--repeats", "1", "--no-pin", "--overrides", "system.eval_t_end=5",
+         "system.eval_n_points=11", "system.eval_n_traj=3"],
+        capture_output=True, text=True, timeout=600, env=env, cwd=REPO,
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    lines = proc.stdout.splitlines()
+    head = next(i for i, line in enumerate(lines) if line.startswith("| N | state dim |"))
+    assert "ms/step vs N=2" in lines[head] and "energy MSE after 20 steps" in lines[head]
+    rows = {}
+    for line in lines[head + 2:]:
+        if not line.startswith("|"):
+            break
+        cells = [cell.strip() for cell in line.strip("|").split("|")]
+        rows[(int(cells[0]), cells[2])] = cells
+    assert set(rows) == {(n, m) for n in (2, 3) for m in ("hnn_torch", "mlp_torch")}
+    for (n, _), cells in rows.items():
+        assert int(cells[1]) == 2 * n and int(cells[3]) > 0  # state dim, batch
+        assert float(cells[4]) > 0  # ms/step
+        ratio = float(cells[5].rstrip("x"))
+        assert ratio == 1.0 if n == 2 else ratio > 0
+        mse = float(cells[7])  # a bare number: no divergence note
+        assert 0 < mse < 100, cells  # energies are O(1) (initial radii 0.5-1.5)
 
 
 @pytest.mark.slow

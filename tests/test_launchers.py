@@ -44,14 +44,21 @@ LAUNCHERS: dict[str, tuple[str, ...]] = {
 }
 
 
+#: One pixel pair at quick sizes (issue 21: its training is the most sensitive to how a
+#: job is launched, through XLA's thread count and the chunked JAX training loop).
+PIXEL_SWEEP = ("-m", "system=pixel_pendulum", "model=hnn_jax", "profile=quick", "seed=0",
+               "system.steps=100")
+PIXEL_KEY = ("pixel_pendulum", "hnn_jax", 0)
+
+
 class Sweep:
     """One finished sweep: its command line, output and directories."""
 
-    def __init__(self, name: str, root: Path) -> None:
+    def __init__(self, name: str, root: Path, sweep: tuple[str, ...] = SWEEP) -> None:
         self.name = name
         self.dir = root / name / "sweep"
         self.cache = root / name / "cache"
-        self.args = [*SWEEP, *LAUNCHERS[name], f"hydra.sweep.dir={self.dir}"]
+        self.args = [*sweep, *LAUNCHERS[name], f"hydra.sweep.dir={self.dir}"]
         self.cwd = root / name
 
     def run(self) -> subprocess.CompletedProcess[str]:
@@ -108,6 +115,17 @@ def test_sweep_completes_with_summary(sweeps: Sweeps, launcher: str) -> None:
     assert (sweep.dir / "leaderboard.csv").exists()
 
 
+@pytest.fixture(scope="module")
+def pixel_sweeps(tmp_path_factory: pytest.TempPathFactory) -> Sweeps:
+    """The pixel pair under the basic and the joblib launcher."""
+    root = tmp_path_factory.mktemp("pixel_launchers")
+    out = {}
+    for name in ("basic", "joblib"):
+        sweep = Sweep(name, root, PIXEL_SWEEP)
+        out[name] = (sweep, sweep.run())
+    return out
+
+
 def _close(a: float, b: float) -> bool:
     """Equal, both NaN, or within :data:`RTOL` of each other."""
     return a == b or (math.isnan(a) and math.isnan(b)) or math.isclose(a, b, rel_tol=RTOL)
@@ -122,9 +140,24 @@ def test_launchers_reproduce_the_basic_sweep(sweeps: Sweeps, launcher: str) -> N
     numpy sums in memory order), and every job's process is pinned to one core, so XLA
     runs one thread whatever the launcher (hnnbench.affinity).
     """
+    _assert_same_records(sweeps, launcher, KEYS)
+
+
+def test_pixel_pair_is_the_same_under_joblib(pixel_sweeps: Sweeps) -> None:
+    """The pixel pendulum's HNN (JAX, latent model on an autoencoder): the same record,
+    weights and training curve under joblib as in the launching process."""
+    for name, (_, proc) in pixel_sweeps.items():
+        assert proc.returncode == 0, (name, proc.stdout[-2000:] + proc.stderr[-3000:])
+    _assert_same_records(pixel_sweeps, "joblib", {PIXEL_KEY})
+    rec = pixel_sweeps["basic"][0].records()[PIXEL_KEY]
+    assert rec["status"] == "ok", rec["error"]
+
+
+def _assert_same_records(sweeps: Sweeps, launcher: str, keys: set[Any]) -> None:
+    """``launcher``'s records equal the basic launcher's bit for bit (see above)."""
     base, other = sweeps["basic"][0].records(), sweeps[launcher][0].records()
-    assert set(base) == set(other) == KEYS
-    for key in KEYS:
+    assert set(base) == set(other) == keys
+    for key in keys:
         a, b = base[key], other[key]
         for field in ("dataset_sha256", "evaluation_sha256"):
             assert a["data"][field] == b["data"][field], (launcher, key, field)

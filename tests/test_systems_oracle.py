@@ -1,5 +1,6 @@
 """The new built-in systems end to end with the oracle: the true field integrated by the
-core's evaluation must reproduce each system's energy (energy MSE < 1e-10)."""
+core's evaluation must reproduce each system's energy and trajectories, to within the
+rollout tolerance of the profile (paper: rtol 1e-9; quick: 1e-6, conf/profile/quick.yaml)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,8 @@ from hnnbench.config import compose
 from hnnbench.job import run_job
 
 SIMULATED = ["double_pendulum", "damped_spring", "damped_pendulum", "spring_chain"]
+#: Energy and rollout MSE bounds by profile.
+BOUND = {"paper": 1e-10, "quick": 1e-7}
 
 
 @pytest.mark.parametrize("profile", ["quick", "paper"])
@@ -18,9 +21,9 @@ def test_oracle_reproduces_the_energy(tmp_path, system, profile):
     record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)
     assert record["status"] == "ok", record["error"]
     metrics = record["metrics"]
-    assert metrics["energy_mse"]["mean"] < 1e-10
+    assert metrics["energy_mse"]["mean"] < BOUND[profile]
     assert metrics["test_loss"]["mean"] < 1e-20 or system.startswith("damped")  # noisy inputs
-    assert metrics["rollout_mse"]["mean"] < 1e-10
+    assert metrics["rollout_mse"]["mean"] < BOUND[profile]
 
 
 def test_the_oracle_is_skipped_on_measured_data(tmp_path):
