@@ -7,6 +7,9 @@ export HNNBENCH_DATA_DIR ?= $(abspath ../shared/data/schmidt-lipson-2009)
 # Parallel jobs of `make benchmark`: one per usable core (each job pins itself to one).
 # (GNU nproc honours OMP_NUM_THREADS, which hnnbench sets to 1 for its jobs: ignore it.)
 JOBS ?= $(shell env -u OMP_NUM_THREADS nproc 2>/dev/null || echo 1)
+# What `make benchmark` sweeps, e.g. SYSTEMS=spring,pendulum MODELS=hnn_jax,mlp_jax.
+SYSTEMS ?= all
+MODELS ?= all
 PYTEST_ARGS ?=
 
 .PHONY: setup benchmark benchmark-serial quick test test-fast lint typecheck clean
@@ -17,11 +20,11 @@ setup:
 # Every system x every model, paper settings, seed 0; one joblib worker per core.
 # The records are the same as a serial run's (tests/test_launchers.py).
 benchmark: setup
-	$(VENV)/hnnbench -m system=all model=all hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS)
+	$(VENV)/hnnbench -m system=$(SYSTEMS) model=$(MODELS) hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS)
 
 # The same, one job at a time in this process.
 benchmark-serial: setup
-	$(VENV)/hnnbench -m system=all model=all
+	$(VENV)/hnnbench -m system=$(SYSTEMS) model=$(MODELS)
 
 quick: setup
 	$(VENV)/hnnbench -m system=all model=all profile=quick hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS)

@@ -6,13 +6,21 @@
     python benchmarks/sweep.py --overrides profile=paper seed=0 --n-jobs 4
     python benchmarks/sweep.py --from results/runs/paper_2026-11-22_10-00-00 [DIR ...]
 
+    # The 30 jobs of the original benchmark (6 systems x MLP/HNN x torch/JAX + oracle,
+    # paper profile, seed 0), as `make benchmark` runs them (joblib, one worker per core):
+    python benchmarks/sweep.py --launchers joblib --n-jobs 2 --overrides profile=paper \
+        system=spring,pendulum,real_pendulum,two_body,three_body,pixel_pendulum \
+        model=mlp_torch,hnn_torch,mlp_jax,hnn_jax,oracle
+
 Without ``--from`` it runs the same sweep once per launcher (by default ``basic``, then
 ``hydra/launcher=joblib hydra.launcher.n_jobs=N``) through the installed ``hnnbench``
 console script, each into its own temporary sweep directory and with its own empty
 cache (so each pays for generating the data and compiling the JAX functions; with
 ``--warm`` every one starts from one cache that a first, uncompared run filled), and
-prints the wall time of each command, the speed-up over the first launcher, and the
-per-job table read from the records' ``timings``. With ``--from`` it only summarises
+prints the wall time of each command, its CPU time (user + system, of the command and
+its worker processes; CPU per wall second shows how many cores were kept busy), the
+speed-up over the first launcher, and the per-job table read from the records'
+``timings``. With ``--from`` it only summarises
 existing sweep directories, e.g. a paper sweep run on another machine.
 
 Wall time is the whole command: start-up (importing the backends), every job, and the
@@ -54,6 +62,7 @@ class Sweep:
     label: str
     directory: Path
     wall_s: float | None = None
+    cpu_s: float | None = None  # user + system CPU time of the command and its workers
     returncode: int | None = None
     records: list[dict[str, Any]] = field(default_factory=list)
 
@@ -115,15 +124,27 @@ def run_sweep(label: str, args: list[str], root: Path, cache: Path | None = None
     command = [hnnbench_exe(), "-m", *args, f"hydra.sweep.dir={directory}"]
     env = {**os.environ, "HNNBENCH_CACHE_DIR": str(cache), "HNNBENCH_PROGRESS": "log"}
     print(f"[{label}] {' '.join(command[1:])}", flush=True)
+    before = _children_cpu_s()
     start = time.perf_counter()
     with open(log, "wb") as fh:
         proc = subprocess.run(command, cwd=root / label, stdout=fh, stderr=subprocess.STDOUT,
                               env=env, check=False)
     wall = time.perf_counter() - start
-    print(f"[{label}] exit {proc.returncode} after {wall:.1f} s; log: {log}", flush=True)
+    cpu = _children_cpu_s() - before
+    print(f"[{label}] exit {proc.returncode} after {wall:.1f} s wall, {cpu:.1f} s CPU; "
+          f"log: {log}", flush=True)
     if proc.returncode != 0:
         print(log.read_text(errors="replace")[-3000:], file=sys.stderr)
-    return Sweep(label, directory, wall, proc.returncode, load_records(directory))
+    return Sweep(label, directory, wall, cpu, proc.returncode, load_records(directory))
+
+
+def _children_cpu_s() -> float:
+    """User + system CPU seconds of this process's finished children and theirs (the
+    launcher's worker processes are waited for by the ``hnnbench`` process)."""
+    import resource
+
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def _launcher_of(directory: Path) -> str:
@@ -160,7 +181,7 @@ def _fmt(value: Any) -> str:
 
 def _table(rows: list[list[Any]], headers: list[str]) -> str:
     """A Markdown (GitHub) table; numbers (already formatted) right-aligned."""
-    numeric = ("jobs", "seed", "speed-up", "job s per wall s")
+    numeric = ("jobs", "seed", "speed-up", "job s per wall s", "cpu per wall s", "wall_min")
     align = ["right" if h in numeric or h.endswith("_s") else "left" for h in headers]
     return tabulate(rows, headers=headers, tablefmt="github", disable_numparse=True,
                     colalign=align)
@@ -199,12 +220,15 @@ def comparison_table(sweeps: list[Sweep]) -> str:
         wall = sweep.wall_s if sweep.returncode == 0 else None  # a failed run: no figure
         rows.append([
             sweep.label if wall else f"{sweep.label} (failed, exit {sweep.returncode})",
-            tot["jobs"], tot["statuses"], _fmt(wall), _fmt(tot["total_s"]),
+            tot["jobs"], tot["statuses"], _fmt(wall), _fmt(wall / 60 if wall else None),
+            _fmt(sweep.cpu_s), _fmt(sweep.cpu_s / wall) if wall and sweep.cpu_s else "",
+            _fmt(tot["total_s"]),
             _fmt(tot["total_s"] / wall) if wall and tot["total_s"] else "",
             f"{base / wall:.2f}x" if base and wall else "",
         ])
-    return _table(rows, ["launcher", "jobs", "statuses", "wall_s", "sum of job total_s",
-                         "job s per wall s", "speed-up"])
+    return _table(rows, ["launcher", "jobs", "statuses", "wall_s", "wall_min", "cpu_s",
+                         "cpu per wall s", "sum of job total_s", "job s per wall s",
+                         "speed-up"])
 
 
 def summary_table(sweeps: list[Sweep]) -> str:

@@ -15,6 +15,7 @@ import copy
 import os
 import shlex
 import signal
+import socket
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -117,7 +118,7 @@ def cmd_list(args: list[str]) -> int:
              "package": f"{i.distribution} {i.dist_version}" if i.distribution else "?",
              "status": "ok" if i.ok else "error", "description": i.description,
              "error": i.error}
-            for i in registry.discover(kind).values()  # type: ignore[arg-type]
+            for i in registry.discover(kind).values()
         ]
     if "--json" in args:
         print(json.dumps(out, indent=2))
@@ -495,7 +496,8 @@ def execute(argv: list[str], command: str | None = None) -> Execution:
     # Jobs (here or in launcher workers) see the command line, the sweep's size, and
     # that the hnnbench command started them (they then pin a core: hnnbench.affinity).
     context = launch.LaunchContext(command=command or shlex.join(["hnnbench", *argv]),
-                                   n_jobs=checked.n_jobs or None, cli_pid=os.getpid())
+                                   n_jobs=checked.n_jobs or None, cli_pid=os.getpid(),
+                                   host=socket.gethostname())
     saved = sys.argv
     sys.argv = [saved[0] if saved else "hnnbench", *checked.argv]
     _single_run.clear()

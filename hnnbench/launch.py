@@ -9,7 +9,11 @@ there, in one environment variable (:data:`ENV`, JSON):
 - ``cli_pid``: the command's process id. Its presence means "started by the
   ``hnnbench`` command", which makes a job pin itself to one core
   (:mod:`hnnbench.affinity`); a notebook or test calling
-  :func:`hnnbench.job.run_job` directly is left alone.
+  :func:`hnnbench.job.run_job` directly is left alone;
+- ``host``: the command's host name. A worker on the same host whose command has gone
+  (killed without its process group, e.g. ``kill PID``) exits at its next progress
+  update, writing no record, instead of training on as an orphan (:func:`abandoned`,
+  :mod:`hnnbench.progress`); a worker on another host (Slurm) never checks.
 
 :func:`launched` sets it for the duration of a command and restores what was there
 before, so a notebook's later in-process runs are not affected.
@@ -24,7 +28,7 @@ from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from typing import Optional
 
-__all__ = ["ENV", "LaunchContext", "current", "launched"]
+__all__ = ["ENV", "LaunchContext", "abandoned", "current", "launched"]
 
 #: The environment variable holding the context (JSON).
 ENV = "HNNBENCH_LAUNCH"
@@ -37,6 +41,7 @@ class LaunchContext:
     command: Optional[str] = None
     n_jobs: Optional[int] = None
     cli_pid: Optional[int] = None
+    host: Optional[str] = None
 
 
 def current() -> Optional[LaunchContext]:
@@ -46,9 +51,29 @@ def current() -> Optional[LaunchContext]:
         return None
     try:
         data = json.loads(value)
-        return LaunchContext(**{k: data.get(k) for k in ("command", "n_jobs", "cli_pid")})
+        return LaunchContext(**{k: data.get(k)
+                                for k in ("command", "n_jobs", "cli_pid", "host")})
     except (ValueError, TypeError, AttributeError):  # set by hand: "started by the CLI"
         return LaunchContext()
+
+
+def abandoned() -> bool:
+    """Whether this process works for an ``hnnbench`` command on this host that no longer
+    exists (``False`` in the command's own process, elsewhere, or when unknown)."""
+    import socket
+
+    ctx = current()
+    if ctx is None or not isinstance(ctx.cli_pid, int) or ctx.cli_pid == os.getpid():
+        return False
+    if ctx.host is None or ctx.host != socket.gethostname():
+        return False
+    try:
+        os.kill(ctx.cli_pid, 0)
+    except ProcessLookupError:
+        return True
+    except OSError:  # exists, owned by someone else, or cannot tell
+        return False
+    return False
 
 
 @contextlib.contextmanager

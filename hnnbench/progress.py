@@ -2,7 +2,8 @@
 
 On a terminal: a tqdm bar per run with the current losses. Elsewhere (CI logs, Slurm
 output files): a log line at every quarter of the run. ``HNNBENCH_PROGRESS=bar|log|off``
-forces a mode.
+forces a mode. Every few seconds an update also checks that the ``hnnbench`` command
+which started the job still exists (:func:`hnnbench.launch.abandoned`).
 """
 
 from __future__ import annotations
@@ -10,10 +11,15 @@ from __future__ import annotations
 import logging
 import os
 import sys
+import time
 from collections.abc import Mapping
 from types import TracebackType
 
+from hnnbench import launch
+
 log = logging.getLogger("hnnbench")
+#: Seconds between two checks for an abandoned job.
+CHECK_EVERY_S = 5.0
 
 __all__ = ["TrainingProgress"]
 
@@ -31,6 +37,7 @@ class TrainingProgress:
         self._bar = None
         self._last = 0
         self._next_log = self.total // 4
+        self._next_check = time.monotonic() + CHECK_EVERY_S
 
     def __enter__(self) -> TrainingProgress:
         if self.mode == "bar":
@@ -41,6 +48,15 @@ class TrainingProgress:
         return self
 
     def update(self, step: int, losses: Mapping[str, float]) -> None:
+        if time.monotonic() >= self._next_check:
+            self._next_check = time.monotonic() + CHECK_EVERY_S
+            if launch.abandoned():
+                # A launcher worker whose command was killed alone: nothing waits for
+                # this job or this process. Exit now; no record, so a re-run redoes it.
+                log.warning("%s: the hnnbench command that started this job has gone; "
+                            "exiting (re-run the command to resume the sweep)", self.label)
+                logging.shutdown()
+                os._exit(130)
         if self._bar is not None:
             self._bar.update(step - self._last)
             self._bar.set_postfix({k: f"{v:.3g}" for k, v in losses.items()}, refresh=False)

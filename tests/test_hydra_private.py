@@ -4,6 +4,7 @@ touches it). A Hydra upgrade that moves or changes these fails here, by name."""
 from __future__ import annotations
 
 import json
+import os
 
 import pytest
 
@@ -88,3 +89,24 @@ def test_launch_context_is_set_for_a_command_and_restored(monkeypatch):
     assert launch.current() == launch.LaunchContext()
     monkeypatch.setenv(launch.ENV, json.dumps({"n_jobs": 5}))
     assert launch.current() == launch.LaunchContext(n_jobs=5)
+
+
+def test_a_job_is_abandoned_only_when_its_command_on_this_host_has_gone(monkeypatch):
+    import socket
+    import subprocess
+    import sys
+
+    monkeypatch.delenv(launch.ENV, raising=False)
+    assert not launch.abandoned()  # not started by a command
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()  # reaped: its pid names no process now
+    here = socket.gethostname()
+    with launch.launched(launch.LaunchContext(cli_pid=gone.pid, host=here)):
+        assert launch.abandoned()
+    with launch.launched(launch.LaunchContext(cli_pid=gone.pid, host=here + "-other")):
+        assert not launch.abandoned()  # another host's pid says nothing here
+    with launch.launched(launch.LaunchContext(cli_pid=gone.pid)):
+        assert not launch.abandoned()  # host unknown
+    for alive in (os.getpid(), os.getppid()):
+        with launch.launched(launch.LaunchContext(cli_pid=alive, host=here)):
+            assert not launch.abandoned()

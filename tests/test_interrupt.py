@@ -3,6 +3,7 @@ same command into the same directory finishes the rest without redoing them (slo
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -98,3 +99,58 @@ def test_sigkill_mid_sweep_then_resume(tmp_path):
         assert final[path]["created_at"] == json.loads(raw)["created_at"]
     assert not [p for p in sweep.rglob("*") if ".tmp" in p.name]
     assert "4 jobs: 4 ok" in text
+
+
+def _workers_of(pid: int) -> list[int]:
+    """The process ids whose parent is ``pid`` (Linux /proc)."""
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            out.append(int(stat.parent.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+def test_workers_stop_when_the_command_is_killed_alone(tmp_path):
+    """``kill -9`` of the ``hnnbench`` process only (not its process group): its joblib
+    workers notice within seconds and exit instead of training on as orphans; the
+    interrupted jobs leave no record."""
+    sweep = tmp_path / "sweep"
+    args = ["-m", "system=spring", "model=mlp_torch", "profile=quick", "seed=0,1",
+            "system.steps=200000", "model.log_every=50", "device=cpu",
+            "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", f"hydra.sweep.dir={sweep}"]
+    log = tmp_path / "first.log"
+    proc = _start(args, tmp_path, log)
+    try:
+        deadline = time.monotonic() + 600
+        while len(list(sweep.rglob("cli.log"))) < 2:  # both jobs started
+            assert time.monotonic() < deadline and proc.poll() is None, log.read_text()[-3000:]
+            time.sleep(0.2)
+        time.sleep(5)  # into training (its progress log comes only every 50000 steps)
+        workers = [w for w in _workers_of(proc.pid) if "popen_loky" in  # not its tracker
+                   Path(f"/proc/{w}/cmdline").read_bytes().decode(errors="replace")]
+        assert workers, "no joblib worker found"
+        os.kill(proc.pid, signal.SIGKILL)  # the command alone
+        proc.wait(timeout=60)
+        deadline = time.monotonic() + 120
+        while any(_alive(w) for w in workers) and time.monotonic() < deadline:
+            time.sleep(0.5)
+        assert not [w for w in workers if _alive(w)], "orphaned workers still running"
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert not list(sweep.rglob("result.json"))  # no record of an unfinished job
+    logs = "".join(p.read_text() for p in sweep.rglob("cli.log"))
+    assert "the hnnbench command that started this job has gone" in logs, logs[-2000:]
