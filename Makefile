@@ -12,7 +12,8 @@ SYSTEMS ?= all
 MODELS ?= all
 PYTEST_ARGS ?=
 
-.PHONY: setup benchmark benchmark-serial quick test test-fast lint typecheck clean
+.PHONY: setup benchmark benchmark-serial quick test test-fast lint typecheck clean \
+	ci-reference guard-reference
 
 setup:
 	@scripts/setup.sh
@@ -28,6 +29,19 @@ benchmark-serial: setup
 
 quick: setup
 	$(VENV)/hnnbench -m system=all model=all profile=quick hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS)
+
+# The CI gate's reference (tests/test_ci_gate.py sweeps exactly the pairs it holds):
+# every system x the JAX twin of every neural family + the oracle, quick, seed 0.
+GATE_MODELS := mlp_jax,hnn_jax,dhnn_jax,lnn_jax,node2_jax,srnn_jax,oracle
+ci-reference: setup
+	rm -rf results/runs/ci-reference
+	$(VENV)/hnnbench -m system=all model=$(GATE_MODELS) profile=quick seed=0 \
+	  hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS) hydra.sweep.dir=results/runs/ci-reference
+	$(VENV)/hnnbench check results/runs/ci-reference --reference results/reference/quick.csv --update
+
+# The reproduction guard's reference (tests/test_reproduction_guard.py).
+guard-reference: setup
+	$(VENV)/python tests/test_reproduction_guard.py --update
 
 test: setup
 	$(VENV)/ruff check .

@@ -18,7 +18,11 @@ empty where the runs vary in nothing but seeds; :func:`hnnbench.table.variant_la
 - claims (:mod:`hnnbench.claims`): one reproduced in the reference must still be
   reproduced; the others are reported as information;
 - ``--rerun SYSTEM/MODEL/SEED``: that job is run again from its record's config, and
-  its metrics must agree with the record's by the same rules.
+  its metrics must agree with the record's by the same rules;
+- ``--same RTOL``: two-sided instead. Every gated metric mean must equal the
+  reference's within RTOL relative (both values at or below the metric's noise floor
+  count as equal) and every pair's statuses must be the same: a reproduction check,
+  which flags an improvement as loudly as a regression (tests/test_reproduction_guard.py).
 
 Exit status: 0 when nothing regressed, 1 on a regression (with a table of what and by
 how much); user errors raise :class:`~hnnbench.errors.HnnbenchError` (the CLI exits 2).
@@ -86,6 +90,15 @@ class Rule:
         op = "<=" if self.better == "lower" else ">="
         side = f"ref x {self.factor:g}" if self.better == "lower" else f"ref / {self.factor:g}"
         return f"{op} {side}"
+
+    def difference(self, reference: float, current: float) -> float:
+        """``|current - reference|`` relative to the larger magnitude (0 when both are at
+        or below the noise floor, ``inf`` when exactly one is non-finite)."""
+        if max(abs(reference), abs(current)) <= self.floor:
+            return 0.0
+        if math.isinf(reference) or math.isinf(current):
+            return 0.0 if reference == current else math.inf
+        return abs(current - reference) / max(abs(reference), abs(current))
 
 
 @dataclass
@@ -309,8 +322,8 @@ def _model_text(model: str, variant: str) -> str:
 
 def compare(reference: pd.DataFrame, current: pd.DataFrame,
             rules: Optional[tuple[Rule, dict[str, Rule]]] = None,
-            allow_missing: bool = False) -> CheckResult:
-    """Compare two leaderboards; see the module docstring."""
+            allow_missing: bool = False, same: Optional[float] = None) -> CheckResult:
+    """Compare two leaderboards; see the module docstring (``same``: ``--same RTOL``)."""
     default, by_metric = rules if rules is not None else load_rules()
     result = CheckResult()
     ref = reference.copy()
@@ -337,7 +350,9 @@ def compare(reference: pd.DataFrame, current: pd.DataFrame,
         if ref_seeds != cur_seeds:
             result.info.append(Finding("seeds", "-", system, model, _seed_text(ref_seeds),
                                        _seed_text(cur_seeds), "", "same seeds expected"))
-        if _ok_share(c) < _ok_share(r):
+        changed = same is not None and (int(c["n_ok"]), int(c["n_seeds"])) != (
+            int(r["n_ok"]), int(r["n_seeds"]))
+        if changed or _ok_share(c) < _ok_share(r):
             result.regressions.append(Finding(
                 "status", "status", system, model, _status_text(r), _status_text(c),
                 f"ok {int(c['n_ok'])}/{int(c['n_seeds'])}",
@@ -354,6 +369,15 @@ def compare(reference: pd.DataFrame, current: pd.DataFrame,
                 finding = Finding("metric", metric, system, model, _fmt(ref_value), "no value",
                                   "", rule.limit_text())
                 (result.regressions if rule.gate else result.info).append(finding)
+                continue
+            if same is not None:
+                if not rule.gate:
+                    continue
+                diff = rule.difference(ref_value, cur_value)
+                if diff > same:
+                    result.regressions.append(Finding(
+                        "changed", metric, system, model, _fmt(ref_value), _fmt(cur_value),
+                        f"{_fmt(diff)} rel", f"within {same:g} rel"))
                 continue
             factor = rule.worsening(ref_value, cur_value)
             if factor > rule.factor:
@@ -417,6 +441,9 @@ def _parser() -> _Parser:
                         "regression (for a sweep of only some systems or models)")
     p.add_argument("--rerun", metavar="SYSTEM/MODEL/SEED", action="append", default=[],
                    help="run this job again from its record and compare (repeatable)")
+    p.add_argument("--same", metavar="RTOL", type=float, default=None,
+                   help="two-sided: every gated metric within RTOL relative of the "
+                        "reference and the same statuses (a reproduction check)")
     return p
 
 
@@ -519,12 +546,16 @@ def main(args: Sequence[str]) -> int:
         print(f"hnnbench check: wrote reference {reference} from {where} "
               f"({len(board)} system x model pairs)")
         return 0
-    result = compare(read_reference(reference), board, rules, allow_missing=ns.allow_missing)
+    if ns.same is not None and not ns.same >= 0:
+        raise CheckError(f"--same {ns.same}: expected a relative tolerance >= 0, e.g. 1e-3")
+    result = compare(read_reference(reference), board, rules, allow_missing=ns.allow_missing,
+                     same=ns.same)
     result.regressions[:0] = validate_records(recs, bad)
     for spec in ns.rerun:
         result.regressions += rerun(recs, spec, rules)
     print(f"hnnbench check: {where} vs {reference}"
-          + (f" (rules: declared + {ns.rules})" if ns.rules else " (rules: declared)"))
+          + (f" (two-sided, within {ns.same:g} relative)" if ns.same is not None else
+             f" (rules: declared + {ns.rules})" if ns.rules else " (rules: declared)"))
     print(f"validated {len(recs) + len(bad)} record(s); compared {result.n_pairs} pair(s), "
           f"{result.n_metrics} gated metric value(s), {result.n_claims} claim(s) reproduced "
           f"in the reference" + (f"; re-ran {len(ns.rerun)} job(s)" if ns.rerun else ""))

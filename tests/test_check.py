@@ -90,6 +90,23 @@ def test_losses_are_tighter_than_rollout_errors(ref_sweep, tmp_path):
     assert (claim.check, claim.metric, claim.limit) == ("claim", "test_loss", "max / min <= 2x")
 
 
+def test_same_is_two_sided_and_catches_improvements_and_status_changes(ref_sweep, tmp_path):
+    sweep, reference = ref_sweep
+    assert _compare(reference, sweep, same=0.0).ok  # identical records
+    current = _copy(sweep, tmp_path)
+    scale_metric(current, "spring", "mlp_torch", "test_loss", 1.0 + 1e-6)  # within 1e-3
+    scale_metric(current, "spring", "oracle", "energy_mse", 100.0)  # below the noise floor
+    assert _compare(reference, current, same=1e-3).ok
+    scale_metric(current, "pendulum", "hnn_torch", "energy_mse", 0.5)  # better, but changed
+    (finding,) = _compare(reference, current, same=1e-3).regressions
+    assert (finding.check, finding.metric, finding.system, finding.model) == (
+        "changed", "energy_mse", "pendulum", "hnn_torch")
+    assert finding.factor == "0.5 rel" and finding.limit == "within 0.001 rel"
+    assert _compare(reference, current).ok  # the one-sided gate lets an improvement pass
+    set_status(current, "spring", "mlp_torch", 0, "diverged")
+    assert "status" in {f.check for f in _compare(reference, current, same=1.0).regressions}
+
+
 def test_valid_prediction_time_is_higher_better(ref_sweep, tmp_path):
     sweep, reference = ref_sweep
     current = _copy(sweep, tmp_path)

@@ -32,3 +32,23 @@ def test_a_job_caps_the_blas_pool_numpy_loaded(tmp_path, threads, expected):
         rec = run_job(cfg, tmp_path / "job")
         assert rec["status"] == "ok", rec["error"]
         assert _blas_threads() == {expected}  # threads=0 leaves the pools alone
+
+
+def test_initial_weights_do_not_depend_on_the_blas_thread_count():
+    """OpenBLAS's threaded QR differs from its one-thread QR in the last bits (on this
+    project's 2-core machines, for these shapes); the orthogonal init must not, or a
+    job's ``threads`` setting would move sensitive runs into another basin."""
+    from hnnbench.neural.init import orthogonal
+
+    shapes = [(200, 200), (784, 200), (200, 784), (1568, 200)]
+
+    def draw() -> list[np.ndarray]:
+        return [orthogonal(np.random.default_rng(seed), shape)
+                for seed in range(3) for shape in shapes]
+
+    with threadpool_limits(limits=1):
+        one = draw()
+    for threads in (2, 4):
+        with threadpool_limits(limits=threads):
+            many = draw()
+        assert all(np.array_equal(a, b) for a, b in zip(one, many, strict=True)), threads

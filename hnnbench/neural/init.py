@@ -10,6 +10,7 @@ what each would draw alone.
 from __future__ import annotations
 
 import numpy as np
+import threadpoolctl
 
 from hnnbench.neural.config import NeuralConfig
 
@@ -32,12 +33,18 @@ AE_LAYERS = 4
 def orthogonal(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
     """A ``(rows, cols)`` matrix with orthonormal rows or columns (whichever are fewer):
     QR of a standard-normal draw, signs fixed so the draw is unique (the algorithm of
-    ``torch.nn.init.orthogonal_``)."""
+    ``torch.nn.init.orthogonal_``).
+
+    The QR runs on one BLAS thread whatever the caller's thread setting: OpenBLAS's
+    multi-threaded QR differs from its one-thread QR in the last bits, and a sensitive
+    training run (pixel pendulum) carries that difference into another basin.
+    """
     rows, cols = shape
     a = rng.standard_normal((rows, cols))
     if rows < cols:
         a = a.T
-    q, r = np.linalg.qr(a)
+    with threadpoolctl.threadpool_limits(limits=1, user_api="blas"):
+        q, r = np.linalg.qr(a)
     q = q * np.sign(np.diag(r))
     return q.T if rows < cols else q
 
