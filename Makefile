@@ -31,13 +31,19 @@ quick: setup
 	$(VENV)/hnnbench -m system=all model=all profile=quick hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS)
 
 # The CI gate's reference (tests/test_ci_gate.py sweeps exactly the pairs it holds):
-# every system x the JAX twin of every neural family + the oracle, quick, seed 0.
+# every system x the JAX twin of every neural family + the oracle, and the torch twins
+# on the spring; quick, seed 0.
 GATE_MODELS := mlp_jax,hnn_jax,dhnn_jax,lnn_jax,node2_jax,srnn_jax,oracle
+GATE_TORCH := mlp_torch,hnn_torch,dhnn_torch,lnn_torch,node2_torch,srnn_torch
+GATE_DIR := results/runs/ci-reference
 ci-reference: setup
-	rm -rf results/runs/ci-reference
+	rm -rf $(GATE_DIR)
 	$(VENV)/hnnbench -m system=all model=$(GATE_MODELS) profile=quick seed=0 \
-	  hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS) hydra.sweep.dir=results/runs/ci-reference
-	$(VENV)/hnnbench check results/runs/ci-reference --reference results/reference/quick.csv --update
+	  hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS) hydra.sweep.dir=$(GATE_DIR)/jax
+	$(VENV)/hnnbench -m system=spring model=$(GATE_TORCH) profile=quick seed=0 \
+	  hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS) hydra.sweep.dir=$(GATE_DIR)/torch
+	$(VENV)/hnnbench check $(GATE_DIR)/jax $(GATE_DIR)/torch \
+	  --reference results/reference/quick.csv --update
 
 # The reproduction guard's reference (tests/test_reproduction_guard.py).
 guard-reference: setup
