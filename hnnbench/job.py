@@ -62,6 +62,28 @@ def _set_threads(threads: int) -> None:
         torch.set_num_threads(threads)
 
 
+_pinned_once = False
+
+
+def _warn_if_xla_started() -> None:
+    """At the first pin of this process, warn when JAX's backends had already started:
+    XLA sized its CPU thread pool from the cores it saw then (later jobs of a serial
+    sweep reuse the pool of a pinned first job, so only the first pin matters), and
+    this process's JAX results may differ in the last bits from the ``hnnbench``
+    command's, which pins every job before JAX starts (docs/SYSTEMS_PIXEL.md). Reads
+    JAX's private backend table; silent when that is not there."""
+    global _pinned_once
+    if _pinned_once:
+        return
+    _pinned_once = True
+    bridge = sys.modules.get("jax._src.xla_bridge")
+    if not getattr(bridge, "_backends", None):
+        return
+    log.warning("JAX was started in this process before the job pinned it to one core: "
+                "its JAX results may differ in the last bits from the hnnbench command's; "
+                "for records comparable bit for bit, run from a fresh process or the CLI")
+
+
 def _select(cfg: DictConfig, key: str) -> Any:
     try:
         return OmegaConf.select(cfg, key, default=None)
@@ -306,6 +328,8 @@ def _execute(job: Job, cfg: DictConfig, seeds: list[int], dirs: dict[int, Path],
         core = affinity.claim_core()
         for record in runs.values():
             record["cpu_pin"] = core
+        if core is not None:
+            _warn_if_xla_started()
 
     datas, trajs = {}, {}
     for seed in seeds:

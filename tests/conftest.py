@@ -11,6 +11,9 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
+#: The oracle's energy MSE stays below this in a quick-profile job: its rollouts run at
+#: the quick profile's tolerances (rtol = atol = 1e-6, conf/profile/quick.yaml).
+QUICK_ORACLE_BOUND = 1e-7
 SHARED_DATA = REPO.parent / "shared" / "data" / "schmidt-lipson-2009"
 
 

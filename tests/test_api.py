@@ -94,3 +94,25 @@ def test_the_page_ranks_at_a_glance(tmp_path):
     md = (sweep / "leaderboard.md").read_text()
     assert re.search(r"\| spring\s+\| hnn_torch .*\*\*2\.\de-05", md)
     assert report.figures and all(m.path.exists() for m in report.figures)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("jax_first", [False, True])
+def test_a_run_after_jax_started_unpinned_warns(tmp_path, jax_first):
+    """XLA sizes its thread pool when JAX starts; a process that started JAX on several
+    cores and then pins itself for a run gets other bits than the CLI: it is told so."""
+    import subprocess
+    import sys
+
+    script = "\n".join([
+        "import jax.numpy as jnp; jnp.ones(2).block_until_ready()" if jax_first else "",
+        "import hnnbench",
+        f"rec = hnnbench.run('spring', 'mlp_jax', out={str(tmp_path / 'r')!r}, profile='quick',"
+        " device='cpu', system__steps=20, system__eval_n_traj=2)",
+        "assert rec['status'] == 'ok', rec['error']",
+    ])
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    warned = "JAX was started in this process before the job pinned it" in proc.stderr + proc.stdout
+    assert warned == jax_first, proc.stderr[-2000:]

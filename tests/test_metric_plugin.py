@@ -47,7 +47,8 @@ def test_the_metric_reaches_records_leaderboard_and_check(metric_env, tmp_path):
             for p in sweep.rglob("result.json")}
     mlp = recs["mlp_jax"]["metrics"]["final_state_error"]["mean"]
     oracle = recs["oracle"]["metrics"]["final_state_error"]["mean"]
-    assert oracle < 1e-12 < mlp  # computed for every model, by the core
+    # computed for every model, by the core (quick rollouts: tolerances 1e-6)
+    assert oracle < 1e-7 < mlp
     board = (sweep / "leaderboard.csv").read_text()
     assert "final_state_error_mean" in board.splitlines()[0]
     reference = tmp_path / "ref.csv"
