@@ -118,11 +118,30 @@ def main(argv: list[str] | None = None) -> int:
     readme.write_text(replace_block(readme.read_text(), "leaderboard", body))
     results_readme = RESULTS / "README.md"
     listing = f"- Systems published: {', '.join(f'`{s}`' for s in systems)}"
+    for line in partial_lines(published):
+        listing += "\n" + line
     results_readme.write_text(replace_block(results_readme.read_text(), "provenance",
                                             f"{prov}\n{listing}"))
     print(json.dumps({"copied_records": copied, "published_records": len(published),
                       "systems": systems, "figures": len(report.figures)}))
     return 0
+
+
+def partial_lines(published: set[Path] | list[Path]) -> list[str]:
+    """One line per published system that lacks some installed models, naming them
+    (``records/<system>/<model>/...`` paths)."""
+    from hnnbench.registry import available
+
+    models: dict[str, set[str]] = {}
+    for path in published:
+        models.setdefault(path.parts[0], set()).add(path.parts[1])
+    lines = []
+    for system in sorted(models):
+        missing = [m for m in available("model") if m not in models[system]]
+        if missing:
+            lines.append(f"- Partly published: `{system}` lacks {', '.join(missing)} "
+                         "(not run yet at the paper profile)")
+    return lines
 
 
 if __name__ == "__main__":
