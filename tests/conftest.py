@@ -39,6 +39,23 @@ def _isolated_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
     os.environ.setdefault("HNNBENCH_PROGRESS", "log")
 
 
+def install_test_package(name: str, tmp_path_factory: pytest.TempPathFactory
+                         ) -> tuple[Path, dict[str, str]]:
+    """pip-install ``tests/<name>`` (built from a copy, so the source tree stays clean)
+    into a temporary site directory; returns it and the environment that puts it on
+    ``PYTHONPATH`` for a subprocess."""
+    site = tmp_path_factory.mktemp(f"{name}-site")
+    build = tmp_path_factory.mktemp(f"{name}-src")
+    subprocess.run(["cp", "-r", str(REPO / "tests" / name), str(build)], check=True)
+    subprocess.run(
+        [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
+         "--no-index", "--target", str(site), str(build / name)],
+        check=True, capture_output=True, text=True,
+    )
+    path = os.pathsep.join(p for p in (str(site), os.environ.get("PYTHONPATH", "")) if p)
+    return site, {"PYTHONPATH": path}
+
+
 def hnnbench(*args: str, cwd: Path | None = None, env: dict | None = None,
              timeout: float = 900) -> subprocess.CompletedProcess:
     """Run the installed console script."""

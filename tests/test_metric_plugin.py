@@ -5,26 +5,14 @@ directory: its metric is computed for every model, shows in the leaderboard, and
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 
 import pytest
-from conftest import REPO, hnnbench
+from conftest import hnnbench, install_test_package
 
 
 @pytest.fixture(scope="module")
 def metric_env(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
-    site = tmp_path_factory.mktemp("metric-site")
-    build = tmp_path_factory.mktemp("metric-src")
-    subprocess.run(["cp", "-r", str(REPO / "tests" / "metric_pkg"), str(build)], check=True)
-    subprocess.run(
-        [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
-         "--no-index", "--target", str(site), str(build / "metric_pkg")],
-        check=True, capture_output=True, text=True,
-    )
-    path = os.pathsep.join(p for p in (str(site), os.environ.get("PYTHONPATH", "")) if p)
-    return {"PYTHONPATH": path}
+    return install_test_package("metric_pkg", tmp_path_factory)[1]
 
 
 def test_the_metric_is_listed(metric_env):

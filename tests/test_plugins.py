@@ -9,23 +9,14 @@ import subprocess
 import sys
 
 import pytest
-from conftest import REPO, hnnbench
+from conftest import hnnbench, install_test_package
 
 
 @pytest.fixture(scope="module")
 def plugin_env(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
-    site = tmp_path_factory.mktemp("plugin-site")
-    build = tmp_path_factory.mktemp("plugin-src")
-    # Build from a copy so the source tree stays clean.
-    subprocess.run(["cp", "-r", str(REPO / "tests" / "plugin_pkg"), str(build)], check=True)
-    subprocess.run(
-        [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
-         "--no-index", "--target", str(site), str(build / "plugin_pkg")],
-        check=True, capture_output=True, text=True,
-    )
+    site, env = install_test_package("plugin_pkg", tmp_path_factory)
     assert list(site.glob("hnnbench_toy_plugin-0.3.0.dist-info/entry_points.txt"))
-    path = os.pathsep.join(p for p in (str(site), os.environ.get("PYTHONPATH", "")) if p)
-    return {"PYTHONPATH": path}
+    return env
 
 
 def test_plugin_appears_in_list(plugin_env):
