@@ -12,7 +12,7 @@ For each seed, the HNN and then the baseline are trained by the original script 
 caches its own dataset (``np.random.seed`` precedes the data), shared by its two runs.
 The script reads the original's "Final train loss / Final test loss" lines (the whole
 split, in float32), writes them to ``<workdir>/results.csv`` and prints, per model and
-split, the 3-seed mean, the published value (hnnbench/resources/paper_table1.csv) and
+split, the 3-seed mean, the published value (the ``greydanus2019`` claim set) and
 hnnbench's committed leaderboard mean (results/leaderboard.csv, the torch twins), with
 ratios. Finished runs are kept: a re-run parses the existing logs instead of retraining.
 
@@ -35,10 +35,11 @@ import sys
 import time
 from pathlib import Path
 
+from hnnbench.claims import claim_sets
+
 ROOT = Path(__file__).resolve().parents[1]
 SYSTEM = {"2body": "two_body", "3body": "three_body"}
 FINAL = re.compile(r"Final (train|test) loss ([0-9.eE+-]+) \+/- ([0-9.eE+-]+)")
-PAPER_MODEL = {"hnn": "hnn", "baseline": "baseline"}
 HNNBENCH_MODEL = {"hnn": "hnn_torch", "baseline": "mlp_torch"}
 
 
@@ -84,12 +85,15 @@ def run_one(ns: argparse.Namespace, seed: int, kind: str) -> dict[str, float]:
 
 
 def reference_values(system: str) -> tuple[dict, dict]:
-    """Published values and hnnbench's leaderboard means, keyed by (kind, metric)."""
-    paper: dict[tuple[str, str], float] = {}
-    with (ROOT / "hnnbench/resources/paper_table1.csv").open() as fh:
-        for row in csv.DictReader(fh):
-            if row["system"] == system:
-                paper[(row["model"], row["metric"])] = float(row["value"])
+    """Published values (the ``greydanus2019`` claim set) and hnnbench's leaderboard
+    means, keyed by (kind, metric)."""
+    paper = {
+        (p.role, p.metric): p.value
+        for cs in claim_sets()
+        if cs.name == "greydanus2019"
+        for p in cs.published
+        if p.system == system
+    }
     ours: dict[tuple[str, str], float] = {}
     board = ROOT / "results/leaderboard.csv"
     if board.is_file():
@@ -149,7 +153,7 @@ def main(argv: list[str]) -> int:
         for metric in ("train_loss", "test_loss"):
             vals = [r[metric] for r in rows if r["model"] == kind]
             mean = sum(vals) / len(vals)
-            pub = paper.get((PAPER_MODEL[kind], metric))
+            pub = paper.get((kind, metric))
             hb = ours.get((kind, metric))
             print(
                 f"{kind:9} {metric:11} {mean:10.3e} "
