@@ -7,9 +7,8 @@ Conventions used throughout:
   dimensionless).
 - Arrays crossing the API are float64 numpy arrays. Backends convert at the boundary.
 - A time grid ``t`` is 1-D, ``(T,)``, starting at the initial state's time. Data and
-  evaluation grids are strictly increasing; :meth:`Model.rollout` must also accept a
-  strictly decreasing grid (integration backward in time, used by the reversibility
-  metric).
+  evaluation grids are strictly increasing. (The reversibility metric flips the momenta
+  and integrates forward again; no metric integrates backward in time.)
 
 A third-party plugin subclasses :class:`System` or :class:`Model`, declares a config
 dataclass (its defaults are the hyperparameters users get), and registers the class
@@ -314,7 +313,8 @@ class System(ABC):
 
     Optional methods and properties a subclass may override: :meth:`vector_field`
     (where the dynamics are known), :meth:`kinematics` (for second-order models),
-    :attr:`lyapunov_time` (for chaotic systems).
+    :attr:`lyapunov_time` (for chaotic systems), :attr:`wrapped_angles` (where the
+    data wraps angles).
     """
 
     Config: ClassVar[type[SystemConfig]] = SystemConfig
@@ -371,6 +371,15 @@ class System(ABC):
         in its time units, for the configured regime; ``None`` where it is not chaotic
         or not known. Enables the ``vpt_lyapunov`` metric."""
         return None
+
+    @property
+    def wrapped_angles(self) -> tuple[int, ...]:
+        """Indices ``i < n`` of the positions ``q_i`` that the data gives as angles
+        wrapped into ``[-π, π)``, so that consecutive samples of one trajectory jump by
+        2π where the angle crosses ±π. Models that train on windows of consecutive
+        states (:func:`hnnbench.neural.views.trajectory_windows`) make each window
+        continuous again. ``()`` (the default): no coordinate is wrapped."""
+        return ()
 
     def reverse(self, x: np.ndarray) -> np.ndarray:
         """The time-reversal map R: flip the momenta of ``(N, 2n)`` states."""
@@ -476,8 +485,8 @@ class Model(ABC):
     ) -> np.ndarray:
         """Integrate the learned dynamics from ``x0`` ``(M, D)`` over ``t`` ``(T,)``.
 
-        Adaptive Dormand-Prince in float64, batched over initial states. ``t`` may be
-        decreasing (backward integration). Returns ``(M, T, D)``; raise
+        Adaptive Dormand-Prince in float64, batched over initial states; ``t`` is
+        increasing. Returns ``(M, T, D)``; raise
         :class:`hnnbench.errors.RolloutDiverged` if the solver gives up.
         """
 

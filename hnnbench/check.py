@@ -43,7 +43,7 @@ import pandas as pd
 from hnnbench import claims as C
 from hnnbench import records as R
 from hnnbench.errors import HnnbenchError
-from hnnbench.table import leaderboard
+from hnnbench.table import TIMINGS, leaderboard
 
 __all__ = [
     "REQUIRED_COLUMNS",
@@ -60,7 +60,6 @@ __all__ = [
 KEY = ("profile", "system", "model")
 #: Wall times depend on the machine: shown, never gating.
 TIMING_RULE = {"better": "lower", "factor": 3.0, "floor": 1.0, "gate": False}
-TIMINGS = ("fit_s", "eval_s", "total_s")
 REQUIRED_COLUMNS = (*KEY, "n_seeds", "n_ok", "n_diverged", "n_failed", "n_skipped")
 RULE_KEYS = {"better", "factor", "floor", "gate"}
 

@@ -275,7 +275,7 @@ def run_seeds(
                                   else overrides)
         if len(seeds) > 1:
             runs[seed]["seed_batch"] = seeds
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     log.info("%s%s x %s seed=%s: start%s", count, system, model,
              ",".join(map(str, pending)), batch_text)
     try:
@@ -295,8 +295,12 @@ def run_seeds(
                               error=f"{type(err).__name__}: {err}".splitlines()[0])
                 record["traceback"] = traceback.format_exc()
     elapsed = time.perf_counter() - start
+    # CPU seconds of the job's process, all threads: unlike total_s (wall time), it does
+    # not count time the process spent waiting, e.g. paused or crowded out on a shared host.
+    cpu = time.process_time() - cpu_start
     for seed, record in runs.items():
         record["timings"]["total_s"] = elapsed / len(pending)
+        record["timings"]["cpu_s"] = cpu / len(pending)
         if len(pending) > 1:
             record["timings"]["batch_total_s"] = elapsed
         try:
@@ -439,8 +443,9 @@ def _log_outcome(count: str, tag: str, record: dict[str, Any]) -> None:
     status = record["status"]
     secs = record["timings"].get("total_s", 0.0)
     if status == "ok":
-        m = record["metrics"]
-        log.info("%s%s: ok in %.1f s  test_loss=%.3g  energy_mse=%.3g", count, tag, secs,
-                 m["test_loss"]["mean"], m["energy_mse"]["mean"])
+        shown = "  ".join(f"{name}={value.get('mean', float('nan')):.3g}"
+                          for name, value in record["metrics"].items()
+                          if name in ("test_loss", "energy_mse"))
+        log.info("%s%s: ok in %.1f s  %s", count, tag, secs, shown)
     else:
         log.warning("%s%s: %s in %.1f s: %s", count, tag, status, secs, record.get("error"))

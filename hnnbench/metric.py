@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Literal, Optional
+from typing import TYPE_CHECKING, Any, Literal
 
 if TYPE_CHECKING:
     from hnnbench.api import System
@@ -47,12 +47,6 @@ class CheckRule:
     factor: float = 10.0
     floor: float = 0.0
     gate: bool = True
-
-    def limit_text(self, better: str) -> str:
-        if not self.gate:
-            return "info only"
-        return f"{'<=' if better == 'lower' else '>='} ref {'x' if better == 'lower' else '/'}" \
-               f" {self.factor:g}"
 
 
 @dataclass(frozen=True)
@@ -94,15 +88,3 @@ class Metric:
         """The value recorded when the model failed (diverged): ``inf`` for errors,
         ``0`` where higher is better (a diverged model predicts nothing)."""
         return 0.0 if self.better == "higher" else math.inf
-
-    def worsening(self, reference: float, current: float, rule: Optional[CheckRule] = None
-                  ) -> float:
-        """How many times worse ``current`` is than ``reference`` (< 1: better)."""
-        rule = rule or self.check
-        ref, cur = max(reference, rule.floor), max(current, rule.floor)
-        worse, base = (cur, ref) if self.better == "lower" else (ref, cur)
-        if math.isinf(worse) and math.isinf(base):
-            return 1.0
-        if base <= 0:
-            return 1.0 if worse <= 0 else math.inf
-        return worse / base

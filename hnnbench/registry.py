@@ -16,7 +16,7 @@ import dataclasses
 from dataclasses import dataclass
 from functools import cache
 from importlib import metadata
-from typing import Any, Literal
+from typing import Any, Literal, Optional
 
 from hnnbench.api import Model, ModelConfig, System, SystemConfig
 from hnnbench.claims import ClaimSet
@@ -90,6 +90,12 @@ class PluginInfo:
         return str(getattr(family, "name", "-")) if family is not None else "-"
 
 
+def _metric_name_problem(name: str) -> Optional[str]:
+    from hnnbench.table import metric_name_problem  # the table owns its column names
+
+    return metric_name_problem(name)
+
+
 def _load(kind: str, ep: metadata.EntryPoint) -> PluginInfo:
     dist = getattr(ep, "dist", None)
     info = PluginInfo(
@@ -112,6 +118,8 @@ def _load(kind: str, ep: metadata.EntryPoint) -> PluginInfo:
         elif getattr(cls, "name", None) != ep.name:
             info.error = (f"{ep.value} is named '{getattr(cls, 'name', '?')}' but is "
                           f"registered as '{ep.name}': use the same name")
+        elif kind == "metric" and _metric_name_problem(ep.name):
+            info.error = f"{ep.value}: {_metric_name_problem(ep.name)}"
         else:
             info.cls = cls
         return info

@@ -9,8 +9,9 @@ declaration (:class:`hnnbench.metric.Metric`). Nothing here names a plugin.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterable, Sequence
-from typing import Any
+from typing import Any, Optional
 
 import numpy as np
 import pandas as pd
@@ -178,6 +179,22 @@ RESERVED = frozenset({"system", "model", "variant", "backend", "family", "ranked
                       "profile",
                       "status", "error", "steps", "device", "path", "source", "git_commit",
                       "machine", "created_at"})
+
+
+def metric_name_problem(name: str) -> Optional[str]:
+    """Why ``name`` cannot name a metric, or ``None``. Metrics share a records frame
+    with identity fields and timings, and a leaderboard with status columns and the
+    ``_mean``/``_std`` columns built from them, so a metric may not take those names."""
+    taken = RESERVED | set(STATUS_COLUMNS) | set(PROVENANCE_COLUMNS) | set(TIMINGS)
+    if not re.fullmatch(r"[a-z][a-z0-9_]*", name):
+        return f"'{name}' is not a metric name: use lower-case letters, digits and '_'"
+    if name in taken:
+        return f"the metric name '{name}' is a leaderboard column; choose another name"
+    for suffix in ("_s", "_sem", "_mean", "_std"):
+        if name.endswith(suffix):
+            return (f"the metric name '{name}' ends in '{suffix}', which tables reserve "
+                    "for timings and aggregates; choose another name")
+    return None
 
 
 def linear_metrics() -> frozenset[str]:

@@ -36,7 +36,8 @@ def test_quick_sweep_spring_pendulum_then_resume(tmp_path):
         # Every declared metric (the built-in ones at least), NaN where not applicable.
         assert set(declared) <= set(rec["metrics"]), (key, set(declared) - set(rec["metrics"]))
         assert rec["environment"]["python"] and rec["config"]["seed"] == 0
-        assert set(rec["timings"]) >= {"data_s", "fit_s", "eval_s", "total_s"}
+        assert set(rec["timings"]) >= {"data_s", "fit_s", "eval_s", "total_s", "cpu_s"}
+        assert rec["timings"]["cpu_s"] > 0
     # The oracle is the floor of the evaluation pipeline.
     assert recs[("spring", "oracle", 0)]["metrics"]["energy_mse"]["mean"] < QUICK_ORACLE_BOUND
     assert "| system" in proc.stdout and "6 jobs: 6 ok" in proc.stdout

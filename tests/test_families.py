@@ -45,6 +45,10 @@ def torch_fn(kind):
         m, k = torch.tensor(M), torch.tensor(K)
         return lambda x: (0.5 * torch.einsum("ni,ij,nj->n", x[:, 2:], m, x[:, 2:])
                           - 0.5 * torch.einsum("ni,ij,nj->n", x[:, :2], k, x[:, :2]))
+    if kind == "double_pendulum":  # unit masses, lengths and g; absolute angles
+        return lambda x: (x[:, 2] ** 2 + 0.5 * x[:, 3] ** 2
+                          + x[:, 2] * x[:, 3] * torch.cos(x[:, 0] - x[:, 1])
+                          + 2 * torch.cos(x[:, 0]) + torch.cos(x[:, 1]))
     if kind == "dissipation":  # D = -gamma p^2 / 2
         return lambda x: -0.5 * GAMMA * x[:, 1] ** 2
     if kind == "half_square":  # T(p) = p^2 / 2 or V(q) = q^2 / 2
@@ -60,6 +64,9 @@ def jax_fn(kind):
     if kind == "lagrangian_2d":
         m, k = jnp.asarray(M), jnp.asarray(K)
         return lambda x: (0.5 * x[2:] @ m @ x[2:] - 0.5 * x[:2] @ k @ x[:2])[None]
+    if kind == "double_pendulum":
+        return lambda x: (x[2] ** 2 + 0.5 * x[3] ** 2 + x[2] * x[3] * jnp.cos(x[0] - x[1])
+                          + 2 * jnp.cos(x[0]) + jnp.cos(x[1]))[None]
     if kind == "dissipation":
         return lambda x: (-0.5 * GAMMA * x[1] ** 2)[None]
     if kind == "half_square":
@@ -126,6 +133,37 @@ def test_lnn_solves_the_euler_lagrange_system_with_a_full_mass_matrix(backend):
     expected = -np.linalg.solve(M, (K @ q.T)).T
     out = field(backend, "lnn", {"L": "lagrangian_2d"}, Z2)
     np.testing.assert_allclose(out, np.concatenate([qdot, expected], 1), atol=1e-8)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_lnn_handles_the_mixed_block_of_a_double_pendulum_lagrangian(backend):
+    """A Lagrangian whose ∂²L/∂q∂q̇ is neither zero nor symmetric (the rods' coupling
+    term), against the Euler-Lagrange equations written out by hand:
+    [2, cos Δ; cos Δ, 1] q̈ = (−sin Δ ω2² − 2 sin θ1, sin Δ ω1² − sin θ2), Δ = θ1 − θ2."""
+    th1, th2, w1, w2 = Z2.T
+    d = th1 - th2
+    mass = np.stack([np.stack([2 + 0 * d, np.cos(d)], -1), np.stack([np.cos(d), 1 + 0 * d], -1)],
+                    -2)
+    rhs = np.stack([-np.sin(d) * w2**2 - 2 * np.sin(th1), np.sin(d) * w1**2 - np.sin(th2)], -1)
+    expected = np.linalg.solve(mass, rhs[..., None])[..., 0]
+    out = field(backend, "lnn", {"L": "double_pendulum"}, Z2)
+    np.testing.assert_allclose(out, np.concatenate([Z2[:, 2:], expected], 1), atol=1e-8)
+    e = energy(backend, "lnn", {"L": "double_pendulum"}, Z2)  # T + V, V = -2cos θ1 - cos θ2
+    np.testing.assert_allclose(e, w1**2 + 0.5 * w2**2 + w1 * w2 * np.cos(d)
+                               - 2 * np.cos(th1) - np.cos(th2), atol=1e-8)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_lnn_with_a_singular_velocity_hessian_gives_nan_not_an_error(backend):
+    """L = q̇1² with a second velocity that L ignores: ∂²L/∂q̇∂q̇ is singular. Both
+    backends give non-finite accelerations (so a rollout diverges) instead of raising."""
+    z = Z2[:3]
+    impl = importlib.import_module(f"hnnbench_plugins.models.lnn.{backend}")
+    if backend == "torch":
+        out = impl.field({"L": TorchNet(lambda x: x[:, 2] ** 2)}, torch.tensor(z)).numpy()
+    else:
+        out = np.asarray(impl.field({"L": lambda x: (x[2] ** 2)[None]}, jnp.asarray(z)))
+    assert not np.isfinite(out[:, 2:]).any()
 
 
 def _node2_accel(backend):

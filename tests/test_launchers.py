@@ -101,7 +101,8 @@ def test_sweep_completes_with_summary(sweeps: Sweeps, launcher: str) -> None:
     assert set(recs) == KEYS
     for key, rec in recs.items():
         assert rec["status"] == "ok", (launcher, key, rec["error"])
-        assert set(rec["timings"]) >= {"data_s", "fit_s", "eval_s", "total_s"}
+        assert set(rec["timings"]) >= {"data_s", "fit_s", "eval_s", "total_s", "cpu_s"}
+        assert rec["timings"]["cpu_s"] > 0
     # Every launcher's jobs pin their process to a core (hnnbench.affinity).
     pins = {rec.get("cpu_pin") for rec in recs.values()}
     if hasattr(os, "sched_getaffinity") and len(os.sched_getaffinity(0)) > 1:

@@ -156,6 +156,27 @@ def test_split_sizes_and_order(raw):
     np.testing.assert_array_equal(a.train.x, b.train.x)
 
 
+def test_srnn_windows_are_continuous_in_the_angles():
+    """With wrapped angles, the windows the SRNN trains on are unwrapped: no step jumps
+    by 2π, and each window is the raw (unwrapped) data shifted by whole turns."""
+    from hnnbench.neural.views import trajectory_windows
+
+    wrapped, raw_sys = make(), make(wrap_angles=False)
+    assert wrapped.wrapped_angles == (0, 1) and raw_sys.wrapped_angles == ()
+    for part in ("train", "test"):
+        a, b = getattr(wrapped.dataset(0), part), getattr(raw_sys.dataset(0), part)
+        naive, _ = trajectory_windows(a, a.x, 5)
+        assert np.abs(np.diff(naive[..., :2], axis=1)).max() > 6  # the bug it fixes
+        w, dts = trajectory_windows(a, a.x, 5, wrapped.wrapped_angles)
+        ref, ref_dts = trajectory_windows(b, b.x, 5)
+        np.testing.assert_array_equal(dts, ref_dts)
+        assert np.abs(np.diff(w[..., :2], axis=1)).max() < 1.0  # |ω| dt < 0.45 rad here
+        turns = (w[..., :2] - ref[..., :2]) / (2 * np.pi)
+        np.testing.assert_allclose(turns, np.round(turns), atol=1e-9)
+        assert np.ptp(np.round(turns), axis=1).max() == 0  # one shift per window and rod
+        np.testing.assert_array_equal(w[..., 2:], ref[..., 2:])
+
+
 def test_evaluation_chunks(raw):
     traj = make().evaluation(0)
     assert traj.states.shape == (10, 19, 4) and traj.t.shape == (19,)

@@ -68,3 +68,24 @@ def test_core_import_does_not_import_backends():
             "print(sorted(m for m in ('torch', 'jax') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize("name, why", [
+    ("status", "is a leaderboard column"), ("n_ok", "is a leaderboard column"),
+    ("decay_s", "ends in '_s'"), ("drift_mean", "ends in '_mean'"),
+    ("Energy MSE", "is not a metric name")])
+def test_a_metric_cannot_take_a_table_column_name(name, why, monkeypatch):
+    """Metrics share the records frame and the leaderboard with identity, status and
+    timing columns: a colliding name is refused at registration, with the reason."""
+    from hnnbench.errors import ConfigError
+    from hnnbench.metric import Metric
+
+    monkeypatch.setattr(registry, "_REGISTERED", {k: {} for k in registry.GROUPS})
+    metric = Metric(name, "a test metric", lambda ctx: None)
+    with pytest.raises(ConfigError, match=f"register: .*{why}"):
+        registry.register("metric", name, metric)
+    assert name not in registry.discover("metric")
+    ok = Metric("decay_rate", "a test metric", lambda ctx: None)
+    registry.register("metric", "decay_rate", ok)
+    assert registry.discover("metric")["decay_rate"].ok
+    registry.refresh()

@@ -139,6 +139,18 @@ def test_diverged_pair_is_shown_as_diverged_with_inf_never_dropped(tmp_path):
     assert '<td class="txt diverged">diverged</td>' in page and '<td class="inf">inf</td>' in page
 
 
+def test_a_pair_with_a_diverged_seed_is_never_marked_best():
+    """Its mean is over the surviving seeds only; the best of the fully ok rows is bold."""
+    board = pd.DataFrame({
+        "profile": "paper", "system": "pendulum", "ranked": True, "n_seeds": 3,
+        "model": ["lnn_torch", "hnn_torch", "mlp_torch", "oracle"],
+        "n_ok": [2, 3, 3, 3], "energy_mse_mean": [1e-6, 1e-3, 1e-2, 1e-12]})
+    board.loc[3, "ranked"] = False
+    assert report.tables.best_cells(board) == {(1, "energy_mse")}
+    board["n_ok"] = 3
+    assert report.tables.best_cells(board) == {(0, "energy_mse")}
+
+
 def test_format_value():
     assert format_value(0.037, 0.0011) == "3.7e-02 ± 1.1e-03"
     assert format_value(0.037) == "3.7e-02"

@@ -100,14 +100,18 @@ class Problem:
                        first.options, stacked=True)
 
 
-def trajectory_windows(split: Split, states: np.ndarray, length: int
-                       ) -> tuple[np.ndarray, np.ndarray]:
+def trajectory_windows(split: Split, states: np.ndarray, length: int,
+                       wrapped: tuple[int, ...] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Windows of ``length`` consecutive samples of each trajectory.
 
     Rows of ``states`` (``(N, d)``, aligned with ``split``) are grouped by
     ``split.traj`` and ordered by ``split.t``; every run of ``length`` rows whose time
     steps all lie within :data:`WINDOW_GAP_FACTOR` of the trajectory's median step (so
     no window spans a gap in measured data) is a window (overlapping, stride 1).
+    Columns ``wrapped`` hold angles wrapped into ``[-π, π)``
+    (:attr:`hnnbench.System.wrapped_angles`): within each window they are unwrapped
+    (whole turns added from the second sample on), so that a window never asks for a
+    2π jump. The window's first state keeps its wrapped value.
 
     Returns:
         ``(windows (W, length, d), dts (W, length - 1))``: the states and each
@@ -127,7 +131,11 @@ def trajectory_windows(split: Split, states: np.ndarray, length: int
         good = (steps > median / WINDOW_GAP_FACTOR) & (steps < median * WINDOW_GAP_FACTOR)
         for start in range(len(rows) - length + 1):
             if np.all(good[start:start + length - 1]):
-                windows.append(states[rows[start:start + length]])
+                window = np.array(states[rows[start:start + length]], dtype=np.float64)
+                if wrapped:
+                    cols = list(wrapped)
+                    window[:, cols] = np.unwrap(window[:, cols], axis=0)
+                windows.append(window)
                 dts.append(steps[start:start + length - 1])
     if not windows:
         return np.zeros((0, length, states.shape[1])), np.zeros((0, length - 1))
@@ -172,15 +180,18 @@ class View:
         if self.family.data == "windows":
             length = window or self.family.window
             out = []
+            wrapped = tuple(self.system.wrapped_angles)
             for split in (data.train, data.test):
                 z, _ = self._pairs(split)
-                out.append(trajectory_windows(split, z, length))
-            if out[0][0].shape[0] == 0:
-                raise UnsupportedPair(
-                    f"the {self.system.name} training data has no {length} consecutive, "
-                    "equally spaced samples of one trajectory, which the "
-                    f"{self.family.name} family trains on"
-                )
+                out.append(trajectory_windows(split, z, length, wrapped))
+            for (windows, _), part in zip(out, ("training", "test"), strict=True):
+                if windows.shape[0] == 0:
+                    raise UnsupportedPair(
+                        f"the {self.system.name} {part} data has no {length} consecutive, "
+                        "equally spaced samples of one trajectory, which the "
+                        f"{self.family.name} family trains on (model.window={length}: a "
+                        "shorter window may fit)"
+                    )
             return Problem("windows", out[0], out[1], options)
         return Problem("derivatives", self._pairs(data.train), self._pairs(data.test))
 

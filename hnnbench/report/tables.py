@@ -31,12 +31,15 @@ def seed_line(board: pd.DataFrame) -> str:
             "Cells are mean ± std over seeds (std omitted for one seed), over the `ok` runs "
             "of a pair (its `diverged` runs if none is ok; `inf` = rollout diverged; "
             "`—` = no value or not applicable). Bold: the best value of the system among "
-            "the trained models (the oracle is shown, not ranked).")
+            "the trained models whose every seed is `ok` (the oracle is shown, not "
+            "ranked; a mean over the surviving seeds of a pair that diverged is not).")
 
 
 def best_cells(board: pd.DataFrame) -> set[tuple[int, str]]:
     """``{(row position, metric)}`` holding the best finite mean of its (profile, system,
-    variant) among ranked rows, in the metric's declared direction."""
+    variant) among ranked rows whose every seed is ``ok``, in the metric's declared
+    direction. A pair with a diverged or failed seed is averaged over its ``ok`` seeds
+    only, so it would be ranked on its luckier seeds: it is never marked best."""
     declared = metric_declarations()
     metrics = [c[:-5] for c in board.columns if c.endswith("_mean") and c[:-5] in declared]
     out: set[tuple[int, str]] = set()
@@ -44,6 +47,8 @@ def best_cells(board: pd.DataFrame) -> set[tuple[int, str]]:
     keys = ["profile", "system"] + (["variant"] if "variant" in board else [])
     ranked = board["ranked"].fillna(True).astype(bool) if "ranked" in board else \
         pd.Series(True, index=board.index)
+    if {"n_ok", "n_seeds"} <= set(board.columns):
+        ranked &= board["n_ok"] == board["n_seeds"]
     for _, group in board[ranked].groupby(keys, dropna=False, sort=False):
         for metric in metrics:
             values = pd.to_numeric(group[f"{metric}_mean"], errors="coerce")

@@ -411,6 +411,11 @@ class DoublePendulum(System):
         )
 
     @property
+    def wrapped_angles(self) -> tuple[int, ...]:
+        """Both rods' angles, when ``wrap_angles`` is set."""
+        return (0, 1) if self.cfg.wrap_angles else ()
+
+    @property
     def lyapunov_time(self) -> Optional[float]:
         """:data:`LYAPUNOV_TIME` for the default regime; ``None`` once any of
         :data:`REGIME_FIELDS` differs from its default (not estimated there)."""

@@ -53,6 +53,7 @@ from hnnbench.api import Dataset, Split, System, SystemConfig, Trajectories
 from hnnbench.data import locate
 from hnnbench.errors import ConfigError, DataError
 from hnnbench.kinematics import Kinematics, identity_kinematics
+from hnnbench_plugins.systems.double_pendulum import wrap_angle
 from hnnbench_plugins.systems.real_pendulum import RealPendulumConfig
 
 __all__ = [
@@ -116,11 +117,6 @@ class RealDoublePendulumConfig(RealPendulumConfig):
             raise ConfigError(
                 f"system.wrap_angles={self.wrap_angles} is invalid: expected true or false."
             )
-
-
-def wrap_angle(theta: np.ndarray) -> np.ndarray:
-    """Angles wrapped into ``[-π, π)``, same shape."""
-    return (np.asarray(theta, dtype=np.float64) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def parse_table(path: Path) -> np.ndarray:
@@ -343,6 +339,11 @@ class RealDoublePendulum(System):
     def kinematics(self) -> Kinematics:
         """The state's "momenta" are the measured angular velocities: ``q̇ = p``."""
         return identity_kinematics()
+
+    @property
+    def wrapped_angles(self) -> tuple[int, ...]:
+        """Both rods' angles, when ``wrap_angles`` is set."""
+        return (0, 1) if self.cfg.wrap_angles else ()
 
     def energy(self, x: np.ndarray) -> np.ndarray:
         """The fitted ideal double pendulum's energy (:meth:`energy_model`), 1/s²."""

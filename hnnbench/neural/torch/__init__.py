@@ -175,6 +175,8 @@ class TorchInference:
                             rtol=rtol, atol=atol, max_steps=max_steps)
         except SolverGaveUp as err:
             raise RolloutDiverged(f"dopri5 gave up: {err}") from None
+        except torch.linalg.LinAlgError as err:  # e.g. a model's own singular solve
+            raise RolloutDiverged(f"linear algebra failed: {err}".splitlines()[0]) from None
         return ys.permute(1, 0, 2).cpu().numpy()
 
     def encode(self, x: np.ndarray) -> np.ndarray:

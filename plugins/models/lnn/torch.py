@@ -33,7 +33,10 @@ def acceleration(net: Net, z: torch.Tensor) -> torch.Tensor:
 
     jac, g = jacfwd(along_qdot, has_aux=True)(qdot)  # (2n, n), (2n,)
     mixed, hess = jac[:n].T, jac[n:]  # [i, j] = ∂²L/∂q̇_i∂q_j ; ∂²L/∂q̇∂q̇
-    return torch.linalg.solve(hess, g[:n] - mixed @ qdot)
+    # A singular Hessian gives NaN, as jnp.linalg.solve gives non-finite values: the
+    # rollout then diverges (recorded `diverged`) instead of raising out of a metric.
+    qddot, info = torch.linalg.solve_ex(hess, g[:n] - mixed @ qdot)
+    return torch.where(info == 0, qddot, torch.full_like(qddot, torch.nan))
 
 
 def field(nets: dict[str, Net], z: torch.Tensor) -> torch.Tensor:
