@@ -49,12 +49,11 @@ from typing import Any, Optional
 import numpy as np
 from scipy.optimize import least_squares
 
-from hnnbench.api import Dataset, Split, System, SystemConfig, Trajectories
-from hnnbench.data import locate
+from hnnbench.api import Dataset, Split, SystemConfig, Trajectories
 from hnnbench.errors import ConfigError, DataError
 from hnnbench.kinematics import Kinematics, identity_kinematics
 from hnnbench_plugins.systems.double_pendulum import wrap_angle
-from hnnbench_plugins.systems.real_pendulum import RealPendulumConfig
+from hnnbench_plugins.systems.real_pendulum import MeasuredTableSystem, RealPendulumConfig
 
 __all__ = [
     "COLUMNS",
@@ -315,21 +314,19 @@ def derivative_consistency(table: np.ndarray, max_gap_factor: float = 1.5) -> di
 # --------------------------------------------------------------------------- system
 
 
-class RealDoublePendulum(System):
+class RealDoublePendulum(MeasuredTableSystem):
     """Measured double pendulum (Schmidt & Lipson 2009), state (θ1, θ2, ω1, ω2)."""
 
     Config = RealDoublePendulumConfig
+    data_file, data_sha256 = FILENAME, SHA256
+    parse = staticmethod(parse_table)
     order = 100
     cfg: RealDoublePendulumConfig
     version = "1"
     description = "Measured double pendulum, Schmidt & Lipson 2009, state (theta1, theta2, w1, w2)"
-    time_reversible = False
-    conservative = False
-    profiles = {"quick": {"steps": 300}}
 
     def __init__(self, cfg: SystemConfig) -> None:
         super().__init__(cfg)
-        self._loaded: Optional[tuple[Path, np.ndarray]] = None
         self._energy_model: Optional[EnergyModel] = None
 
     @property
@@ -357,41 +354,6 @@ class RealDoublePendulum(System):
         return self._energy_model
 
     # ------------------------------------------------------------------ data
-
-    def load(self) -> tuple[Path, np.ndarray]:
-        """Locate, verify and parse the data file (once per instance)."""
-        if self._loaded is None:
-            c = self.cfg
-            path = locate(
-                FILENAME, sha256=SHA256, explicit=c.data_path, url=c.url,
-                timeout_s=c.download_timeout_s,
-            )
-            self._loaded = (path, parse_table(path))
-        return self._loaded
-
-    def _structure(self) -> dict[str, Any]:
-        """Rows, sampling, gaps and the train/test boundary of the data file."""
-        path, table = self.load()
-        trial, t = table[:, 0], table[:, 1]
-        n = len(table)
-        same_trial = trial[1:] == trial[:-1]
-        steps = np.diff(t)
-        dt = float(np.median(steps[same_trial])) if same_trial.any() else float("nan")
-        if not dt > 0:
-            raise DataError(f"Data file {path}: cannot determine its sampling interval.")
-        gap = same_trial & (steps > self.cfg.max_gap_factor * dt)
-        # contiguous[i]: rows i and i+1 are consecutive samples of one trial.
-        contiguous = same_trial & ~gap
-        split_row = n - int(round(n * self.cfg.test_split))
-        if not 2 <= split_row <= n - 2:
-            raise ConfigError(
-                f"system.test_split={self.cfg.test_split} leaves an empty train or test "
-                f"segment of the {n} rows: choose a fraction nearer 0.2."
-            )
-        return {
-            "path": path, "table": table, "dt": dt, "n_rows": n, "gap": gap,
-            "contiguous": contiguous, "split_row": split_row,
-        }
 
     def _states(self, table: np.ndarray) -> np.ndarray:
         """``(N, 4)`` states ``(θ1, θ2, ω1, ω2)`` of table rows, angles wrapped if set."""
@@ -437,32 +399,8 @@ class RealDoublePendulum(System):
     def evaluation(self, seed: int) -> Trajectories:
         """``eval_chunks`` gap-free chunks of the measured test segment (``seed`` unused)."""
         s = self._structure()
-        table, contiguous, split_row = s["table"], s["contiguous"], s["split_row"]
-        n_rows, n_chunks = s["n_rows"], self.cfg.eval_chunks
-        # Gap-free runs of rows inside the test segment, as (start, stop) row ranges.
-        runs: list[tuple[int, int]] = []
-        start = split_row
-        for row in range(split_row, n_rows):
-            if row == n_rows - 1 or not contiguous[row]:
-                runs.append((start, row + 1))
-                start = row + 1
-        lengths = np.array([stop - begin for begin, stop in runs])
-        # The longest chunk length that still yields n_chunks chunks.
-        length = next(
-            (n for n in range(int(lengths.max()), 1, -1)
-             if int((lengths // n).sum()) >= n_chunks),
-            0,
-        )
-        if length < 2:
-            raise ConfigError(
-                f"system.eval_chunks={n_chunks} is too many: the test segment "
-                f"({n_rows - split_row} rows, {len(runs)} gap-free runs) cannot give "
-                f"{n_chunks} chunks of at least 2 points. Use fewer chunks."
-            )
-        starts = [b + k * length for b, stop in runs for k in range((stop - b) // length)]
-        starts = starts[:n_chunks]
-        t = table[:, 1]
-        grids = np.stack([t[b : b + length] - t[b] for b in starts])
+        starts, length, grid = self._chunks(s)
+        table = s["table"]
         states = np.stack(
             [np.concatenate([table[b : b + length, THETA], table[b : b + length, OMEGA]], 1)
              for b in starts]
@@ -470,24 +408,8 @@ class RealDoublePendulum(System):
         if self.cfg.wrap_angles:
             first = states[:, :1, :2]
             states[:, :, :2] -= first - wrap_angle(first)  # whole turns per chunk and rod
-        return Trajectories(
-            t=grids[0].copy(),
-            states=states,
-            dt=s["dt"],
-            meta={
-                "source": "measured",
-                "data_file": str(s["path"]),
-                "sha256": SHA256,
-                "n_traj": len(starts),
-                "chunk_points": length,
-                "chunk_start_times": [float(t[b]) for b in starts],
-                "horizon": float(grids[0, -1]),
-                "test_rows": n_rows - split_row,
-                "unused_test_rows": n_rows - split_row - len(starts) * length,
-                "max_grid_deviation": float(np.max(np.abs(grids - grids[0]))),
-                "wrap_angles": self.cfg.wrap_angles,
-            },
-        )
+        meta = {**grid["meta"], "wrap_angles": self.cfg.wrap_angles}
+        return Trajectories(t=grid["t"], states=states, dt=s["dt"], meta=meta)
 
 
 def _main() -> None:

@@ -171,14 +171,21 @@ def parse_table(path: Path) -> np.ndarray:
     return table
 
 
-class RealPendulum(System):
-    """Measured pendulum (Schmidt & Lipson 2009); the HNN paper's real-pendulum task."""
+class MeasuredTableSystem(System):
+    """Base of the systems whose data is one checksummed table of measured trials, one
+    row per sample: ``trial, t, ...`` (the real pendulum, the real double pendulum).
 
-    Config = RealPendulumConfig
-    order = 30
+    It locates and verifies the file (:func:`hnnbench.data.locate`), finds its sampling
+    interval, gaps and train/test boundary (:meth:`_structure`), and cuts the test
+    segment into gap-free evaluation chunks (:meth:`_chunks`). A subclass sets
+    ``data_file``, ``data_sha256`` and ``parse`` (path -> ``(rows, columns)`` array);
+    its config has the fields of :class:`RealPendulumConfig`.
+    """
+
+    data_file: ClassVar[str]
+    data_sha256: ClassVar[str]
     cfg: RealPendulumConfig
-    version = "1"
-    description = "Measured pendulum, Schmidt & Lipson 2009, E = 2.4(1 - cos q) + p^2 (task 3)"
+    # A measured device loses energy (damping) and is not time-reversible.
     time_reversible = False
     conservative = False
     profiles = {"quick": {"steps": 300}}
@@ -187,30 +194,20 @@ class RealPendulum(System):
         super().__init__(cfg)
         self._loaded: Optional[tuple[Path, np.ndarray]] = None
 
-    @property
-    def dof(self) -> int:
-        return 1
-
-    def energy(self, x: np.ndarray) -> np.ndarray:
-        x = np.asarray(x, dtype=np.float64)
-        q, p = x[..., 0], x[..., 1]
-        return ENERGY_A * (1.0 - np.cos(q)) + p**2
-
-    def kinematics(self) -> Kinematics:
-        """The state's "momentum" is the measured angular velocity: ``q̇ = p``."""
-        return identity_kinematics()
-
-    # ------------------------------------------------------------------ data
+    @staticmethod
+    def parse(path: Path) -> np.ndarray:
+        """The table of ``path``, ``(rows, columns)``; raise DataError if malformed."""
+        raise NotImplementedError
 
     def load(self) -> tuple[Path, np.ndarray]:
         """Locate, verify and parse the data file (once per instance)."""
         if self._loaded is None:
             c = self.cfg
             path = locate(
-                FILENAME, sha256=SHA256, explicit=c.data_path, url=c.url,
+                self.data_file, sha256=self.data_sha256, explicit=c.data_path, url=c.url,
                 timeout_s=c.download_timeout_s,
             )
-            self._loaded = (path, parse_table(path))
+            self._loaded = (path, self.parse(path))
         return self._loaded
 
     def _structure(self) -> dict[str, Any]:
@@ -236,6 +233,81 @@ class RealPendulum(System):
             "path": path, "table": table, "dt": dt, "n_rows": n, "gap": gap,
             "trial_boundary": ~same_trial, "contiguous": contiguous, "split_row": split_row,
         }
+
+    def _chunks(self, s: dict[str, Any]) -> tuple[list[int], int, dict[str, Any]]:
+        """The evaluation chunks of the test segment: ``eval_chunks`` runs of equal
+        length, each inside one gap-free run of rows, as long as that count allows.
+
+        Returns ``(start rows, chunk length, grid)``, where ``grid`` holds ``t``, the
+        first chunk's time grid ``(length,)``, and the chunk-layout entries of the
+        evaluation's meta.
+        """
+        table, contiguous, split_row = s["table"], s["contiguous"], s["split_row"]
+        n_rows, n_chunks = s["n_rows"], self.cfg.eval_chunks
+        # Gap-free runs of rows inside the test segment, as (start, stop) row ranges.
+        runs: list[tuple[int, int]] = []
+        start = split_row
+        for row in range(split_row, n_rows):
+            if row == n_rows - 1 or not contiguous[row]:
+                runs.append((start, row + 1))
+                start = row + 1
+        lengths = np.array([stop - begin for begin, stop in runs])
+        # The longest chunk length that still yields n_chunks chunks.
+        length = next(
+            (n for n in range(int(lengths.max()), 1, -1)
+             if int((lengths // n).sum()) >= n_chunks),
+            0,
+        )
+        if length < 2:
+            raise ConfigError(
+                f"system.eval_chunks={n_chunks} is too many: the test segment "
+                f"({n_rows - split_row} rows, {len(runs)} gap-free runs) cannot give "
+                f"{n_chunks} chunks of at least 2 points. Use fewer chunks."
+            )
+        starts = [b + k * length for b, stop in runs for k in range((stop - b) // length)]
+        starts = starts[:n_chunks]
+        t = table[:, 1]
+        grids = np.stack([t[b : b + length] - t[b] for b in starts])
+        meta = {
+            "source": "measured",
+            "data_file": str(s["path"]),
+            "sha256": self.data_sha256,
+            "n_traj": len(starts),
+            "chunk_points": length,
+            "chunk_start_times": [float(t[b]) for b in starts],
+            "horizon": float(grids[0, -1]),
+            "test_rows": n_rows - split_row,
+            "unused_test_rows": n_rows - split_row - len(starts) * length,
+            "max_grid_deviation": float(np.max(np.abs(grids - grids[0]))),
+        }
+        return starts, length, {"t": grids[0].copy(), "meta": meta}
+
+
+class RealPendulum(MeasuredTableSystem):
+    """Measured pendulum (Schmidt & Lipson 2009); the HNN paper's real-pendulum task."""
+
+    Config = RealPendulumConfig
+    data_file, data_sha256 = FILENAME, SHA256
+    parse = staticmethod(parse_table)
+    order = 30
+    cfg: RealPendulumConfig
+    version = "1"
+    description = "Measured pendulum, Schmidt & Lipson 2009, E = 2.4(1 - cos q) + p^2 (task 3)"
+
+    @property
+    def dof(self) -> int:
+        return 1
+
+    def energy(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=np.float64)
+        q, p = x[..., 0], x[..., 1]
+        return ENERGY_A * (1.0 - np.cos(q)) + p**2
+
+    def kinematics(self) -> Kinematics:
+        """The state's "momentum" is the measured angular velocity: ``q̇ = p``."""
+        return identity_kinematics()
+
+    # ------------------------------------------------------------------ data
 
     def dataset(self, seed: int) -> Dataset:
         """The measured points and forward-difference targets (``seed`` is unused)."""
@@ -280,47 +352,6 @@ class RealPendulum(System):
     def evaluation(self, seed: int) -> Trajectories:
         """``eval_chunks`` gap-free chunks of the measured test segment (``seed`` unused)."""
         s = self._structure()
-        table, contiguous, split_row = s["table"], s["contiguous"], s["split_row"]
-        n_chunks = self.cfg.eval_chunks
-        # Gap-free runs of rows inside the test segment, as (start, stop) row ranges.
-        runs: list[tuple[int, int]] = []
-        start = split_row
-        for row in range(split_row, s["n_rows"]):
-            if row == s["n_rows"] - 1 or not contiguous[row]:
-                runs.append((start, row + 1))
-                start = row + 1
-        lengths = np.array([stop - begin for begin, stop in runs])
-        # The longest chunk length that still yields n_chunks chunks.
-        length = 0
-        for candidate in range(int(lengths.max()), 1, -1):
-            if int((lengths // candidate).sum()) >= n_chunks:
-                length = candidate
-                break
-        if length < 2:
-            raise ConfigError(
-                f"system.eval_chunks={n_chunks} is too many: the test segment "
-                f"({s['n_rows'] - split_row} rows, {len(runs)} gap-free runs) cannot give "
-                f"{n_chunks} chunks of at least 2 points. Use fewer chunks."
-            )
-        starts = [b + k * length for b, stop in runs for k in range((stop - b) // length)]
-        starts = starts[:n_chunks]
-        t = table[:, 1]
-        grids = np.stack([t[b : b + length] - t[b] for b in starts])
-        states = np.stack([table[b : b + length, 2:4] for b in starts])
-        return Trajectories(
-            t=grids[0].copy(),
-            states=states,
-            dt=s["dt"],
-            meta={
-                "source": "measured",
-                "data_file": str(s["path"]),
-                "sha256": SHA256,
-                "n_traj": len(starts),
-                "chunk_points": length,
-                "chunk_start_times": [float(t[b]) for b in starts],
-                "horizon": float(grids[0, -1]),
-                "test_rows": s["n_rows"] - split_row,
-                "unused_test_rows": s["n_rows"] - split_row - len(starts) * length,
-                "max_grid_deviation": float(np.max(np.abs(grids - grids[0]))),
-            },
-        )
+        starts, length, grid = self._chunks(s)
+        states = np.stack([s["table"][b : b + length, 2:4] for b in starts])
+        return Trajectories(t=grid["t"], states=states, dt=s["dt"], meta=grid["meta"])
