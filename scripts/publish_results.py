@@ -54,6 +54,7 @@ def copy_records(sweeps: list[Path]) -> int:
     from hnnbench import records as R
 
     count = 0
+    seen: dict[tuple[str, str, int], str] = {}
     for sweep in sweeps:
         recs, bad = R.scan_records(sweep)
         if bad:
@@ -66,6 +67,12 @@ def copy_records(sweeps: list[Path]) -> int:
             problems = R.validate(rec)
             if problems:
                 raise SystemExit(f"publish: {rec['path']}: invalid record: {problems[0]}")
+            job = (str(rec["system"]), str(rec["model"]), int(rec["seed"]))
+            if job in seen:
+                raise SystemExit(f"publish: {job} is in both {seen[job]} and {rec['path']}: "
+                                 "the report would count it twice; move the superseded "
+                                 "run out of its sweep")
+            seen[job] = str(rec["path"])
             source = Path(rec["path"]) / R.RECORD_NAME
             target = RECORDS / str(rec["system"]) / str(rec["model"]) / f"seed{rec['seed']}"
             target.mkdir(parents=True, exist_ok=True)
