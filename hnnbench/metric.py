@@ -70,6 +70,9 @@ class Metric:
         summary: shown in the end-of-sweep summary table.
         order: position in tables (lower first; then by name).
         reference: where its definition is documented.
+        figures: the report's board figures that plot it: ``"heatmap"`` (a rank
+            heatmap of models by system), ``"data_efficiency"`` (the metric against a
+            swept training-set size).
     """
 
     name: str
@@ -83,6 +86,7 @@ class Metric:
     summary: bool = True
     order: int = 1000
     reference: str = "docs/METRICS.md"
+    figures: tuple[str, ...] = ()
 
     def worst(self) -> float:
         """The value recorded when the model failed (diverged): ``inf`` for errors,

@@ -41,8 +41,11 @@ __all__ = ["FIGURES", "FigureKind", "Made", "Run", "SystemRuns", "figure", "make
 #: How many evaluation trajectories the rollout figures show.
 N_TRAJ_SHOWN = 3
 _TRAJ_COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c")
-#: Metrics of the rank heatmaps.
-HEATMAP_METRICS = ("energy_mse", "rollout_mse")
+
+
+def _plotted(kind: str) -> list[str]:
+    """The installed metrics whose declaration asks for board figure ``kind``."""
+    return [m.name for m in registry.metrics() if kind in m.figures]
 
 
 @dataclass(eq=False)  # compared by identity: the arrays make field equality ambiguous
@@ -280,7 +283,7 @@ def rank_table(board: pd.DataFrame, metric: str) -> tuple[pd.DataFrame, pd.DataF
 @figure("heatmap", "Which model wins where: rank by metric", scope="board")
 def heatmap_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]]) -> dict[str, Any]:
     out = {}
-    for metric in HEATMAP_METRICS:
+    for metric in _plotted("heatmap"):
         if f"{metric}_mean" not in board or board[f"{metric}_mean"].isna().all():
             continue
         ranks, values = rank_table(board, metric)
@@ -352,7 +355,7 @@ def sweep_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]]) -> dict[s
     for system in registry.ordered("system", board["system"].astype(str)):
         rows = board[board["system"] == system].copy()
         rows["x"] = rows["variant"].astype(str).str.partition("=")[2].astype(float)
-        metrics = [m for m in ("test_loss", "energy_mse", "rollout_mse")
+        metrics = [m for m in _plotted("data_efficiency")
                    if f"{m}_mean" in rows and rows[f"{m}_mean"].notna().any()]
         if not metrics or rows["x"].nunique() < 2:
             continue
