@@ -139,6 +139,31 @@ def test_diverged_pair_is_shown_as_diverged_with_inf_never_dropped(tmp_path):
     assert '<td class="txt diverged">diverged</td>' in page and '<td class="inf">inf</td>' in page
 
 
+def test_a_training_set_size_sweep_draws_the_data_efficiency_figure(tmp_path):
+    """`system.n_traj=10,25,50` gives one figure per system: each declared data-efficiency
+    metric against n_traj, one line per model, one point per size."""
+    from hnnbench.report.figures import sweep_figures
+
+    sweep = tmp_path / "s"
+    for n in (10, 25, 50):
+        for model in ("mlp_torch", "hnn_torch"):
+            for seed in (0, 1):
+                write_run(sweep, "spring", model, seed, overrides=(f"system.n_traj={n}",),
+                          metrics={k: v * 10 / n for k, v in
+                                   seed_metrics("spring", model, seed).items()})
+    assert report.main([str(sweep)]) == 0
+    assert (sweep / "figures" / "spring_sweep_system.n_traj.png").is_file()
+    recs = records.load_records(sweep)
+    figs = sweep_figures(leaderboard(recs), recs)
+    (fig,) = figs.values()
+    panels = [ax for ax in fig.axes if ax.get_ylabel()]
+    assert [ax.get_ylabel() for ax in panels] == ["test_loss", "energy_mse", "rollout_mse"]
+    for ax in panels:
+        assert ax.get_xlabel() == "system.n_traj" and len(ax.get_lines()) >= 2
+        xs = sorted({float(x) for line in ax.get_lines() for x in line.get_xdata()})
+        assert xs == [10.0, 25.0, 50.0]
+
+
 def test_a_pair_with_a_diverged_seed_is_never_marked_best():
     """Its mean is over the surviving seeds only; the best of the fully ok rows is bold."""
     board = pd.DataFrame({
