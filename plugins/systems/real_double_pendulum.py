@@ -456,8 +456,23 @@ def _main() -> None:
                                                  "chunk_start_times", "unused_test_rows",
                                                  "max_grid_deviation")},
         "evaluation_states_beyond_pi": float(np.mean(np.abs(traj.states[..., :2]) > np.pi)),
+        "stand_still": stand_still_scores(system),
     }
     print(json.dumps(report, indent=1, default=float))
+
+
+def stand_still_scores(system: RealDoublePendulum, seed: int = 0) -> dict[str, float]:
+    """The rollout and energy MSE of a "model" that predicts no motion, ``x̂(t) = x(0)``,
+    on the evaluation chunks: the floor a learned rollout must beat to show that it
+    predicts anything (the chunks are short)."""
+    from hnnbench.metrics import energy_error_per_traj, rollout_error_per_traj
+
+    states = system.evaluation(seed).states  # (M, T, 4)
+    still = np.repeat(states[:, :1], states.shape[1], axis=1)
+    energy = system.energy(states.reshape(-1, 4)).reshape(states.shape[:2])
+    energy_still = system.energy(still.reshape(-1, 4)).reshape(states.shape[:2])
+    return {"rollout_mse": float(rollout_error_per_traj(still, states).mean()),
+            "energy_mse": float(energy_error_per_traj(energy_still, energy).mean())}
 
 
 if __name__ == "__main__":
