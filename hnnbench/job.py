@@ -443,9 +443,9 @@ def _log_outcome(count: str, tag: str, record: dict[str, Any]) -> None:
     status = record["status"]
     secs = record["timings"].get("total_s", 0.0)
     if status == "ok":
-        shown = "  ".join(f"{name}={value.get('mean', float('nan')):.3g}"
-                          for name, value in record["metrics"].items()
-                          if name in ("test_loss", "energy_mse"))
+        m = record["metrics"]
+        shown = "  ".join(f"{k}={m[k]['mean']:.3g}" for k in ("test_loss", "energy_mse")
+                          if k in m)
         log.info("%s%s: ok in %.1f s  %s", count, tag, secs, shown)
     else:
         log.warning("%s%s: %s in %.1f s: %s", count, tag, status, secs, record.get("error"))

@@ -118,8 +118,8 @@ def _load(kind: str, ep: metadata.EntryPoint) -> PluginInfo:
         elif getattr(cls, "name", None) != ep.name:
             info.error = (f"{ep.value} is named '{getattr(cls, 'name', '?')}' but is "
                           f"registered as '{ep.name}': use the same name")
-        elif kind == "metric" and _metric_name_problem(ep.name):
-            info.error = f"{ep.value}: {_metric_name_problem(ep.name)}"
+        elif kind == "metric" and (problem := _metric_name_problem(ep.name)):
+            info.error = f"{ep.value}: {problem}"
         else:
             info.cls = cls
         return info
