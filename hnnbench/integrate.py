@@ -1,9 +1,7 @@
-"""Reference integrators shared by systems, metrics and numpy models.
+"""The reference integrator shared by systems and numpy models.
 
-- :func:`solve_batch`: scipy's adaptive solvers (DOP853 by default) over a batch of
-  initial states, integrated as one flattened system.
-- :func:`rk4`: fixed-step classical Runge-Kutta, batched; the integrator of the
-  reversibility metric.
+:func:`solve_batch`: scipy's adaptive solvers (DOP853 by default) over a batch of
+initial states, integrated as one flattened system.
 """
 
 from __future__ import annotations
@@ -17,7 +15,7 @@ from hnnbench.errors import RolloutDiverged
 #: A batched vector field: ``(M, D) -> (M, D)``.
 VectorField = Callable[[np.ndarray], np.ndarray]
 
-__all__ = ["VectorField", "rk4", "solve_batch"]
+__all__ = ["VectorField", "solve_batch"]
 
 
 def solve_batch(
@@ -53,25 +51,3 @@ def solve_batch(
         raise RolloutDiverged(f"scipy {method} failed: {sol.message}")
     return sol.y.T.reshape(t.shape[0], m, d).transpose(1, 0, 2)
 
-
-def rk4(f: VectorField, x0: np.ndarray, dt: float, n_steps: int) -> np.ndarray:
-    """Take ``n_steps`` classical RK4 steps of size ``dt`` (negative: backward).
-
-    Args:
-        f: batched vector field ``(M, D) -> (M, D)``.
-        x0: ``(M, D)`` initial states.
-
-    Returns:
-        ``(M, D)`` final states. Non-finite values propagate (the caller checks).
-    """
-    x = np.asarray(x0, dtype=np.float64)
-    with np.errstate(over="ignore", invalid="ignore"):
-        for _ in range(n_steps):
-            k1 = f(x)
-            k2 = f(x + 0.5 * dt * k1)
-            k3 = f(x + 0.5 * dt * k2)
-            k4 = f(x + dt * k3)
-            x = x + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-            if not np.all(np.isfinite(x)):
-                break
-    return x

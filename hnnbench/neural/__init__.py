@@ -6,7 +6,7 @@ per backend; its entry-point classes subclass :class:`NeuralModel`. The training
 float64 rollouts, pixel autoencoders and second-order coordinates
 (:mod:`hnnbench.neural.views`) and weight files are shared. Backends
 (:mod:`hnnbench.neural.torch`, :mod:`hnnbench.neural.jax`) are imported only when a
-model is built. docs/PLUGINS.md shows a new family in a few lines.
+model is built. docs/MODELS.md ("Adding a family") shows a new family in a few lines.
 """
 
 from hnnbench.neural.config import NeuralConfig
