@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -57,9 +58,9 @@ def check_positive(owner: str, **values: float | int | None) -> None:
     ``None`` values are skipped (they mean "use the default").
     """
     for key, value in values.items():
-        if value is not None and not value > 0:
+        if value is not None and not (value > 0 and math.isfinite(value)):
             raise ConfigError(
-                f"{owner}.{key}={value} is invalid: expected a number > 0. "
+                f"{owner}.{key}={value} is invalid: expected a finite number > 0. "
                 f"Fix it with {owner}.{key}=<positive value>."
             )
 
@@ -121,9 +122,10 @@ class SystemConfig:
     def validate(self) -> None:
         """Raise :class:`ConfigError` on an invalid value. Extend in subclasses."""
         check_positive("system", steps=self.steps, batch_size=self.batch_size, lr=self.lr)
-        if self.weight_decay < 0:
+        if not (self.weight_decay >= 0 and math.isfinite(self.weight_decay)):
             raise ConfigError(
-                f"system.weight_decay={self.weight_decay} is invalid: expected >= 0."
+                f"system.weight_decay={self.weight_decay} is invalid: expected a finite "
+                "number >= 0."
             )
 
     def data_fields(self) -> dict[str, Any]:
@@ -147,9 +149,11 @@ class ModelConfig:
     def validate(self) -> None:
         """Raise :class:`ConfigError` on an invalid value. Extend in subclasses."""
         check_positive("model", steps=self.steps, batch_size=self.batch_size, lr=self.lr)
-        if self.weight_decay is not None and self.weight_decay < 0:
+        if self.weight_decay is not None and not (
+                self.weight_decay >= 0 and math.isfinite(self.weight_decay)):
             raise ConfigError(
-                f"model.weight_decay={self.weight_decay} is invalid: expected >= 0."
+                f"model.weight_decay={self.weight_decay} is invalid: expected a finite "
+                "number >= 0."
             )
 
 
@@ -242,7 +246,8 @@ class Trajectories:
     Attributes:
         t: ``(T,)`` time grid, ``t[0]`` is the time of the initial states.
         states: ``(M, T, 2n)`` true states along each trajectory.
-        dt: the data's sampling interval; the fixed RK4 step of the reversibility metric.
+        dt: the data's sampling interval (for plugins and plots; the rollout metrics
+            integrate adaptively on ``t``).
         observations: for pixel systems, ``(M, T, D)`` model inputs along each
             trajectory (``None`` for state systems, whose inputs are the states).
         meta: JSON-serialisable description of the protocol (horizon, tolerances, ...).

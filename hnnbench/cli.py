@@ -314,6 +314,10 @@ def _batch_seeds(entries: list[_Entry]) -> list[_Entry]:
     """With ``seeds_per_job=N`` (N > 1), a sweep ``seed=a,b,c,...`` becomes one job per
     N seeds: ``seed_batch=[a,b,c],[d,...]`` with ``seed=${seed_batch.0}``, the first of
     each batch (its records' directories stay ``seed<k>``; hnnbench.job.seed_directory)."""
+    given = next((e for e in entries if e.key == "seed_batch"), None)
+    if given is not None:
+        raise ConfigError(f"{given.text}: seed_batch is set by seeds_per_job; give the seeds "
+                          "with seed, e.g. -m seed=0,1,2 seeds_per_job=3")
     per_job = [e for e in entries if e.key == "seeds_per_job" and not e.sweep and e.values]
     if not per_job:
         return entries

@@ -9,6 +9,7 @@ and again at the start of each job, never deep inside training.
 from __future__ import annotations
 
 import difflib
+import math
 import re
 from dataclasses import dataclass, field, fields
 from typing import Any, Optional
@@ -191,9 +192,10 @@ def validate_run(cfg: Any) -> None:
         raise ConfigError(f"threads={cfg.threads} is invalid: expected an integer >= 0.")
     ev = cfg.evaluation
     for key in ("rtol", "atol", "vpt_threshold"):
-        if not getattr(ev, key) > 0:
+        value = getattr(ev, key)
+        if not (value > 0 and math.isfinite(value)):
             raise ConfigError(
-                f"evaluation.{key}={getattr(ev, key)} is invalid: expected a number > 0."
+                f"evaluation.{key}={value} is invalid: expected a finite number > 0."
             )
 
 
@@ -204,10 +206,16 @@ def _instantiate_config(kind: str, node: Any) -> Any:
     values = OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
     assert isinstance(values, dict)
     known = [f.name for f in fields(cls.Config)]
-    for key in map(str, values):
+    for raw_key, value in values.items():
+        key = str(raw_key)
         if key not in known:
-            raise _not_a_setting(f"{kind}.{key} is not a setting of {kind} '{name}'", key,
-                                 known)
+            raise _not_a_setting(f"{kind}.{key} is not a setting of {kind} '{name}'",
+                                 key, known)
+        # No plugin setting means anything with NaN or an infinity (a finite bound
+        # works where "no bound" is meant); plugins check their own ranges.
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ConfigError(f"{kind}.{key}={value} is invalid: expected a finite number. "
+                              f"Fix it with {kind}.{key}=<finite value>.")
     try:
         return cls.Config(**{str(k): v for k, v in values.items()})
     except TypeError as err:
@@ -290,6 +298,7 @@ def compose(
     from hydra.core.global_hydra import GlobalHydra
 
     overrides = list(overrides or [])
+    _refuse_name_overrides(overrides)
     register_schema()
     registry.register_configs(profile_of(overrides))
     GlobalHydra.instance().clear()
@@ -312,6 +321,18 @@ def compose(
         GlobalHydra.instance().clear()
 
 
+def _refuse_name_overrides(overrides: list[str]) -> None:
+    """``system.name`` and ``model.name`` are set by the group choice: another name
+    would run one plugin's class with another's settings under the wrong label."""
+    for text in overrides:
+        key, sep, value = text.lstrip("+~").partition("=")
+        kind = key.split(".", 1)[0]
+        if key in ("system.name", "model.name"):
+            shown = value if sep and value else "<name>"
+            raise ConfigError(f"{key} cannot be set: it follows the {kind} chosen; choose "
+                              f"the {kind} with {kind}={shown}")
+
+
 _NOT_IN = re.compile(r"Key '([^']+)' not in '([^']+)'")
 
 
@@ -325,14 +346,15 @@ def _unknown_setting(err: BaseException, overrides: list[str]) -> ConfigError | 
     key, config_name = match.groups()
     full = re.search(r"\(key: ([^)]+)\)", text)
     full_key = full.group(1) if full else key
-    chosen = {"system": "spring", "model": "hnn_torch"}  # conf/config.yaml's defaults
+    chosen: dict[str, str] = {}  # the groups chosen on the command line, tried first
     for item in overrides:
         name, sep, value = item.lstrip("+~").partition("=")
         if sep and name in chosen:
             chosen[name] = value
     for kind in ("system", "model"):
         plugins = registry.discover(kind)
-        candidates = [chosen[kind], *(n for n in plugins if n != chosen[kind])]
+        first = chosen.get(kind)
+        candidates = [*([first] if first else []), *(n for n in plugins if n != first)]
         for name in candidates:
             info = plugins.get(name)
             config = getattr(info.cls, "Config", None) if info is not None else None

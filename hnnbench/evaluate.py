@@ -229,7 +229,13 @@ def evaluate(system: System, model: Model, data: Dataset, traj: Trajectories,
             if metric.required and diverged is None:
                 diverged = f"rollout diverged ({metric.name}): {err}"
             continue
-        except Exception as err:  # a metric's own bug must not cost the job
+        except Exception as err:
+            # A required metric is what the job is for: whatever raised (the model, e.g.
+            # out of memory, or the metric) fails the job with the traceback rather than
+            # leave a NaN that reads "not applicable". An optional metric's error is
+            # recorded and the job goes on.
+            if metric.required:
+                raise
             errors[metric.name] = f"{type(err).__name__}: {err}".splitlines()[0]
             log.warning("metric %s failed: %s", metric.name, errors[metric.name])
             result[metric.name] = _nan()

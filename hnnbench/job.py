@@ -37,7 +37,7 @@ from hnnbench.progress import TrainingProgress
 
 log = logging.getLogger("hnnbench")
 
-__all__ = ["run_job", "run_seeds", "seed_directory"]
+__all__ = ["config_change", "run_job", "run_seeds", "seed_directory"]
 
 
 def _set_threads(threads: int) -> None:
@@ -98,6 +98,25 @@ def _config_container(cfg: DictConfig) -> Any:
         return OmegaConf.to_container(cfg, resolve=False)
 
 
+def config_change(old: Any, new: Any, prefix: str = "") -> str | None:
+    """The first setting whose value differs between a finished record's resolved
+    config ``old`` and a job's ``new`` (``"key: old -> new"``), or ``None``.
+
+    Keys that only one side has are not compared (a setting added to hnnbench or a
+    plugin since the record was made keeps its default), nor are
+    :data:`hnnbench.records.RUN_ONLY_KEYS`, which do not change what a job computes.
+    """
+    if isinstance(old, dict) and isinstance(new, dict):
+        # A profile changes many settings at once: name it rather than the first of them.
+        for key in sorted(old, key=lambda k: (prefix, k) != ("", "profile")):
+            if key in new and not (not prefix and key in records.RUN_ONLY_KEYS):
+                change = config_change(old[key], new[key], f"{prefix}{key}.")
+                if change is not None:
+                    return change
+        return None
+    return None if old == new else f"{prefix.rstrip('.')}: {old!r} -> {new!r}"
+
+
 def _base_record(cfg: DictConfig, overrides: list[str] | None) -> dict[str, Any]:
     context = launch.current()
     command = context.command if context is not None else None
@@ -134,7 +153,7 @@ def _save_arrays(directory: Path, arrays: dict[str, np.ndarray], history: dict) 
     payload = {k: np.asarray(v) for k, v in arrays.items()}
     payload.update({f"history.{k}": np.asarray(v, dtype=np.float64) for k, v in history.items()})
     savez: Any = np.savez_compressed  # numpy's stub reads **payload as allow_pickle
-    with records.atomic_path(directory / "rollout.npz") as tmp, open(tmp, "wb") as fh:
+    with records.atomic_path(directory / records.ROLLOUT_NAME) as tmp, open(tmp, "wb") as fh:
         savez(fh, **payload)
 
 
@@ -257,10 +276,22 @@ def run_seeds(
     done: dict[int, dict[str, Any]] = {}
     for seed in seeds:
         existing = records.read_record(dirs[seed] / records.RECORD_NAME)
-        if existing and existing.get("status") in records.FINISHED and not _select(cfg, "rerun"):
+        if not existing or existing.get("status") not in records.FINISHED \
+                or _select(cfg, "rerun"):
+            continue
+        change = config_change(existing.get("config"),
+                               _config_container(_seed_config(cfg, seed) if batch else cfg))
+        if change is None:
             log.info("%s%s x %s seed=%s: already finished (%s), skipped; rerun=true redoes it",
                      count, system, model, seed, existing["status"])
             done[seed] = existing
+            continue
+        # A record of other settings is not this job's result, and is not overwritten.
+        message = (f"{dirs[seed]} holds a finished record of other settings ({change}): "
+                   "resume with the settings it was run with, choose another "
+                   "hydra.sweep.dir, or add rerun=true to replace it")
+        log.error("%s%s x %s seed=%s: not run: %s", count, system, model, seed, message)
+        done[seed] = {**_base_record(cfg, overrides), "seed": seed, "error": message}
     pending = [s for s in seeds if s not in done]
     if not pending:
         return [done[s] for s in seeds]

@@ -28,14 +28,26 @@ from typing import Any
 
 SCHEMA_VERSION = 2
 RECORD_NAME = "result.json"
+#: A job's arrays (rollouts, true states, training history) beside its record.
+ROLLOUT_NAME = "rollout.npz"
 SCHEMA_FILE = "record.schema.json"
 #: Statuses of a job that is done and is not redone on resume.
 FINISHED = ("ok", "diverged", "skipped")
 STATUSES = ("ok", "diverged", "failed", "skipped")
+#: Top-level config keys that say where and how a job runs, not what it computes: a
+#: finished record is reused on resume whatever they are, they define no leaderboard
+#: variant, and they are left out of a sweep job's directory name (conf/config.yaml's
+#: ``override_dirname.exclude_keys``, which tests/test_config.py holds to this list).
+RUN_ONLY_KEYS = frozenset({
+    "rerun", "device", "threads", "pin_cpu", "save_model", "cache_dir", "data_dir",
+    "seeds_per_job", "seed_batch",
+})
 
 __all__ = [
     "FINISHED",
+    "RUN_ONLY_KEYS",
     "RECORD_NAME",
+    "ROLLOUT_NAME",
     "SCHEMA_VERSION",
     "STATUSES",
     "Unreadable",
@@ -243,14 +255,14 @@ def git_commit() -> str | None:
         out = subprocess.run(
             ["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=5
         )
-    except (OSError, subprocess.SubprocessError):
+        if out.returncode != 0:
+            return None
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"], cwd=here,
+            capture_output=True, text=True, timeout=5,
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):  # no git, or a slow one: not recorded
         return None
-    if out.returncode != 0:
-        return None
-    dirty = subprocess.run(
-        ["git", "status", "--porcelain", "--untracked-files=no"], cwd=here,
-        capture_output=True, text=True, timeout=5,
-    ).stdout.strip()
     return out.stdout.strip() + ("-dirty" if dirty else "")
 
 

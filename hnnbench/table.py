@@ -17,8 +17,9 @@ import numpy as np
 import pandas as pd
 
 from hnnbench import registry
+from hnnbench.errors import HnnbenchError
 from hnnbench.metric import Metric
-from hnnbench.records import STATUSES
+from hnnbench.records import RUN_ONLY_KEYS, STATUSES
 
 __all__ = [
     "display_frame",
@@ -43,10 +44,7 @@ def metric_declarations() -> dict[str, Metric]:
 
 #: Override keys that do not define a variant: the identity columns, and settings that
 #: say where and how a job runs rather than what it computes.
-NON_VARIANT_KEYS = frozenset({
-    "system", "model", "seed", "profile", "rerun", "device", "threads", "pin_cpu",
-    "save_model", "cache_dir", "data_dir", "seeds_per_job", "seed_batch",
-})
+NON_VARIANT_KEYS = frozenset({"system", "model", "seed", "profile"}) | RUN_ONLY_KEYS
 
 
 def _variant_items(overrides: Iterable[str] | None) -> dict[str, str]:
@@ -237,6 +235,22 @@ def leaderboard(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
     return leaderboard_frame(records_frame(list(records)))
 
 
+def _refuse_repeated_seeds(group: pd.DataFrame) -> None:
+    """A seed held by two records of one (profile, system, model, variant) would be
+    counted twice in the mean and the spread."""
+    repeated = group[group["seed"].duplicated(keep=False) & group["seed"].notna()]
+    if repeated.empty:
+        return
+    first = repeated.iloc[0]
+    paths = repeated.loc[repeated["seed"] == first["seed"], "path"] if "path" in repeated \
+        else pd.Series([])
+    where = " and ".join(str(p) for p in paths.dropna()) or "two records"
+    raise HnnbenchError(
+        f"{first['system']} x {first['model']} seed {first['seed']} ({first['profile']} "
+        f"profile) is recorded twice ({where}): the leaderboard would count it twice; "
+        "move one of them out of the directories given")
+
+
 def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None) -> pd.DataFrame:
     """One row per (profile, system, model, variant) of a :func:`records_frame`.
 
@@ -266,6 +280,7 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
     rows = []
     for (profile, system, model, variant), group in frame.groupby(
             ["profile", "system", "model", "variant"], dropna=False, sort=False):
+        _refuse_repeated_seeds(group)
         counts = {s: int((group["status"] == s).sum()) for s in STATUSES}
         seeds = sorted({int(s) for s in group["seed"].dropna()})
         backends = [b for b in group["backend"].dropna().unique()] if "backend" in group else []

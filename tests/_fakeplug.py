@@ -3,6 +3,7 @@ points) into a temporary directory that goes on ``PYTHONPATH`` / ``sys.path``.
 
 - ``nan_model``: trains "fine" but predicts NaN everywhere (its rollout is NaN too).
 - ``crash_model``: raises a RuntimeError during training.
+- ``rollout_crash_model``: trains, then raises a RuntimeError in its rollout.
 - ``needs_backend``: its module needs a backend that is not installed (import fails
   with hnnbench's one-line BackendMissingError, as the JAX models do without JAX).
 """
@@ -43,6 +44,13 @@ class CrashModel(NaNModel):
 
     def fit(self, data, train, seed, progress):
         raise RuntimeError("boom: the model crashed on purpose")
+
+
+class RolloutCrashModel(NaNModel):
+    """Trains, then raises in its rollout (e.g. out of memory)."""
+
+    def rollout(self, x0, t, rtol=1e-9, atol=1e-9):
+        raise RuntimeError("boom: the rollout crashed on purpose")
 '''
 
 NO_BACKEND = '''
@@ -56,6 +64,7 @@ from hnnbench_fakeplug import NaNModel as NeedsBackend  # noqa: E402
 ENTRY_POINTS = """[hnnbench.models]
 nan_model = hnnbench_fakeplug:NaNModel
 crash_model = hnnbench_fakeplug:CrashModel
+rollout_crash_model = hnnbench_fakeplug:RolloutCrashModel
 needs_backend = hnnbench_fakeplug.nobackend:NeedsBackend
 """
 

@@ -65,3 +65,13 @@ def test_bad_overrides_fail_at_compose(override, needle):
     with pytest.raises(ConfigError) as err:
         prepare_job(compose([override]))
     assert needle in str(err.value) and "\n" not in str(err.value)
+
+
+def test_job_directory_names_leave_out_exactly_the_run_only_keys():
+    from hnnbench.records import RUN_ONLY_KEYS
+    from hnnbench.table import NON_VARIANT_KEYS
+
+    cfg = compose([], return_hydra_config=True)
+    excluded = set(cfg.hydra.job.config.override_dirname.exclude_keys)
+    assert {k for k in excluded if not k.startswith("hydra")} == set(NON_VARIANT_KEYS)
+    assert RUN_ONLY_KEYS < NON_VARIANT_KEYS

@@ -48,3 +48,22 @@ def test_reference_solver_closes_a_spring_period():
     assert xs.shape == (2, 7, 2)
     np.testing.assert_allclose(xs[:, -1], x0, atol=1e-9)
     np.testing.assert_allclose(xs[0, :, 0], np.cos(2 * t), atol=1e-9)
+
+
+def test_an_optional_metric_that_raises_is_recorded_a_required_one_fails_the_job():
+    from hnnbench.api import Trajectories
+    from hnnbench.evaluate import evaluate
+    from hnnbench.metric import Metric
+
+    def broken(ctx):
+        raise ValueError("a bug")
+
+    traj = Trajectories(t=np.linspace(0.0, 1.0, 3), states=np.zeros((2, 3, 2)), dt=0.5)
+    fine = Metric("fine", "always 1", lambda ctx: np.ones(4))
+    optional = Metric("probe", "raises", broken, required=False)
+    result = evaluate(None, None, None, traj, None, metrics=[fine, optional])  # type: ignore[arg-type]
+    assert result.metrics["fine"]["mean"] == 1.0 and np.isnan(result.metrics["probe"]["mean"])
+    assert result.errors == {"probe": "ValueError: a bug"} and result.diverged is None
+    with pytest.raises(ValueError, match="a bug"):
+        evaluate(None, None, None, traj, None,  # type: ignore[arg-type]
+                 metrics=[fine, Metric("needed", "raises", broken)])

@@ -298,12 +298,20 @@ def test_report_cli(tmp_path):
     assert "hnn_torch" in proc.stdout and (out / "leaderboard.html").exists()
 
 
-@pytest.mark.parametrize("case", ["missing", "empty", "no-arg", "bad-flag"])
+@pytest.mark.parametrize("case", ["missing", "empty", "no-arg", "bad-flag", "corrupt",
+                                  "twice"])
 def test_report_bad_input_is_one_line(case, tmp_path):
     empty = tmp_path / "empty"
     empty.mkdir()
+    corrupt = tmp_path / "corrupt" / "spring" / "mlp_torch" / "seed0"
+    corrupt.mkdir(parents=True)
+    (corrupt / records.RECORD_NAME).write_text("{")
+    for part in ("a", "b"):  # one job in two sweeps: the mean would count it twice
+        write_run(tmp_path / part, "spring", "hnn_torch", 0)
     args = {"missing": [str(tmp_path / "nope")], "empty": [str(empty)], "no-arg": [],
-            "bad-flag": [str(empty), "--bogus"]}[case]
+            "bad-flag": [str(empty), "--bogus"], "corrupt": [str(tmp_path / "corrupt")],
+            "twice": [str(tmp_path / "a"), str(tmp_path / "b"), "--out", str(empty)]}[case]
     needle = {"missing": "does not exist", "empty": "No run records", "no-arg": "DIR",
-              "bad-flag": "--bogus"}[case]
+              "bad-flag": "--bogus", "corrupt": str(corrupt / records.RECORD_NAME),
+              "twice": "seed 0 (quick profile) is recorded twice"}[case]
     assert_one_line_error(hnnbench("report", *args), needle)

@@ -106,6 +106,16 @@ def test_bad_input_console_script(args, needles, tmp_path):
         (["model.hidden=0"], ["model.hidden=0 is invalid"]),
         (["model.hidden=1.5"], ["model.hidden"]),
         (["model.lr=nan"], ["model.lr=nan is invalid"]),
+        (["model.lr=inf"], ["model.lr=inf is invalid"]),
+        (["system.weight_decay=nan"], ["system.weight_decay=nan is invalid"]),
+        (["model=mlp_torch", "model.weight_decay=inf"], ["model.weight_decay=inf is invalid"]),
+        (["evaluation.atol=inf"], ["evaluation.atol=inf is invalid"]),
+        (["system.t_end=inf"], ["system.t_end=inf is invalid"]),
+        (["system.noise_std=nan"], ["system.noise_std=nan is invalid", "finite"]),
+        (["model.name=lnn_torch"], ["model.name", "model=lnn_torch"]),
+        (["system.name=pendulum"], ["system.name", "system=pendulum"]),
+        (["-m", "seed=0,1", "seeds_per_job=2", "seed_batch=[5]"],
+         ["seed_batch", "seeds_per_job"]),
         (["system=pixel_pendulum", "system.dt=0"], ["system.dt=0"]),
         (["system=pixel_pendulum", "system.dt=-0.1"], ["system.dt=-0.1"]),
         (["system.t_end=0"], ["system.t_end=0"]),
@@ -269,6 +279,13 @@ def test_crash_is_failed_with_message_and_traceback(fake_plugins, tmp_path):
     assert records.read_record(tmp_path / "crash" / "result.json")["status"] == "failed"
 
 
+def test_a_crash_during_evaluation_is_failed_not_ok(fake_plugins, tmp_path):
+    rec = _job(tmp_path, "crash", "model=rollout_crash_model")
+    assert rec["status"] == "failed", rec["status"]
+    assert rec["error"] == "RuntimeError: boom: the rollout crashed on purpose"
+    assert "rollout" in rec["traceback"]
+
+
 def test_bad_config_at_job_start_is_failed_not_raised(tmp_path):
     # A launcher hands the job its config; validation at job start records the problem.
     cfg = compose(QUICK)
@@ -295,6 +312,21 @@ def test_resume_skips_finished_and_rerun_redoes(tmp_path):
     assert redone["status"] == "ok"
     assert json.loads((tmp_path / "job" / "result.json").read_text())["timings"] != \
         first["timings"]
+
+
+def test_resume_refuses_a_record_of_other_settings(tmp_path):
+    first = _job(tmp_path, "job", "model=oracle")
+    text = (tmp_path / "job" / "result.json").read_text()
+    # Settings that change what the job computes: not run, the old record kept.
+    for other in ("evaluation.rtol=1e-7", "profile=paper"):
+        rec = _job(tmp_path, "job", "model=oracle", other)
+        assert rec["status"] == "failed", other
+        assert "holds a finished record of other settings" in rec["error"]
+        assert other.split("=")[0] in rec["error"]
+        assert (tmp_path / "job" / "result.json").read_text() == text
+    # Settings that say how the job runs: the record is this job's result.
+    again = _job(tmp_path, "job", "model=oracle", "threads=2", "save_model=false")
+    assert again["created_at"] == first["created_at"]
 
 
 def test_failed_jobs_are_redone_on_resume(fake_plugins, tmp_path):

@@ -29,6 +29,8 @@ from hnnbench.kinematics import Kinematics
 from hnnbench.neural.family import Family
 
 __all__ = [
+    "CC_WEIGHT",
+    "DYNAMICS_WEIGHT",
     "LOG_TEST_POINTS",
     "CanonicalView",
     "PixelView",
@@ -42,6 +44,10 @@ __all__ = [
 #: The pixel test loss logged during training is taken on this many evenly spaced test
 #: points (the whole test set costs as much as ~10 training steps).
 LOG_TEST_POINTS = 1024
+#: Weights of the pixel objective's canonical-coordinates and latent-dynamics terms
+#: (the 2019 paper's; :class:`PixelView`), read by both backends' ``pixel_objective``.
+CC_WEIGHT = 1.0
+DYNAMICS_WEIGHT = 0.1
 #: A time step outside [median / F, median * F] of its trajectory is a gap.
 WINDOW_GAP_FACTOR = 1.5
 

@@ -29,6 +29,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
+from hnnbench import records as R
 from hnnbench import registry
 from hnnbench.report import style
 from hnnbench.table import format_value, metric_declarations, variant_labels
@@ -122,7 +123,7 @@ def runs_for_figures(recs: list[dict[str, Any]]) -> tuple[Optional[int], list[Ru
     """The lowest seed with a rollout file, and each model's run of that seed, in
     registry order."""
     seeds = sorted({int(r["seed"]) for r in recs if r.get("seed") is not None
-                    and r.get("path") and (Path(r["path"]) / "rollout.npz").exists()})
+                    and r.get("path") and (Path(r["path"]) / R.ROLLOUT_NAME).exists()})
     if not seeds:
         return None, []
     seed = seeds[0]
@@ -130,7 +131,7 @@ def runs_for_figures(recs: list[dict[str, Any]]) -> tuple[Optional[int], list[Ru
     for rec in recs:
         if rec.get("seed") != seed or rec.get("status") not in ("ok", "diverged"):
             continue
-        arrays = _load_npz(Path(rec["path"]) / "rollout.npz")
+        arrays = _load_npz(Path(rec["path"]) / R.ROLLOUT_NAME)
         if arrays:
             runs.append(Run(str(rec.get("model")), str(rec.get("backend") or ""),
                             str(rec.get("family") or ""), seed, str(rec.get("status")),

@@ -48,6 +48,10 @@ def load_sweeps(directories: Sequence[Path | str], *, strict: bool = False
         raise ReportError(f"{len(bad)} record(s) unreadable or invalid, e.g. {bad[0]}")
     if not recs:
         where = ", ".join(str(d) for d in directories)
+        if bad:
+            raise ReportError(f"No valid run records under {where}: {len(bad)} "
+                              f"{R.RECORD_NAME} left out, e.g. {bad[0]}; re-run those jobs "
+                              "(a sweep redoes them) or remove the files")
         raise ReportError(
             f"No run records ({R.RECORD_NAME}) under {where}; run a sweep first, e.g. "
             "hnnbench -m system=spring model=all profile=quick"

@@ -18,10 +18,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from hnnbench.neural.init import AE_LAYERS
+from hnnbench.neural.views import CC_WEIGHT, DYNAMICS_WEIGHT
 
 __all__ = [
-    "CC_WEIGHT",
-    "DYNAMICS_WEIGHT",
     "Autoencoder",
     "Dense",
     "MLPNet",
@@ -31,10 +30,6 @@ __all__ = [
     "pixel_objective",
     "symplectic",
 ]
-
-#: Weights of the pixel objective's terms (the paper's).
-CC_WEIGHT = 1.0
-DYNAMICS_WEIGHT = 0.1
 
 _ACTIVATIONS: dict[str, Callable[[jax.Array], jax.Array]] = {
     "tanh": jnp.tanh,

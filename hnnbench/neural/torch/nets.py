@@ -18,10 +18,9 @@ import torch
 import torch.nn.functional as F
 
 from hnnbench.neural.init import AE_LAYERS
+from hnnbench.neural.views import CC_WEIGHT, DYNAMICS_WEIGHT
 
 __all__ = [
-    "CC_WEIGHT",
-    "DYNAMICS_WEIGHT",
     "MLP",
     "Autoencoder",
     "FrozenMLP",
@@ -30,10 +29,6 @@ __all__ = [
     "pixel_objective",
     "symplectic",
 ]
-
-#: Weights of the pixel objective's terms (the paper's).
-CC_WEIGHT = 1.0
-DYNAMICS_WEIGHT = 0.1
 
 
 def symplectic(grad: torch.Tensor) -> torch.Tensor:

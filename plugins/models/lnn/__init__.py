@@ -32,7 +32,7 @@ LNN = Family(
 
 #: The smoke profile: a narrow network (its second derivatives or leapfrog windows make
 #: a step several times the HNN's), so quick jobs stay at seconds.
-QUICK = {"quick": {"hidden": 32, "rollout_max_steps": 5000}}
+QUICK = {"quick": {**NeuralModel.profiles["quick"], "hidden": 32}}
 
 @dataclass
 class LNNConfig(NeuralConfig):

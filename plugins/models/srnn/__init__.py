@@ -41,7 +41,7 @@ SRNN = Family(
 
 #: The smoke profile: a narrow network (its second derivatives or leapfrog windows make
 #: a step several times the HNN's), so quick jobs stay at seconds.
-QUICK = {"quick": {"hidden": 32, "rollout_max_steps": 5000}}
+QUICK = {"quick": {**NeuralModel.profiles["quick"], "hidden": 32}}
 
 @dataclass
 class SRNNConfig(NeuralConfig):
@@ -50,7 +50,7 @@ class SRNNConfig(NeuralConfig):
         substeps: leapfrog steps per observed interval.
     """
 
-    window: int = 5
+    window: int = SRNN.window
     substeps: int = 1
 
     def validate(self) -> None:
