@@ -349,7 +349,7 @@ def _unknown_setting(err: BaseException, overrides: list[str]) -> ConfigError | 
     chosen: dict[str, str] = {}  # the groups chosen on the command line, tried first
     for item in overrides:
         name, sep, value = item.lstrip("+~").partition("=")
-        if sep and name in chosen:
+        if sep and name in ("system", "model"):
             chosen[name] = value
     for kind in ("system", "model"):
         plugins = registry.discover(kind)

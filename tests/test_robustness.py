@@ -139,6 +139,7 @@ def test_bad_input_console_script(args, needles, tmp_path):
         (["+sed=1"], ["Did you mean 'seed'"]),
         (["+system.extra=0"], ["system.extra is not a setting of system 'spring'"]),
         (["+model.hiden=5"], ["model.hiden is not a setting", "Did you mean 'hidden'"]),
+        (["model=hnn_jax", "model.hiden=5"], ["not a setting of model 'hnn_jax'"]),
         (["~system"], ["system is missing"]),
         (["system.steps=${nowhere}"], ["nowhere", "system.steps"]),
         (["cache_dir=${oc.env:HNNBENCH_SURELY_UNSET_VAR}"], ["HNNBENCH_SURELY_UNSET_VAR"]),
