@@ -7,7 +7,7 @@ the system's paper settings (``--steps``; the field only has to be realistic), t
 float64 field is integrated from all evaluation initial states over the evaluation grid
 at the harness tolerances (rtol = atol = 1e-9) by
 
-(a) ``hnnbench.neural.torch.ode.dopri5``: one step size for the whole batch, RMS error
+(a) ``hnnbench.neural.torch._ode.dopri5``: one step size for the whole batch, RMS error
     norm over every component, Hairer's dense output (what the harness uses);
 (b) torchode (``Dopri5`` + ``IntegralController`` + ``AutoDiffAdjoint``): a step size
     per trajectory, its own error norm and interpolation.
@@ -50,10 +50,10 @@ def measure(system_name: str, model_name: str, steps: int, repeats: int
     import torch
     import torchode as to
 
-    from hnnbench import cache
-    from hnnbench.api import Dataset, TrainSettings, Trajectories
-    from hnnbench.config import compose, prepare_job
-    from hnnbench.neural.torch.ode import dopri5
+    from hnnbench import _cache as cache
+    from hnnbench._config import compose, prepare_job
+    from hnnbench._contract import Dataset, TrainSettings, Trajectories
+    from hnnbench.neural.torch._ode import dopri5
 
     job = prepare_job(compose([f"system={system_name}", f"model={model_name}"]))
     system = job.system_cls(job.system_cfg)

@@ -42,10 +42,10 @@ SEEDS = (0, 1, 2)
 def training(system_name: str, model_name: str, steps: int, repeats: int
              ) -> tuple[float, float]:
     """Median seconds of three separate fits and of one batched fit."""
-    from hnnbench import cache
-    from hnnbench.api import Dataset, TrainSettings
-    from hnnbench.config import compose, prepare_job
-    from hnnbench.job import _set_threads
+    from hnnbench import _cache as cache
+    from hnnbench._config import compose, prepare_job
+    from hnnbench._contract import Dataset, TrainSettings
+    from hnnbench._job import _set_threads
 
     _set_threads(1)
     job = prepare_job(compose([f"system={system_name}", f"model={model_name}"]))

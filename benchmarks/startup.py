@@ -28,8 +28,8 @@ BIN = Path(sys.executable).parent
 
 JOB = """
 import sys, pathlib
-from hnnbench.config import compose
-from hnnbench.job import run_job
+from hnnbench._config import compose
+from hnnbench._job import run_job
 overrides = ["system=spring", "model={model}", "profile=quick", "system.steps=20",
              "device=cpu", "save_model=false"]
 record = run_job(compose(overrides), pathlib.Path(sys.argv[1]), overrides=overrides)

@@ -97,7 +97,7 @@ frame.groupby(["system", "model"])["energy_mse"].describe()[["count", "mean", "m
 # from then on it is a model like any other, with every metric computed by the core.
 
 # %%
-from hnnbench.integrate import solve_batch  # noqa: E402
+from hnnbench._integrate import solve_batch  # noqa: E402
 
 
 class Linear(hnnbench.Model):
@@ -126,4 +126,4 @@ board[["system", "model", "status", "test_loss_mean", "energy_mse_mean"]]
 # On the spring the true field *is* linear (`dq/dt = 2p`, `dp/dt = -2q`), so least
 # squares recovers it almost exactly and conserves energy as well as the HNN; on the
 # pendulum (`dp/dt = -3 sin q`) it cannot. `hnnbench report DIR` (or
-# `hnnbench.report.write_report`) turns the same records into the HTML leaderboard.
+# `hnnbench._report.write_report`) turns the same records into the HTML leaderboard.

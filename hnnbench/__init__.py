@@ -1,18 +1,24 @@
 """hnnbench: physics-informed models of dynamics vs plain networks, as a benchmark.
 
-Running things (the ``hnnbench`` command's twins, :mod:`hnnbench.frontend`):
-:func:`run`, :func:`sweep`, :func:`load`, :func:`leaderboard`; :func:`register` adds a
-plugin to this process (a notebook's own model or system).
+This module is hnnbench's public surface; every implementation module is private
+(``hnnbench._name``) and may change without notice.
+
+Running things (the ``hnnbench`` command's twins): :func:`run`, :func:`sweep`,
+:func:`load`, :func:`leaderboard`; :func:`register` adds a plugin to this process (a
+notebook's own model or system).
 
 Writing plugins (docs/PLUGINS.md): :class:`System` and :class:`Model` with their config
 dataclasses, the data containers, kinematics for second-order models, :class:`Metric`
-declarations, the validation helpers and the errors. Neural model families build on
-:mod:`hnnbench.neural`.
+declarations and the :class:`EvalContext` their ``compute`` reads, claim sets
+(:class:`ClaimSet`), the reference integrator (:func:`solve_batch`), measured-data
+lookup (:func:`locate`), the validation helpers and the errors. Neural model families
+build on :mod:`hnnbench.neural`.
 
 Importing hnnbench imports neither torch nor JAX (nor pandas).
 """
 
-from hnnbench.api import (
+from hnnbench._claims import Claim, ClaimSet, Published
+from hnnbench._contract import (
     Dataset,
     FitResult,
     Model,
@@ -28,7 +34,8 @@ from hnnbench.api import (
     check_ordered,
     check_positive,
 )
-from hnnbench.errors import (
+from hnnbench._data import URL_SCHEMES, locate
+from hnnbench._errors import (
     BackendMissingError,
     ConfigError,
     DataError,
@@ -37,24 +44,37 @@ from hnnbench.errors import (
     UnknownNameError,
     UnsupportedPair,
 )
-from hnnbench.frontend import leaderboard, load, run, sweep
-from hnnbench.kinematics import (
+from hnnbench._integrate import VectorField, solve_batch
+from hnnbench._kinematics import (
     Kinematics,
     LinearKinematics,
     MassMatrixKinematics,
     identity_kinematics,
 )
-from hnnbench.metric import CheckRule, Metric
-from hnnbench.registry import register
+from hnnbench._metric import (
+    CheckRule,
+    EvalContext,
+    EvaluationConfig,
+    Metric,
+    per_point_squared_error,
+    sem,
+    summarize,
+)
+from hnnbench._registry import register
+from hnnbench._user_api import leaderboard, load, run, sweep
 
 __version__ = "0.2.0"
 
 __all__ = [
     "BackendMissingError",
     "CheckRule",
+    "Claim",
+    "ClaimSet",
     "ConfigError",
     "DataError",
     "Dataset",
+    "EvalContext",
+    "EvaluationConfig",
     "FitResult",
     "HnnbenchError",
     "Kinematics",
@@ -64,14 +84,17 @@ __all__ = [
     "Model",
     "ModelConfig",
     "Progress",
+    "Published",
     "RolloutDiverged",
     "Split",
     "System",
     "SystemConfig",
     "TrainSettings",
     "Trajectories",
+    "URL_SCHEMES",
     "UnknownNameError",
     "UnsupportedPair",
+    "VectorField",
     "__version__",
     "check_fraction",
     "check_int_at_least",
@@ -80,7 +103,12 @@ __all__ = [
     "identity_kinematics",
     "leaderboard",
     "load",
+    "locate",
+    "per_point_squared_error",
     "register",
     "run",
+    "sem",
+    "solve_batch",
+    "summarize",
     "sweep",
 ]

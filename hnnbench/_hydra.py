@@ -25,7 +25,7 @@ import copy
 from collections.abc import Callable, Iterator
 from typing import Any
 
-from hnnbench.errors import HnnbenchError
+from hnnbench._errors import HnnbenchError
 
 __all__ = ["args_parser", "group_lister", "one_line_errors"]
 

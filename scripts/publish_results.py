@@ -51,7 +51,7 @@ def table_and_provenance(markdown: str) -> tuple[str, str]:
 
 def copy_records(sweeps: list[Path]) -> int:
     """Copy each sweep's records into results/records; returns how many."""
-    from hnnbench import records as R
+    from hnnbench import _records as R
 
     count = 0
     seen: dict[tuple[str, str, int], str] = {}
@@ -89,8 +89,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="figure embedded in README.md (a name under results/figures/)")
     args = parser.parse_args(argv)
 
-    from hnnbench.errors import HnnbenchError
-    from hnnbench.report import write_report
+    from hnnbench._errors import HnnbenchError
+    from hnnbench._report import write_report
 
     copied = copy_records(args.sweeps)
     # Figures need the rollouts, which only the sweeps keep; every published record
@@ -137,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
 def partial_lines(published: set[Path] | list[Path]) -> list[str]:
     """One line per published system that lacks some installed models, naming them
     (``records/<system>/<model>/...`` paths)."""
-    from hnnbench.registry import available
+    from hnnbench._registry import available
 
     models: dict[str, set[str]] = {}
     for path in published:

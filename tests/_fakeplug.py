@@ -19,7 +19,7 @@ DIST = "hnnbench_fakeplug"
 MODULE = '''
 import numpy as np
 
-from hnnbench.api import FitResult, Model, ModelConfig
+from hnnbench._contract import FitResult, Model, ModelConfig
 
 
 class NaNModel(Model):
@@ -54,7 +54,7 @@ class RolloutCrashModel(NaNModel):
 '''
 
 NO_BACKEND = '''
-from hnnbench.errors import require_backend
+from hnnbench._errors import require_backend
 
 require_backend("hnnbench_no_such_backend_xyz", "jax")
 
@@ -90,7 +90,7 @@ def env_for(site: Path) -> dict[str, str]:
 
 def activate(site: Path) -> None:
     """Make the fake plugins visible in this process (undo with :func:`deactivate`)."""
-    from hnnbench import registry
+    from hnnbench import _registry as registry
 
     sys.path.insert(0, str(site))
     registry.refresh()
@@ -99,7 +99,7 @@ def activate(site: Path) -> None:
 def deactivate(site: Path) -> None:
     from hydra.core.config_store import ConfigStore
 
-    from hnnbench import registry
+    from hnnbench import _registry as registry
 
     store = ConfigStore.instance().repo.get("model", {})
     for name in ("nan_model", "crash_model", "needs_backend"):

@@ -1,6 +1,6 @@
 """Synthetic sweep directories for the report and check tests: real ``result.json``
-records (via :func:`hnnbench.records.write_record`) and ``rollout.npz`` arrays in the
-layout that :mod:`hnnbench.job` writes."""
+records (via :func:`hnnbench._records.write_record`) and ``rollout.npz`` arrays in the
+layout that :mod:`hnnbench._job` writes."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from hnnbench import records, registry
+from hnnbench import _records as records
+from hnnbench import _registry as registry
 
 INF = float("inf")
 NAN = float("nan")

@@ -1,4 +1,4 @@
-"""One core per launcher worker (hnnbench.affinity), with real processes and locks."""
+"""One core per launcher worker (hnnbench._affinity), with real processes and locks."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import textwrap
 
 import pytest
 
-from hnnbench import affinity
-from hnnbench.config import compose
-from hnnbench.job import run_job
+from hnnbench import _affinity as affinity
+from hnnbench._config import compose
+from hnnbench._job import run_job
 
 pytestmark = pytest.mark.skipif(
     not hasattr(os, "sched_setaffinity") or len(os.sched_getaffinity(0)) < 2,
@@ -25,7 +25,7 @@ CHILD = textwrap.dedent(
     """
     import os, sys, threading
     from pathlib import Path
-    from hnnbench.affinity import claim_core
+    from hnnbench._affinity import claim_core
     stop = threading.Event()
     early = threading.Thread(target=stop.wait)
     early.start()
@@ -103,7 +103,7 @@ def test_which_jobs_pin(monkeypatch, tmp_path, cli, overrides, pinned):
 
 
 def test_the_cli_flag_does_not_outlive_an_in_process_run(monkeypatch, capsys):
-    from hnnbench.cli import run
+    from hnnbench._cli import run
 
     monkeypatch.delenv(affinity.CLI_ENV, raising=False)
     assert run(["--cfg", "job", "system=spring", "model=oracle"]) == 0

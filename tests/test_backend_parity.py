@@ -2,8 +2,8 @@
 and minibatches -> same training curve and same rollouts.
 
 Both backends build their seeded initial weights from the same numpy draws
-(:func:`hnnbench.neural.init.init_arrays`) and draw minibatches from the same
-stream (:class:`~hnnbench.neural.init.BatchStream`). Here they train in
+(:func:`hnnbench.neural._init.init_arrays`) and draw minibatches from the same
+stream (:class:`~hnnbench.neural._init.BatchStream`). Here they train in
 float64 on the spring training set (750 points, paper architecture), full batch and
 minibatch, and log every step.
 """
@@ -21,9 +21,9 @@ import jax.numpy as jnp  # noqa: E402
 import optax  # noqa: E402
 import torch  # noqa: E402
 
-from hnnbench.api import Dataset, TrainSettings  # noqa: E402
-from hnnbench.errors import RolloutDiverged  # noqa: E402
-from hnnbench.neural import NeuralConfig  # noqa: E402
+from hnnbench._contract import Dataset, TrainSettings  # noqa: E402
+from hnnbench._errors import RolloutDiverged  # noqa: E402
+from hnnbench.neural import NeuralConfig
 from hnnbench_plugins.models.dhnn import DHNNJax, DHNNTorch  # noqa: E402
 from hnnbench_plugins.models.hnn import HNNJax, HNNTorch  # noqa: E402
 from hnnbench_plugins.models.lnn import LNNJax, LNNTorch  # noqa: E402

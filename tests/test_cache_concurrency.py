@@ -20,8 +20,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from hnnbench import cache
-from hnnbench.api import Dataset, Trajectories
+from hnnbench import _cache as cache
+from hnnbench._contract import Dataset, Trajectories
 
 #: The entries raced for, one race each: (kind, seed).
 RACES = (("dataset", 0), ("evaluation", 0), ("dataset", 1))

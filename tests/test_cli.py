@@ -7,7 +7,7 @@ import json
 import pytest
 from conftest import assert_one_line_error, hnnbench
 
-from hnnbench.cli import plan
+from hnnbench._cli import plan
 
 
 def test_list_names_builtins():
@@ -39,7 +39,7 @@ def test_bad_input_is_one_clean_line(args, needles, tmp_path):
 
 
 def test_all_expands_to_every_registered_plugin():
-    from hnnbench import registry
+    from hnnbench import _registry as registry
 
     p = plan(["-m", "system=all", "model=all", "seed=0,1"])
     systems = registry.available("system")

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from hnnbench.api import TrainSettings
-from hnnbench.config import compose, prepare_job
-from hnnbench.errors import ConfigError
+from hnnbench._config import compose, prepare_job
+from hnnbench._contract import TrainSettings
+from hnnbench._errors import ConfigError
 
 
 def test_defaults_are_paper_settings():
@@ -68,8 +68,8 @@ def test_bad_overrides_fail_at_compose(override, needle):
 
 
 def test_job_directory_names_leave_out_exactly_the_run_only_keys():
-    from hnnbench.records import RUN_ONLY_KEYS
-    from hnnbench.table import NON_VARIANT_KEYS
+    from hnnbench._records import RUN_ONLY_KEYS
+    from hnnbench._table import NON_VARIANT_KEYS
 
     cfg = compose([], return_hydra_config=True)
     excluded = set(cfg.hydra.job.config.override_dirname.exclude_keys)

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from conftest import QUICK_ORACLE_BOUND, hnnbench
 
-from hnnbench import registry
+from hnnbench import _registry as registry
 
 pytestmark = pytest.mark.slow
 

@@ -8,8 +8,9 @@ import os
 
 import pytest
 
-from hnnbench import _hydra, launch
-from hnnbench.errors import HnnbenchError
+from hnnbench import _hydra
+from hnnbench import _launch as launch
+from hnnbench._errors import HnnbenchError
 
 
 def test_args_parser_is_hydras_with_its_flags():

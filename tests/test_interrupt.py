@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from hnnbench import records
+from hnnbench import _records as records
 
 pytestmark = pytest.mark.slow
 

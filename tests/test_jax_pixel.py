@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hnnbench.api import TrainSettings
+from hnnbench._contract import TrainSettings
 from hnnbench_plugins.systems.pixel_pendulum import PixelPendulum, PixelPendulumConfig
 
 pytest.importorskip("jax")
@@ -100,8 +100,8 @@ def test_jax_pixel_save_load_round_trip(tiny, tmp_path, name):
 
 
 def test_jax_pixel_end_to_end(tmp_path):
-    from hnnbench.config import compose
-    from hnnbench.job import run_job
+    from hnnbench._config import compose
+    from hnnbench._job import run_job
 
     # the fixture's data, network and chunk shapes: the compiled steps and solver are reused
     overrides = ["system=pixel_pendulum", "model=hnn_jax", "profile=quick", "system.steps=21",

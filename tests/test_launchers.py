@@ -29,11 +29,11 @@ pytestmark = pytest.mark.slow
 SWEEP = ("-m", "system=spring,pendulum", "model=mlp_torch,hnn_torch,hnn_jax", "profile=quick",
          "seed=0", "system.steps=100", "system.eval_t_end=5")
 #: hnn_jax is in because XLA's results depend on its thread count: every launcher's jobs
-#: pin their process to one core (hnnbench.affinity), so XLA runs one thread everywhere.
+#: pin their process to one core (hnnbench._affinity), so XLA runs one thread everywhere.
 KEYS = {(s, m, 0) for s in ("spring", "pendulum") for m in ("mlp_torch", "hnn_torch", "hnn_jax")}
 N = len(KEYS)
 #: Relative tolerance of the metric comparison: none. Every job evaluates on arrays
-#: as loaded from the dataset cache, whoever built them (hnnbench.cache.cached).
+#: as loaded from the dataset cache, whoever built them (hnnbench._cache.cached).
 RTOL = 0.0
 LAUNCHERS: dict[str, tuple[str, ...]] = {
     "basic": (),
@@ -103,7 +103,7 @@ def test_sweep_completes_with_summary(sweeps: Sweeps, launcher: str) -> None:
         assert rec["status"] == "ok", (launcher, key, rec["error"])
         assert set(rec["timings"]) >= {"data_s", "fit_s", "eval_s", "total_s", "cpu_s"}
         assert rec["timings"]["cpu_s"] > 0
-    # Every launcher's jobs pin their process to a core (hnnbench.affinity).
+    # Every launcher's jobs pin their process to a core (hnnbench._affinity).
     pins = {rec.get("cpu_pin") for rec in recs.values()}
     if hasattr(os, "sched_getaffinity") and len(os.sched_getaffinity(0)) > 1:
         assert None not in pins and pins <= set(os.sched_getaffinity(0)), pins
@@ -139,7 +139,7 @@ def test_launchers_reproduce_the_basic_sweep(sweeps: Sweeps, launcher: str) -> N
     Two things make that hold: every job evaluates on arrays as loaded from the dataset
     cache, whichever job built them (a freshly built array can be a transposed view, and
     numpy sums in memory order), and every job's process is pinned to one core, so XLA
-    runs one thread whatever the launcher (hnnbench.affinity).
+    runs one thread whatever the launcher (hnnbench._affinity).
     """
     _assert_same_records(sweeps, launcher, KEYS)
 

@@ -10,8 +10,8 @@ import pytest
 
 NO_BACKEND = """
 import sys
-from hnnbench import cli, registry
-from hnnbench.config import compose, prepare_job
+from hnnbench import _cli as cli, _registry as registry
+from hnnbench._config import compose, prepare_job
 cli.cmd_list([])
 for model in registry.available("model"):
     prepare_job(compose(["system=spring", f"model={model}"]))
@@ -21,8 +21,8 @@ print("IMPORTED", "torch" in sys.modules, "jax" in sys.modules)
 
 JOB = """
 import sys, pathlib
-from hnnbench.config import compose
-from hnnbench.job import run_job
+from hnnbench._config import compose
+from hnnbench._job import run_job
 overrides = ["system=spring", "model={model}", "profile=quick", "system.steps=10",
              "device=cpu", "save_model=false", "system.eval_n_points=10"]
 record = run_job(compose(overrides), pathlib.Path(sys.argv[1]), overrides=overrides)
@@ -46,7 +46,7 @@ def test_reporting_imports_no_backend(tmp_path):
     from report_fixtures import make_sweep
 
     sweep = make_sweep(tmp_path / "sweep")
-    code = ("import sys\nfrom hnnbench.report import write_report\n"
+    code = ("import sys\nfrom hnnbench._report import write_report\n"
             f"write_report({str(sweep)!r}, {str(tmp_path / 'out')!r})\n"
             "print('IMPORTED', 'torch' in sys.modules, 'jax' in sys.modules)\n")
     assert _imported(code) == ["False", "False"]

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from hnnbench import metrics as M
-from hnnbench.integrate import solve_batch
+from hnnbench._integrate import solve_batch
+from hnnbench_plugins import metrics as M
 
 
 def test_mse_and_per_point():
@@ -51,9 +51,9 @@ def test_reference_solver_closes_a_spring_period():
 
 
 def test_an_optional_metric_that_raises_is_recorded_a_required_one_fails_the_job():
-    from hnnbench.api import Trajectories
-    from hnnbench.evaluate import evaluate
-    from hnnbench.metric import Metric
+    from hnnbench._contract import Trajectories
+    from hnnbench._evaluate import evaluate
+    from hnnbench._metric import Metric
 
     def broken(ctx):
         raise ValueError("a bug")

@@ -1,4 +1,4 @@
-"""hnnbench.paths: the cache root and data directories (override > environment >
+"""hnnbench._paths: the cache root and data directories (override > environment >
 default), the overrides reaching every cache, and the one SHA-256 helper."""
 
 from __future__ import annotations
@@ -16,7 +16,9 @@ import platformdirs
 import pytest
 from conftest import shared_data_dir
 
-from hnnbench import cache, data, paths
+from hnnbench import _cache as cache
+from hnnbench import _data as data
+from hnnbench import _paths as paths
 
 FILENAME = "real_pend_h_1.txt"
 SHA256 = "45d92988198b89a5933f5a53e67aa819d06937516f71a462ac09e1307d8b3411"
@@ -182,8 +184,8 @@ def test_data_dir_is_named_where_it_looked(tmp_path):
 @needs_data
 def test_job_settings_reach_data_and_dataset_caches(tmp_path, tmp_path_factory):
     """A job's cache_dir and data_dir settings move every cache it uses."""
-    from hnnbench.config import compose
-    from hnnbench.job import run_job
+    from hnnbench._config import compose
+    from hnnbench._job import run_job
 
     site = _fakeplug.install(tmp_path_factory.mktemp("fakeplug"))
     _fakeplug.activate(site)
@@ -208,7 +210,7 @@ def test_paths_and_data_import_nothing_heavy():
     pooch or requests (pooch is imported on the first download)."""
     code = (
         "import sys, hnnbench; before = set(sys.modules); "
-        "import hnnbench.paths, hnnbench.data; "
+        "import hnnbench._paths, hnnbench._data; "
         "new = {m.split('.')[0] for m in set(sys.modules) - before}; "
         "bad = new & {'numpy', 'torch', 'jax', 'pooch', 'requests', 'platformdirs'}; "
         "assert not bad, bad"

@@ -7,8 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hnnbench.api import TrainSettings
-from hnnbench.errors import ConfigError
+from hnnbench._contract import TrainSettings
+from hnnbench._errors import ConfigError
 from hnnbench_plugins.systems.pendulum import Pendulum, PendulumConfig
 from hnnbench_plugins.systems.pixel_pendulum import (
     PixelPendulum,

@@ -12,9 +12,9 @@ import pandas as pd
 import pytest
 from conftest import REPO, hnnbench
 
-from hnnbench import records
-from hnnbench.registry import available
-from hnnbench.table import leaderboard
+from hnnbench import _records as records
+from hnnbench._registry import available
+from hnnbench._table import leaderboard
 
 RESULTS = REPO / "results"
 RECORDS = RESULTS / "records"

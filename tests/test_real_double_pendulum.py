@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from conftest import shared_data_dir
 
-from hnnbench.errors import ConfigError, DataError
+from hnnbench._errors import ConfigError, DataError
 from hnnbench_plugins.systems.real_double_pendulum import (
     FILENAME,
     SHA256,
@@ -159,7 +159,7 @@ def test_split_sizes_and_order(raw):
 def test_srnn_windows_are_continuous_in_the_angles():
     """With wrapped angles, the windows the SRNN trains on are unwrapped: no step jumps
     by 2π, and each window is the raw (unwrapped) data shifted by whole turns."""
-    from hnnbench.neural.views import trajectory_windows
+    from hnnbench.neural._views import trajectory_windows
 
     wrapped, raw_sys = make(), make(wrap_angles=False)
     assert wrapped.wrapped_angles == (0, 1) and raw_sys.wrapped_angles == ()

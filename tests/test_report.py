@@ -12,9 +12,11 @@ import pytest
 from conftest import assert_one_line_error, hnnbench
 from report_fixtures import INF, make_sweep, seed_metrics, set_status, write_run
 
-from hnnbench import claims as C
-from hnnbench import records, report
-from hnnbench.table import format_value, leaderboard
+from hnnbench import _claims as C
+from hnnbench import _records as records
+from hnnbench import _registry as registry
+from hnnbench import _report as report
+from hnnbench._table import format_value, leaderboard
 
 METRICS = ("train_loss", "test_loss", "energy_mse", "rollout_mse", "reversibility_error",
            "time_reversal_error", "valid_prediction_time")
@@ -142,7 +144,7 @@ def test_diverged_pair_is_shown_as_diverged_with_inf_never_dropped(tmp_path):
 def test_a_training_set_size_sweep_draws_the_data_efficiency_figure(tmp_path):
     """`system.n_traj=10,25,50` gives one figure per system: each declared data-efficiency
     metric against n_traj, one line per model, one point per size."""
-    from hnnbench.report.figures import sweep_figures
+    from hnnbench._report.figures import sweep_figures
 
     sweep = tmp_path / "s"
     for n in (10, 25, 50):
@@ -204,8 +206,8 @@ def test_paper_table_is_in_natural_units_and_complete():
 
 def test_every_claim_holds_on_the_papers_own_numbers():
     results = report.paper_claim_ratios()
-    assert {c.id for c in C.all_claims() if c.id in results} == set(results)
-    assert {c.id for cs in C.claim_sets() if cs.published for c in cs.claims} == set(results)
+    assert {c.id for c in registry.all_claims() if c.id in results} == set(results)
+    assert {c.id for cs in registry.claim_sets() if cs.published for c in cs.claims} == set(results)
     for res in results.values():
         assert res.outcome == C.REPRODUCED, (res.claim.text, res.ratio)
 
@@ -236,13 +238,14 @@ def test_claims_are_evaluated_per_backend_pair():
         ("spring", "mlp_torch", "energy_mse"): 1e-2, ("spring", "hnn_torch", "energy_mse"): 1e-5,
         ("spring", "mlp_jax", "energy_mse"): 1e-2, ("spring", "hnn_jax", "energy_mse"): 1e-3,
     }
-    claim = next(c for c in C.all_claims() if c.id == "spring.energy_mse.hnn_100x_lower")
-    res = {r.backend: r for r in C.evaluate_claims(_lookup(values), [claim])}
+    claim = next(c for c in registry.all_claims() if c.id == "spring.energy_mse.hnn_100x_lower")
+    res = {r.backend: r for r in C.evaluate_claims(_lookup(values), [claim],
+                                                  registry.family_models())}
     assert res["torch"].outcome == C.REPRODUCED and res["torch"].ratio == pytest.approx(1000)
     assert res["jax"].outcome == C.NOT_REPRODUCED and res["jax"].ratio == pytest.approx(10)
     assert "need >= 100x" in res["jax"].numbers()
     # No pair at all: one "not run" entry.
-    (none,) = C.evaluate_claims(_lookup({}), [claim])
+    (none,) = C.evaluate_claims(_lookup({}), [claim], registry.family_models())
     assert none.outcome == C.NOT_RUN and none.backend == "-"
 
 
@@ -262,7 +265,7 @@ def test_claims_are_evaluated_per_backend_pair():
     ],
 )
 def test_claim_judgement(claim_id, baseline, hnn, outcome):
-    claim = next(c for c in C.all_claims() if c.id == claim_id)
+    claim = next(c for c in registry.all_claims() if c.id == claim_id)
     assert claim.judge(baseline, hnn)[0] == outcome
 
 

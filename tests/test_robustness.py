@@ -20,18 +20,19 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from omegaconf import OmegaConf
 
-from hnnbench import records, registry
-from hnnbench.cli import plan
-from hnnbench.cli import run as cli_run
-from hnnbench.config import compose, prepare_job
-from hnnbench.errors import HnnbenchError
-from hnnbench.job import run_job
+from hnnbench import _records as records
+from hnnbench import _registry as registry
+from hnnbench._cli import plan
+from hnnbench._cli import run as cli_run
+from hnnbench._config import compose, prepare_job
+from hnnbench._errors import HnnbenchError
+from hnnbench._job import run_job
 
 QUICK = ["profile=quick", "system.steps=20"]
 
 
 def run_inprocess(argv: list[str]) -> tuple[int, str, str]:
-    """``hnnbench.cli.run(argv)`` with stdout and stderr captured."""
+    """``hnnbench._cli.run(argv)`` with stdout and stderr captured."""
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         code = cli_run(list(argv))
@@ -206,9 +207,9 @@ def test_subcommand_import_problems_are_one_line(monkeypatch):
     real = importlib.import_module
 
     def broken(name, *args, **kwargs):
-        if name == "hnnbench.report":
+        if name == "hnnbench._report":
             raise RuntimeError("numpy.core.multiarray failed to import\nsecond line")
-        if name == "hnnbench.check":
+        if name == "hnnbench._check":
             raise ModuleNotFoundError("No module named 'pandas'", name="pandas")
         return real(name, *args, **kwargs)
 
@@ -222,13 +223,13 @@ def test_subcommand_import_problems_are_one_line(monkeypatch):
 def test_subcommand_errors_are_one_line(monkeypatch):
     import types
 
-    module = types.ModuleType("hnnbench.report")
+    module = types.ModuleType("hnnbench._report")
 
     def main(args):
         raise HnnbenchError("Sweep directory\n  nowhere does not exist")
 
     module.main = main  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "hnnbench.report", module)
+    monkeypatch.setitem(sys.modules, "hnnbench._report", module)
     code, _, err = run_inprocess(["report", "nowhere"])
     assert_clean(code, err, "Sweep directory nowhere does not exist")
     module.main = lambda args: {}["bug"]  # type: ignore[attr-defined]
@@ -372,8 +373,8 @@ def test_records_serialise_numpy_and_non_finite(tmp_path):
 
 
 def test_cache_write_is_atomic(tmp_path, monkeypatch):
-    from hnnbench import cache
-    from hnnbench.api import Dataset
+    from hnnbench import _cache as cache
+    from hnnbench._contract import Dataset
 
     cfg = compose(QUICK)
     job = prepare_job(cfg)

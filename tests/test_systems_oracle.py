@@ -7,9 +7,9 @@ from __future__ import annotations
 import pytest
 from conftest import QUICK_ORACLE_BOUND
 
-from hnnbench import registry
-from hnnbench.config import compose
-from hnnbench.job import run_job
+from hnnbench import _registry as registry
+from hnnbench._config import compose
+from hnnbench._job import run_job
 
 SIMULATED = ["double_pendulum", "damped_spring", "damped_pendulum", "spring_chain"]
 #: Energy and rollout MSE bounds by profile.

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
-from hnnbench.config import compose
-from hnnbench.job import run_job
+from hnnbench._config import compose
+from hnnbench._job import run_job
 
 
 def _blas_threads() -> set[int]:
@@ -38,7 +38,7 @@ def test_initial_weights_do_not_depend_on_the_blas_thread_count():
     """OpenBLAS's threaded QR differs from its one-thread QR in the last bits (on this
     project's 2-core machines, for these shapes); the orthogonal init must not, or a
     job's ``threads`` setting would move sensitive runs into another basin."""
-    from hnnbench.neural.init import orthogonal
+    from hnnbench.neural._init import orthogonal
 
     shapes = [(200, 200), (784, 200), (200, 784), (1568, 200)]
 

@@ -9,8 +9,8 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from hnnbench.neural import NeuralConfig  # noqa: E402
-from hnnbench.neural.init import init_arrays  # noqa: E402
-from hnnbench.neural.torch.nets import MLP, FrozenMLP  # noqa: E402
+from hnnbench.neural._init import init_arrays  # noqa: E402
+from hnnbench.neural.torch._nets import MLP, FrozenMLP  # noqa: E402
 
 
 def make(d_in: int, d_out: int, cfg: NeuralConfig, seed: int = 0

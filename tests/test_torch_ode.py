@@ -9,7 +9,7 @@ torch = pytest.importorskip("torch")
 
 from scipy.integrate import solve_ivp  # noqa: E402
 
-from hnnbench.neural.torch.ode import SolverGaveUp, dopri5  # noqa: E402
+from hnnbench.neural.torch._ode import SolverGaveUp, dopri5  # noqa: E402
 
 
 def pendulum(y: torch.Tensor) -> torch.Tensor:

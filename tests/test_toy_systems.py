@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hnnbench.config import compose, prepare_job
-from hnnbench.errors import ConfigError
+from hnnbench._config import compose, prepare_job
+from hnnbench._errors import ConfigError
 from hnnbench_plugins.systems.pendulum import Pendulum, PendulumConfig
 from hnnbench_plugins.systems.spring import Spring, SpringConfig
 

@@ -7,11 +7,12 @@ import pandas as pd
 import pytest
 from report_fixtures import write_run
 
-from hnnbench import check, report
-from hnnbench.records import load_records
-from hnnbench.report.figures import slug
-from hnnbench.report.published import ours_cell
-from hnnbench.table import leaderboard, records_frame, summary_frame, variant_labels
+from hnnbench import _check as check
+from hnnbench import _report as report
+from hnnbench._records import load_records
+from hnnbench._report.figures import slug
+from hnnbench._report.published import ours_cell
+from hnnbench._table import leaderboard, records_frame, summary_frame, variant_labels
 
 
 def test_a_variant_is_the_overrides_that_differ_between_runs():

@@ -2,15 +2,15 @@
 
 A model family is declared once (:class:`Family`) and implemented in one small module
 per backend; its entry-point classes subclass :class:`NeuralModel`. The training loop
-(:mod:`hnnbench.neural.loop`), seeded initial weights (:mod:`hnnbench.neural.init`),
+(:mod:`hnnbench.neural._loop`), seeded initial weights (:mod:`hnnbench.neural._init`),
 float64 rollouts, pixel autoencoders and second-order coordinates
-(:mod:`hnnbench.neural.views`) and weight files are shared. Backends
+(:mod:`hnnbench.neural._views`) and weight files are shared. Backends
 (:mod:`hnnbench.neural.torch`, :mod:`hnnbench.neural.jax`) are imported only when a
 model is built. docs/MODELS.md ("Adding a family") shows a new family in a few lines.
 """
 
-from hnnbench.neural.config import NeuralConfig
-from hnnbench.neural.family import Family
-from hnnbench.neural.model import NeuralModel
+from hnnbench.neural._config import NeuralConfig
+from hnnbench.neural._family import Family
+from hnnbench.neural._model import NeuralModel
 
 __all__ = ["Family", "NeuralConfig", "NeuralModel"]

@@ -18,7 +18,7 @@ import csv
 import math
 from importlib import resources
 
-from hnnbench.claims import Claim, ClaimSet, Published
+from hnnbench import Claim, ClaimSet, Published
 
 PAPER_2019 = "Greydanus, Dzamba & Yosinski, Hamiltonian Neural Networks, NeurIPS 2019"
 README_2019 = "README (greydanus/hamiltonian-nn)"

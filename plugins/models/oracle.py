@@ -6,8 +6,16 @@ from typing import Optional
 
 import numpy as np
 
-from hnnbench.api import Dataset, FitResult, Model, ModelConfig, Progress, System, TrainSettings
-from hnnbench.integrate import solve_batch
+from hnnbench import (
+    Dataset,
+    FitResult,
+    Model,
+    ModelConfig,
+    Progress,
+    System,
+    TrainSettings,
+    solve_batch,
+)
 
 
 class Oracle(Model):

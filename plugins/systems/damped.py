@@ -26,8 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hnnbench.api import check_positive
-from hnnbench.integrate import solve_batch
+from hnnbench import check_positive, solve_batch
 from hnnbench_plugins.systems.pendulum import Pendulum, PendulumConfig
 from hnnbench_plugins.systems.spring import Spring, SpringConfig
 from hnnbench_plugins.systems.toy import ToySystem

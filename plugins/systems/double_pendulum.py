@@ -54,20 +54,22 @@ from typing import Any, ClassVar, Optional
 
 import numpy as np
 
-from hnnbench.api import (
+from hnnbench import (
+    ConfigError,
     Dataset,
+    Kinematics,
+    MassMatrixKinematics,
     Split,
     System,
     SystemConfig,
     Trajectories,
+    VectorField,
     check_fraction,
     check_int_at_least,
     check_ordered,
     check_positive,
+    solve_batch,
 )
-from hnnbench.errors import ConfigError
-from hnnbench.integrate import VectorField, solve_batch
-from hnnbench.kinematics import Kinematics, MassMatrixKinematics
 
 __all__ = [
     "LYAPUNOV_TIME",

@@ -67,8 +67,12 @@ from typing import Any, ClassVar
 import numpy as np
 import rebound
 
-from hnnbench.api import (
+from hnnbench import (
+    ConfigError,
+    DataError,
     Dataset,
+    Kinematics,
+    LinearKinematics,
     Split,
     System,
     SystemConfig,
@@ -78,8 +82,6 @@ from hnnbench.api import (
     check_ordered,
     check_positive,
 )
-from hnnbench.errors import ConfigError, DataError
-from hnnbench.kinematics import Kinematics, LinearKinematics
 
 __all__ = [
     "INITS",

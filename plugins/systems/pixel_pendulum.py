@@ -26,7 +26,7 @@ Data (the paper's protocol):
   latents then cannot be linear in (q, p), so the linear probe of the evaluation fails:
   the HNN's probe R^2 was 0.3 for q after 2000 steps. The energy MSE then measures the
   probe, not the dynamics. Set ``system.radius_min=1.3 system.radius_max=2.3`` to get
-  those radii. Integrated with :func:`hnnbench.integrate.solve_batch` (DOP853,
+  those radii. Integrated with :func:`hnnbench.solve_batch` (DOP853,
   ``data_rtol``).
 - ``dt = 0.1`` by default: a phase advance of sqrt(6) * 0.1 = 0.245 rad per frame (the
   original's gym frames: sqrt(15) * 0.05 = 0.19), ~26 frames per period, 103 frames cover
@@ -59,7 +59,8 @@ from typing import Optional
 
 import numpy as np
 
-from hnnbench.api import (
+from hnnbench import (
+    ConfigError,
     Dataset,
     Split,
     System,
@@ -69,9 +70,8 @@ from hnnbench.api import (
     check_int_at_least,
     check_ordered,
     check_positive,
+    solve_batch,
 )
-from hnnbench.errors import ConfigError
-from hnnbench.integrate import solve_batch
 from hnnbench_plugins.systems.pendulum import Pendulum, PendulumConfig
 
 #: Seed-stream tags, so data and evaluation draws never overlap.

@@ -11,7 +11,7 @@ dt = 0.01 s with dropped frames (85 gaps of 0.02-0.19 s). θ1 and θ2 are each r
 angle from the downward vertical (not the angle between the rods: fitting the
 equations of motion both ways leaves relative residuals of 25-27% with absolute angles
 and 86-87% with relative ones), unwrapped: in trial 1 both rods rotate many turns. The file is
-found by :func:`hnnbench.data.locate` (``data_path``, ``$HNNBENCH_DATA_DIR``, the cache,
+found by :func:`hnnbench.locate` (``data_path``, ``$HNNBENCH_DATA_DIR``, the cache,
 then ``url``) and checked against its SHA-256; no live public URL is known (docs/DATA.md).
 
 Protocol:
@@ -49,9 +49,16 @@ from typing import Any, Optional
 import numpy as np
 from scipy.optimize import least_squares
 
-from hnnbench.api import Dataset, Split, SystemConfig, Trajectories
-from hnnbench.errors import ConfigError, DataError
-from hnnbench.kinematics import Kinematics, identity_kinematics
+from hnnbench import (
+    ConfigError,
+    DataError,
+    Dataset,
+    Kinematics,
+    Split,
+    SystemConfig,
+    Trajectories,
+    identity_kinematics,
+)
 from hnnbench_plugins.systems.double_pendulum import wrap_angle
 from hnnbench_plugins.systems.real_pendulum import MeasuredTableSystem, RealPendulumConfig
 
@@ -465,7 +472,7 @@ def stand_still_scores(system: RealDoublePendulum, seed: int = 0) -> dict[str, f
     """The rollout and energy MSE of a "model" that predicts no motion, ``x̂(t) = x(0)``,
     on the evaluation chunks: the floor a learned rollout must beat to show that it
     predicts anything (the chunks are short)."""
-    from hnnbench.metrics import energy_error_per_traj, rollout_error_per_traj
+    from hnnbench_plugins.metrics import energy_error_per_traj, rollout_error_per_traj
 
     states = system.evaluation(seed).states  # (M, T, 4)
     still = np.repeat(states[:, :1], states.shape[1], axis=1)

@@ -3,7 +3,7 @@
 Data file: ``real_pend_h_1.txt`` from the supplement of M. Schmidt and H. Lipson,
 "Distilling free-form natural laws from experimental data", Science 324:81 (2009).
 Header ``%o v``, then 556 rows ``trial t theta omega`` (CRLF line endings), sampled at
-dt = 1/6 s with a few gaps. It is found by :func:`hnnbench.data.locate` (``data_path``,
+dt = 1/6 s with a few gaps. It is found by :func:`hnnbench.locate` (``data_path``,
 ``$HNNBENCH_DATA_DIR``, the cache, then ``url``) and checked against its SHA-256. The
 paper's download URL is dead and no live public mirror is known, so ``url`` defaults
 to ``None``; see docs/DATA.md.
@@ -38,10 +38,19 @@ from typing import Any, ClassVar, Optional
 
 import numpy as np
 
-from hnnbench.api import Dataset, Split, System, SystemConfig, Trajectories
-from hnnbench.data import URL_SCHEMES, locate
-from hnnbench.errors import ConfigError, DataError
-from hnnbench.kinematics import Kinematics, identity_kinematics
+from hnnbench import (
+    URL_SCHEMES,
+    ConfigError,
+    DataError,
+    Dataset,
+    Kinematics,
+    Split,
+    System,
+    SystemConfig,
+    Trajectories,
+    identity_kinematics,
+    locate,
+)
 
 #: The file's name in the Schmidt & Lipson data set.
 FILENAME = "real_pend_h_1.txt"
@@ -175,7 +184,7 @@ class MeasuredTableSystem(System):
     """Base of the systems whose data is one checksummed table of measured trials, one
     row per sample: ``trial, t, ...`` (the real pendulum, the real double pendulum).
 
-    It locates and verifies the file (:func:`hnnbench.data.locate`), finds its sampling
+    It locates and verifies the file (:func:`hnnbench.locate`), finds its sampling
     interval, gaps and train/test boundary (:meth:`_structure`), and cuts the test
     segment into gap-free evaluation chunks (:meth:`_chunks`). A subclass sets
     ``data_file``, ``data_sha256`` and ``parse`` (path -> ``(rows, columns)`` array);

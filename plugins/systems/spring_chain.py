@@ -30,8 +30,10 @@ from typing import Any, ClassVar, Optional
 
 import numpy as np
 
-from hnnbench.api import (
+from hnnbench import (
+    ConfigError,
     Dataset,
+    Kinematics,
     Split,
     System,
     SystemConfig,
@@ -40,10 +42,9 @@ from hnnbench.api import (
     check_int_at_least,
     check_ordered,
     check_positive,
+    identity_kinematics,
+    solve_batch,
 )
-from hnnbench.errors import ConfigError
-from hnnbench.integrate import solve_batch
-from hnnbench.kinematics import Kinematics, identity_kinematics
 
 __all__ = [
     "SpringChain",

@@ -27,8 +27,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hnnbench.api import (
+from hnnbench import (
+    ConfigError,
     Dataset,
+    Kinematics,
+    LinearKinematics,
     Split,
     System,
     SystemConfig,
@@ -37,10 +40,8 @@ from hnnbench.api import (
     check_int_at_least,
     check_ordered,
     check_positive,
+    solve_batch,
 )
-from hnnbench.errors import ConfigError
-from hnnbench.integrate import solve_batch
-from hnnbench.kinematics import Kinematics, LinearKinematics
 
 #: Seed-stream tags, so data and evaluation draws never overlap.
 DATA_STREAM = 0

@@ -10,12 +10,12 @@ torch's, compiled training chunks, diffrax rollouts.
 - Rollouts use diffrax (Dopri5, PID step-size control) in float64. The batch of
   initial states is integrated as one system (one step-size sequence, error norm over
   the whole batch), as the torch backend does. A solve that stops early raises
-  :class:`~hnnbench.errors.RolloutDiverged`; nothing is silently truncated.
+  :class:`~hnnbench._errors.RolloutDiverged`; nothing is silently truncated.
 
 Importing this module enables 64-bit floats in JAX (``jax_enable_x64``), which float64
 rollouts need; training runs in ``cfg.dtype`` (parameters and data cast explicitly).
 It also turns on JAX's persistent compilation cache in ``<cache root>/jax-compilation``
-(:func:`hnnbench.paths.cache_root`, which a job's ``cache_dir`` moves), unless
+(:func:`hnnbench._paths.cache_root`, which a job's ``cache_dir`` moves), unless
 ``JAX_COMPILATION_CACHE_DIR`` names
 another place or ``JAX_ENABLE_COMPILATION_CACHE=false`` turns it off. For the rollout
 to be cacheable it must hold no host callbacks, so equinox's in-graph error checks
@@ -42,21 +42,22 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import optax  # noqa: E402
 
-from hnnbench import paths  # noqa: E402
-from hnnbench.api import TrainSettings  # noqa: E402
-from hnnbench.errors import ConfigError, RolloutDiverged  # noqa: E402
-from hnnbench.neural.backend import Weights  # noqa: E402
-from hnnbench.neural.config import NeuralConfig  # noqa: E402
-from hnnbench.neural.family import Family  # noqa: E402
-from hnnbench.neural.jax.nets import (  # noqa: E402
+from hnnbench import _paths as paths
+from hnnbench._contract import TrainSettings  # noqa: E402
+from hnnbench._errors import ConfigError, RolloutDiverged  # noqa: E402
+from hnnbench.neural._backend import Weights  # noqa: E402
+from hnnbench.neural._config import NeuralConfig  # noqa: E402
+from hnnbench.neural._family import Family  # noqa: E402
+from hnnbench.neural._views import Problem  # noqa: E402
+from hnnbench.neural.jax._nets import (  # noqa: E402
     Nets,
     nets_from_weights,
     nets_to_weights,
     pixel_objective,
+    symplectic,
 )
-from hnnbench.neural.views import Problem  # noqa: E402
 
-__all__ = ["JaxBackend", "adam_like_torch", "device_name", "resolve_device"]
+__all__ = ["JaxBackend", "Nets", "adam_like_torch", "device_name", "resolve_device", "symplectic"]
 
 jax.config.update("jax_enable_x64", True)
 
@@ -66,7 +67,7 @@ _cache_chosen: Optional[str] = None
 
 def use_compilation_cache() -> None:
     """Point JAX's persistent compilation cache at ``<cache root>/jax-compilation``
-    (:func:`hnnbench.paths.jax_compilation_cache_dir`, which follows a job's
+    (:func:`hnnbench._paths.jax_compilation_cache_dir`, which follows a job's
     ``cache_dir``), unless the user chose another folder (``JAX_COMPILATION_CACHE_DIR``
     or ``jax.config``). Called at import and whenever a JAX model is built."""
     global _cache_chosen
@@ -151,7 +152,7 @@ def adam_like_torch(lr: Any, weight_decay: Any) -> optax.GradientTransformation:
 
 def _loss(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], static: Any,
           params: Any, *arrays: jax.Array) -> jax.Array:
-    """One seed's loss on a batch of a :class:`~hnnbench.neural.views.Problem`."""
+    """One seed's loss on a batch of a :class:`~hnnbench.neural._views.Problem`."""
     nets = eqx.combine(params, static)
     if kind == "derivatives":
         z, zdot = arrays

@@ -1,5 +1,5 @@
 """The torch backend of the neural models: eager training chunks, float64 inference
-with the batched Dormand-Prince of :mod:`hnnbench.neural.torch.ode`.
+with the batched Dormand-Prince of :mod:`hnnbench.neural.torch._ode`.
 
 Several seeds train as one batch through :func:`torch.func.vmap` over stacked
 parameters: each seed's loss is its own mean, the total is their sum, so each seed's
@@ -15,16 +15,16 @@ from typing import Any, Optional
 import numpy as np
 import torch
 
-from hnnbench.api import TrainSettings
-from hnnbench.errors import ConfigError, RolloutDiverged
-from hnnbench.neural.backend import Weights
-from hnnbench.neural.config import NeuralConfig
-from hnnbench.neural.family import Family
-from hnnbench.neural.torch.nets import MLP, Autoencoder, FrozenMLP, pixel_objective
-from hnnbench.neural.torch.ode import SolverGaveUp, dopri5
-from hnnbench.neural.views import Problem
+from hnnbench._contract import TrainSettings
+from hnnbench._errors import ConfigError, RolloutDiverged
+from hnnbench.neural._backend import Weights
+from hnnbench.neural._config import NeuralConfig
+from hnnbench.neural._family import Family
+from hnnbench.neural._views import Problem
+from hnnbench.neural.torch._nets import MLP, Autoencoder, FrozenMLP, pixel_objective, symplectic
+from hnnbench.neural.torch._ode import SolverGaveUp, dopri5
 
-__all__ = ["TorchBackend", "resolve_device"]
+__all__ = ["MLP", "TorchBackend", "resolve_device", "symplectic"]
 
 Params = dict[str, torch.Tensor]
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import jax
 
-from hnnbench.neural.jax.nets import Nets, symplectic
+from hnnbench.neural.jax import Nets, symplectic
 
 
 def field(nets: Nets, z: jax.Array) -> jax.Array:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import torch
 
-from hnnbench.neural.torch.nets import MLP, symplectic
+from hnnbench.neural.torch import MLP, symplectic
 
 
 def field(nets: dict[str, MLP], z: torch.Tensor) -> torch.Tensor:

@@ -7,7 +7,7 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
-from hnnbench.neural.jax.nets import Nets
+from hnnbench.neural.jax import Nets
 
 Net = Callable[[jax.Array], jax.Array]
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import jax
 
-from hnnbench.neural.jax.nets import Nets
+from hnnbench.neural.jax import Nets
 
 
 def field(nets: Nets, z: jax.Array) -> jax.Array:

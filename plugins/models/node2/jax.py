@@ -5,7 +5,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from hnnbench.neural.jax.nets import Nets
+from hnnbench.neural.jax import Nets
 
 
 def field(nets: Nets, z: jax.Array) -> jax.Array:

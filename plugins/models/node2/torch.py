@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import torch
 
-from hnnbench.neural.torch.nets import MLP
+from hnnbench.neural.torch import MLP
 
 
 def field(nets: dict[str, MLP], z: torch.Tensor) -> torch.Tensor:

@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from hnnbench.api import check_int_at_least
+from hnnbench import check_int_at_least
 from hnnbench.neural import Family, NeuralConfig, NeuralModel
 
 SRNN = Family(

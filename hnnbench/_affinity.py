@@ -27,12 +27,12 @@ import tempfile
 from pathlib import Path
 from typing import IO, Optional
 
-from hnnbench import launch
+from hnnbench import _launch as launch
 
 __all__ = ["claim_core", "started_by_cli", "CLI_ENV"]
 
 #: Set by the ``hnnbench`` command before it starts Hydra; launcher workers inherit it
-#: (:mod:`hnnbench.launch`).
+#: (:mod:`hnnbench._launch`).
 CLI_ENV = launch.ENV
 
 _held: dict[str, object] = {}
@@ -42,7 +42,7 @@ log = logging.getLogger("hnnbench")
 def started_by_cli() -> bool:
     """Whether this process runs jobs for the ``hnnbench`` command (its own process
     under the basic launcher, or a launcher's worker), not for a caller of
-    :func:`hnnbench.job.run_job` such as a notebook or a test, which is left alone."""
+    :func:`hnnbench._job.run_job` such as a notebook or a test, which is left alone."""
     return launch.current() is not None
 
 

@@ -18,9 +18,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Optional, TypeVar, Union
 
-from hnnbench import paths
-from hnnbench.api import Dataset, System, Trajectories
-from hnnbench.records import atomic_path
+from hnnbench import _paths as paths
+from hnnbench._contract import Dataset, System, Trajectories
+from hnnbench._records import atomic_path
 
 log = logging.getLogger("hnnbench")
 
@@ -28,12 +28,12 @@ T = TypeVar("T", Dataset, Trajectories)
 
 __all__ = ["cache_root", "cached", "entry_key", "file_sha256"]
 
-#: Hex SHA-256 of a file (:func:`hnnbench.paths.sha256_file`).
+#: Hex SHA-256 of a file (:func:`hnnbench._paths.sha256_file`).
 file_sha256 = paths.sha256_file
 
 
 def cache_root(explicit: Optional[Union[str, os.PathLike[str]]] = None) -> Path:
-    """:func:`hnnbench.paths.cache_root`; a non-empty ``explicit`` acts as an override
+    """:func:`hnnbench._paths.cache_root`; a non-empty ``explicit`` acts as an override
     for this one call (kept for callers that pass a ``cache_dir`` setting)."""
     with paths.cache_root_override(explicit):
         return paths.cache_root()
@@ -63,7 +63,7 @@ def cached(
 ) -> tuple[T, Path, bool]:
     """Load the entry from the cache, or ``build()`` and store it.
 
-    ``root`` is the cache root (``None``: :func:`hnnbench.paths.cache_root`, which a job's
+    ``root`` is the cache root (``None``: :func:`hnnbench._paths.cache_root`, which a job's
     ``cache_dir`` setting overrides); entries live under ``<root>/datasets/<system>``.
 
     Returns:

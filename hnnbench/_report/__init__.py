@@ -2,16 +2,16 @@
 with published results and claims, and figures.
 
 ``hnnbench report DIR [DIR ...]`` and :func:`write_report` build everything; the
-pieces are importable: :mod:`~hnnbench.report.inputs` (records, provenance),
-:mod:`~hnnbench.report.tables`, :mod:`~hnnbench.report.published`,
-:mod:`~hnnbench.report.figures` (the figure registry), :mod:`~hnnbench.report.html`.
+pieces are importable: :mod:`~hnnbench._report.inputs` (records, provenance),
+:mod:`~hnnbench._report.tables`, :mod:`~hnnbench._report.published`,
+:mod:`~hnnbench._report.figures` (the figure registry), :mod:`~hnnbench._report.html`.
 """
 
-from hnnbench.report.build import Report, on_sweep_end, write_report
-from hnnbench.report.cli import main
-from hnnbench.report.figures import FIGURES, figure, make_figures, runs_for_figures
-from hnnbench.report.inputs import ReportError, load_sweep, load_sweeps, provenance
-from hnnbench.report.published import (
+from hnnbench._report.build import Report, on_sweep_end, write_report
+from hnnbench._report.cli import main
+from hnnbench._report.figures import FIGURES, figure, make_figures, runs_for_figures
+from hnnbench._report.inputs import ReportError, load_sweep, load_sweeps, provenance
+from hnnbench._report.published import (
     board_lookup,
     claim_results,
     claims_frame,

@@ -9,7 +9,7 @@ Two scopes:
   heatmaps (models x systems) and the metric against a swept numeric setting (e.g. the
   training-set size, ``system.n_traj=10,25,50,100``).
 
-Styles come from record fields (family, backend; :mod:`hnnbench.report.style`) and
+Styles come from record fields (family, backend; :mod:`hnnbench._report.style`) and
 order from the registry; nothing here names a model or system.
 """
 
@@ -29,10 +29,10 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from hnnbench import records as R
-from hnnbench import registry
-from hnnbench.report import style
-from hnnbench.table import format_value, metric_declarations, variant_labels
+from hnnbench import _records as R
+from hnnbench import _registry as registry
+from hnnbench._report import style
+from hnnbench._table import format_value, metric_declarations, variant_labels
 
 log = logging.getLogger("hnnbench")
 

@@ -3,7 +3,7 @@
 On a terminal: a tqdm bar per run with the current losses. Elsewhere (CI logs, Slurm
 output files): a log line at every quarter of the run. ``HNNBENCH_PROGRESS=bar|log|off``
 forces a mode. Every few seconds an update also checks that the ``hnnbench`` command
-which started the job still exists (:func:`hnnbench.launch.abandoned`).
+which started the job still exists (:func:`hnnbench._launch.abandoned`).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import time
 from collections.abc import Mapping
 from types import TracebackType
 
-from hnnbench import launch
+from hnnbench import _launch as launch
 
 log = logging.getLogger("hnnbench")
 #: Seconds between two checks for an abandoned job.

@@ -17,8 +17,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from hnnbench.neural.init import AE_LAYERS
-from hnnbench.neural.views import CC_WEIGHT, DYNAMICS_WEIGHT
+from hnnbench.neural._init import AE_LAYERS
+from hnnbench.neural._views import CC_WEIGHT, DYNAMICS_WEIGHT
 
 __all__ = [
     "Autoencoder",

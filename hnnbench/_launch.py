@@ -8,12 +8,12 @@ there, in one environment variable (:data:`ENV`, JSON):
 - ``n_jobs``: the sweep's size, for the ``[k/N]`` progress lines;
 - ``cli_pid``: the command's process id. Its presence means "started by the
   ``hnnbench`` command", which makes a job pin itself to one core
-  (:mod:`hnnbench.affinity`); a notebook or test calling
-  :func:`hnnbench.job.run_job` directly is left alone;
+  (:mod:`hnnbench._affinity`); a notebook or test calling
+  :func:`hnnbench._job.run_job` directly is left alone;
 - ``host``: the command's host name. A worker on the same host whose command has gone
   (killed without its process group, e.g. ``kill PID``) exits at its next progress
   update, writing no record, instead of training on as an orphan (:func:`abandoned`,
-  :mod:`hnnbench.progress`); a worker on another host (Slurm) never checks.
+  :mod:`hnnbench._progress`); a worker on another host (Slurm) never checks.
 
 :func:`launched` sets it for the duration of a command and restores what was there
 before, so a notebook's later in-process runs are not affected.

@@ -1,9 +1,9 @@
 """What a backend (torch, JAX) supplies to the neural models, and how it is loaded.
 
 A backend provides only primitives; everything else is shared
-(:mod:`hnnbench.neural.loop`, :class:`hnnbench.neural.NeuralModel`):
+(:mod:`hnnbench.neural._loop`, :class:`hnnbench.neural.NeuralModel`):
 
-- a :class:`~hnnbench.neural.loop.Trainer` built from the shared numpy initial weights
+- a :class:`~hnnbench.neural._loop.Trainer` built from the shared numpy initial weights
   of ``S`` seeds, running compiled (JAX) or eager (torch) chunks of optimizer steps;
 - the trained weights back as numpy arrays;
 - an :class:`Inference`: the float64 field and learned energy, the batched adaptive
@@ -24,12 +24,12 @@ from typing import Optional, Protocol
 
 import numpy as np
 
-from hnnbench.api import TrainSettings
-from hnnbench.errors import BackendMissingError, HnnbenchError
-from hnnbench.neural.config import NeuralConfig
-from hnnbench.neural.family import Family
-from hnnbench.neural.loop import Trainer
-from hnnbench.neural.views import Problem
+from hnnbench._contract import TrainSettings
+from hnnbench._errors import BackendMissingError, HnnbenchError
+from hnnbench.neural._config import NeuralConfig
+from hnnbench.neural._family import Family
+from hnnbench.neural._loop import Trainer
+from hnnbench.neural._views import Problem
 
 __all__ = ["BACKENDS", "Backend", "Inference", "Weights", "load_backend", "missing_backend"]
 
@@ -60,7 +60,7 @@ class Inference(Protocol):
                 max_steps: int) -> np.ndarray:
         """Adaptive Dormand-Prince 5(4) in float64 from ``(M, d)`` over ``(T,)``
         (monotonic, may decrease), the batch integrated as one system; ``(M, T, d)``.
-        Raises :class:`~hnnbench.errors.RolloutDiverged`."""
+        Raises :class:`~hnnbench._errors.RolloutDiverged`."""
         ...
 
     def encode(self, x: np.ndarray) -> np.ndarray:
@@ -121,7 +121,7 @@ def missing_backend(name: str) -> Optional[str]:
 
 def load_backend(name: str, cfg: NeuralConfig, device: str) -> Backend:
     """Import backend ``name`` (``torch`` / ``jax``) and configure it; a missing
-    install raises a one-line :class:`~hnnbench.errors.BackendMissingError`."""
+    install raises a one-line :class:`~hnnbench._errors.BackendMissingError`."""
     if name not in BACKENDS:
         raise HnnbenchError(
             f"Unknown neural backend '{name}': expected one of {', '.join(BACKENDS)}"

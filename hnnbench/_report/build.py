@@ -8,7 +8,7 @@ Writes into ``out`` (default: the only sweep directory):
   ``hnnbench check``.
 - ``leaderboard.md``: the same table, ``mean ± std``, best values in bold.
 - ``paper_comparison.md``: published values next to ours, and every claim.
-- ``figures/``: the registered figures (:mod:`hnnbench.report.figures`).
+- ``figures/``: the registered figures (:mod:`hnnbench._report.figures`).
 - ``leaderboard.html``: one self-contained page with all of the above.
 """
 
@@ -22,13 +22,13 @@ from typing import Any
 
 import pandas as pd
 
-from hnnbench import records as R
-from hnnbench.report.figures import Made, make_figures
-from hnnbench.report.html import page
-from hnnbench.report.inputs import ReportError, load_sweeps, provenance
-from hnnbench.report.published import comparison_markdown
-from hnnbench.report.tables import leaderboard_markdown
-from hnnbench.table import leaderboard
+from hnnbench import _records as R
+from hnnbench._report.figures import Made, make_figures
+from hnnbench._report.html import page
+from hnnbench._report.inputs import ReportError, load_sweeps, provenance
+from hnnbench._report.published import comparison_markdown
+from hnnbench._report.tables import leaderboard_markdown
+from hnnbench._table import leaderboard
 
 log = logging.getLogger("hnnbench")
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from hnnbench import registry
+from hnnbench import _registry as registry
 
 __all__ = ["color", "line", "model_keys"]
 

@@ -7,10 +7,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from hnnbench.errors import HnnbenchError
-from hnnbench.report.build import write_report
-from hnnbench.report.tables import md_table
-from hnnbench.table import display_frame
+from hnnbench._errors import HnnbenchError
+from hnnbench._report.build import write_report
+from hnnbench._report.tables import md_table
+from hnnbench._table import display_frame
 
 __all__ = ["main"]
 

@@ -16,8 +16,8 @@ __all__ = ["SweepSummary", "print_summary"]
 
 def print_summary(sweep_dir: Path) -> None:
     """Print the Markdown summary of the records under ``sweep_dir``; write summary.csv."""
-    from hnnbench import records
-    from hnnbench.table import records_frame, summary_frame, summary_metrics
+    from hnnbench import _records as records
+    from hnnbench._table import records_frame, summary_frame, summary_metrics
 
     recs, bad = records.scan_records(sweep_dir)
     for item in bad:
@@ -48,7 +48,7 @@ class SweepSummary(Callback):
         except Exception as err:  # a summary problem must not hide the finished runs
             log.error("could not summarise %s: %s", sweep_dir, err)
         try:
-            from hnnbench import report
+            from hnnbench import _report as report
         except ImportError:
             return
         hook = getattr(report, "on_sweep_end", None)

@@ -7,7 +7,7 @@ rest, identically for every backend and family:
 
 - the chunk plan: one chunk per loss record (``NeuralConfig.log_interval``);
 - the minibatch indices of every seed, drawn on the host from its own
-  :class:`~hnnbench.neural.init.BatchStream` (the next chunk's while the current one
+  :class:`~hnnbench.neural._init.BatchStream` (the next chunk's while the current one
   runs), so a seed trained in a batch of seeds sees exactly the minibatches it sees
   alone;
 - the loss history of each seed, progress reports, and divergence: a seed whose loss
@@ -23,8 +23,8 @@ from typing import Any, Optional, Protocol
 
 import numpy as np
 
-from hnnbench.api import Progress, TrainSettings
-from hnnbench.neural.init import BatchStream
+from hnnbench._contract import Progress, TrainSettings
+from hnnbench.neural._init import BatchStream
 
 __all__ = ["SeedFit", "Trainer", "chunk_lengths", "train"]
 

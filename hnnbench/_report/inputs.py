@@ -8,8 +8,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from hnnbench import records as R
-from hnnbench.errors import HnnbenchError
+from hnnbench import _records as R
+from hnnbench._errors import HnnbenchError
 
 log = logging.getLogger("hnnbench")
 
@@ -24,7 +24,7 @@ def load_sweeps(directories: Sequence[Path | str], *, strict: bool = False
                 ) -> tuple[list[dict[str, Any]], list[R.Unreadable]]:
     """The records under every directory (several sweeps merge into one leaderboard),
     and the ``result.json`` files left out, unreadable or invalid against the record
-    schema (:func:`hnnbench.records.validate`; the caller names them), and ``strict``
+    schema (:func:`hnnbench._records.validate`; the caller names them), and ``strict``
     makes any of them a :class:`ReportError`."""
     if not directories:
         raise ReportError("No sweep directory given: expected one or more directories "

@@ -12,12 +12,12 @@ from typing import Any, Optional
 
 import pandas as pd
 
-from hnnbench import records as R
-from hnnbench.report.figures import FIGURES, Made
-from hnnbench.report.inputs import provenance_lines
-from hnnbench.report.published import claims_frame, comparison_frame
-from hnnbench.report.tables import best_cells, seed_line
-from hnnbench.table import display_frame
+from hnnbench import _records as R
+from hnnbench._report.figures import FIGURES, Made
+from hnnbench._report.inputs import provenance_lines
+from hnnbench._report.published import claims_frame, comparison_frame
+from hnnbench._report.tables import best_cells, seed_line
+from hnnbench._table import display_frame
 
 __all__ = ["page"]
 

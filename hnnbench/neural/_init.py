@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import threadpoolctl
 
-from hnnbench.neural.config import NeuralConfig
+from hnnbench.neural._config import NeuralConfig
 
 __all__ = [
     "AE_LAYERS",

@@ -1,5 +1,5 @@
 """Published results and claims next to ours: every registered claim set
-(:mod:`hnnbench.claims`), its published values cell by cell, and its claims evaluated
+(:mod:`hnnbench._claims`), its published values cell by cell, and its claims evaluated
 per backend."""
 
 from __future__ import annotations
@@ -9,10 +9,10 @@ from typing import Any, Optional
 
 import pandas as pd
 
-from hnnbench import claims as C
-from hnnbench import registry
-from hnnbench.report.tables import md_table, seed_line
-from hnnbench.table import format_value
+from hnnbench import _claims as C
+from hnnbench import _registry as registry
+from hnnbench._report.tables import md_table, seed_line
+from hnnbench._table import format_value
 
 __all__ = [
     "board_lookup",
@@ -44,7 +44,7 @@ def main_profile(board: pd.DataFrame) -> Optional[str]:
 
 
 def board_lookup(board: pd.DataFrame, profile: Optional[str] = None) -> C.Lookup:
-    """A :data:`hnnbench.claims.Lookup` on a leaderboard (one profile), over the rows
+    """A :data:`hnnbench._claims.Lookup` on a leaderboard (one profile), over the rows
     without a variant."""
     if profile is not None and "profile" in board:
         board = board[board["profile"].astype(str) == str(profile)]
@@ -63,13 +63,14 @@ def board_lookup(board: pd.DataFrame, profile: Optional[str] = None) -> C.Lookup
 def claim_results(board: pd.DataFrame, profile: Optional[str] = None) -> list[C.ClaimResult]:
     """Every registered claim evaluated on a leaderboard, per backend."""
     profile = profile if profile is not None else main_profile(board)
-    return C.evaluate_claims(board_lookup(board, profile), C.all_claims())
+    return C.evaluate_claims(board_lookup(board, profile), registry.all_claims(),
+                             registry.family_models())
 
 
 def paper_claim_ratios() -> dict[str, C.ClaimResult]:
     """Each claim of a set with published values, evaluated on those values."""
     out = {}
-    for claim_set in C.claim_sets():
+    for claim_set in registry.claim_sets():
         for res in C.published_results(claim_set):
             out[res.claim.id] = res
     return out
@@ -78,7 +79,7 @@ def paper_claim_ratios() -> dict[str, C.ClaimResult]:
 def paper_table(name: str = "greydanus2019") -> pd.DataFrame:
     """The published values of claim set ``name`` (natural units), one row per value,
     with its role (``model``: the paper's name for it) and family."""
-    for claim_set in C.claim_sets():
+    for claim_set in registry.claim_sets():
         if claim_set.name == name:
             return pd.DataFrame([{
                 "system": p.system, "task": p.task, "model": p.role, "family": p.family,
@@ -119,11 +120,11 @@ def comparison_frame(board: pd.DataFrame, claim_set: Optional[C.ClaimSet] = None
     """Every published cell of ``claim_set`` (default: the first set that has some)
     next to ours, per backend that has a model of the cell's family."""
     if claim_set is None:
-        claim_set = next((cs for cs in C.claim_sets() if cs.published), None)
+        claim_set = next((cs for cs in registry.claim_sets() if cs.published), None)
     if claim_set is None:
         return pd.DataFrame()
     profile = main_profile(board)
-    pairs = C.family_models()
+    pairs = registry.family_models()
     backends = [b for b, models in pairs.items()
                 if board["model"].isin(list(models.values())).any()]
     roles = list(dict.fromkeys(p.role for p in claim_set.published))
@@ -174,7 +175,7 @@ def comparison_markdown(board: pd.DataFrame) -> str:
     if profile != "paper":
         lines += [f"Note: profile `{profile}` is not the paper settings (profile `paper`); "
                   "this comparison is indicative only.", ""]
-    for claim_set in C.claim_sets():
+    for claim_set in registry.claim_sets():
         if not claim_set.published:
             continue
         lines += [f"## {claim_set.title}", "", claim_set.note, "",

@@ -17,8 +17,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from hnnbench.neural.init import AE_LAYERS
-from hnnbench.neural.views import CC_WEIGHT, DYNAMICS_WEIGHT
+from hnnbench.neural._init import AE_LAYERS
+from hnnbench.neural._views import CC_WEIGHT, DYNAMICS_WEIGHT
 
 __all__ = [
     "MLP",

@@ -4,10 +4,10 @@ declarations.
 The first half holds one numpy function per definition: per-trajectory functions
 return one value per evaluation trajectory, shape ``(M,)``, and :func:`summarize` turns
 those into the mean and its standard error. The second half declares each built-in
-metric (:class:`hnnbench.metric.Metric`): how it is computed from an
-:class:`~hnnbench.evaluate.EvalContext`, where it applies, which way is better, and its
+metric (:class:`hnnbench.Metric`): how it is computed from an
+:class:`~hnnbench.EvalContext`, where it applies, which way is better, and its
 regression tolerance. They are registered through the entry-point group
-``hnnbench.metrics`` in hnnbench's pyproject.toml, as a third party's would be.
+``hnnbench_plugins.metrics`` in hnnbench's pyproject.toml, as a third party's would be.
 docs/METRICS.md gives the precise definitions and the evaluation protocol.
 """
 
@@ -17,11 +17,10 @@ from typing import TYPE_CHECKING, Any, Optional
 
 import numpy as np
 
-from hnnbench.metric import CheckRule, Metric
+from hnnbench import CheckRule, Metric, per_point_squared_error, sem, summarize
 
 if TYPE_CHECKING:
-    from hnnbench.api import System
-    from hnnbench.evaluate import EvalContext
+    from hnnbench import EvalContext, System
 
 __all__ = [
     "BUILTIN",
@@ -50,12 +49,6 @@ __all__ = [
 def mse(pred: np.ndarray, target: np.ndarray) -> float:
     """Mean squared error over all points and coordinates."""
     return float(np.mean((np.asarray(pred) - np.asarray(target)) ** 2))
-
-
-def per_point_squared_error(pred: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """``(N,)`` squared error of each point, averaged over its coordinates."""
-    diff = np.asarray(pred, dtype=np.float64) - np.asarray(target, dtype=np.float64)
-    return np.mean(diff.reshape(diff.shape[0], -1) ** 2, axis=1)
 
 
 def energy_error_per_traj(energy_hat: np.ndarray, energy_true: np.ndarray) -> np.ndarray:
@@ -94,21 +87,6 @@ def valid_prediction_time(
         else:
             out[i] = t[max(hits[0] - 1, 0)] - t[0] if hits[0] > 0 else 0.0
     return out
-
-
-def sem(values: np.ndarray) -> float:
-    """Standard error of the mean (``nan`` for fewer than two values)."""
-    values = np.asarray(values, dtype=np.float64)
-    if values.size < 2 or not np.all(np.isfinite(values)):
-        return float("nan") if values.size < 2 else float("inf")
-    return float(np.std(values, ddof=1) / np.sqrt(values.size))
-
-
-def summarize(values: np.ndarray) -> dict[str, float]:
-    """``{"mean": ..., "sem": ...}`` over evaluation trajectories (or points)."""
-    values = np.asarray(values, dtype=np.float64)
-    mean = float(np.mean(values)) if np.all(np.isfinite(values)) else float("inf")
-    return {"mean": mean, "sem": sem(values)}
 
 
 def energy_drift_per_traj(energy_end: np.ndarray, energy_start: np.ndarray) -> np.ndarray:

@@ -8,8 +8,8 @@ from typing import Optional, cast
 
 import pandas as pd
 
-from hnnbench.report.inputs import provenance_lines
-from hnnbench.table import display_frame, metric_declarations
+from hnnbench._report.inputs import provenance_lines
+from hnnbench._table import display_frame, metric_declarations
 
 __all__ = ["best_cells", "leaderboard_markdown", "md_table", "seed_line"]
 

@@ -1,0 +1,579 @@
+"""``hnnbench check DIR [DIR ...] --reference CSV``: the leaderboard regression gate
+and the validation of submitted records.
+
+The records of the directories are validated, then their leaderboard
+(:func:`hnnbench._table.leaderboard`) is compared with a reference in the same format (a
+``leaderboard.csv``), row by row on (profile, system, model, variant) (the variant is
+empty where the runs vary in nothing but seeds; :func:`hnnbench._table.variant_labels`):
+
+- records: every ``result.json`` must be readable and valid against the record schema
+  (:func:`hnnbench._records.validate`), carry provenance (hnnbench version, date,
+  platform) and, where the plugin is installed, its current version;
+- metrics: each ``<metric>_mean`` by the metric's declared rule
+  (:class:`hnnbench._metric.CheckRule`: direction, tolerated factor in log space, noise
+  floor), overridable with ``--rules FILE`` (YAML: ``default:`` and ``metrics:``);
+- statuses: a pair whose share of ``ok`` runs fell (ok -> diverged / failed / skipped);
+- coverage: a reference pair with no run in DIR (``--allow-missing`` accepts that, for
+  a sweep that ran only some systems or models);
+- claims (:mod:`hnnbench._claims`): one reproduced in the reference must still be
+  reproduced; the others are reported as information;
+- ``--rerun SYSTEM/MODEL/SEED``: that job is run again from its record's config, and
+  its metrics must agree with the record's by the same rules;
+- ``--same RTOL``: two-sided instead. Every gated metric mean must equal the
+  reference's within RTOL relative (both values at or below the metric's noise floor
+  count as equal) and every pair's statuses must be the same: a reproduction check,
+  which flags an improvement as loudly as a regression (tests/test_reproduction_guard.py).
+
+Exit status: 0 when nothing regressed, 1 on a regression (with a table of what and by
+how much); user errors raise :class:`~hnnbench._errors.HnnbenchError` (the CLI exits 2).
+``--update`` rewrites the reference from DIR instead, on purpose.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional
+
+import pandas as pd
+
+from hnnbench import _claims as C
+from hnnbench import _records as R
+from hnnbench import _registry as registry
+from hnnbench._errors import HnnbenchError
+from hnnbench._table import TIMINGS, leaderboard
+
+__all__ = [
+    "REQUIRED_COLUMNS",
+    "CheckError",
+    "CheckResult",
+    "Finding",
+    "Rule",
+    "compare",
+    "load_rules",
+    "main",
+    "read_reference",
+]
+
+KEY = ("profile", "system", "model")
+#: Wall times depend on the machine: shown, never gating.
+TIMING_RULE = {"better": "lower", "factor": 3.0, "floor": 1.0, "gate": False}
+REQUIRED_COLUMNS = (*KEY, "n_seeds", "n_ok", "n_diverged", "n_failed", "n_skipped")
+RULE_KEYS = {"better", "factor", "floor", "gate"}
+
+
+class CheckError(HnnbenchError):
+    """Bad input to ``hnnbench check``."""
+
+
+@dataclass(frozen=True)
+class Rule:
+    better: str = "lower"
+    factor: float = 10.0
+    floor: float = 0.0
+    gate: bool = True
+
+    def worsening(self, reference: float, current: float) -> float:
+        """How many times worse ``current`` is than ``reference`` (< 1: better)."""
+        ref, cur = max(reference, self.floor), max(current, self.floor)
+        worse, base = (cur, ref) if self.better == "lower" else (ref, cur)
+        if math.isinf(worse) and math.isinf(base):
+            return 1.0
+        if base <= 0:
+            return 1.0 if worse <= 0 else math.inf
+        return worse / base
+
+    def limit_text(self) -> str:
+        op = "<=" if self.better == "lower" else ">="
+        side = f"ref x {self.factor:g}" if self.better == "lower" else f"ref / {self.factor:g}"
+        return f"{op} {side}"
+
+    def difference(self, reference: float, current: float) -> float:
+        """``|current - reference|`` relative to the larger magnitude (0 when both are at
+        or below the noise floor, ``inf`` when exactly one is non-finite)."""
+        if max(abs(reference), abs(current)) <= self.floor:
+            return 0.0
+        if math.isinf(reference) or math.isinf(current):
+            return 0.0 if reference == current else math.inf
+        return abs(current - reference) / max(abs(reference), abs(current))
+
+
+@dataclass
+class Finding:
+    check: str  # "metric" | "status" | "missing" | "claim" | "new" | ...
+    metric: str
+    system: str
+    model: str
+    reference: str
+    current: str
+    factor: str = ""
+    limit: str = ""
+
+    def row(self) -> list[str]:
+        return [self.check, self.metric, self.system, self.model, self.reference,
+                self.current, self.factor, self.limit]
+
+
+@dataclass
+class CheckResult:
+    regressions: list[Finding] = field(default_factory=list)
+    info: list[Finding] = field(default_factory=list)
+    n_pairs: int = 0
+    n_metrics: int = 0
+    n_claims: int = 0
+
+    @property
+    def ok(self) -> bool:
+        return not self.regressions
+
+
+# --------------------------------------------------------------------------- rules
+
+
+def _parse_rule(raw: Any, where: str, base: Rule) -> Rule:
+    if not isinstance(raw, dict):
+        raise CheckError(f"{where}: expected a mapping like {{better: lower, factor: 10}}, "
+                         f"got {raw!r}")
+    unknown = sorted(set(raw) - RULE_KEYS)
+    if unknown:
+        raise CheckError(f"{where}: unknown key(s) {', '.join(map(str, unknown))}; "
+                         f"allowed: {', '.join(sorted(RULE_KEYS))}")
+    values = {**base.__dict__, **raw}
+    if values["better"] not in ("lower", "higher"):
+        raise CheckError(f"{where}: better must be 'lower' or 'higher', got {values['better']!r}")
+    try:
+        factor, floor = float(values["factor"]), float(values["floor"])
+    except (TypeError, ValueError):
+        raise CheckError(f"{where}: factor and floor must be numbers") from None
+    if not factor >= 1.0:
+        raise CheckError(f"{where}: factor must be >= 1 (a tolerated worsening), got {factor}")
+    if not floor >= 0.0:
+        raise CheckError(f"{where}: floor must be >= 0, got {floor}")
+    if not isinstance(values["gate"], bool):
+        raise CheckError(f"{where}: gate must be true or false, got {values['gate']!r}")
+    return Rule(better=values["better"], factor=factor, floor=floor, gate=values["gate"])
+
+
+def _read_yaml(text: str, source: str) -> dict[str, Any]:
+    import yaml
+
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        first = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise CheckError(f"rules file {source} is not valid YAML: {first}") from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict) or set(data) - {"default", "metrics"}:
+        raise CheckError(f"rules file {source}: expected top-level keys 'default' and/or "
+                         "'metrics'")
+    return data
+
+
+def _apply(data: dict[str, Any], source: str, default: Rule,
+           metrics: dict[str, Rule]) -> tuple[Rule, dict[str, Rule]]:
+    if "default" in data:
+        default = _parse_rule(data["default"], f"{source}: default", default)
+    raw_metrics = data.get("metrics") or {}
+    if not isinstance(raw_metrics, dict):
+        raise CheckError(f"{source}: 'metrics' must map metric names to rules")
+    metrics = dict(metrics)
+    for name, raw in raw_metrics.items():
+        metrics[str(name)] = _parse_rule(raw, f"{source}: metrics.{name}",
+                                         metrics.get(str(name), default))
+    return default, metrics
+
+
+def declared_rules() -> dict[str, Rule]:
+    """The rule of every registered metric (its declaration), and of the timings."""
+    rules = {m.name: Rule(better=m.better, factor=m.check.factor, floor=m.check.floor,
+                          gate=m.check.gate) for m in registry.metrics()}
+    rules.update({t: Rule(**TIMING_RULE) for t in TIMINGS})  # type: ignore[arg-type]
+    return rules
+
+
+def load_rules(path: Optional[Path | str] = None) -> tuple[Rule, dict[str, Rule]]:
+    """The declared rules (:func:`declared_rules`; metrics no installed plugin declares
+    get the default), with those of ``path`` (a YAML file) on top."""
+    default, metrics = Rule(), declared_rules()
+    if path is not None:
+        path = Path(path)
+        try:
+            user = path.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise CheckError(f"rules file {path} does not exist") from None
+        except (OSError, UnicodeDecodeError) as err:
+            raise CheckError(f"cannot read rules file {path}: {err}") from None
+        default, metrics = _apply(_read_yaml(user, str(path)), str(path), default, metrics)
+    return default, metrics
+
+
+# --------------------------------------------------------------------------- reference
+
+
+def read_reference(path: Path | str) -> pd.DataFrame:
+    """A reference leaderboard CSV, validated; :class:`CheckError` if unusable."""
+    path = Path(path)
+    if not path.exists():
+        raise CheckError(f"Reference {path} does not exist; create it from a sweep with "
+                         f"hnnbench check DIR --reference {path} --update")
+    if path.is_dir():
+        raise CheckError(f"Reference {path} is a directory; expected a leaderboard CSV file")
+    try:
+        frame = pd.read_csv(path, dtype={"profile": str, "system": str, "model": str,
+                                         "seeds": str})
+    except pd.errors.EmptyDataError:
+        raise CheckError(f"Reference {path} is empty; expected a leaderboard.csv") from None
+    except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as err:
+        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        raise CheckError(f"Reference {path} is not a readable CSV: {first}") from None
+    missing = [c for c in REQUIRED_COLUMNS if c not in frame.columns]
+    if missing:
+        raise CheckError(
+            f"Reference {path} lacks column(s) {', '.join(missing)}; expected a leaderboard.csv "
+            "(from hnnbench report, or hnnbench check --update)")
+    if not any(c.endswith("_mean") for c in frame.columns):
+        raise CheckError(f"Reference {path} has no metric columns (<metric>_mean); expected "
+                         "a leaderboard.csv")
+    for col in ("n_seeds", "n_ok", "n_diverged", "n_failed", "n_skipped"):
+        values = pd.to_numeric(frame[col], errors="coerce")
+        if values.isna().any():
+            raise CheckError(f"Reference {path}: column {col} must hold integers")
+        frame[col] = values.astype(int)
+    for col in frame.columns:
+        if col.endswith("_mean") or col.endswith("_std"):
+            values = pd.to_numeric(frame[col], errors="coerce")
+            bad = values.isna() & frame[col].notna()
+            if bad.any():
+                raise CheckError(f"Reference {path}: column {col} holds a non-number "
+                                 f"({frame[col][bad].iloc[0]!r})")
+            frame[col] = values.astype(float)
+    dupes = frame.duplicated(list(_keys(frame)))
+    if dupes.any():
+        r = frame[dupes].iloc[0]
+        raise CheckError(f"Reference {path} has duplicate rows for {r['system']} x "
+                         f"{r['model']} (profile {r['profile']})")
+    return frame
+
+
+# --------------------------------------------------------------------------- compare
+
+
+def _fmt(x: float) -> str:
+    if x is None or pd.isna(x):
+        return "—"
+    if math.isinf(x):
+        return "inf"
+    return f"{x:.3g}"
+
+
+def _seeds(row: Any) -> Optional[frozenset[str]]:
+    value = row.get("seeds")
+    if value is None or pd.isna(value):
+        return None
+    return frozenset(s.strip() for s in str(value).split(";") if s.strip())
+
+
+def _seed_text(seeds: Optional[frozenset[str]]) -> str:
+    return "?" if seeds is None else "seeds " + ",".join(sorted(seeds, key=lambda s: (len(s), s)))
+
+
+def _ok_share(row: Any) -> float:
+    n = int(row["n_seeds"])
+    return int(row["n_ok"]) / n if n else 0.0
+
+
+def _status_text(row: Any) -> str:
+    parts = [f"{int(row[f'n_{s}'])} {s}" for s in R.STATUSES if int(row.get(f"n_{s}", 0))]
+    return ", ".join(parts) or "no runs"
+
+
+def _claims_by_key(board: pd.DataFrame) -> dict[tuple[str, str, str], C.ClaimResult]:
+    from hnnbench._report.published import board_lookup
+
+    out = {}
+    claims = registry.all_claims()
+    for profile in dict.fromkeys(board["profile"].astype(str)):
+        for res in C.evaluate_claims(board_lookup(board, profile), claims,
+                                     registry.family_models()):
+            out[(profile, res.claim.id, res.backend)] = res
+    return out
+
+
+def _keys(frame: pd.DataFrame) -> tuple[str, ...]:
+    """The columns that identify a row: :data:`KEY`, plus ``variant`` where present."""
+    return (*KEY, "variant") if "variant" in frame.columns else KEY
+
+
+def _row_key(row: Any) -> tuple[str, str, str, str]:
+    """``(profile, system, model, variant)`` of a leaderboard row (variant ``""`` if none)."""
+    variant = row.get("variant", "")
+    variant = "" if variant is None or pd.isna(variant) else str(variant)
+    return (str(row["profile"]), str(row["system"]), str(row["model"]), variant)
+
+
+def _model_text(model: str, variant: str) -> str:
+    return f"{model} [{variant}]" if variant else model
+
+
+def compare(reference: pd.DataFrame, current: pd.DataFrame,
+            rules: Optional[tuple[Rule, dict[str, Rule]]] = None,
+            allow_missing: bool = False, same: Optional[float] = None) -> CheckResult:
+    """Compare two leaderboards; see the module docstring (``same``: ``--same RTOL``)."""
+    default, by_metric = rules if rules is not None else load_rules()
+    result = CheckResult()
+    ref = reference.copy()
+    cur = current.copy()
+    ref_keys = {_row_key(r): r for _, r in ref.iterrows()}
+    cur_keys = {_row_key(r): r for _, r in cur.iterrows()}
+    if ref_keys and cur_keys and not set(ref_keys) & set(cur_keys):
+        ref_prof = sorted({k[0] for k in ref_keys})
+        cur_prof = sorted({k[0] for k in cur_keys})
+        if ref_prof != cur_prof:
+            raise CheckError(f"The reference is for profile {', '.join(ref_prof)} but the sweep "
+                             f"ran profile {', '.join(cur_prof)}; compare like with like")
+    metrics = [c[: -len("_mean")] for c in ref.columns if c.endswith("_mean")]
+
+    for key, r in ref_keys.items():
+        system, model = key[1], _model_text(key[2], key[3])
+        c = cur_keys.get(key)
+        if c is None:
+            finding = Finding("missing", "-", system, model, _status_text(r), "no runs")
+            (result.info if allow_missing else result.regressions).append(finding)
+            continue
+        result.n_pairs += 1
+        ref_seeds, cur_seeds = _seeds(r), _seeds(c)
+        if ref_seeds != cur_seeds:
+            result.info.append(Finding("seeds", "-", system, model, _seed_text(ref_seeds),
+                                       _seed_text(cur_seeds), "", "same seeds expected"))
+        changed = same is not None and (int(c["n_ok"]), int(c["n_seeds"])) != (
+            int(r["n_ok"]), int(r["n_seeds"]))
+        if changed or _ok_share(c) < _ok_share(r):
+            result.regressions.append(Finding(
+                "status", "status", system, model, _status_text(r), _status_text(c),
+                f"ok {int(c['n_ok'])}/{int(c['n_seeds'])}",
+                f"ok >= {int(r['n_ok'])}/{int(r['n_seeds'])}"))
+        for metric in metrics:
+            rule = by_metric.get(metric, default)
+            ref_value = float(r[f"{metric}_mean"])
+            if math.isnan(ref_value):
+                continue  # not applicable, or no result in the reference
+            cur_value = c.get(f"{metric}_mean", math.nan)
+            cur_value = math.nan if cur_value is None or pd.isna(cur_value) else float(cur_value)
+            result.n_metrics += rule.gate
+            if math.isnan(cur_value):
+                finding = Finding("metric", metric, system, model, _fmt(ref_value), "no value",
+                                  "", rule.limit_text())
+                (result.regressions if rule.gate else result.info).append(finding)
+                continue
+            if same is not None:
+                if not rule.gate:
+                    continue
+                diff = rule.difference(ref_value, cur_value)
+                if diff > same:
+                    result.regressions.append(Finding(
+                        "changed", metric, system, model, _fmt(ref_value), _fmt(cur_value),
+                        f"{_fmt(diff)} rel", f"within {same:g} rel"))
+                continue
+            factor = rule.worsening(ref_value, cur_value)
+            if factor > rule.factor:
+                finding = Finding("metric" if rule.gate else "info", metric, system, model,
+                                  _fmt(ref_value), _fmt(cur_value),
+                                  "inf worse" if math.isinf(factor) else f"{_fmt(factor)}x worse",
+                                  rule.limit_text())
+                (result.regressions if rule.gate else result.info).append(finding)
+    for key, c in cur_keys.items():
+        if key not in ref_keys:
+            result.info.append(Finding("new", "-", key[1], _model_text(key[2], key[3]),
+                                       "not in reference",
+                                       _status_text(c)))
+
+    ref_claims, cur_claims = _claims_by_key(ref), _claims_by_key(cur)
+    for (profile, claim_id, backend), rc in ref_claims.items():
+        cc = cur_claims.get((profile, claim_id, backend))
+        claim = rc.claim
+        pair = f"{backend} pair" if backend != "-" else "-"
+        now = cc.outcome if cc is not None else C.NOT_RUN
+        finding = Finding("claim", claim.metric, claim.system, pair,
+                          f"{rc.outcome} ({C.fmt_ratio(rc.ratio)})",
+                          f"{now} ({C.fmt_ratio(cc.ratio) if cc is not None else 'n/a'})",
+                          "", claim.requirement())
+        if rc.outcome == C.REPRODUCED:
+            result.n_claims += 1
+            if now == C.NOT_RUN and allow_missing:
+                result.info.append(finding)
+            elif now != C.REPRODUCED:
+                result.regressions.append(finding)
+        elif not (rc.outcome == C.NOT_RUN and now == C.NOT_RUN):
+            result.info.append(finding)
+    return result
+
+
+# --------------------------------------------------------------------------- cli
+
+HEADERS = ["check", "metric", "system", "model", "reference", "current", "factor", "limit"]
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> Any:
+        usage = " ".join(self.format_usage().split()[1:])
+        raise CheckError(f"{message} (usage: {usage})")
+
+
+def _parser() -> _Parser:
+    p = _Parser(prog="hnnbench check",
+                description="Validate run records and compare their leaderboard with a "
+                            "reference leaderboard.csv; exit 1 on a regression.")
+    p.add_argument("dirs", metavar="DIR", nargs="+",
+                   help="sweep or record directories (their records merge)")
+    p.add_argument("--reference", metavar="CSV", required=True,
+                   help="reference leaderboard.csv (e.g. results/reference/quick.csv)")
+    p.add_argument("--update", action="store_true",
+                   help="rewrite the reference from DIR instead of checking")
+    p.add_argument("--rules", metavar="FILE", default=None,
+                   help="YAML tolerances overriding the metrics' declared rules")
+    p.add_argument("--allow-missing", action="store_true",
+                   help="a reference pair with no run in DIR is information, not a "
+                        "regression (for a sweep of only some systems or models)")
+    p.add_argument("--rerun", metavar="SYSTEM/MODEL/SEED", action="append", default=[],
+                   help="run this job again from its record and compare (repeatable)")
+    p.add_argument("--same", metavar="RTOL", type=float, default=None,
+                   help="two-sided: every gated metric within RTOL relative of the "
+                        "reference and the same statuses (a reproduction check)")
+    return p
+
+
+def validate_records(recs: Sequence[dict[str, Any]], bad: Sequence[R.Unreadable]
+                     ) -> list[Finding]:
+    """Findings about the records themselves: unreadable files, schema violations,
+    missing provenance, plugin versions that differ from the installed ones."""
+    out = [Finding("invalid" if item.reason.startswith("invalid") else "unreadable", "-", "-",
+                   str(item.path), "", item.reason) for item in bad]
+    installed = {kind: {name: info.version for name, info in registry.discover(kind).items()
+                        if info.ok} for kind in ("system", "model")}
+    for rec in recs:
+        where = str(rec.get("path", "?"))
+        system, model = str(rec.get("system")), str(rec.get("model"))
+        env = rec.get("environment") or {}
+        missing = [k for k, v in (("environment.hnnbench", env.get("hnnbench")),
+                                  ("environment.python", env.get("python")),
+                                  ("environment.platform", env.get("platform")),
+                                  ("created_at", rec.get("created_at"))) if not v]
+        if missing:
+            out.append(Finding("provenance", "-", system, model, where,
+                               f"missing {', '.join(missing)}"))
+        for kind, name, key in (("system", system, "system_version"),
+                                ("model", model, "model_version")):
+            have = installed[kind].get(name)
+            if have is not None and rec.get(key) not in (None, have):
+                out.append(Finding("version", key, system, model, f"record {rec.get(key)}",
+                                   f"installed {have}", "", "same plugin version"))
+    return out
+
+
+def rerun(recs: Sequence[dict[str, Any]], spec: str, rules: tuple[Rule, dict[str, Rule]]
+          ) -> list[Finding]:
+    """Run the job ``SYSTEM/MODEL/SEED`` of ``recs`` again (its recorded config, in a
+    temporary directory) and compare each metric with the record's by ``rules``."""
+    import tempfile
+
+    from omegaconf import OmegaConf
+
+    from hnnbench._job import run_job
+
+    parts = spec.split("/")
+    if len(parts) != 3 or not parts[2].isdigit():
+        raise CheckError(f"--rerun {spec}: expected SYSTEM/MODEL/SEED, e.g. spring/hnn_jax/0")
+    system, model, seed = parts[0], parts[1], int(parts[2])
+    match = [r for r in recs if r.get("system") == system and r.get("model") == model
+             and r.get("seed") == seed]
+    if not match:
+        raise CheckError(f"--rerun {spec}: no record of that job in the checked directories")
+    rec = match[0]
+    config = rec.get("config")
+    if not isinstance(config, dict) or "system" not in config:
+        raise CheckError(f"--rerun {spec}: the record holds no resolved config to run again")
+    cfg = OmegaConf.create({**config, "rerun": True, "save_model": False})
+    with tempfile.TemporaryDirectory(prefix="hnnbench-rerun-") as tmp:
+        again = run_job(cfg, Path(tmp), overrides=rec.get("overrides"))
+    default, by_metric = rules
+    out = []
+    if again.get("status") != rec.get("status"):
+        out.append(Finding("rerun", "status", system, model, str(rec.get("status")),
+                           str(again.get("status")), "", "same status"))
+    for name, value in (rec.get("metrics") or {}).items():
+        rule = by_metric.get(name, default)
+        ref = float(value.get("mean", math.nan))
+        cur = float((again.get("metrics") or {}).get(name, {}).get("mean", math.nan))
+        if math.isnan(ref) and math.isnan(cur):
+            continue
+        # A re-run must agree with the record both ways, not merely be no worse.
+        worst = max(rule.worsening(ref, cur), rule.worsening(cur, ref))
+        if math.isnan(cur) or worst > rule.factor:
+            out.append(Finding("rerun", name, system, model, _fmt(ref), _fmt(cur),
+                               f"{_fmt(worst)}x apart", f"within {rule.factor:g}x"))
+    return out
+
+
+def main(args: Sequence[str]) -> int:
+    from tabulate import tabulate
+
+    from hnnbench._report.inputs import load_sweeps
+
+    ns = _parser().parse_args(list(args))
+    dirs = [Path(d) for d in ns.dirs]
+    recs, bad = load_sweeps(dirs)
+    board = leaderboard(recs)
+    rules = load_rules(ns.rules)
+    reference = Path(ns.reference)
+    where = " ".join(ns.dirs)
+    if ns.update:
+        if bad:
+            raise CheckError(f"{len(bad)} unreadable record(s), e.g. {bad[0]}: fix or remove "
+                             "them before writing a reference")
+        if reference.is_dir():
+            raise CheckError(f"Reference {reference} is a directory; give a CSV file path")
+        try:
+            R.atomic_write_text(reference, board.to_csv(index=False))
+        except OSError as err:
+            raise CheckError(f"Cannot write reference {reference}: {err.strerror}") from None
+        print(f"hnnbench check: wrote reference {reference} from {where} "
+              f"({len(board)} system x model pairs)")
+        return 0
+    if ns.same is not None and not ns.same >= 0:
+        raise CheckError(f"--same {ns.same}: expected a relative tolerance >= 0, e.g. 1e-3")
+    result = compare(read_reference(reference), board, rules, allow_missing=ns.allow_missing,
+                     same=ns.same)
+    result.regressions[:0] = validate_records(recs, bad)
+    for spec in ns.rerun:
+        result.regressions += rerun(recs, spec, rules)
+    print(f"hnnbench check: {where} vs {reference}"
+          + (f" (two-sided, within {ns.same:g} relative)" if ns.same is not None else
+             f" (rules: declared + {ns.rules})" if ns.rules else " (rules: declared)"))
+    print(f"validated {len(recs) + len(bad)} record(s); compared {result.n_pairs} pair(s), "
+          f"{result.n_metrics} gated metric value(s), {result.n_claims} claim(s) reproduced "
+          f"in the reference" + (f"; re-ran {len(ns.rerun)} job(s)" if ns.rerun else ""))
+    if result.info:
+        print()
+        print("information (not failing):")
+        print(tabulate([f.row() for f in result.info], headers=HEADERS, tablefmt="simple",
+                       disable_numparse=True))
+    if result.regressions:
+        print()
+        print(f"REGRESSIONS ({len(result.regressions)}):")
+        print(tabulate([f.row() for f in result.regressions], headers=HEADERS,
+                       tablefmt="simple", disable_numparse=True))
+        print()
+        missing_only = all(f.check == "missing" for f in result.regressions)
+        hint = (" Every regression is a reference pair this sweep did not run: for a sweep "
+                "of only some systems or models, pass --allow-missing (or make a reference "
+                "of your own with --update)." if missing_only else
+                " If a change is intended, rewrite the reference with --update.")
+        print(f"hnnbench check: FAILED, {len(result.regressions)} regression(s).{hint}")
+        return 1
+    print()
+    print("hnnbench check: OK, no regressions")
+    return 0

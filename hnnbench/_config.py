@@ -1,0 +1,457 @@
+"""Typed config schema of a job, composition, and validation.
+
+The top-level config is :class:`RunConfig` (registered in Hydra's ConfigStore as
+``hnnbench_schema`` and extended by conf/config.yaml); ``system`` and ``model`` are the
+plugins' own config dataclasses. Validation happens before any job starts (in the CLI)
+and again at the start of each job, never deep inside training.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+from dataclasses import dataclass, field, fields
+from typing import Any, Optional
+
+from omegaconf import MISSING, DictConfig, OmegaConf
+
+from hnnbench import _registry as registry
+from hnnbench._contract import Model, ModelConfig, System, SystemConfig
+from hnnbench._errors import ConfigError, UnknownNameError
+from hnnbench._metric import EvaluationConfig
+
+__all__ = [
+    "EvaluationConfig",
+    "Job",
+    "ProfileConfig",
+    "RunConfig",
+    "check_hydra_node",
+    "compose",
+    "hydra_error_line",
+    "prepare_job",
+    "register_schema",
+]
+
+DEVICE_RE = re.compile(r"^(auto|cpu|cuda(:\d+)?)$")
+#: Seeds must fit every backend's generator (torch, numpy, JAX keys): 0 <= seed < 2**32.
+MAX_SEED = 2**32 - 1
+#: Hydra plugins that are installed separately, by config-group option.
+HYDRA_PLUGIN_PACKAGES = {
+    "hydra/launcher": {
+        "joblib": "hydra-joblib-launcher",
+        "submitit_local": "hydra-submitit-launcher",
+        "submitit_slurm": "hydra-submitit-launcher",
+        "ray": "hydra-ray-launcher",
+        "ray_aws": "hydra-ray-launcher",
+        "rq": "hydra-rq-launcher",
+    },
+    "hydra/sweeper": {
+        "optuna": "hydra-optuna-sweeper",
+        "ax": "hydra-ax-sweeper",
+        "nevergrad": "hydra-nevergrad-sweeper",
+    },
+}
+
+
+@dataclass
+class ProfileConfig:
+    name: str = "paper"
+    description: str = ""
+
+
+@dataclass
+class RunConfig:
+    """One job: a system, a model and how to run them.
+
+    Attributes:
+        seed: seeds data generation, evaluation trajectories and model init (int >= 0).
+        device: ``auto`` (GPU if present), ``cpu``, ``cuda`` or ``cuda:N``.
+        rerun: redo jobs that already have a finished record in their directory.
+        threads: CPU threads per job for torch/BLAS/XLA (0: the library default). One
+            thread is fastest for the paper-sized networks and keeps parallel workers
+            from oversubscribing the cores.
+        pin_cpu: pin the job's process to one free core (:mod:`hnnbench._affinity`), so
+            that XLA runs one thread too and results do not depend on the launcher.
+            ``null`` (default): pin when ``threads=1`` and the ``hnnbench`` command
+            started the job (not when a notebook calls ``run_job``).
+        save_model: write the trained weights next to the record.
+        cache_dir: every cache: datasets, measured data, JAX's compiled executables
+            (default ``$HNNBENCH_CACHE_DIR`` or the user cache; :mod:`hnnbench._paths`).
+        data_dir: where measured data files are looked up before ``$HNNBENCH_DATA_DIR``.
+        seeds_per_job: a sweep over ``seed`` trains this many seeds of a (system, model)
+            pair as one batch, in one job (the CLI groups the seeds into
+            ``seed_batch``); each seed still gets its own record. 1: one seed per job.
+        seed_batch: the seeds this job trains as one batch (set by the CLI from
+            ``seeds_per_job``; ``seed`` is its first); ``null``: just ``seed``.
+    """
+
+    system: Any = MISSING
+    model: Any = MISSING
+    profile: ProfileConfig = field(default_factory=ProfileConfig)
+    seed: int = 0
+    device: str = "auto"
+    rerun: bool = False
+    threads: int = 1
+    pin_cpu: Optional[bool] = None
+    save_model: bool = True
+    cache_dir: Optional[str] = None
+    data_dir: Optional[str] = None
+    seeds_per_job: int = 1
+    seed_batch: Optional[list[int]] = None
+    evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
+
+
+def register_schema() -> None:
+    from hydra.core.config_store import ConfigStore
+
+    ConfigStore.instance().store(name="hnnbench_schema", node=RunConfig, provider="hnnbench")
+
+
+def _not_a_setting(what: str, key: Any, known: list[str]) -> ConfigError:
+    """``<what>. Did you mean '<closest>'? Settings: <known>``."""
+    close = difflib.get_close_matches(str(key), known, n=1)
+    hint = f" Did you mean '{close[0]}'?" if close else ""
+    return ConfigError(f"{what}.{hint} Settings: {', '.join(known)}")
+
+
+def validate_run(cfg: Any) -> None:
+    """Check the run-level fields of a composed config."""
+    from omegaconf.errors import MissingMandatoryValue, OmegaConfBaseException
+
+    known = [f.name for f in fields(RunConfig)]
+    for key in cfg:
+        if key not in known and key != "hydra":
+            raise _not_a_setting(f"{key} is not an hnnbench setting", key, known)
+    for key in known:
+        if key not in cfg:
+            raise ConfigError(f"{key} is missing (removed with ~{key}?): hnnbench needs it.")
+    try:  # without resolving: ${hydra:...} only resolves in a running job
+        OmegaConf.to_container(cfg, resolve=False, throw_on_missing=True)
+    except MissingMandatoryValue as err:
+        key = getattr(err, "full_key", None) or "a setting"
+        raise ConfigError(
+            f"{key} has no value: set it, e.g. {key}=<value> "
+            "(`hnnbench --cfg job` shows the config)."
+        ) from None
+    for key in cfg:  # every interpolation resolves (except those needing a running job)
+        if key == "hydra":
+            continue
+        try:
+            node = cfg[key]
+            if isinstance(node, DictConfig):
+                OmegaConf.to_container(node, resolve=True)
+        except OmegaConfBaseException as err:
+            if not _needs_running_hydra(err):
+                raise
+    for key in ("system", "model"):
+        node = cfg.get(key)
+        if not isinstance(node, DictConfig) or not isinstance(node.get("name"), str):
+            raise ConfigError(
+                f"{key} is not a {key} config: choose one with {key}=<name> "
+                "(`hnnbench list` shows the names)."
+            )
+    seed = cfg.seed
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+        raise ConfigError(
+            f"seed={seed} is invalid: expected an integer from 0 to {MAX_SEED}, e.g. seed=0."
+        )
+    spj = cfg.seeds_per_job
+    if isinstance(spj, bool) or not isinstance(spj, int) or spj < 1:
+        raise ConfigError(
+            f"seeds_per_job={spj} is invalid: expected an integer >= 1, e.g. seeds_per_job=3."
+        )
+    batch = cfg.get("seed_batch")
+    if batch is not None:
+        values = list(batch)
+        if not values or any(isinstance(v, bool) or not isinstance(v, int)
+                             or not 0 <= v <= MAX_SEED for v in values):
+            raise ConfigError(f"seed_batch={values} is invalid: expected a list of seeds, "
+                              "e.g. seed_batch=[0,1,2] (normally set by seeds_per_job).")
+        if len(set(values)) != len(values) or values[0] != seed:
+            raise ConfigError(f"seed_batch={values} must hold distinct seeds starting with "
+                              f"seed={seed}; let seeds_per_job set it.")
+    if not DEVICE_RE.match(str(cfg.device)):
+        raise ConfigError(
+            f"device={cfg.device} is invalid: expected auto, cpu, cuda or cuda:N."
+        )
+    if cfg.threads < 0:
+        raise ConfigError(f"threads={cfg.threads} is invalid: expected an integer >= 0.")
+    ev = cfg.evaluation
+    for key in ("rtol", "atol", "vpt_threshold"):
+        value = getattr(ev, key)
+        if not (value > 0 and math.isfinite(value)):
+            raise ConfigError(
+                f"evaluation.{key}={value} is invalid: expected a finite number > 0."
+            )
+
+
+def _instantiate_config(kind: str, node: Any) -> Any:
+    """The plugin config dataclass for a composed ``system`` / ``model`` node."""
+    name = str(node.name)
+    cls = registry.get_class(kind, name)  # type: ignore[arg-type]
+    values = OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
+    assert isinstance(values, dict)
+    known = [f.name for f in fields(cls.Config)]
+    for raw_key, value in values.items():
+        key = str(raw_key)
+        if key not in known:
+            raise _not_a_setting(f"{kind}.{key} is not a setting of {kind} '{name}'",
+                                 key, known)
+        # No plugin setting means anything with NaN or an infinity (a finite bound
+        # works where "no bound" is meant); plugins check their own ranges.
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ConfigError(f"{kind}.{key}={value} is invalid: expected a finite number. "
+                              f"Fix it with {kind}.{key}=<finite value>.")
+    try:
+        return cls.Config(**{str(k): v for k, v in values.items()})
+    except TypeError as err:
+        raise ConfigError(f"{kind} '{name}': {err}") from None
+
+
+@dataclass
+class Job:
+    """A validated job: plugin classes and typed configs."""
+
+    run: Any
+    system_cls: type[System]
+    system_cfg: SystemConfig
+    model_cls: type[Model]
+    model_cfg: ModelConfig
+
+
+def prepare_job(cfg: DictConfig) -> Job:
+    """Validate a composed config and resolve its plugins.
+
+    Raises:
+        ConfigError: with a one-line message naming the bad value.
+    """
+    from omegaconf.errors import OmegaConfBaseException
+
+    try:
+        validate_run(cfg)
+        system_cls = registry.get_class("system", cfg.system.name)
+        model_cls = registry.get_class("model", cfg.model.name)
+        system_cfg = _instantiate_config("system", cfg.system)
+        model_cfg = _instantiate_config("model", cfg.model)
+    except OmegaConfBaseException as err:  # interpolation, missing or mistyped values
+        raise ConfigError(hydra_error_line(err)) from None
+    for kind, typed in (("system", system_cfg), ("model", model_cfg)):
+        try:
+            typed.validate()
+        except ConfigError:
+            raise
+        except (TypeError, ValueError, ArithmeticError) as err:  # a value validate() chokes on
+            raise ConfigError(
+                f"{kind} '{typed.name}': invalid config ({type(err).__name__}: {err})"
+                .replace("\n", " ")
+            ) from None
+    return Job(cfg, system_cls, system_cfg, model_cls, model_cfg)
+
+
+def profile_of(overrides: list[str]) -> str:
+    """The profile named by ``profile=...`` in ``overrides`` (default ``paper``)."""
+    profile = "paper"
+    for item in overrides:
+        key, sep, value = item.partition("=")
+        if sep and key.lstrip("+~") == "profile":
+            profile = value
+    if "," in profile or profile.startswith(("glob(", "choice(", "range(")):
+        raise ConfigError(
+            f"profile={profile}: a sweep runs one profile; start one sweep per profile."
+        )
+    registry.validate_profile(profile)
+    return profile
+
+
+def compose(
+    overrides: list[str] | None = None,
+    return_hydra_config: bool = False,
+    config_name: str = "config",
+    config_dir: str | None = None,
+) -> DictConfig:
+    """Compose the job config for ``overrides`` as the CLI would (for tests, notebooks).
+
+    ``hydra.*`` and ``hydra/<group>=<option>`` overrides are applied (and checked) too;
+    the ``hydra`` node is returned only with ``return_hydra_config`` (see
+    :func:`check_hydra_node`). ``config_dir`` composes a user's primary config from that directory
+    instead of hnnbench's own (``--config-path``).
+
+    Raises:
+        ConfigError: a bad override (one line).
+    """
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_dir, initialize_config_module
+    from hydra.core.global_hydra import GlobalHydra
+
+    overrides = list(overrides or [])
+    _refuse_name_overrides(overrides)
+    register_schema()
+    registry.register_configs(profile_of(overrides))
+    GlobalHydra.instance().clear()
+    context: Any
+    if config_dir is None:
+        context = initialize_config_module("hnnbench_conf", version_base="1.3")
+    else:
+        context = initialize_config_dir(str(config_dir), version_base="1.3")
+    try:
+        with context:
+            _check_hydra_groups(overrides)
+            return hydra_compose(config_name, overrides=overrides,
+                                 return_hydra_config=return_hydra_config)
+    except ConfigError:
+        raise
+    except Exception as err:
+        raise (_unknown_setting(err, overrides) or ConfigError(hydra_error_line(err))) \
+            from None
+    finally:
+        GlobalHydra.instance().clear()
+
+
+def _refuse_name_overrides(overrides: list[str]) -> None:
+    """``system.name`` and ``model.name`` are set by the group choice: another name
+    would run one plugin's class with another's settings under the wrong label."""
+    for text in overrides:
+        key, sep, value = text.lstrip("+~").partition("=")
+        kind = key.split(".", 1)[0]
+        if key in ("system.name", "model.name"):
+            shown = value if sep and value else "<name>"
+            raise ConfigError(f"{key} cannot be set: it follows the {kind} chosen; choose "
+                              f"the {kind} with {kind}={shown}")
+
+
+_NOT_IN = re.compile(r"Key '([^']+)' not in '([^']+)'")
+
+
+def _unknown_setting(err: BaseException, overrides: list[str]) -> ConfigError | None:
+    """Hydra's "Key 'x' not in 'SomeConfig'" for a plugin's config, as the one-line
+    did-you-mean of :func:`_not_a_setting` (``None`` for any other error)."""
+    text = hydra_error_line(err)
+    match = _NOT_IN.search(text)
+    if match is None:
+        return None
+    key, config_name = match.groups()
+    full = re.search(r"\(key: ([^)]+)\)", text)
+    full_key = full.group(1) if full else key
+    chosen: dict[str, str] = {}  # the groups chosen on the command line, tried first
+    for item in overrides:
+        name, sep, value = item.lstrip("+~").partition("=")
+        if sep and name in ("system", "model"):
+            chosen[name] = value
+    for kind in ("system", "model"):
+        plugins = registry.discover(kind)
+        first = chosen.get(kind)
+        candidates = [*([first] if first else []), *(n for n in plugins if n != first)]
+        for name in candidates:
+            info = plugins.get(name)
+            config = getattr(info.cls, "Config", None) if info is not None else None
+            if info is not None and info.ok and config is not None \
+                    and config.__name__ == config_name:
+                known = [f.name for f in fields(config)]
+                return _not_a_setting(f"{full_key} is not a setting of {kind} '{name}'", key,
+                                      known)
+    if config_name == RunConfig.__name__:
+        return _not_a_setting(f"{key} is not an hnnbench setting", key,
+                              [f.name for f in fields(RunConfig)])
+    return None
+
+
+def _needs_running_hydra(err: BaseException) -> bool:
+    """An interpolation like ``${hydra:runtime.output_dir}`` only resolves in a job."""
+    return "HydraConfig was not set" in str(err)
+
+
+def check_hydra_node(cfg: DictConfig) -> None:
+    """Resolve what Hydra needs before any job starts (the output directories) in a
+    config composed with ``return_hydra_config=True``; raise a one-line ConfigError."""
+    from omegaconf.errors import OmegaConfBaseException
+
+    for key in ("hydra.run.dir", "hydra.sweep.dir", "hydra.sweep.subdir"):
+        try:
+            OmegaConf.select(cfg, key, throw_on_resolution_failure=True)
+        except OmegaConfBaseException as err:
+            if not _needs_running_hydra(err):
+                raise ConfigError(hydra_error_line(err)) from None
+
+
+def _check_hydra_groups(overrides: list[str]) -> None:
+    """``hydra/<group>=<option>``: an installed option of a Hydra group, with a
+    did-you-mean and the package that provides a known but missing plugin."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    parser = OverridesParser.create()
+    groups_of, options_of = _hydra_group_lister(overrides, parser)
+    for text in overrides:
+        if not text.lstrip("+~").startswith("hydra/"):
+            continue
+        try:
+            (ov,) = parser.parse_overrides([text])
+        except Exception as err:
+            raise ConfigError(f"Cannot parse override '{text}': {hydra_error_line(err)}") from None
+        group = ov.key_or_group
+        if ov.is_delete():
+            continue
+        groups = [f"hydra/{g}" for g in groups_of("hydra")]
+        if group not in groups:
+            raise UnknownNameError("Hydra config group", group, groups)
+        options = options_of(group)
+        values = [str(v) for v in ov.sweep_string_iterator()] if ov.is_sweep_override() else [
+            ov.get_value_element_as_str()]
+        kind = f"Hydra {group.split('/', 1)[1]}"
+        for value in values:
+            if value in options:
+                continue
+            package = HYDRA_PLUGIN_PACKAGES.get(group, {}).get(value)
+            if package:
+                raise ConfigError(
+                    f"{kind} '{value}' is not installed: pip install {package} "
+                    f"(installed: {', '.join(options)})"
+                )
+            raise UnknownNameError(kind, value, options)
+
+
+def _hydra_group_lister(overrides: list[str], parser: Any) -> tuple[Any, Any]:
+    """``(list_groups(parent), group_options(group))`` over Hydra's search path plus the
+    entries of a ``hydra.searchpath=[...]`` override, so that a user's own option file
+    (e.g. ``hydra/launcher/my_slurm.yaml`` in a directory on the search path) is known."""
+    from hydra.core.global_hydra import GlobalHydra
+
+    from hnnbench._hydra import group_lister
+
+    loader = GlobalHydra.instance().config_loader()
+    entries: list[str] = []
+    for text in overrides:
+        if text.lstrip("+~").split("=", 1)[0].strip() != "hydra.searchpath":
+            continue
+        try:
+            (ov,) = parser.parse_overrides([text])
+        except Exception as err:
+            raise ConfigError(f"Cannot parse override '{text}': {hydra_error_line(err)}") from None
+        value = ov.value()
+        entries += [str(v) for v in (value if isinstance(value, list) else [value])]
+    return group_lister(loader, entries)
+
+
+def hydra_error_line(err: BaseException) -> str:
+    """Condense a Hydra/OmegaConf composition error into one line."""
+    parts: list[str] = []
+    seen: set[int] = set()
+    cur: BaseException | None = err
+    while cur is not None and id(cur) not in seen:
+        seen.add(id(cur))
+        text = str(cur).strip()
+        # OmegaConf chains an unformatted copy of its message ('$VALUE'); Hydra's parser
+        # chains a 'None'. Neither says anything.
+        if text and "$VALUE" not in text and text != "None":
+            first = text.splitlines()[0].strip()
+            full_key = re.search(r"full_key:\s*(\S+)", text)
+            if full_key and full_key.group(1) not in first:
+                first = f"{first} (key: {full_key.group(1)})"
+            if not any(first.split(" (key: ")[0] in part for part in parts):
+                parts.append(first)
+        cur = cur.__cause__ or cur.__context__
+    line = ": ".join(p.rstrip(".:") if i < len(parts) - 1 else p for i, p in enumerate(parts))
+    line = " ".join((line or type(err).__name__).split())
+    if "Could not find" in line or "not in" in line:
+        line += ". Run `hnnbench list` for the names, or `hnnbench --cfg job` for the keys."
+    return line

@@ -1,0 +1,546 @@
+"""The plugin API: what a system and a model must provide.
+
+Conventions used throughout:
+
+- A *state* is ``x = (q_1..q_n, p_1..p_n)``: positions first, then momenta, so a batch of
+  states has shape ``(N, 2n)``. Units are the system's own (the paper's toy systems are
+  dimensionless).
+- Arrays crossing the API are float64 numpy arrays. Backends convert at the boundary.
+- A time grid ``t`` is 1-D, ``(T,)``, starting at the initial state's time. Data and
+  evaluation grids are strictly increasing. (The reversibility metric flips the momenta
+  and integrates forward again; no metric integrates backward in time.)
+
+A third-party plugin subclasses :class:`System` or :class:`Model`, declares a config
+dataclass (its defaults are the hyperparameters users get), and registers the class
+under the entry-point group ``hnnbench.systems`` or ``hnnbench.models``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar, Optional
+
+import numpy as np
+
+from hnnbench._errors import ConfigError, RolloutDiverged
+from hnnbench._kinematics import Kinematics
+
+__all__ = [
+    "Dataset",
+    "FitResult",
+    "Model",
+    "ModelConfig",
+    "Progress",
+    "Split",
+    "System",
+    "SystemConfig",
+    "TrainSettings",
+    "Trajectories",
+    "check_fraction",
+    "check_int_at_least",
+    "check_ordered",
+    "check_positive",
+]
+
+#: Called by ``Model.fit`` as training goes: ``progress(step, {"train_loss": ...})``.
+Progress = Callable[[int, Mapping[str, float]], None]
+
+
+def check_positive(owner: str, **values: float | int | None) -> None:
+    """Raise a one-line :class:`ConfigError` for the first value that is not > 0.
+
+    ``None`` values are skipped (they mean "use the default").
+    """
+    for key, value in values.items():
+        if value is not None and not (value > 0 and math.isfinite(value)):
+            raise ConfigError(
+                f"{owner}.{key}={value} is invalid: expected a finite number > 0. "
+                f"Fix it with {owner}.{key}=<positive value>."
+            )
+
+
+def check_int_at_least(owner: str, low: int, **values: Any) -> None:
+    """Raise a one-line :class:`ConfigError` for the first value that is not an integer
+    ``>= low`` (booleans are rejected)."""
+    for key, value in values.items():
+        ok = not isinstance(value, bool) and isinstance(value, (int, np.integer))
+        if not ok or value < low:
+            raise ConfigError(
+                f"{owner}.{key}={value} is invalid: expected an integer >= {low}. "
+                f"Fix it with {owner}.{key}=<integer >= {low}>."
+            )
+
+
+def check_fraction(owner: str, key: str, value: float, example: float) -> None:
+    """Raise a one-line :class:`ConfigError` unless ``0 < value < 1``."""
+    if not 0.0 < value < 1.0:
+        raise ConfigError(
+            f"{owner}.{key}={value} is invalid: expected a fraction strictly between 0 and "
+            f"1, e.g. {owner}.{key}={example}."
+        )
+
+
+def check_ordered(owner: str, low_key: str, low: float, high_key: str, high: float) -> None:
+    """Raise a one-line :class:`ConfigError` unless ``low <= high``."""
+    if high < low:
+        raise ConfigError(
+            f"{owner}.{high_key}={high} is below {owner}.{low_key}={low}: expected "
+            f"{low_key} <= {high_key}."
+        )
+
+
+# --------------------------------------------------------------------------- configs
+
+
+@dataclass
+class SystemConfig:
+    """Base config of a system; subclass it (as a dataclass) to add data settings.
+
+    The training fields are the task's training protocol (the paper fixes them per
+    task); a model config may override each of them. Every other field describes how
+    data and evaluation trajectories are made, and keys the dataset cache.
+    """
+
+    name: str = "???"
+    #: Optimizer steps.
+    steps: int = 2000
+    #: Minibatch size; ``None`` trains on the full training set every step.
+    batch_size: Optional[int] = None
+    #: Adam learning rate.
+    lr: float = 1e-3
+    #: Adam (L2) weight decay.
+    weight_decay: float = 0.0
+
+    TRAINING_FIELDS: ClassVar[tuple[str, ...]] = ("steps", "batch_size", "lr", "weight_decay")
+
+    def validate(self) -> None:
+        """Raise :class:`ConfigError` on an invalid value. Extend in subclasses."""
+        check_positive("system", steps=self.steps, batch_size=self.batch_size, lr=self.lr)
+        if not (self.weight_decay >= 0 and math.isfinite(self.weight_decay)):
+            raise ConfigError(
+                f"system.weight_decay={self.weight_decay} is invalid: expected a finite "
+                "number >= 0."
+            )
+
+    def data_fields(self) -> dict[str, Any]:
+        """The fields that determine the generated data (the cache key)."""
+        out = dataclasses.asdict(self)
+        for key in (*self.TRAINING_FIELDS, "name"):
+            out.pop(key, None)
+        return out
+
+
+@dataclass
+class ModelConfig:
+    """Base config of a model. ``None`` training fields take the system's protocol."""
+
+    name: str = "???"
+    steps: Optional[int] = None
+    batch_size: Optional[int] = None
+    lr: Optional[float] = None
+    weight_decay: Optional[float] = None
+
+    def validate(self) -> None:
+        """Raise :class:`ConfigError` on an invalid value. Extend in subclasses."""
+        check_positive("model", steps=self.steps, batch_size=self.batch_size, lr=self.lr)
+        if self.weight_decay is not None and not (
+                self.weight_decay >= 0 and math.isfinite(self.weight_decay)):
+            raise ConfigError(
+                f"model.weight_decay={self.weight_decay} is invalid: expected a finite "
+                "number >= 0."
+            )
+
+
+@dataclass(frozen=True)
+class TrainSettings:
+    """The training protocol of one job: the system's, with the model's overrides."""
+
+    steps: int
+    batch_size: Optional[int]
+    lr: float
+    weight_decay: float
+
+    @classmethod
+    def resolve(cls, system: SystemConfig, model: ModelConfig) -> TrainSettings:
+        def pick(key: str) -> Any:
+            value = getattr(model, key, None)
+            return getattr(system, key) if value is None else value
+
+        return cls(**{key: pick(key) for key in SystemConfig.TRAINING_FIELDS})
+
+
+# --------------------------------------------------------------------------- data
+
+
+@dataclass(frozen=True)
+class Split:
+    """One split (train or test) of a dataset.
+
+    Attributes:
+        x: ``(N, D)`` model inputs: states ``(N, 2n)``, or flattened observations
+            (for pixel systems, two consecutive frames, ``D = 2 * H * W``).
+        dxdt: ``(N, D)`` targets: the time derivative of ``x`` (clean, noise-free).
+        traj: ``(N,)`` integer trajectory id of each point.
+        t: ``(N,)`` time of each point within its trajectory.
+        extras: further per-point arrays, each with leading dimension ``N`` (for pixel
+            systems, ``"state"``: the true ``(N, 2n)`` state, used by the linear probe).
+    """
+
+    x: np.ndarray
+    dxdt: np.ndarray
+    traj: np.ndarray
+    t: np.ndarray
+    extras: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.x.shape[0])
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """A train/test split of points and targets, plus JSON-serialisable metadata."""
+
+    train: Split
+    test: Split
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def save(self, path: Path) -> None:
+        """Write to ``path`` (an ``.npz``), without pickle."""
+        arrays: dict[str, np.ndarray] = {"__meta__": np.array(json.dumps(self.meta))}
+        for split_name in ("train", "test"):
+            split: Split = getattr(self, split_name)
+            for key in ("x", "dxdt", "traj", "t"):
+                arrays[f"{split_name}.{key}"] = getattr(split, key)
+            for key, value in split.extras.items():
+                arrays[f"{split_name}.extras.{key}"] = value
+        _savez(path, arrays)
+
+    @classmethod
+    def load(cls, path: Path) -> Dataset:
+        with np.load(path, allow_pickle=False) as npz:
+            arrays = {key: npz[key] for key in npz.files}
+        meta = json.loads(str(arrays.pop("__meta__")))
+
+        def split(prefix: str) -> Split:
+            extras = {
+                key.split(".", 2)[2]: value
+                for key, value in arrays.items()
+                if key.startswith(f"{prefix}.extras.")
+            }
+            return Split(x=arrays[f"{prefix}.x"], dxdt=arrays[f"{prefix}.dxdt"],
+                         traj=arrays[f"{prefix}.traj"], t=arrays[f"{prefix}.t"], extras=extras)
+
+        return cls(train=split("train"), test=split("test"), meta=meta)
+
+
+@dataclass(frozen=True)
+class Trajectories:
+    """Ground-truth trajectories used by the rollout metrics.
+
+    Attributes:
+        t: ``(T,)`` time grid, ``t[0]`` is the time of the initial states.
+        states: ``(M, T, 2n)`` true states along each trajectory.
+        dt: the data's sampling interval (for plugins and plots; the rollout metrics
+            integrate adaptively on ``t``).
+        observations: for pixel systems, ``(M, T, D)`` model inputs along each
+            trajectory (``None`` for state systems, whose inputs are the states).
+        meta: JSON-serialisable description of the protocol (horizon, tolerances, ...).
+    """
+
+    t: np.ndarray
+    states: np.ndarray
+    dt: float
+    observations: Optional[np.ndarray] = None
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def x0(self) -> np.ndarray:
+        """``(M, 2n)`` initial states."""
+        return self.states[:, 0]
+
+    def save(self, path: Path) -> None:
+        arrays = {
+            "t": self.t,
+            "states": self.states,
+            "dt": np.array(self.dt),
+            "__meta__": np.array(json.dumps(self.meta)),
+        }
+        if self.observations is not None:
+            arrays["observations"] = self.observations
+        _savez(path, arrays)
+
+    @classmethod
+    def load(cls, path: Path) -> Trajectories:
+        with np.load(path, allow_pickle=False) as npz:
+            return cls(
+                t=npz["t"],
+                states=npz["states"],
+                dt=float(npz["dt"]),
+                observations=npz["observations"] if "observations" in npz.files else None,
+                meta=json.loads(str(npz["__meta__"])),
+            )
+
+
+def _savez(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    savez: Any = np.savez  # numpy's stub reads **arrays as its allow_pickle keyword
+    with open(path, "wb") as fh:
+        savez(fh, **arrays)
+
+
+# --------------------------------------------------------------------------- plugins
+
+
+class System(ABC):
+    """A physical system: its true energy and dynamics, its data and evaluation protocol.
+
+    Class attributes a subclass sets:
+        Config: its config dataclass (a :class:`SystemConfig` subclass).
+        version: bump when data generation changes; every record stores it.
+        description: one line for ``hnnbench list``.
+        observation: ``"state"`` (models see ``(q, p)``) or ``"pixels"``.
+        time_reversible: the true dynamics are time-reversal symmetric,
+            ``R Φ_T R Φ_T x = x`` with ``R(q, p) = (q, -p)``; enables the
+            reversibility metric (NaN elsewhere).
+        conservative: the true dynamics conserve :meth:`energy`; enables the
+            long-horizon energy-drift metric (NaN elsewhere). ``False`` for damped and
+            measured systems.
+        profiles: per-profile overrides of the config defaults, e.g.
+            ``{"quick": {"steps": 200, "n_traj": 20}}``. The ``paper`` profile is the
+            dataclass defaults; ``quick`` is the only other profile.
+        order: position in listings and tables (lower first; ``None``: after the
+            plugins that set one, by name).
+
+    Optional methods and properties a subclass may override: :meth:`vector_field`
+    (where the dynamics are known), :meth:`kinematics` (for second-order models),
+    :attr:`lyapunov_time` (for chaotic systems), :attr:`wrapped_angles` (where the
+    data wraps angles).
+    """
+
+    Config: ClassVar[type[SystemConfig]] = SystemConfig
+    version: ClassVar[str] = "1"
+    description: ClassVar[str] = ""
+    observation: ClassVar[str] = "state"
+    time_reversible: ClassVar[bool] = True
+    conservative: ClassVar[bool] = True
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {}
+    order: ClassVar[Optional[float]] = None
+
+    def __init__(self, cfg: SystemConfig) -> None:
+        self.cfg = cfg
+
+    @property
+    def name(self) -> str:
+        return self.cfg.name
+
+    @property
+    @abstractmethod
+    def dof(self) -> int:
+        """Degrees of freedom n; a state has 2n numbers."""
+
+    @abstractmethod
+    def energy(self, x: np.ndarray) -> np.ndarray:
+        """True energy ``(N,)`` of states ``x`` of shape ``(N, 2n)``."""
+
+    def vector_field(self, x: np.ndarray) -> Optional[np.ndarray]:
+        """True ``dx/dt`` of shape ``(N, 2n)``, or ``None`` where unknown (measured data)."""
+        return None
+
+    @property
+    def has_vector_field(self) -> bool:
+        """Whether :meth:`vector_field` is implemented."""
+        return type(self).vector_field is not System.vector_field
+
+    @abstractmethod
+    def dataset(self, seed: int) -> Dataset:
+        """The train/test data for ``seed``. Must be deterministic given config and seed."""
+
+    @abstractmethod
+    def evaluation(self, seed: int) -> Trajectories:
+        """Ground-truth evaluation trajectories for ``seed`` (deterministic)."""
+
+    def kinematics(self) -> Optional[Kinematics]:
+        """How positions move (:mod:`hnnbench._kinematics`): the map between canonical
+        states ``(q, p)`` and velocity states ``(q, q̇)``. ``None`` (the default): not
+        declared, and models that need it (second-order families) skip this system."""
+        return None
+
+    @property
+    def lyapunov_time(self) -> Optional[float]:
+        """The system's Lyapunov time (the inverse of its largest Lyapunov exponent),
+        in its time units, for the configured regime; ``None`` where it is not chaotic
+        or not known. Enables the ``vpt_lyapunov`` metric."""
+        return None
+
+    @property
+    def wrapped_angles(self) -> tuple[int, ...]:
+        """Indices ``i < n`` of the positions ``q_i`` that the data gives as angles
+        wrapped into ``[-π, π)``, so that consecutive samples of one trajectory jump by
+        2π where the angle crosses ±π. Models that train on windows of consecutive
+        states (:func:`hnnbench.neural._views.trajectory_windows`) make each window
+        continuous again. ``()`` (the default): no coordinate is wrapped."""
+        return ()
+
+    def reverse(self, x: np.ndarray) -> np.ndarray:
+        """The time-reversal map R: flip the momenta of ``(N, 2n)`` states."""
+        out = np.array(x, dtype=np.float64, copy=True)
+        out[..., self.dof :] *= -1.0
+        return out
+
+
+class Model(ABC):
+    """A learner of dynamics.
+
+    Class attributes a subclass sets:
+        Config: its config dataclass (a :class:`ModelConfig` subclass).
+        version, description, profiles: as for :class:`System`.
+        backend: ``"torch"``, ``"jax"`` or ``"numpy"``.
+        observations: the system observations it handles (``"state"``, ``"pixels"``).
+        weights_file: the file name :meth:`save` writes in the job's directory, e.g.
+            ``"weights.safetensors"``; ``None`` (the default): nothing to save.
+        order: position in listings and tables, as for :class:`System`.
+        ranked: ``False`` for a reference that is not a competitor (the oracle): its
+            rows are shown but never ranked or highlighted as best.
+    """
+
+    Config: ClassVar[type[ModelConfig]] = ModelConfig
+    version: ClassVar[str] = "1"
+    description: ClassVar[str] = ""
+    backend: ClassVar[str] = "numpy"
+    observations: ClassVar[tuple[str, ...]] = ("state",)
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {}
+    weights_file: ClassVar[Optional[str]] = None
+    order: ClassVar[Optional[float]] = None
+    ranked: ClassVar[bool] = True
+
+    def __init__(self, cfg: ModelConfig, system: System, device: str = "auto") -> None:
+        self.cfg = cfg
+        self.system = system
+        self.requested_device = device
+        #: Extra timings (seconds) a model wants recorded, e.g. ``{"compile_s": 1.2}``.
+        self.timings: dict[str, float] = {}
+
+    @property
+    def name(self) -> str:
+        return self.cfg.name
+
+    @property
+    def device(self) -> str:
+        """The device actually used (``"cpu"``, ``"cuda:0"``, ...)."""
+        return "cpu"
+
+    @classmethod
+    def requirements_missing(cls) -> Optional[str]:
+        """Why this model cannot run in this environment at all, e.g. an install hint
+        for a missing backend (``None``: it can). Checked by the registry without
+        importing the backend; ``hnnbench list`` shows it and ``all`` leaves the model
+        out."""
+        return None
+
+    @classmethod
+    def unsupported_reason(cls, system: System) -> Optional[str]:
+        """Why this model cannot run on ``system`` (``None`` if it can)."""
+        if system.observation not in cls.observations:
+            return (
+                f"{system.observation} observations are not supported "
+                f"(supports: {', '.join(cls.observations)})"
+            )
+        return None
+
+    @abstractmethod
+    def fit(
+        self, data: Dataset, train: TrainSettings, seed: int, progress: Progress
+    ) -> FitResult:
+        """Train on ``data.train``; report losses through ``progress``."""
+
+    def fit_seeds(
+        self, data: Sequence[Dataset], train: TrainSettings, seeds: Sequence[int],
+        progress: Progress
+    ) -> list[tuple[Model, FitResult]]:
+        """Train one model per seed (seed ``seeds[k]`` on ``data[k]``, the system's
+        dataset of that seed), in order: ``[(trained model, result)]``.
+
+        A seed whose training diverges gets a result with ``diverged`` set; the others
+        are unaffected. The default trains a fresh instance per seed, one after the
+        other; a model that can train several seeds as one batch (the neural models)
+        overrides it. Used when a job trains several seeds (``seeds_per_job``).
+        """
+        out: list[tuple[Model, FitResult]] = []
+        for seed, seed_data in zip(seeds, data, strict=True):
+            model = type(self)(self.cfg, self.system, self.requested_device)
+            try:
+                result = model.fit(seed_data, train, seed, progress)
+            except RolloutDiverged as err:
+                result = FitResult(diverged=str(err))
+            out.append((model, result))
+        return out
+
+    @abstractmethod
+    def time_derivative(self, x: np.ndarray) -> np.ndarray:
+        """Predicted ``dx/dt`` ``(N, D)`` for inputs ``x`` ``(N, D)``."""
+
+    @abstractmethod
+    def rollout(
+        self, x0: np.ndarray, t: np.ndarray, rtol: float = 1e-9, atol: float = 1e-9
+    ) -> np.ndarray:
+        """Integrate the learned dynamics from ``x0`` ``(M, D)`` over ``t`` ``(T,)``.
+
+        Adaptive Dormand-Prince in float64, batched over initial states; ``t`` is
+        increasing. Returns ``(M, T, D)``; raise
+        :class:`hnnbench._errors.RolloutDiverged` if the solver gives up.
+        """
+
+    def loss(self, x: np.ndarray, dxdt: np.ndarray) -> float:
+        """The loss reported as train/test loss: MSE of ``dx/dt`` (override for
+        models whose objective is more than that, e.g. autoencoders)."""
+        pred = self.time_derivative(x)
+        return float(np.mean((pred - dxdt) ** 2))
+
+    def energy(self, x: np.ndarray) -> Optional[np.ndarray]:
+        """The learned conserved quantity ``(N,)`` if the model has one, else ``None``."""
+        return None
+
+    def encode(self, obs: np.ndarray) -> np.ndarray:
+        """Map observations ``(N, D_obs)`` to the space :meth:`rollout` works in,
+        ``(N, D_latent)`` (identity for state models)."""
+        return obs
+
+    def decode(self, z: np.ndarray) -> Optional[np.ndarray]:
+        """Map latents ``(N, D_latent)`` back to observations ``(N, D_obs)``; ``None``
+        for models without a decoder (state models)."""
+        return None
+
+    def save(self, path: Path) -> None:
+        """Write the trained weights to exactly ``path`` (``<job dir>/<weights_file>``;
+        write no other file and add no suffix), without pickle (safetensors, npz).
+        Called after a successful fit when ``weights_file`` is set."""
+        raise NotImplementedError(f"{type(self).__name__} does not implement save()")
+
+    def load(self, path: Path) -> None:
+        """Read weights written by :meth:`save` (the model is built with the same config
+        and system)."""
+        raise NotImplementedError(f"{type(self).__name__} does not implement load()")
+
+
+@dataclass
+class FitResult:
+    """What training returns.
+
+    Attributes:
+        history: columns of the training log, e.g. ``{"step": [...], "train_loss":
+            [...], "test_loss": [...]}``, all of the same length.
+        steps: optimizer steps taken; 0 for a model without an iterative training
+            loop (closed form, least squares), whose record then shows no training
+            protocol.
+        diverged: why training diverged, from :meth:`Model.fit_seeds` (``fit`` raises
+            :class:`~hnnbench._errors.RolloutDiverged` instead); ``None`` otherwise.
+    """
+
+    history: dict[str, list[float]] = field(default_factory=dict)
+    steps: int = 0
+    diverged: Optional[str] = None

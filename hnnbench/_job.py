@@ -1,0 +1,487 @@
+"""One job: dataset -> fit -> evaluate -> record.
+
+A job is self-contained: it reads its composed config and writes ``result.json`` (and
+``rollout.npz``, the trained weights) into its own directory, so any Hydra launcher can
+run it. It never raises for a problem of its own run: a diverging model is recorded as
+``diverged``, an exception as ``failed``, an unsupported (system, model) pair as
+``skipped``, and the sweep goes on.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import dataclasses
+import functools
+import logging
+import os
+import shlex
+import shutil
+import sys
+import time
+import traceback
+import uuid
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+import threadpoolctl
+from omegaconf import DictConfig, OmegaConf, open_dict
+
+from hnnbench import _affinity as affinity
+from hnnbench import _cache as cache
+from hnnbench import _launch as launch
+from hnnbench import _paths as paths
+from hnnbench import _records as records
+from hnnbench import _registry as registry
+from hnnbench._config import EvaluationConfig, Job, prepare_job
+from hnnbench._contract import Dataset, FitResult, TrainSettings, Trajectories
+from hnnbench._errors import HnnbenchError, RolloutDiverged, UnsupportedPair
+from hnnbench._evaluate import evaluate, failed_metrics
+from hnnbench._progress import TrainingProgress
+
+log = logging.getLogger("hnnbench")
+
+__all__ = ["config_change", "run_job", "run_seeds", "seed_directory"]
+
+
+def _set_threads(threads: int) -> None:
+    """Cap every CPU thread pool the job computes with at ``threads`` (0: leave them).
+
+    BLAS and OpenMP libraries read ``OMP_NUM_THREADS`` and the like only when they load,
+    and numpy's OpenBLAS is loaded long before a job starts, so the environment alone
+    leaves it at one thread per core. threadpoolctl caps the pools already loaded
+    (numpy's OpenBLAS, torch's OpenMP) and the environment those loaded later. Left at
+    two threads, OpenBLAS on a job pinned to one core (:mod:`hnnbench._affinity`) spends
+    its time in two threads waiting on each other: a QR of 1568 x 200 took 0.8 s instead
+    of 0.02 s, half the time of a quick pixel-pendulum job.
+    """
+    if threads <= 0:
+        return
+    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        os.environ[var] = str(threads)
+    threadpoolctl.threadpool_limits(limits=threads)
+    if "torch" in sys.modules:
+        import torch
+
+        torch.set_num_threads(threads)
+
+
+_pinned_once = False
+
+
+def _warn_if_xla_started() -> None:
+    """At the first pin of this process, warn when JAX's backends had already started:
+    XLA sized its CPU thread pool from the cores it saw then (later jobs of a serial
+    sweep reuse the pool of a pinned first job, so only the first pin matters), and
+    this process's JAX results may differ in the last bits from the ``hnnbench``
+    command's, which pins every job before JAX starts (docs/SYSTEMS_PIXEL.md). Reads
+    JAX's private backend table; silent when that is not there."""
+    global _pinned_once
+    if _pinned_once:
+        return
+    _pinned_once = True
+    bridge = sys.modules.get("jax._src.xla_bridge")
+    if not getattr(bridge, "_backends", None):
+        return
+    log.warning("JAX was started in this process before the job pinned it to one core: "
+                "its JAX results may differ in the last bits from the hnnbench command's; "
+                "for records comparable bit for bit, run from a fresh process or the CLI")
+
+
+def _select(cfg: DictConfig, key: str) -> Any:
+    try:
+        return OmegaConf.select(cfg, key, default=None)
+    except Exception:  # an unresolvable interpolation: the job fails with the reason
+        return None
+
+
+def _config_container(cfg: DictConfig) -> Any:
+    try:
+        return OmegaConf.to_container(cfg, resolve=True)
+    except Exception:
+        return OmegaConf.to_container(cfg, resolve=False)
+
+
+def config_change(old: Any, new: Any, prefix: str = "") -> str | None:
+    """The first setting whose value differs between a finished record's resolved
+    config ``old`` and a job's ``new`` (``"key: old -> new"``), or ``None``.
+
+    Keys that only one side has are not compared (a setting added to hnnbench or a
+    plugin since the record was made keeps its default), nor are
+    :data:`hnnbench._records.RUN_ONLY_KEYS`, which do not change what a job computes.
+    """
+    if isinstance(old, dict) and isinstance(new, dict):
+        # A profile changes many settings at once: name it rather than the first of them.
+        for key in sorted(old, key=lambda k: (prefix, k) != ("", "profile")):
+            if key in new and not (not prefix and key in records.RUN_ONLY_KEYS):
+                change = config_change(old[key], new[key], f"{prefix}{key}.")
+                if change is not None:
+                    return change
+        return None
+    return None if old == new else f"{prefix.rstrip('.')}: {old!r} -> {new!r}"
+
+
+def _base_record(cfg: DictConfig, overrides: list[str] | None) -> dict[str, Any]:
+    context = launch.current()
+    command = context.command if context is not None else None
+    job_overrides = [o for o in overrides or [] if not o.startswith(("hydra.", "hydra/"))]
+    return {
+        "schema_version": records.SCHEMA_VERSION,
+        "system": _select(cfg, "system.name"),
+        "system_version": None,
+        "model": _select(cfg, "model.name"),
+        "model_version": None,
+        "backend": None,
+        "seed": _select(cfg, "seed"),
+        "profile": _select(cfg, "profile.name"),
+        "status": "failed",
+        "error": None,
+        "metrics": {},
+        "timings": {},
+        "steps": 0,
+        "device": None,
+        "data": {},
+        "config": _config_container(cfg),
+        # How to run exactly this job again (the resolved config above is the truth;
+        # these are the command lines that produced it).
+        "overrides": list(overrides) if overrides is not None else None,
+        "command": command,
+        "rerun_command": shlex.join(["hnnbench", *job_overrides])
+        if overrides is not None else None,
+        "environment": records.environment(),
+        "created_at": records.now_iso(),
+    }
+
+
+def _save_arrays(directory: Path, arrays: dict[str, np.ndarray], history: dict) -> None:
+    payload = {k: np.asarray(v) for k, v in arrays.items()}
+    payload.update({f"history.{k}": np.asarray(v, dtype=np.float64) for k, v in history.items()})
+    savez: Any = np.savez_compressed  # numpy's stub reads **payload as allow_pickle
+    with records.atomic_path(directory / records.ROLLOUT_NAME) as tmp, open(tmp, "wb") as fh:
+        savez(fh, **payload)
+
+
+def _save_model(model: Any, directory: Path) -> Optional[str]:
+    """Save the trained weights as ``directory / model.weights_file`` (nothing if the
+    model names no file): ``model.save`` writes into a private temporary folder, then the
+    file is renamed into place, so a killed job never leaves torn weights behind.
+    Returns the file name, or ``None``."""
+    name = getattr(model, "weights_file", None)
+    if not name:
+        return None
+    tmpdir = directory / f".weights.{os.getpid()}.{uuid.uuid4().hex}.tmp"
+    tmpdir.mkdir(parents=True)
+    try:
+        model.save(tmpdir / name)
+        written = tmpdir / name
+        if not written.is_file():
+            raise HnnbenchError(
+                f"{type(model).__name__}.save() did not write {name}: a model's save(path) "
+                "must write exactly the path it is given (see Model.weights_file)"
+            )
+        with records.atomic_path(directory / name) as tmp:
+            os.replace(written, tmp)
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
+    return name
+
+
+def _clean_stale(directory: Path) -> None:
+    """Remove temporary files a killed earlier attempt of this job left behind."""
+    if not directory.is_dir():
+        return
+    for path in directory.glob(".*.tmp*"):
+        if path.is_dir():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                path.unlink()
+
+
+def _check_finite(record: dict[str, Any]) -> None:
+    """A finished job whose train/test loss is NaN/inf is ``diverged``, with inf
+    losses, whatever the model and the rollouts said."""
+    means = {k: record["metrics"].get(k, {}).get("mean") for k in ("train_loss", "test_loss")}
+    bad = [k for k, v in means.items() if isinstance(v, (int, float)) and not np.isfinite(v)]
+    if not bad:
+        return
+    for key in bad:
+        record["metrics"][key]["mean"] = float("inf")
+    if record["status"] == "ok":
+        record.update(status="diverged", error=f"non-finite {' and '.join(bad)}")
+
+
+def seed_directory(directory: Path, leader: int, seed: int) -> Path:
+    """Where the record of ``seed`` goes when a job trains a batch led by ``leader``
+    (whose directory Hydra chose): the same path with its ``seed<leader>`` component
+    replaced, so every seed's record sits where a job of its own would put it."""
+    directory = Path(directory)
+    if seed == leader:
+        return directory
+    parts = list(directory.parts)
+    for i in range(len(parts) - 1, -1, -1):
+        if parts[i] == f"seed{leader}":
+            parts[i] = f"seed{seed}"
+            return Path(*parts)
+    return directory / f"seed{seed}"
+
+
+def _seed_config(cfg: DictConfig, seed: int) -> DictConfig:
+    """The config of one seed of a batch: as if it had run alone."""
+    one = copy.deepcopy(cfg)
+    with open_dict(one):
+        one.seed = seed
+        if "seed_batch" in one:
+            one.seed_batch = None
+    return one
+
+
+def _seed_overrides(overrides: list[str] | None, seed: int) -> list[str] | None:
+    if overrides is None:
+        return None
+    keep = [o for o in overrides
+            if o.lstrip("+~").split("=", 1)[0] not in ("seed", "seed_batch")]
+    return [*keep, f"seed={seed}"]
+
+
+def run_job(
+    cfg: DictConfig, directory: Path, index: int | None = None, total: int | None = None,
+    overrides: list[str] | None = None,
+) -> dict[str, Any]:
+    """Run one job and write its record into ``directory``; return the record (of the
+    first seed, for a job that trains a batch of seeds: :func:`run_seeds`).
+
+    Never raises for a problem of the job itself (bad config, data, model, NaNs): the
+    record says ``failed`` or ``diverged``. ``overrides`` (Hydra's task overrides) are
+    stored in the record so the job can be re-run exactly.
+    """
+    return run_seeds(cfg, directory, index, total, overrides)[0]
+
+
+def run_seeds(
+    cfg: DictConfig, directory: Path, index: int | None = None, total: int | None = None,
+    overrides: list[str] | None = None,
+) -> list[dict[str, Any]]:
+    """Run the job's seed, or its batch of seeds (``seed_batch``, from
+    ``seeds_per_job``), and write one record per seed; return them in seed order.
+
+    A batch trains all its seeds in one program (:meth:`hnnbench._contract.Model.fit_seeds`)
+    and writes each seed's record where a job of its own would (:func:`seed_directory`),
+    as if it had run alone (``seed_batch`` records the batch). Seeds already finished
+    are not run again (resume); one seed that diverges or fails leaves the others'
+    records unaffected.
+    """
+    directory = Path(directory)
+    batch = _select(cfg, "seed_batch")
+    seeds = [int(s) for s in batch] if batch else [int(_select(cfg, "seed") or 0)]
+    system, model = (_select(cfg, k) for k in ("system.name", "model.name"))
+    count = f"[{index + 1}/{total}] " if index is not None and total else ""
+    dirs = {seed: seed_directory(directory, seeds[0], seed) for seed in seeds}
+    done: dict[int, dict[str, Any]] = {}
+    for seed in seeds:
+        existing = records.read_record(dirs[seed] / records.RECORD_NAME)
+        if not existing or existing.get("status") not in records.FINISHED \
+                or _select(cfg, "rerun"):
+            continue
+        change = config_change(existing.get("config"),
+                               _config_container(_seed_config(cfg, seed) if batch else cfg))
+        if change is None:
+            log.info("%s%s x %s seed=%s: already finished (%s), skipped; rerun=true redoes it",
+                     count, system, model, seed, existing["status"])
+            done[seed] = existing
+            continue
+        # A record of other settings is not this job's result, and is not overwritten.
+        message = (f"{dirs[seed]} holds a finished record of other settings ({change}): "
+                   "resume with the settings it was run with, choose another "
+                   "hydra.sweep.dir, or add rerun=true to replace it")
+        log.error("%s%s x %s seed=%s: not run: %s", count, system, model, seed, message)
+        done[seed] = {**_base_record(cfg, overrides), "seed": seed, "error": message}
+    pending = [s for s in seeds if s not in done]
+    if not pending:
+        return [done[s] for s in seeds]
+
+    batch_text = f" (seeds {','.join(map(str, pending))} as one batch)" if len(pending) > 1 else ""
+    tags = {s: f"{system} x {model} seed={s}" for s in pending}
+    runs: dict[int, dict[str, Any]] = {}
+    for seed in pending:
+        _clean_stale(dirs[seed])
+        one_cfg = _seed_config(cfg, seed) if batch else cfg
+        runs[seed] = _base_record(one_cfg, _seed_overrides(overrides, seed) if batch
+                                  else overrides)
+        if len(seeds) > 1:
+            runs[seed]["seed_batch"] = seeds
+    start, cpu_start = time.perf_counter(), time.process_time()
+    log.info("%s%s x %s seed=%s: start%s", count, system, model,
+             ",".join(map(str, pending)), batch_text)
+    try:
+        job = prepare_job(cfg)
+        # The job's cache_dir and data_dir settings hold for all it does: the dataset
+        # cache, measured data files (data.locate) and the JAX compilation cache.
+        with paths.overrides(cache_dir=cfg.cache_dir, data_dir=cfg.data_dir):
+            _execute(job, cfg, pending, dirs, runs)
+    except HnnbenchError as err:
+        for record in runs.values():
+            if record["status"] == "failed" and not record.get("error"):
+                record.update(status="failed", error=str(err))
+    except Exception as err:  # isolate the failure; the sweep goes on
+        for record in runs.values():
+            if record["status"] == "failed" and not record.get("error"):
+                record.update(status="failed",
+                              error=f"{type(err).__name__}: {err}".splitlines()[0])
+                record["traceback"] = traceback.format_exc()
+    elapsed = time.perf_counter() - start
+    # CPU seconds of the job's process, all threads: unlike total_s (wall time), it does
+    # not count time the process spent waiting, e.g. paused or crowded out on a shared host.
+    cpu = time.process_time() - cpu_start
+    for seed, record in runs.items():
+        record["timings"]["total_s"] = elapsed / len(pending)
+        record["timings"]["cpu_s"] = cpu / len(pending)
+        if len(pending) > 1:
+            record["timings"]["batch_total_s"] = elapsed
+        try:
+            records.write_record(dirs[seed], record)
+        except Exception as err:  # e.g. a full disk: say so, and let the sweep go on
+            log.error("%s%s: could not write %s: %s", count, tags[seed],
+                      dirs[seed] / records.RECORD_NAME, err)
+        _log_outcome(count, tags[seed], record)
+    return [done[s] if s in done else runs[s] for s in seeds]
+
+
+def _execute(job: Job, cfg: DictConfig, seeds: list[int], dirs: dict[int, Path],
+             runs: dict[int, dict[str, Any]]) -> None:
+    system = job.system_cls(job.system_cfg)
+    family = getattr(job.model_cls, "family", None)
+    for record in runs.values():
+        record.update(system_version=system.version, model_version=job.model_cls.version,
+                      backend=job.model_cls.backend, family=getattr(family, "name", None),
+                      ranked=bool(getattr(job.model_cls, "ranked", True)))
+    reason = job.model_cls.unsupported_reason(system)
+    if reason is not None:
+        for record in runs.values():
+            record.update(status="skipped",
+                          error=f"{cfg.model.name} on {cfg.system.name}: {reason}")
+        return
+    _set_threads(int(cfg.threads))
+    pin = cfg.get("pin_cpu")
+    if pin or (pin is None and int(cfg.threads) == 1 and affinity.started_by_cli()):
+        core = affinity.claim_core()
+        for record in runs.values():
+            record["cpu_pin"] = core
+        if core is not None:
+            _warn_if_xla_started()
+
+    datas, trajs = {}, {}
+    for seed in seeds:
+        t0 = time.perf_counter()
+        data, data_path, data_hit = cache.cached(
+            system, seed, "dataset", functools.partial(system.dataset, seed), Dataset.load)
+        traj, traj_path, _ = cache.cached(
+            system, seed, "evaluation", functools.partial(system.evaluation, seed),
+            Trajectories.load)
+        runs[seed]["timings"]["data_s"] = time.perf_counter() - t0
+        runs[seed]["data"] = {
+            "cache_hit": data_hit,
+            "dataset_sha256": paths.sha256_file(data_path),
+            "evaluation_sha256": paths.sha256_file(traj_path),
+            "n_train": len(data.train),
+            "n_test": len(data.test),
+            "n_eval_traj": int(traj.states.shape[0]),
+            "meta": data.meta,
+            "evaluation_meta": traj.meta,
+        }
+        datas[seed], trajs[seed] = data, traj
+
+    train = TrainSettings.resolve(job.system_cfg, job.model_cfg)
+    for record in runs.values():
+        record["train"] = dataclasses.asdict(train)
+    label = f"{cfg.system.name}/{cfg.model.name} s{','.join(map(str, seeds))}"
+    t0 = time.perf_counter()
+    try:
+        model = job.model_cls(job.model_cfg, system, str(cfg.device))
+        with TrainingProgress(label, train.steps) as bar:
+            if len(seeds) == 1:
+                try:
+                    fits = [(model, model.fit(datas[seeds[0]], train, seeds[0], bar.update))]
+                except RolloutDiverged as err:
+                    fits = [(model, FitResult(diverged=str(err)))]
+            else:
+                fits = model.fit_seeds([datas[s] for s in seeds], train, seeds, bar.update)
+    except UnsupportedPair as err:
+        for record in runs.values():
+            record.update(status="skipped", error=f"{cfg.model.name} on {cfg.system.name}: {err}")
+        return
+    fit_s = (time.perf_counter() - t0) / len(seeds)
+    for seed, (trained, fit) in zip(seeds, fits, strict=True):
+        record = runs[seed]
+        record["device"] = model.device
+        record["timings"]["fit_s"] = fit_s
+        if len(seeds) > 1:
+            record["timings"]["batch_fit_s"] = fit_s * len(seeds)
+        _finish(record, system, trained, fit, datas[seed], trajs[seed], cfg, dirs[seed])
+
+
+def _finish(record: dict[str, Any], system: Any, model: Any, fit: FitResult, data: Dataset,
+            traj: Trajectories, cfg: DictConfig, directory: Path) -> None:
+    """Record one trained seed: its training log, weights, evaluation and status."""
+    timings: dict[str, float] = record["timings"]
+    if fit.diverged is not None:
+        timings.update(model.timings)
+        _diverged(record, system, f"training diverged: {fit.diverged}")
+        return
+    history = fit.history
+    record["steps"] = fit.steps
+    if fit.steps == 0:  # no training loop (closed form, oracle): no protocol used
+        record["train"] = None
+    if _history_diverged(history):
+        timings.update(model.timings)
+        record["history"] = history
+        _diverged(record, system, f"training diverged: {_history_diverged(history)}")
+        return
+    if cfg.save_model:
+        record["weights_file"] = _save_model(model, directory)
+
+    t0 = time.perf_counter()
+    ev = EvaluationConfig(**OmegaConf.to_container(cfg.evaluation, resolve=True))  # type: ignore[arg-type]
+    result = evaluate(system, model, data, traj, ev)
+    timings["eval_s"] = time.perf_counter() - t0
+    timings.update({k: v for k, v in model.timings.items() if k not in timings})
+    record["metrics"] = result.metrics
+    if result.errors:
+        record["metric_errors"] = result.errors
+    record["history"] = history
+    _save_arrays(directory, result.arrays, history)
+    if result.diverged:
+        record.update(status="diverged", error=result.diverged)
+    else:
+        record["status"] = "ok"
+    _check_finite(record)
+
+
+def _history_diverged(history: dict) -> str | None:
+    """Why the training log shows divergence (a non-finite loss), or ``None``."""
+    for key in ("train_loss", "test_loss"):
+        values = np.asarray(history.get(key, []), dtype=np.float64)
+        if values.size and not np.all(np.isfinite(values)):
+            step = int(np.argmax(~np.isfinite(values)))
+            steps = history.get("step") or []
+            at = f" at step {steps[step]}" if step < len(steps) else ""
+            return f"{key} became {values[step]}{at}"
+    return None
+
+
+def _diverged(record: dict[str, Any], system: Any, error: str) -> None:
+    record["metrics"] = failed_metrics(system, registry.metrics())
+    record.update(status="diverged", error=error)
+
+
+def _log_outcome(count: str, tag: str, record: dict[str, Any]) -> None:
+    status = record["status"]
+    secs = record["timings"].get("total_s", 0.0)
+    if status == "ok":
+        m = record["metrics"]
+        shown = "  ".join(f"{k}={m[k]['mean']:.3g}" for k in ("test_loss", "energy_mse")
+                          if k in m)
+        log.info("%s%s: ok in %.1f s  %s", count, tag, secs, shown)
+    else:
+        log.warning("%s%s: %s in %.1f s: %s", count, tag, status, secs, record.get("error"))

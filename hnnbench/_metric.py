@@ -1,0 +1,291 @@
+"""A metric, declared once: what it computes and how every consumer treats it.
+
+A :class:`Metric` holds everything about one metric: its name and definition, the
+function that computes it from an evaluation, which direction is better, how tables
+and figures display it, the tolerance of the regression gate, the systems it applies
+to, and what a diverged rollout records for it. The evaluation, the leaderboard, the
+report and ``hnnbench check`` all read these declarations; none names a metric.
+
+Metrics are plugins of the entry-point group ``hnnbench.metrics``: each entry point
+names a :class:`Metric` instance. hnnbench's own (:mod:`hnnbench_plugins.metrics`) are declared
+there the same way, so a third-party package adds a metric to every leaderboard and
+to ``hnnbench check`` with no change here (docs/PLUGINS.md).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Literal, Optional
+
+import numpy as np
+
+from hnnbench._contract import Dataset, Model, System, Trajectories
+from hnnbench._errors import RolloutDiverged
+
+__all__ = [
+    "CheckRule",
+    "EvalContext",
+    "EvaluationConfig",
+    "LinearProbe",
+    "Metric",
+    "always",
+    "per_point_squared_error",
+    "sem",
+    "summarize",
+]
+
+
+def always(system: System) -> bool:
+    """The default :attr:`Metric.applies`: every system."""
+    return True
+
+
+@dataclass(frozen=True)
+class CheckRule:
+    """Tolerance of ``hnnbench check`` for a metric (``--rules FILE`` overrides it).
+
+    Attributes:
+        factor: how much worse is tolerated, as a ratio compared in log space: a
+            lower-is-better value fails above ``reference * factor``, a higher-is-better
+            one below ``reference / factor``.
+        floor: values below it count as it (a numerical noise floor, so that 1e-16 vs
+            1e-14 from an exact model on two machines is no regression).
+        gate: ``False``: differences are reported as information, never a failure.
+    """
+
+    factor: float = 10.0
+    floor: float = 0.0
+    gate: bool = True
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One metric (see the module docstring).
+
+    Attributes:
+        name: the record's key and the leaderboard's column (``<name>_mean``).
+        description: one line: what it measures (``hnnbench list``, docs, page tooltips).
+        compute: ``EvalContext -> values``: an array of per-trajectory (or per-point)
+            values, summarised as their mean and standard error; a ``{"mean", "sem"}``
+            dict; or ``None`` when it does not apply to this model (recorded as NaN).
+            It may raise :class:`~hnnbench._errors.RolloutDiverged` (the metric then
+            records :meth:`worst`).
+        better: ``"lower"`` or ``"higher"``.
+        scale: ``"log"`` (errors spanning decades) or ``"linear"``, for tables/figures.
+        check: the regression gate's tolerance.
+        applies: ``System -> bool``; elsewhere the metric is NaN ("not applicable").
+        required: a non-finite value makes the job ``diverged``; ``False`` for metrics
+            that probe failure modes on purpose (e.g. a long-horizon rollout).
+        summary: shown in the end-of-sweep summary table.
+        order: position in tables (lower first; then by name).
+        reference: where its definition is documented.
+        figures: the report's board figures that plot it: ``"heatmap"`` (a rank
+            heatmap of models by system), ``"data_efficiency"`` (the metric against a
+            swept training-set size).
+    """
+
+    name: str
+    description: str
+    compute: Callable[[EvalContext], Any]
+    better: Literal["lower", "higher"] = "lower"
+    scale: Literal["log", "linear"] = "log"
+    check: CheckRule = field(default_factory=CheckRule)
+    applies: Callable[[System], bool] = always
+    required: bool = True
+    summary: bool = True
+    order: int = 1000
+    reference: str = "docs/METRICS.md"
+    figures: tuple[str, ...] = ()
+
+    def worst(self) -> float:
+        """The value recorded when the model failed (diverged): ``inf`` for errors,
+        ``0`` where higher is better (a diverged model predicts nothing)."""
+        return 0.0 if self.better == "higher" else math.inf
+
+
+# --------------------------------------------------------------- summaries
+
+
+def per_point_squared_error(pred: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """``(N,)`` squared error of each point, averaged over its coordinates."""
+    diff = np.asarray(pred, dtype=np.float64) - np.asarray(target, dtype=np.float64)
+    return np.mean(diff.reshape(diff.shape[0], -1) ** 2, axis=1)
+
+
+def sem(values: np.ndarray) -> float:
+    """Standard error of the mean (``nan`` for fewer than two values)."""
+    values = np.asarray(values, dtype=np.float64)
+    if values.size < 2 or not np.all(np.isfinite(values)):
+        return float("nan") if values.size < 2 else float("inf")
+    return float(np.std(values, ddof=1) / np.sqrt(values.size))
+
+
+def summarize(values: np.ndarray) -> dict[str, float]:
+    """``{"mean": ..., "sem": ...}`` over evaluation trajectories (or points)."""
+    values = np.asarray(values, dtype=np.float64)
+    mean = float(np.mean(values)) if np.all(np.isfinite(values)) else float("inf")
+    return {"mean": mean, "sem": sem(values)}
+
+
+# ------------------------------------------------------------- the evaluation
+
+
+@dataclass
+class EvaluationConfig:
+    """Evaluation protocol shared by all systems (docs/METRICS.md).
+
+    Attributes:
+        rtol, atol: tolerances of the adaptive Dormand-Prince rollouts of every model.
+        vpt_threshold: relative state error that ends the valid prediction time.
+    """
+
+    rtol: float = 1e-9
+    atol: float = 1e-9
+    vpt_threshold: float = 0.1
+
+
+@dataclass
+class LinearProbe:
+    """Affine least-squares map from model latents ``(N, k)`` to states ``(N, 2n)``."""
+
+    weight: np.ndarray
+    bias: np.ndarray
+
+    @classmethod
+    def fit(cls, latents: np.ndarray, states: np.ndarray) -> LinearProbe:
+        design = np.concatenate([latents, np.ones((latents.shape[0], 1))], axis=1)
+        coef, *_ = np.linalg.lstsq(design, states, rcond=None)
+        return cls(weight=coef[:-1], bias=coef[-1])
+
+    def __call__(self, latents: np.ndarray) -> np.ndarray:
+        return latents @ self.weight + self.bias
+
+
+class EvalContext:
+    """What the metrics of one trained model share, computed on first use.
+
+    Attributes:
+        system, model, data, traj, cfg: the job's objects.
+        pixels: whether the model sees observations (its rollouts are latents).
+    """
+
+    def __init__(self, system: System, model: Model, data: Dataset, traj: Trajectories,
+                 cfg: EvaluationConfig) -> None:
+        self.system, self.model, self.data, self.traj, self.cfg = system, model, data, traj, cfg
+        self.pixels = traj.observations is not None
+        self._memo: dict[str, Any] = {}
+        self.arrays: dict[str, np.ndarray] = {"t": traj.t, "states_true": traj.states}
+
+    def _once(self, key: str, make: Callable[[], Any]) -> Any:
+        """``make()`` cached, a raised :class:`RolloutDiverged` included (so a failed
+        rollout is attempted once, whatever asks for it)."""
+        if key not in self._memo:
+            try:
+                self._memo[key] = (True, make())
+            except RolloutDiverged as err:
+                self._memo[key] = (False, err)
+        ok, value = self._memo[key]
+        if not ok:
+            raise value
+        return value
+
+    # -- losses -----------------------------------------------------------------------
+    def loss_values(self, split: str) -> Any:
+        """Per-point squared errors of ``time_derivative`` on a split (state systems);
+        the model's own objective on pixel systems (a mean, no standard error)."""
+        data = getattr(self.data, split)
+        if self.system.observation == "state":
+            return per_point_squared_error(self.model.time_derivative(data.x), data.dxdt)
+        return {"mean": float(self.model.loss(data.x, data.dxdt)), "sem": math.nan}
+
+    # -- rollouts ---------------------------------------------------------------------
+    def z0(self) -> np.ndarray:
+        """Initial states in the model's coordinates (latents for pixel models)."""
+        def make() -> np.ndarray:
+            if self.traj.observations is not None:
+                return self.model.encode(self.traj.observations[:, 0])
+            return self.traj.x0
+        return self._once("z0", make)
+
+    def probe(self) -> Optional[LinearProbe]:
+        """The latent -> state probe of pixel models, fitted on the training set."""
+        def make() -> Optional[LinearProbe]:
+            if not self.pixels:
+                return None
+            return LinearProbe.fit(self.model.encode(self.data.train.x),
+                                   self.data.train.extras["state"])
+        return self._once("probe", make)
+
+    def roll(self, z0: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """A rollout of the model (``(M, T, d)``); non-finite states raise."""
+        out = self.model.rollout(z0, t, rtol=self.cfg.rtol, atol=self.cfg.atol)
+        if not np.all(np.isfinite(out)):
+            raise RolloutDiverged("rollout produced non-finite states")
+        return out
+
+    def rollout(self) -> np.ndarray:
+        """The main rollout, from :meth:`z0` over the evaluation grid."""
+        return self._once("rollout", lambda: self.roll(self.z0(), self.traj.t))
+
+    def to_states(self, z: np.ndarray) -> np.ndarray:
+        """Model coordinates ``(..., d)`` -> physical states ``(..., 2n)``."""
+        probe = self.probe()
+        if probe is None:
+            return z
+        shape = z.shape
+        return probe(z.reshape(-1, shape[-1])).reshape(*shape[:-1], -1)
+
+    def reverse(self, z: np.ndarray) -> np.ndarray:
+        """Time reversal R in the model's coordinates: the system's (flip momenta), or
+        for latents ``(z_q, z_p)`` flipping ``z_p``."""
+        if not self.pixels:
+            return self.system.reverse(z)
+        out = np.array(z, dtype=np.float64, copy=True)
+        out[..., out.shape[-1] // 2:] *= -1.0
+        return out
+
+    def states_hat(self) -> np.ndarray:
+        """``(M, T, 2n)`` physical states along the main rollout."""
+        def make() -> np.ndarray:
+            states = self.to_states(self.rollout())
+            self.arrays["states_hat"] = states
+            learned = self.model.energy(self.rollout().reshape(-1, self.rollout().shape[-1]))
+            if learned is not None:
+                m, t_len = states.shape[:2]
+                self.arrays["learned_energy"] = np.asarray(learned).reshape(m, t_len)
+            return states
+        return self._once("states_hat", make)
+
+    def _energies(self, states: np.ndarray) -> np.ndarray:
+        m, t, d = states.shape
+        with np.errstate(all="ignore"):
+            return self.system.energy(states.reshape(m * t, d)).reshape(m, t)
+
+    def energy_true(self) -> np.ndarray:
+        """``(M, T)`` true energy along the true trajectories."""
+        def make() -> np.ndarray:
+            self.arrays["energy_true"] = self._energies(self.traj.states)
+            return self.arrays["energy_true"]
+        return self._once("energy_true", make)
+
+    def energy_hat(self) -> np.ndarray:
+        """``(M, T)`` true energy along the model's rollout."""
+        def make() -> np.ndarray:
+            self.arrays["energy_hat"] = self._energies(self.states_hat())
+            return self.arrays["energy_hat"]
+        return self._once("energy_hat", make)
+
+    def pixel_errors(self) -> Optional[np.ndarray]:
+        """``(M,)`` MSE of the decoded latent rollout against the true frames; ``None``
+        for a model without a decoder."""
+        if self.traj.observations is None:
+            return None
+        z = self.rollout()
+        m, t_len, d = z.shape
+        decoded = self.model.decode(z.reshape(m * t_len, d))
+        if decoded is None:
+            return None
+        obs = self.traj.observations.reshape(m * t_len, -1)
+        return np.mean(((decoded - obs) ** 2).reshape(m, -1), axis=1)

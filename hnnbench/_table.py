@@ -1,0 +1,338 @@
+"""Flatten run records into pandas tables: one row per record, per seed, or per
+(profile, system, model, variant) for the leaderboard.
+
+Systems, models and metrics are ordered as the registry orders them
+(:func:`hnnbench._registry.ordered`); what a metric is (direction, scale) comes from its
+declaration (:class:`hnnbench._metric.Metric`). Nothing here names a plugin.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from hnnbench import _registry as registry
+from hnnbench._errors import HnnbenchError
+from hnnbench._metric import Metric
+from hnnbench._record_schema import (
+    ID_COLUMNS,
+    PROVENANCE_COLUMNS,
+    RESERVED,
+    STATUS_COLUMNS,
+    TIMINGS,
+)
+from hnnbench._records import RUN_ONLY_KEYS, STATUSES
+
+__all__ = [
+    "display_frame",
+    "summary_metrics",
+    "format_value",
+    "leaderboard",
+    "leaderboard_frame",
+    "records_frame",
+    "summary_frame",
+    "variant_labels",
+]
+
+def summary_metrics() -> list[str]:
+    """The metrics shown in the end-of-sweep summary table, in table order."""
+    return [m.name for m in registry.metrics() if m.summary]
+
+
+def metric_declarations() -> dict[str, Metric]:
+    """``{name: Metric}`` of the registered metrics."""
+    return {m.name: m for m in registry.metrics()}
+
+
+#: Override keys that do not define a variant: the identity columns, and settings that
+#: say where and how a job runs rather than what it computes.
+NON_VARIANT_KEYS = frozenset({"system", "model", "seed", "profile"}) | RUN_ONLY_KEYS
+
+
+def _variant_items(overrides: Iterable[str] | None) -> dict[str, str]:
+    """``key -> "key=value"`` of the overrides that may define a variant (Hydra's
+    append prefix ``+``/``++`` dropped, so ``+a=1`` and ``a=1`` are one variant)."""
+    items = {}
+    for text in overrides or ():
+        text = str(text).lstrip("+")
+        key = text.split("=", 1)[0].lstrip("~")
+        if key not in NON_VARIANT_KEYS and not key.startswith("hydra"):
+            items[key] = text
+    return items
+
+
+def variant_sort_key(variant: str) -> tuple[tuple[str, int, float, str], ...]:
+    """Orders variants by key, then by numeric value where the values are numbers
+    (``model.hidden=200`` before ``model.hidden=1000``)."""
+    out = []
+    for token in str(variant).split():
+        key, _, value = token.partition("=")
+        try:
+            out.append((key, 0, float(value), ""))
+        except ValueError:
+            out.append((key, 1, 0.0, value))
+    return tuple(out)
+
+
+def variant_labels(overrides: Sequence[Iterable[str] | None]) -> list[str]:
+    """The configuration variant of each of a set of runs, from their command-line
+    overrides: the overrides whose value is not the same for every run (an override all
+    runs share is a setting of the whole sweep, shown in its command, not a variant),
+    leaving out system, model, seed, profile and the run settings of
+    :data:`NON_VARIANT_KEYS`; sorted and space-separated, ``""`` where there is none.
+
+    ``hnnbench -m system=spring model=hnn_torch model.hidden=100,200`` gives
+    ``"model.hidden=100"`` and ``"model.hidden=200"``: runs of one (system, model) that
+    differ in it are different rows of every table, never seeds of one row.
+    """
+    items = [_variant_items(o) for o in overrides]
+    keys = set().union(*items) if items else set()
+    varying = {k for k in keys if len({it.get(k) for it in items}) > 1}
+    return [" ".join(sorted(v for k, v in it.items() if k in varying)) for it in items]
+
+
+def _has_variants(frame: pd.DataFrame) -> bool:
+    return "variant" in frame and bool((frame["variant"].fillna("") != "").any())
+
+
+def records_frame(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
+    """One row per record: identity columns (``variant``: see :func:`variant_labels`),
+    ``<metric>`` means, ``<metric>_sem`` and ``<timing>`` columns."""
+    records = list(records)
+    variants = variant_labels([rec.get("overrides") for rec in records])
+    rows = []
+    for rec, variant in zip(records, variants, strict=True):
+        env = rec.get("environment") or {}
+        row: dict[str, Any] = {
+            "system": rec.get("system"),
+            "model": rec.get("model"),
+            "variant": variant,
+            "backend": rec.get("backend"),
+            "family": rec.get("family"),
+            "ranked": _ranked(rec),
+            "seed": rec.get("seed"),
+            "profile": rec.get("profile"),
+            "status": rec.get("status"),
+            "error": rec.get("error"),
+            "steps": rec.get("steps"),
+            "device": rec.get("device"),
+            "path": rec.get("path"),
+            "source": rec.get("source"),
+            "git_commit": env.get("git_commit"),
+            "machine": env.get("host") or env.get("platform"),
+            "created_at": rec.get("created_at"),
+        }
+        for name, value in (rec.get("metrics") or {}).items():
+            row[name] = value.get("mean")
+            row[f"{name}_sem"] = value.get("sem")
+        for name, value in (rec.get("timings") or {}).items():
+            row[name] = value
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def _ranked(rec: dict[str, Any]) -> bool:
+    """Whether the record's model competes (records before schema 2 lack the field:
+    the installed class says)."""
+    if rec.get("ranked") is not None:
+        return bool(rec["ranked"])
+    info = registry.discover("model").get(str(rec.get("model")))
+    return bool(getattr(info.cls, "ranked", True)) if info is not None and info.ok else True
+
+
+def summary_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None) -> pd.DataFrame:
+    """One row per (system, model, variant, seed) with the status and every metric
+    (``metrics``: a subset, e.g. :func:`summary_metrics` for a printed table); the
+    ``variant`` column only when some run has one."""
+    if frame.empty:
+        return frame
+    ids = ["system", "model", *(["variant"] if _has_variants(frame) else []), "seed"]
+    cols = [*ids, "status"]
+    names = metric_names(frame) if metrics is None else list(metrics)
+    cols += [m for m in names if m in frame.columns]
+    cols += [c for c in ("total_s",) if c in frame.columns]
+    out = frame[cols].reset_index(drop=True)
+    systems = registry.ordered("system", out["system"].astype(str))
+    models = registry.ordered("model", out["model"].astype(str))
+
+    def key(i: int) -> tuple[Any, ...]:  # leaderboard order, then variant, then seed
+        r = out.iloc[i]
+        seed = pd.to_numeric(r["seed"], errors="coerce")
+        return (systems.index(str(r["system"])), models.index(str(r["model"])),
+                variant_sort_key(r["variant"]) if "variant" in out else (),
+                math.inf if pd.isna(seed) else float(seed))
+
+    return out.iloc[sorted(range(len(out)), key=key)].reset_index(drop=True)
+
+
+# --------------------------------------------------------------------------- leaderboard
+
+def linear_metrics() -> frozenset[str]:
+    """Metrics shown on a linear scale (the others span decades: log scale)."""
+    return frozenset(m.name for m in registry.metrics() if m.scale == "linear")
+
+
+def metric_names(frame: pd.DataFrame) -> list[str]:
+    """Metric names present in a records frame, in the registry's table order (metrics
+    no installed plugin declares follow, by name)."""
+    found = [c for c in frame.columns if c not in RESERVED and not c.endswith("_sem")
+             and not c.endswith("_s")]
+    declared = [m.name for m in registry.metrics()]
+    return [m for m in declared if m in found] + sorted(m for m in found if m not in declared)
+
+
+def _agg(values: pd.Series) -> tuple[float, float]:
+    """Mean and sample std over seeds; ``inf`` mean if any value is infinite (a
+    diverged rollout), NaN values (metric not applicable) ignored."""
+    arr = pd.to_numeric(values, errors="coerce").to_numpy(dtype=float)
+    arr = arr[~np.isnan(arr)]
+    if arr.size == 0:
+        return math.nan, math.nan
+    if np.any(np.isinf(arr)):
+        return float(np.mean(arr)), math.nan
+    std = float(np.std(arr, ddof=1)) if arr.size >= 2 else math.nan
+    return float(np.mean(arr)), std
+
+
+def status_text(counts: dict[str, int]) -> str:
+    """``ok``, ``diverged`` or ``2 ok, 1 diverged``."""
+    present = {s: n for s, n in counts.items() if n}
+    if len(present) == 1:
+        return next(iter(present))
+    return ", ".join(f"{n} {s}" for s, n in present.items())
+
+
+def leaderboard(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
+    """The leaderboard of run records (see :func:`leaderboard_frame`)."""
+    return leaderboard_frame(records_frame(list(records)))
+
+
+def _refuse_repeated_seeds(group: pd.DataFrame) -> None:
+    """A seed held by two records of one (profile, system, model, variant) would be
+    counted twice in the mean and the spread."""
+    repeated = group[group["seed"].duplicated(keep=False) & group["seed"].notna()]
+    if repeated.empty:
+        return
+    first = repeated.iloc[0]
+    paths = repeated.loc[repeated["seed"] == first["seed"], "path"] if "path" in repeated \
+        else pd.Series([])
+    where = " and ".join(str(p) for p in paths.dropna()) or "two records"
+    raise HnnbenchError(
+        f"{first['system']} x {first['model']} seed {first['seed']} ({first['profile']} "
+        f"profile) is recorded twice ({where}): the leaderboard would count it twice; "
+        "move one of them out of the directories given")
+
+
+def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None) -> pd.DataFrame:
+    """One row per (profile, system, model, variant) of a :func:`records_frame`.
+
+    Columns: :data:`ID_COLUMNS` (with ``variant`` after ``model`` when some run has a
+    variant, so a sweep without one keeps the plain schema), :data:`STATUS_COLUMNS`,
+    ``<metric>_mean`` and ``<metric>_std`` (over seeds) for every metric, ``<timing>_mean`` for
+    :data:`TIMINGS`. Metrics are aggregated over the ``ok`` runs; a pair with no ``ok``
+    run is aggregated over its ``diverged`` runs, so it shows ``inf`` where its rollouts
+    diverged (and its finite losses). Failed or skipped runs only: NaN, status says why.
+    """
+    if metrics is None:
+        metrics = metric_names(frame) if not frame.empty else []
+    variants = _has_variants(frame)
+    ids = list(ID_COLUMNS)
+    if variants:
+        ids.insert(ids.index("model") + 1, "variant")
+    columns = [*ids, *STATUS_COLUMNS]
+    for m in metrics:
+        columns += [f"{m}_mean", f"{m}_std"]
+    columns += [f"{t}_mean" for t in TIMINGS]
+    columns += list(PROVENANCE_COLUMNS)
+    if frame.empty:
+        return pd.DataFrame(columns=columns)
+    frame = frame.copy()
+    frame["profile"] = frame["profile"].fillna("?")
+    frame["variant"] = frame["variant"].fillna("") if "variant" in frame else ""
+    rows = []
+    for (profile, system, model, variant), group in frame.groupby(
+            ["profile", "system", "model", "variant"], dropna=False, sort=False):
+        _refuse_repeated_seeds(group)
+        counts = {s: int((group["status"] == s).sum()) for s in STATUSES}
+        seeds = sorted({int(s) for s in group["seed"].dropna()})
+        backends = [b for b in group["backend"].dropna().unique()] if "backend" in group else []
+        families = [f for f in group["family"].dropna().unique()] if "family" in group else []
+        ranked = bool(group["ranked"].fillna(True).all()) if "ranked" in group else True
+        row: dict[str, Any] = {
+            "profile": profile, "system": system, "model": model, "variant": variant,
+            "backend": backends[0] if backends else "",
+            "family": families[0] if families else "", "ranked": ranked,
+            "n_seeds": len(group), "seeds": ";".join(str(s) for s in seeds),
+            **{f"n_{s}": counts[s] for s in STATUSES},
+            "status": status_text(counts),
+        }
+        use = group[group["status"] == "ok"]
+        if use.empty:
+            use = group[group["status"] == "diverged"]
+        for m in metrics:
+            mean, std = _agg(use[m]) if (m in use and not use.empty) else (math.nan, math.nan)
+            row[f"{m}_mean"], row[f"{m}_std"] = mean, std
+        timed = use if not use.empty else group
+        for t in TIMINGS:
+            vals = pd.to_numeric(timed[t], errors="coerce") if t in timed else pd.Series([])
+            row[f"{t}_mean"] = float(vals.mean()) if vals.notna().any() else math.nan
+        row["git_commits"] = _distinct(group.get("git_commit"))
+        row["machines"] = _distinct(group.get("machine"))
+        row["dates"] = _distinct(None if "created_at" not in group else
+                                 group["created_at"].astype(str).str[:10])
+        rows.append(row)
+    out = pd.DataFrame(rows, columns=columns)
+    systems = registry.ordered("system", out["system"].astype(str))
+    models = registry.ordered("model", out["model"].astype(str))
+    keys = out.apply(lambda r: (str(r["profile"]), systems.index(str(r["system"])),
+                                models.index(str(r["model"])),
+                                variant_sort_key(r["variant"]) if variants else ()), axis=1)
+    return out.iloc[sorted(range(len(out)), key=lambda i: keys.iloc[i])].reset_index(drop=True)
+
+
+def _distinct(values: Any) -> str:
+    """Distinct non-empty values, sorted, ``;``-joined."""
+    if values is None:
+        return ""
+    return ";".join(sorted({str(v) for v in values if v is not None and str(v) not in
+                            ("", "nan", "None")}))
+
+
+def format_value(mean: float, std: float = math.nan, linear: bool = False) -> str:
+    """``3.7e-02 ± 1.1e-03``; ``inf``; ``—`` for no value; mean alone for one seed."""
+    def one(x: float) -> str:
+        if math.isinf(x):
+            return "inf" if x > 0 else "-inf"
+        return f"{x:.3g}" if linear else f"{x:.1e}"
+
+    if mean is None or pd.isna(mean):
+        return "—"
+    text = one(float(mean))
+    if std is not None and not pd.isna(std) and not math.isinf(float(mean)):
+        text += f" ± {one(float(std))}"
+    return text
+
+
+def display_frame(board: pd.DataFrame, timings: bool = True) -> pd.DataFrame:
+    """The leaderboard with ``mean ± std`` strings, for Markdown and HTML."""
+    metrics = [c[: -len("_mean")] for c in board.columns
+               if c.endswith("_mean") and c[: -len("_mean")] not in TIMINGS]
+    linear = linear_metrics()
+    rows = []
+    for _, r in board.iterrows():
+        row: dict[str, Any] = {"system": r["system"], "model": r["model"]}
+        if "variant" in board:
+            row["variant"] = r["variant"] if isinstance(r["variant"], str) else ""
+        row.update(n_seeds=int(r["n_seeds"]), status=r["status"])
+        for m in metrics:
+            if board[f"{m}_mean"].isna().all():  # not applicable anywhere
+                continue
+            row[m] = format_value(r[f"{m}_mean"], r[f"{m}_std"], linear=m in linear)
+        if timings:
+            row["total_s"] = format_value(r.get("total_s_mean", math.nan), linear=True)
+        rows.append(row)
+    return pd.DataFrame(rows)

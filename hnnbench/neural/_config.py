@@ -1,0 +1,59 @@
+"""The config every neural model shares: the 2019 paper's architecture and recipe."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from hnnbench._contract import ModelConfig, check_int_at_least, check_positive
+from hnnbench._errors import ConfigError
+
+__all__ = ["ACTIVATIONS", "DTYPES", "NeuralConfig"]
+
+ACTIVATIONS = ("tanh", "sigmoid", "softplus")
+DTYPES = ("float32", "float64")
+
+
+@dataclass
+class NeuralConfig(ModelConfig):
+    """Every network of the model is an MLP of ``layers`` linear layers (``hidden``
+    units each, no bias on the last), orthogonal weight init, trained with Adam.
+
+    Attributes:
+        hidden: hidden units per layer.
+        layers: number of linear layers (the paper: 3, i.e. in -> 200 -> 200 -> out).
+        activation: one of ``tanh``, ``sigmoid``, ``softplus``.
+        dtype: training precision; rollouts always run in float64.
+        log_every: record train/test loss every this many steps (0: about 200 points,
+            at least 10 steps apart, so a 300-step smoke run does not spend a third of
+            its time on test losses). It is also the length of one compiled training
+            chunk of the JAX backend.
+        rollout_max_steps: ODE solver step budget per rollout before it is declared
+            diverged.
+    """
+
+    hidden: int = 200
+    layers: int = 3
+    activation: str = "tanh"
+    dtype: str = "float32"
+    log_every: int = 0
+    rollout_max_steps: int = 50_000
+
+    def validate(self) -> None:
+        super().validate()
+        check_positive("model", hidden=self.hidden, rollout_max_steps=self.rollout_max_steps)
+        check_int_at_least("model", 2, layers=self.layers)
+        if self.log_every < 0:
+            raise ConfigError(f"model.log_every={self.log_every} is invalid: expected >= 0.")
+        if self.activation not in ACTIVATIONS:
+            raise ConfigError(
+                f"model.activation='{self.activation}' is invalid: expected one of "
+                f"{', '.join(ACTIVATIONS)}."
+            )
+        if self.dtype not in DTYPES:
+            raise ConfigError(
+                f"model.dtype='{self.dtype}' is invalid: expected one of {', '.join(DTYPES)}."
+            )
+
+    def log_interval(self, steps: int) -> int:
+        """Steps between two loss records (one compiled chunk of the JAX backend)."""
+        return self.log_every or max(10, steps // 200)

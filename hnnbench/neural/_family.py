@@ -1,0 +1,70 @@
+"""A model family, declared once for every backend.
+
+A family says what its networks are, which coordinates it works in, what training
+data it needs and whether it learns an energy. The mathematics lives in one small
+module per backend (its *implementation*), which provides, in that backend's ops:
+
+- ``field(nets, z) -> ż``: the learned vector field of a batch ``z`` ``(N, d)`` in the
+  family's coordinates (differentiable; also used, in float64, by the rollouts);
+- ``energy(nets, z) -> (N,)``: the learned conserved quantity, if ``learned_energy``;
+- ``window_loss(nets, windows, dts) -> scalar``: the training loss on trajectory
+  windows, if ``data == "windows"``.
+
+``nets`` maps each network name of :attr:`Family.networks` to a callable MLP of that
+backend (``nets["H"](z)`` is ``(N, 1)``; the torch MLP also has ``input_gradient``).
+Everything else (initial weights, the training loop, minibatches, float64 rollouts,
+saving, pixel autoencoders, second-order coordinates) is shared: see
+:class:`hnnbench.neural.NeuralModel`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Literal, Optional
+
+__all__ = ["Family"]
+
+#: ``d`` (the dimension of the coordinates the family works in, ``2n``) -> the
+#: networks' ``{name: (d_in, d_out)}``, in initialisation order.
+NetworkShapes = Callable[[int], dict[str, tuple[int, int]]]
+
+
+@dataclass(frozen=True)
+class Family:
+    """Declaration of a model family (backend-neutral; imports no backend).
+
+    Attributes:
+        name: short name, e.g. ``"hnn"``; entry points are ``<name>_<backend>``.
+        title: one line for ``hnnbench list``.
+        reference: the paper it comes from.
+        networks: ``d -> {name: (d_in, d_out)}``.
+        implementations: backend -> module path of its implementation.
+        coordinates: ``"canonical"``: works on ``(q, p)`` (or on pixel latents);
+            ``"velocity"``: works on ``(q, q̇)`` through the system's
+            :meth:`~hnnbench.System.kinematics` (second-order families).
+        data: ``"derivatives"``: trains on ``(z, ż)`` pairs by mean squared error;
+            ``"windows"``: trains on windows of consecutive observed states of each
+            training trajectory (``window_loss``).
+        window: states per training window, first included (``data == "windows"``).
+        observations: the system observations it runs on (``"state"``, ``"pixels"``).
+        learned_energy: whether the implementation defines ``energy``.
+        order: position of the family's models in listings and tables (each backend's
+            model at ``order + 0.1 * k`` in :data:`BACKEND_ORDER`).
+    """
+
+    name: str
+    title: str
+    reference: str
+    networks: NetworkShapes
+    implementations: Mapping[str, str] = field(default_factory=dict)
+    coordinates: Literal["canonical", "velocity"] = "canonical"
+    data: Literal["derivatives", "windows"] = "derivatives"
+    window: int = 0
+    observations: tuple[str, ...] = ("state",)
+    learned_energy: bool = False
+    order: Optional[float] = None
+
+
+#: Backends in listing order within a family.
+BACKEND_ORDER = ("torch", "jax")

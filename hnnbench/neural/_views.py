@@ -1,0 +1,298 @@
+"""How a neural model sees a system: the coordinates it works in and its training data.
+
+A :class:`View` is chosen once per model, from the system's observation and the
+family's declared coordinates, and composes with any family:
+
+- :class:`CanonicalView`: the family works on the system's states ``(q, p)``;
+- :class:`VelocityView`: the family works on ``(q, q̇)``; the system's
+  :class:`~hnnbench._kinematics.Kinematics` maps states, targets and predicted rates;
+- :class:`PixelView`: the family is the latent dynamics of an autoencoder on
+  observations (the 2019 pixel-pendulum model); latents ``z = (z_q, z_p)``, time in
+  frames.
+
+A view turns a :class:`~hnnbench._contract.Dataset` into a :class:`Problem` (numpy arrays
+the backend trains on) and converts between the model API's arrays and the family's
+working coordinates. It is pure numpy.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from hnnbench._contract import Dataset, Split, System
+from hnnbench._errors import ConfigError, UnsupportedPair
+from hnnbench._kinematics import Kinematics
+from hnnbench.neural._family import Family
+
+__all__ = [
+    "CC_WEIGHT",
+    "DYNAMICS_WEIGHT",
+    "LOG_TEST_POINTS",
+    "CanonicalView",
+    "PixelView",
+    "Problem",
+    "VelocityView",
+    "View",
+    "trajectory_windows",
+    "view_for",
+]
+
+#: The pixel test loss logged during training is taken on this many evenly spaced test
+#: points (the whole test set costs as much as ~10 training steps).
+LOG_TEST_POINTS = 1024
+#: Weights of the pixel objective's canonical-coordinates and latent-dynamics terms
+#: (the 2019 paper's; :class:`PixelView`), read by both backends' ``pixel_objective``.
+CC_WEIGHT = 1.0
+DYNAMICS_WEIGHT = 0.1
+#: A time step outside [median / F, median * F] of its trajectory is a gap.
+WINDOW_GAP_FACTOR = 1.5
+
+Kind = Literal["derivatives", "windows", "pixels"]
+
+
+@dataclass(frozen=True)
+class Problem:
+    """What a backend trains on: arrays with a common leading dimension (rows are
+    drawn together into minibatches) and the loss that consumes them.
+
+    Attributes:
+        kind: ``"derivatives"``: ``(z, ż)``, loss ``mean((field(z) - ż)^2)``;
+            ``"windows"``: ``(windows (W, L, d), dts (W, L - 1))``, the family's
+            ``window_loss``; ``"pixels"``: ``(x, x_next)``, the autoencoder objective.
+        train, test: the arrays of each split (for pixels, at most
+            :data:`LOG_TEST_POINTS` test rows).
+        options: keyword arguments of the family's ``window_loss`` (hashable, e.g.
+            ``(("substeps", 1),)``).
+        stacked: the arrays carry a leading seed axis (:meth:`stack`): each seed of a
+            batch trains on its own data.
+    """
+
+    kind: Kind
+    train: tuple[np.ndarray, ...]
+    test: tuple[np.ndarray, ...]
+    options: tuple[tuple[str, Any], ...] = ()
+
+    #: Whether the arrays hold one leading axis per seed (``S`` problems stacked).
+    stacked: bool = False
+
+    @property
+    def n(self) -> int:
+        """Training rows (of each seed)."""
+        return int(self.train[0].shape[1 if self.stacked else 0])
+
+    @staticmethod
+    def stack(problems: Sequence[Problem]) -> Problem:
+        """The problems of several seeds as one, each array with a leading seed axis.
+
+        Raises:
+            ValueError: the problems differ in kind, options or array shapes (they
+                cannot be trained as one batch).
+        """
+        first = problems[0]
+        for other in problems[1:]:
+            if (other.kind, other.options) != (first.kind, first.options) or any(
+                    a.shape != b.shape for a, b in zip(other.train + other.test,
+                                                       first.train + first.test, strict=True)):
+                raise ValueError("the seeds' training data differ in shape")
+        return Problem(first.kind,
+                       tuple(np.stack(arrays) for arrays in zip(*(p.train for p in problems),
+                                                                strict=True)),
+                       tuple(np.stack(arrays) for arrays in zip(*(p.test for p in problems),
+                                                                strict=True)),
+                       first.options, stacked=True)
+
+
+def trajectory_windows(split: Split, states: np.ndarray, length: int,
+                       wrapped: tuple[int, ...] = ()) -> tuple[np.ndarray, np.ndarray]:
+    """Windows of ``length`` consecutive samples of each trajectory.
+
+    Rows of ``states`` (``(N, d)``, aligned with ``split``) are grouped by
+    ``split.traj`` and ordered by ``split.t``; every run of ``length`` rows whose time
+    steps all lie within :data:`WINDOW_GAP_FACTOR` of the trajectory's median step (so
+    no window spans a gap in measured data) is a window (overlapping, stride 1).
+    Columns ``wrapped`` hold angles wrapped into ``[-π, π)``
+    (:attr:`hnnbench.System.wrapped_angles`): within each window they are unwrapped
+    (whole turns added from the second sample on), so that a window never asks for a
+    2π jump. The window's first state keeps its wrapped value.
+
+    Returns:
+        ``(windows (W, length, d), dts (W, length - 1))``: the states and each
+        interval's own time step (measured data is not exactly equally spaced). ``W``
+        may be 0.
+    """
+    windows: list[np.ndarray] = []
+    dts: list[np.ndarray] = []
+    traj, t = np.asarray(split.traj), np.asarray(split.t, dtype=np.float64)
+    for tid in np.unique(traj):
+        rows = np.flatnonzero(traj == tid)
+        rows = rows[np.argsort(t[rows], kind="stable")]
+        steps = np.diff(t[rows])
+        if steps.size < length - 1:
+            continue
+        median = float(np.median(steps))
+        good = (steps > median / WINDOW_GAP_FACTOR) & (steps < median * WINDOW_GAP_FACTOR)
+        for start in range(len(rows) - length + 1):
+            if np.all(good[start:start + length - 1]):
+                window = np.array(states[rows[start:start + length]], dtype=np.float64)
+                if wrapped:
+                    cols = list(wrapped)
+                    window[:, cols] = np.unwrap(window[:, cols], axis=0)
+                windows.append(window)
+                dts.append(steps[start:start + length - 1])
+    if not windows:
+        return np.zeros((0, length, states.shape[1])), np.zeros((0, length - 1))
+    return np.stack(windows), np.stack(dts)
+
+
+class View:
+    """Base: the family works on the system's own states (identity maps)."""
+
+    #: Time of one model time unit, in system time (pixels: the frame interval).
+    time_unit: float = 1.0
+
+    def __init__(self, family: Family, system: System) -> None:
+        self.family = family
+        self.system = system
+
+    @property
+    def dim(self) -> int:
+        """Dimension ``d`` of the family's working coordinates."""
+        return 2 * self.system.dof
+
+    def to_model(self, x: np.ndarray) -> np.ndarray:
+        """Model-API inputs ``(..., D)`` -> working coordinates ``(..., d)``."""
+        return np.asarray(x, dtype=np.float64)
+
+    def from_model(self, z: np.ndarray) -> np.ndarray:
+        """Working coordinates -> what :meth:`~hnnbench.Model.rollout` returns."""
+        return z
+
+    def rate_out(self, z: np.ndarray, zdot: np.ndarray) -> np.ndarray:
+        """A rate in working coordinates (per model time unit) -> the model API's
+        ``dx/dt`` (per system time unit)."""
+        return zdot / self.time_unit
+
+    def _pairs(self, split: Split) -> tuple[np.ndarray, np.ndarray]:
+        return split.x, split.dxdt
+
+    def problem(self, data: Dataset, window: int = 0,
+                options: tuple[tuple[str, Any], ...] = ()) -> Problem:
+        """The training problem of ``data`` for this family (``window``: states per
+        trajectory window; ``options``: the family's loss options)."""
+        if self.family.data == "windows":
+            length = window or self.family.window
+            out = []
+            wrapped = tuple(self.system.wrapped_angles)
+            for split in (data.train, data.test):
+                z, _ = self._pairs(split)
+                out.append(trajectory_windows(split, z, length, wrapped))
+            for (windows, _), part in zip(out, ("training", "test"), strict=True):
+                if windows.shape[0] == 0:
+                    raise UnsupportedPair(
+                        f"the {self.system.name} {part} data has no {length} consecutive, "
+                        "equally spaced samples of one trajectory, which the "
+                        f"{self.family.name} family trains on (model.window={length}: a "
+                        "shorter window may fit)"
+                    )
+            return Problem("windows", out[0], out[1], options)
+        return Problem("derivatives", self._pairs(data.train), self._pairs(data.test))
+
+
+class CanonicalView(View):
+    """The family works on ``(q, p)``."""
+
+
+class VelocityView(View):
+    """The family works on ``(q, q̇)``: states, targets and rates go through the system's
+    kinematics."""
+
+    def __init__(self, family: Family, system: System, kinematics: Kinematics) -> None:
+        super().__init__(family, system)
+        self.kinematics = kinematics
+
+    def to_model(self, x: np.ndarray) -> np.ndarray:
+        return self.kinematics.to_velocity(x)
+
+    def from_model(self, z: np.ndarray) -> np.ndarray:
+        return self.kinematics.to_canonical(z)
+
+    def rate_out(self, z: np.ndarray, zdot: np.ndarray) -> np.ndarray:
+        return self.kinematics.canonical_rate(z, zdot)
+
+    def _pairs(self, split: Split) -> tuple[np.ndarray, np.ndarray]:
+        return (self.kinematics.to_velocity(split.x),
+                self.kinematics.velocity_rate(split.x, split.dxdt))
+
+
+class PixelView(View):
+    """The family is the latent dynamics of an autoencoder on observations.
+
+    Inputs are flattened pairs of consecutive frames ``x``; the next input ``x'`` is
+    ``extras["x_next"]`` (else ``x + dt * dxdt``). The autoencoder maps ``x`` to
+    ``2n`` latents ``z = (z_q, z_p)``; the family's field ``f`` is trained per frame
+    (``dt = 1``), so the model API reports ``f(z) / dt_frame`` and rolls out over
+    ``t / dt_frame``. ``time_derivative``, ``rollout`` and ``energy`` act on latents;
+    ``encode`` / ``decode`` map observations ``(N, D)`` to latents ``(N, 2n)`` and
+    back. Training and reported losses are the 2019 objective (reconstruction +
+    canonical-coordinates + 0.1 x one Euler step of the latent dynamics).
+    """
+
+    def __init__(self, family: Family, system: System) -> None:
+        super().__init__(family, system)
+        self.time_unit = 1.0
+
+    def set_frame_dt(self, data: Dataset) -> None:
+        if "dt" not in data.meta:
+            raise ConfigError(f"{self.system.name}: pixel datasets must record meta['dt']")
+        self.time_unit = float(data.meta["dt"])
+
+    def pairs(self, x: np.ndarray, dxdt: np.ndarray, extras: dict[str, np.ndarray]
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """``(x, x_next)``: ``extras["x_next"]`` if present, else ``x + dt * dxdt``."""
+        x_next = extras.get("x_next")
+        if x_next is None:
+            x_next = np.asarray(x) + self.time_unit * np.asarray(dxdt)
+        return np.asarray(x), np.asarray(x_next)
+
+    def problem(self, data: Dataset, window: int = 0,
+                options: tuple[tuple[str, Any], ...] = ()) -> Problem:
+        self.set_frame_dt(data)
+        train = self.pairs(data.train.x, data.train.dxdt, data.train.extras)
+        test = data.test
+        sub = np.unique(np.linspace(0, len(test) - 1,
+                                    min(len(test), LOG_TEST_POINTS)).astype(int))
+        test_pairs = self.pairs(test.x[sub], test.dxdt[sub],
+                                {k: v[sub] for k, v in test.extras.items()})
+        return Problem("pixels", train, test_pairs)
+
+
+def view_for(family: Family, system: System) -> View:
+    """The view of ``family`` on ``system``; raises :class:`UnsupportedPair` where the
+    system lacks what the family needs (callers check
+    :func:`unsupported_reason` first)."""
+    reason = unsupported_reason(family, system)
+    if reason is not None:
+        raise UnsupportedPair(reason)
+    if system.observation == "pixels":
+        return PixelView(family, system)
+    if family.coordinates == "velocity":
+        kinematics = system.kinematics()
+        assert kinematics is not None
+        return VelocityView(family, system, kinematics)
+    return CanonicalView(family, system)
+
+
+def unsupported_reason(family: Family, system: System) -> str | None:
+    """Why ``family`` cannot run on ``system`` (``None`` if it can)."""
+    observations: Sequence[str] = family.observations
+    if system.observation not in observations:
+        return (f"{system.observation} observations are not supported by the {family.name} "
+                f"family (it runs on: {', '.join(observations)})")
+    if family.coordinates == "velocity" and system.kinematics() is None:
+        return (f"the {family.name} family works in velocity coordinates (q, q̇) and "
+                f"{system.name} declares no kinematics (System.kinematics)")
+    return None
