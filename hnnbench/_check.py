@@ -44,6 +44,7 @@ from hnnbench import _claims as C
 from hnnbench import _records as R
 from hnnbench import _registry as registry
 from hnnbench._errors import HnnbenchError
+from hnnbench._metric import CheckRule
 from hnnbench._table import TIMINGS, leaderboard
 
 __all__ = [
@@ -51,7 +52,6 @@ __all__ = [
     "CheckError",
     "CheckResult",
     "Finding",
-    "Rule",
     "compare",
     "load_rules",
     "main",
@@ -60,45 +60,13 @@ __all__ = [
 
 KEY = ("profile", "system", "model")
 #: Wall times depend on the machine: shown, never gating.
-TIMING_RULE = {"better": "lower", "factor": 3.0, "floor": 1.0, "gate": False}
+TIMING_RULE = CheckRule(factor=3.0, floor=1.0, gate=False, better="lower")
 REQUIRED_COLUMNS = (*KEY, "n_seeds", "n_ok", "n_diverged", "n_failed", "n_skipped")
 RULE_KEYS = {"better", "factor", "floor", "gate"}
 
 
 class CheckError(HnnbenchError):
     """Bad input to ``hnnbench check``."""
-
-
-@dataclass(frozen=True)
-class Rule:
-    better: str = "lower"
-    factor: float = 10.0
-    floor: float = 0.0
-    gate: bool = True
-
-    def worsening(self, reference: float, current: float) -> float:
-        """How many times worse ``current`` is than ``reference`` (< 1: better)."""
-        ref, cur = max(reference, self.floor), max(current, self.floor)
-        worse, base = (cur, ref) if self.better == "lower" else (ref, cur)
-        if math.isinf(worse) and math.isinf(base):
-            return 1.0
-        if base <= 0:
-            return 1.0 if worse <= 0 else math.inf
-        return worse / base
-
-    def limit_text(self) -> str:
-        op = "<=" if self.better == "lower" else ">="
-        side = f"ref x {self.factor:g}" if self.better == "lower" else f"ref / {self.factor:g}"
-        return f"{op} {side}"
-
-    def difference(self, reference: float, current: float) -> float:
-        """``|current - reference|`` relative to the larger magnitude (0 when both are at
-        or below the noise floor, ``inf`` when exactly one is non-finite)."""
-        if max(abs(reference), abs(current)) <= self.floor:
-            return 0.0
-        if math.isinf(reference) or math.isinf(current):
-            return 0.0 if reference == current else math.inf
-        return abs(current - reference) / max(abs(reference), abs(current))
 
 
 @dataclass
@@ -133,7 +101,7 @@ class CheckResult:
 # --------------------------------------------------------------------------- rules
 
 
-def _parse_rule(raw: Any, where: str, base: Rule) -> Rule:
+def _parse_rule(raw: Any, where: str, base: CheckRule) -> CheckRule:
     if not isinstance(raw, dict):
         raise CheckError(f"{where}: expected a mapping like {{better: lower, factor: 10}}, "
                          f"got {raw!r}")
@@ -154,7 +122,7 @@ def _parse_rule(raw: Any, where: str, base: Rule) -> Rule:
         raise CheckError(f"{where}: floor must be >= 0, got {floor}")
     if not isinstance(values["gate"], bool):
         raise CheckError(f"{where}: gate must be true or false, got {values['gate']!r}")
-    return Rule(better=values["better"], factor=factor, floor=floor, gate=values["gate"])
+    return CheckRule(better=values["better"], factor=factor, floor=floor, gate=values["gate"])
 
 
 def _read_yaml(text: str, source: str) -> dict[str, Any]:
@@ -173,8 +141,8 @@ def _read_yaml(text: str, source: str) -> dict[str, Any]:
     return data
 
 
-def _apply(data: dict[str, Any], source: str, default: Rule,
-           metrics: dict[str, Rule]) -> tuple[Rule, dict[str, Rule]]:
+def _apply(data: dict[str, Any], source: str, default: CheckRule,
+           metrics: dict[str, CheckRule]) -> tuple[CheckRule, dict[str, CheckRule]]:
     if "default" in data:
         default = _parse_rule(data["default"], f"{source}: default", default)
     raw_metrics = data.get("metrics") or {}
@@ -187,18 +155,17 @@ def _apply(data: dict[str, Any], source: str, default: Rule,
     return default, metrics
 
 
-def declared_rules() -> dict[str, Rule]:
+def declared_rules() -> dict[str, CheckRule]:
     """The rule of every registered metric (its declaration), and of the timings."""
-    rules = {m.name: Rule(better=m.better, factor=m.check.factor, floor=m.check.floor,
-                          gate=m.check.gate) for m in registry.metrics()}
-    rules.update({t: Rule(**TIMING_RULE) for t in TIMINGS})  # type: ignore[arg-type]
+    rules = {m.name: m.check for m in registry.metrics()}
+    rules.update({t: TIMING_RULE for t in TIMINGS})
     return rules
 
 
-def load_rules(path: Optional[Path | str] = None) -> tuple[Rule, dict[str, Rule]]:
+def load_rules(path: Optional[Path | str] = None) -> tuple[CheckRule, dict[str, CheckRule]]:
     """The declared rules (:func:`declared_rules`; metrics no installed plugin declares
     get the default), with those of ``path`` (a YAML file) on top."""
-    default, metrics = Rule(), declared_rules()
+    default, metrics = CheckRule(), declared_rules()
     if path is not None:
         path = Path(path)
         try:
@@ -320,7 +287,7 @@ def _model_text(model: str, variant: str) -> str:
 
 
 def compare(reference: pd.DataFrame, current: pd.DataFrame,
-            rules: Optional[tuple[Rule, dict[str, Rule]]] = None,
+            rules: Optional[tuple[CheckRule, dict[str, CheckRule]]] = None,
             allow_missing: bool = False, same: Optional[float] = None) -> CheckResult:
     """Compare two leaderboards; see the module docstring (``same``: ``--same RTOL``)."""
     default, by_metric = rules if rules is not None else load_rules()
@@ -474,7 +441,7 @@ def validate_records(recs: Sequence[dict[str, Any]], bad: Sequence[R.Unreadable]
     return out
 
 
-def rerun(recs: Sequence[dict[str, Any]], spec: str, rules: tuple[Rule, dict[str, Rule]]
+def rerun(recs: Sequence[dict[str, Any]], spec: str, rules: tuple[CheckRule, dict[str, CheckRule]]
           ) -> list[Finding]:
     """Run the job ``SYSTEM/MODEL/SEED`` of ``recs`` again (its recorded config, in a
     temporary directory) and compare each metric with the record's by ``rules``."""

@@ -102,10 +102,24 @@ class RunConfig:
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
 
 
+@dataclass
+class SweeperConfig:
+    """``hydra/sweeper=hnnbench`` (the default): Hydra's basic sweeper's settings, for
+    :class:`hnnbench._sweep.Sweeper`."""
+
+    _target_: str = "hydra_plugins.hnnbench_sweeper.HnnbenchSweeper"
+    max_batch_size: Optional[int] = None
+    params: Optional[dict[str, str]] = None
+
+
 def register_schema() -> None:
+    """Store the job schema and hnnbench's sweeper in Hydra's ConfigStore."""
     from hydra.core.config_store import ConfigStore
 
-    ConfigStore.instance().store(name="hnnbench_schema", node=RunConfig, provider="hnnbench")
+    store = ConfigStore.instance()
+    store.store(name="hnnbench_schema", node=RunConfig, provider="hnnbench")
+    store.store(group="hydra/sweeper", name="hnnbench", node=SweeperConfig,
+                provider="hnnbench")
 
 
 def _not_a_setting(what: str, key: Any, known: list[str]) -> ConfigError:
@@ -123,6 +137,10 @@ def validate_run(cfg: Any) -> None:
     for key in cfg:
         if key not in known and key != "hydra":
             raise _not_a_setting(f"{key} is not an hnnbench setting", key, known)
+    for key in ("system", "model"):  # the shipped config names no plugin
+        if key not in cfg or cfg.get(key) is None:
+            raise ConfigError(f"no {key} chosen: add {key}=<name> to the command line "
+                              f"(`hnnbench list` shows the {key}s; {key}=all for every one)")
     for key in known:
         if key not in cfg:
             raise ConfigError(f"{key} is missing (removed with ~{key}?): hnnbench needs it.")
@@ -189,7 +207,7 @@ def validate_run(cfg: Any) -> None:
 def _instantiate_config(kind: str, node: Any) -> Any:
     """The plugin config dataclass for a composed ``system`` / ``model`` node."""
     name = str(node.name)
-    cls = registry.get_class(kind, name)  # type: ignore[arg-type]
+    cls = registry.group(kind).get(name)
     values = OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
     assert isinstance(values, dict)
     known = [f.name for f in fields(cls.Config)]

@@ -28,7 +28,7 @@ from typing import Any, ClassVar, Optional
 
 import numpy as np
 
-from hnnbench._errors import ConfigError, RolloutDiverged
+from hnnbench._errors import ConfigError
 from hnnbench._kinematics import Kinematics
 
 __all__ = [
@@ -456,7 +456,11 @@ class Model(ABC):
     def fit(
         self, data: Dataset, train: TrainSettings, seed: int, progress: Progress
     ) -> FitResult:
-        """Train on ``data.train``; report losses through ``progress``."""
+        """Train on ``data.train``; report losses through ``progress``.
+
+        Training that diverges (a non-finite loss) is reported in the result's
+        ``diverged``, never raised: the job then records ``diverged`` with that reason.
+        """
 
     def fit_seeds(
         self, data: Sequence[Dataset], train: TrainSettings, seeds: Sequence[int],
@@ -473,11 +477,7 @@ class Model(ABC):
         out: list[tuple[Model, FitResult]] = []
         for seed, seed_data in zip(seeds, data, strict=True):
             model = type(self)(self.cfg, self.system, self.requested_device)
-            try:
-                result = model.fit(seed_data, train, seed, progress)
-            except RolloutDiverged as err:
-                result = FitResult(diverged=str(err))
-            out.append((model, result))
+            out.append((model, model.fit(seed_data, train, seed, progress)))
         return out
 
     @abstractmethod
@@ -537,8 +537,8 @@ class FitResult:
         steps: optimizer steps taken; 0 for a model without an iterative training
             loop (closed form, least squares), whose record then shows no training
             protocol.
-        diverged: why training diverged, from :meth:`Model.fit_seeds` (``fit`` raises
-            :class:`~hnnbench._errors.RolloutDiverged` instead); ``None`` otherwise.
+        diverged: why training diverged (the job records ``diverged`` with this
+            reason); ``None`` otherwise. The only way a fit reports divergence.
     """
 
     history: dict[str, list[float]] = field(default_factory=dict)

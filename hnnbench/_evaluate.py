@@ -101,7 +101,10 @@ def evaluate(system: System, model: Model, data: Dataset, traj: Trajectories,
         else:
             result[metric.name] = summarize(np.asarray(values, dtype=np.float64))
         mean = result[metric.name]["mean"]
-        if metric.required and not math.isfinite(mean) and not math.isnan(mean) \
-                and diverged is None:
-            diverged = f"{metric.name} is not finite"
+        if metric.required and not math.isfinite(mean):
+            # A metric that applies and computed a value: NaN there is no "not
+            # applicable" (that is None), it is a model that produced NaN.
+            result[metric.name]["mean"] = metric.worst() if math.isnan(mean) else mean
+            if diverged is None:
+                diverged = f"{metric.name} is not finite ({mean})"
     return Evaluation(metrics=result, diverged=diverged, arrays=ctx.arrays, errors=errors)

@@ -25,7 +25,20 @@ import copy
 from collections.abc import Callable, Iterator
 from typing import Any
 
+from hydra.plugins.sweeper import Sweeper as HydraSweeper
+
 from hnnbench._errors import HnnbenchError
+
+__all__ = ["HydraSweeper", "args_parser", "basic_sweeper_class", "group_lister",
+           "one_line_errors"]
+
+
+def basic_sweeper_class() -> type:
+    """Hydra's basic sweeper class, as its module holds it now (Hydra's plugin scan
+    executes the module again, so a reference taken earlier may be stale)."""
+    from hydra._internal.core_plugins import basic_sweeper
+
+    return basic_sweeper.BasicSweeper
 
 __all__ = ["args_parser", "group_lister", "one_line_errors"]
 

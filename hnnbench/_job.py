@@ -42,7 +42,8 @@ from hnnbench._progress import TrainingProgress
 
 log = logging.getLogger("hnnbench")
 
-__all__ = ["config_change", "run_job", "run_seeds", "seed_directory"]
+__all__ = ["SeedOutcome", "config_change", "run_job", "run_seed_outcomes", "run_seeds",
+           "seed_directory"]
 
 
 def _set_threads(threads: int) -> None:
@@ -199,19 +200,6 @@ def _clean_stale(directory: Path) -> None:
                 path.unlink()
 
 
-def _check_finite(record: dict[str, Any]) -> None:
-    """A finished job whose train/test loss is NaN/inf is ``diverged``, with inf
-    losses, whatever the model and the rollouts said."""
-    means = {k: record["metrics"].get(k, {}).get("mean") for k in ("train_loss", "test_loss")}
-    bad = [k for k, v in means.items() if isinstance(v, (int, float)) and not np.isfinite(v)]
-    if not bad:
-        return
-    for key in bad:
-        record["metrics"][key]["mean"] = float("inf")
-    if record["status"] == "ok":
-        record.update(status="diverged", error=f"non-finite {' and '.join(bad)}")
-
-
 def seed_directory(directory: Path, leader: int, seed: int) -> Path:
     """Where the record of ``seed`` goes when a job trains a batch led by ``leader``
     (whose directory Hydra chose): the same path with its ``seed<leader>`` component
@@ -259,10 +247,27 @@ def run_job(
     return run_seeds(cfg, directory, index, total, overrides)[0]
 
 
+@dataclasses.dataclass
+class SeedOutcome:
+    """One seed's record from :func:`run_seed_outcomes`; ``kept``: a finished record of
+    an earlier run, reused (resume), not this run's work."""
+
+    record: dict[str, Any]
+    kept: bool
+
+
 def run_seeds(
     cfg: DictConfig, directory: Path, index: int | None = None, total: int | None = None,
     overrides: list[str] | None = None,
 ) -> list[dict[str, Any]]:
+    """The records of :func:`run_seed_outcomes`, in seed order."""
+    return [o.record for o in run_seed_outcomes(cfg, directory, index, total, overrides)]
+
+
+def run_seed_outcomes(
+    cfg: DictConfig, directory: Path, index: int | None = None, total: int | None = None,
+    overrides: list[str] | None = None,
+) -> list[SeedOutcome]:
     """Run the job's seed, or its batch of seeds (``seed_batch``, from
     ``seeds_per_job``), and write one record per seed; return them in seed order.
 
@@ -279,6 +284,7 @@ def run_seeds(
     count = f"[{index + 1}/{total}] " if index is not None and total else ""
     dirs = {seed: seed_directory(directory, seeds[0], seed) for seed in seeds}
     done: dict[int, dict[str, Any]] = {}
+    kept: set[int] = set()
     for seed in seeds:
         existing = records.read_record(dirs[seed] / records.RECORD_NAME)
         if not existing or existing.get("status") not in records.FINISHED \
@@ -290,6 +296,7 @@ def run_seeds(
             log.info("%s%s x %s seed=%s: already finished (%s), skipped; rerun=true redoes it",
                      count, system, model, seed, existing["status"])
             done[seed] = existing
+            kept.add(seed)
             continue
         # A record of other settings is not this job's result, and is not overwritten.
         message = (f"{dirs[seed]} holds a finished record of other settings ({change}): "
@@ -299,7 +306,7 @@ def run_seeds(
         done[seed] = {**_base_record(cfg, overrides), "seed": seed, "error": message}
     pending = [s for s in seeds if s not in done]
     if not pending:
-        return [done[s] for s in seeds]
+        return [SeedOutcome(done[s], s in kept) for s in seeds]
 
     batch_text = f" (seeds {','.join(map(str, pending))} as one batch)" if len(pending) > 1 else ""
     tags = {s: f"{system} x {model} seed={s}" for s in pending}
@@ -345,7 +352,8 @@ def run_seeds(
             log.error("%s%s: could not write %s: %s", count, tags[seed],
                       dirs[seed] / records.RECORD_NAME, err)
         _log_outcome(count, tags[seed], record)
-    return [done[s] if s in done else runs[s] for s in seeds]
+    return [SeedOutcome(done[s], s in kept) if s in done else SeedOutcome(runs[s], False)
+            for s in seeds]
 
 
 def _execute(job: Job, cfg: DictConfig, seeds: list[int], dirs: dict[int, Path],
@@ -401,16 +409,17 @@ def _execute(job: Job, cfg: DictConfig, seeds: list[int], dirs: dict[int, Path],
         model = job.model_cls(job.model_cfg, system, str(cfg.device))
         with TrainingProgress(label, train.steps) as bar:
             if len(seeds) == 1:
-                try:
-                    fits = [(model, model.fit(datas[seeds[0]], train, seeds[0], bar.update))]
-                except RolloutDiverged as err:
-                    fits = [(model, FitResult(diverged=str(err)))]
+                fits = [(model, model.fit(datas[seeds[0]], train, seeds[0], bar.update))]
             else:
                 fits = model.fit_seeds([datas[s] for s in seeds], train, seeds, bar.update)
     except UnsupportedPair as err:
         for record in runs.values():
             record.update(status="skipped", error=f"{cfg.model.name} on {cfg.system.name}: {err}")
         return
+    except RolloutDiverged as err:  # the contract: divergence comes back in FitResult
+        raise HnnbenchError(
+            f"{cfg.model.name}.fit raised RolloutDiverged ({err}); a model reports training "
+            "divergence as FitResult(diverged=...) instead (docs/PLUGINS.md)") from None
     fit_s = (time.perf_counter() - t0) / len(seeds)
     for seed, (trained, fit) in zip(seeds, fits, strict=True):
         record = runs[seed]
@@ -455,7 +464,6 @@ def _finish(record: dict[str, Any], system: Any, model: Any, fit: FitResult, dat
         record.update(status="diverged", error=result.diverged)
     else:
         record["status"] = "ok"
-    _check_finite(record)
 
 
 def _history_diverged(history: dict) -> str | None:
@@ -480,8 +488,8 @@ def _log_outcome(count: str, tag: str, record: dict[str, Any]) -> None:
     secs = record["timings"].get("total_s", 0.0)
     if status == "ok":
         m = record["metrics"]
-        shown = "  ".join(f"{k}={m[k]['mean']:.3g}" for k in ("test_loss", "energy_mse")
-                          if k in m)
+        shown = "  ".join(f"{metric.name}={m[metric.name]['mean']:.3g}"
+                          for metric in registry.metrics() if metric.log and metric.name in m)
         log.info("%s%s: ok in %.1f s  %s", count, tag, secs, shown)
     else:
         log.warning("%s%s: %s in %.1f s: %s", count, tag, status, secs, record.get("error"))

@@ -42,6 +42,8 @@ class LaunchContext:
     n_jobs: Optional[int] = None
     cli_pid: Optional[int] = None
     host: Optional[str] = None
+    #: the command's channel file: jobs' outcomes (``hnnbench._sweep``).
+    returns: Optional[str] = None
 
 
 def current() -> Optional[LaunchContext]:
@@ -52,7 +54,7 @@ def current() -> Optional[LaunchContext]:
     try:
         data = json.loads(value)
         return LaunchContext(**{k: data.get(k)
-                                for k in ("command", "n_jobs", "cli_pid", "host")})
+                                for k in ("command", "n_jobs", "cli_pid", "host", "returns")})
     except (ValueError, TypeError, AttributeError):  # set by hand: "started by the CLI"
         return LaunchContext()
 

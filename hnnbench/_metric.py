@@ -14,6 +14,7 @@ to ``hnnbench check`` with no change here (docs/PLUGINS.md).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -44,7 +45,8 @@ def always(system: System) -> bool:
 
 @dataclass(frozen=True)
 class CheckRule:
-    """Tolerance of ``hnnbench check`` for a metric (``--rules FILE`` overrides it).
+    """The rule ``hnnbench check`` applies to a metric (or a timing): the one class for
+    it. A :class:`Metric` declares it; ``--rules FILE`` overrides it.
 
     Attributes:
         factor: how much worse is tolerated, as a ratio compared in log space: a
@@ -53,11 +55,38 @@ class CheckRule:
         floor: values below it count as it (a numerical noise floor, so that 1e-16 vs
             1e-14 from an exact model on two machines is no regression).
         gate: ``False``: differences are reported as information, never a failure.
+        better: ``"lower"`` or ``"higher"``; a :class:`Metric` sets it to its own
+            :attr:`Metric.better`.
     """
 
     factor: float = 10.0
     floor: float = 0.0
     gate: bool = True
+    better: Literal["lower", "higher"] = "lower"
+
+    def worsening(self, reference: float, current: float) -> float:
+        """How many times worse ``current`` is than ``reference`` (< 1: better)."""
+        ref, cur = max(reference, self.floor), max(current, self.floor)
+        worse, base = (cur, ref) if self.better == "lower" else (ref, cur)
+        if math.isinf(worse) and math.isinf(base):
+            return 1.0
+        if base <= 0:
+            return 1.0 if worse <= 0 else math.inf
+        return worse / base
+
+    def limit_text(self) -> str:
+        op = "<=" if self.better == "lower" else ">="
+        side = f"ref x {self.factor:g}" if self.better == "lower" else f"ref / {self.factor:g}"
+        return f"{op} {side}"
+
+    def difference(self, reference: float, current: float) -> float:
+        """``|current - reference|`` relative to the larger magnitude (0 when both are at
+        or below the noise floor, ``inf`` when exactly one is non-finite)."""
+        if max(abs(reference), abs(current)) <= self.floor:
+            return 0.0
+        if math.isinf(reference) or math.isinf(current):
+            return 0.0 if reference == current else math.inf
+        return abs(current - reference) / max(abs(reference), abs(current))
 
 
 @dataclass(frozen=True)
@@ -84,6 +113,7 @@ class Metric:
         figures: the report's board figures that plot it: ``"heatmap"`` (a rank
             heatmap of models by system), ``"data_efficiency"`` (the metric against a
             swept training-set size).
+        log: shown in the one-line outcome a job logs when it finishes.
     """
 
     name: str
@@ -98,6 +128,12 @@ class Metric:
     order: int = 1000
     reference: str = "docs/METRICS.md"
     figures: tuple[str, ...] = ()
+    log: bool = False
+
+    def __post_init__(self) -> None:
+        if self.check.better != self.better:  # the metric's direction is the rule's
+            object.__setattr__(self, "check", dataclasses.replace(self.check,
+                                                                  better=self.better))
 
     def worst(self) -> float:
         """The value recorded when the model failed (diverged): ``inf`` for errors,

@@ -13,10 +13,10 @@ attribute (lower first; built-ins set it), then its name.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
-from functools import cache
+from collections.abc import Iterable
+from dataclasses import dataclass, field
 from importlib import metadata
-from typing import Any, Literal
+from typing import Any, Generic, Literal, Optional, TypeVar
 
 from hnnbench._claims import Claim, ClaimSet
 from hnnbench._contract import Model, ModelConfig, System, SystemConfig
@@ -25,17 +25,17 @@ from hnnbench._metric import Metric
 from hnnbench._record_schema import metric_name_problem
 
 Kind = Literal["system", "model", "metric", "claims"]
-GROUPS: dict[str, str] = {"system": "hnnbench.systems", "model": "hnnbench.models",
-                          "metric": "hnnbench.metrics", "claims": "hnnbench.claims"}
-BASES: dict[str, type] = {"system": System, "model": Model}
-CONFIG_BASES: dict[str, type] = {"system": SystemConfig, "model": ModelConfig}
-#: Kinds whose entry points name an instance, not a class.
-INSTANCE_KINDS: dict[str, type] = {"metric": Metric, "claims": ClaimSet}
+T = TypeVar("T")
 #: Profiles that ship with hnnbench (conf/profile/*.yaml). ``paper`` is the default.
 PROFILES = ("paper", "quick")
 
 __all__ = [
+    "CLAIMS",
     "GROUPS",
+    "METRICS",
+    "MODELS",
+    "SYSTEMS",
+    "PluginGroup",
     "all_claims",
     "claim_sets",
     "family_models",
@@ -45,6 +45,7 @@ __all__ = [
     "config_defaults",
     "discover",
     "get_class",
+    "group",
     "metrics",
     "ordered",
     "refresh",
@@ -55,7 +56,7 @@ __all__ = [
 
 
 @dataclass
-class PluginInfo:
+class PluginInfo(Generic[T]):
     """One entry point and the outcome of loading it."""
 
     kind: str
@@ -64,7 +65,7 @@ class PluginInfo:
     distribution: str | None
     dist_version: str | None
     #: The loaded class (systems, models) or instance (metrics, claim sets).
-    cls: Any = None
+    cls: Optional[T] = None
     error: str | None = None
 
     @property
@@ -94,104 +95,10 @@ class PluginInfo:
         return str(getattr(family, "name", "-")) if family is not None else "-"
 
 
-def _load(kind: str, ep: metadata.EntryPoint) -> PluginInfo:
-    dist = getattr(ep, "dist", None)
-    info = PluginInfo(
-        kind=kind, name=ep.name, target=ep.value,
-        distribution=dist.metadata["Name"] if dist is not None else None,
-        dist_version=dist.version if dist is not None else None,
-    )
-    try:
-        cls = ep.load()
-    except HnnbenchError as err:
-        info.error = str(err)
-        return info
-    except Exception as err:  # a broken plugin must not break the others
-        info.error = f"import failed: {type(err).__name__}: {err}".splitlines()[0]
-        return info
-    if kind in INSTANCE_KINDS:
-        expected = INSTANCE_KINDS[kind]
-        if not isinstance(cls, expected):
-            info.error = f"{ep.value} is not a {expected.__module__}.{expected.__name__}"
-        elif getattr(cls, "name", None) != ep.name:
-            info.error = (f"{ep.value} is named '{getattr(cls, 'name', '?')}' but is "
-                          f"registered as '{ep.name}': use the same name")
-        elif kind == "metric" and (problem := metric_name_problem(ep.name)):
-            info.error = f"{ep.value}: {problem}"
-        else:
-            info.cls = cls
-        return info
-    base = BASES[kind]
-    if not (isinstance(cls, type) and issubclass(cls, base)):
-        info.error = f"{ep.value} is not a subclass of hnnbench._contract.{base.__name__}"
-        return info
-    config_cls = getattr(cls, "Config", None)
-    if not (isinstance(config_cls, type) and dataclasses.is_dataclass(config_cls)
-            and issubclass(config_cls, CONFIG_BASES[kind])):
-        info.error = (
-            f"{ep.value}.Config must be a dataclass subclassing "
-            f"hnnbench._contract.{CONFIG_BASES[kind].__name__}"
-        )
-        return info
-    unknown_profiles = sorted(set(getattr(cls, "profiles", {}) or {}) - set(PROFILES))
-    if unknown_profiles:
-        info.error = (f"{ep.value}.profiles declares {unknown_profiles}, but hnnbench's "
-                      f"profiles are {', '.join(PROFILES)}; rename or remove them")
-        return info
-    missing = getattr(cls, "requirements_missing", lambda: None)()
-    if missing:
-        info.error = str(missing)
-        return info
-    info.cls = cls
-    return info
-
-
-def ordered(kind: Kind, names: Any) -> list[str]:
-    """``names`` in listing order: the plugins' ``order`` (lower first; none: after
-    those that have one), then by name; names not installed come last, by name."""
-    plugins = _discover(kind)
-
-    def key(name: str) -> tuple[int, float, str]:
-        info = plugins.get(name)
-        if info is None or info.cls is None:
-            return (1, 0.0, name)
-        order = getattr(info.cls, "order", None)
-        return (0, float("inf") if order is None else float(order), name)
-
-    return sorted(dict.fromkeys(names), key=key)
-
-
-@cache
-def _discover(kind: str) -> dict[str, PluginInfo]:
-    found: dict[str, PluginInfo] = {}
-    for ep in sorted(metadata.entry_points(group=GROUPS[kind]), key=lambda e: e.name):
-        if ep.name in found:  # same name from two distributions: keep the first, say so
-            other = found[ep.name]
-            if other.target != ep.value:
-                other.error = (
-                    f"name '{ep.name}' is declared twice ({other.target} and {ep.value}); "
-                    "uninstall one of the plugins"
-                )
-                other.cls = None
-            continue
-        found[ep.name] = _load(kind, ep)
-    for name, obj in _REGISTERED[kind].items():
-        found[name] = _load(kind, _InProcess(name, obj))  # type: ignore[arg-type]
-    order = {name: i for i, name in enumerate(_sorted_by_order(found))}
-    return dict(sorted(found.items(), key=lambda item: order[item[0]]))
-
-
-def _sorted_by_order(found: dict[str, PluginInfo]) -> list[str]:
-    def key(name: str) -> tuple[float, str]:
-        order = getattr(found[name].cls, "order", None) if found[name].cls else None
-        return (float("inf") if order is None else float(order), name)
-
-    return sorted(found, key=key)
-
-
 @dataclass
 class _InProcess:
-    """What :func:`_load` needs of an entry point, for a plugin registered in-process."""
+    """What :meth:`PluginGroup._load` needs of an entry point, for a plugin registered
+    in-process."""
 
     name: str
     obj: Any
@@ -205,71 +112,231 @@ class _InProcess:
         return self.obj
 
 
-#: Plugins registered in this process (:func:`register`), by kind.
-_REGISTERED: dict[str, dict[str, Any]] = {kind: {} for kind in GROUPS}
+@dataclass
+class PluginGroup(Generic[T]):
+    """The plugins of one kind: an entry-point group, what its entry points must name
+    (a subclass of ``base``, or an instance of it when ``instances``), discovery with
+    broken-plugin isolation, lookup with did-you-mean, listing order and in-process
+    registration. ``PluginGroup[type[System]]`` holds classes, ``PluginGroup[Metric]``
+    instances; :meth:`get` returns that type."""
+
+    kind: str
+    group: str
+    base: type
+    instances: bool = False
+    config_base: Optional[type] = None
+    _registered: dict[str, Any] = field(default_factory=dict, repr=False)
+    _found: Optional[dict[str, PluginInfo[T]]] = field(default=None, repr=False)
+
+    # -- discovery ----------------------------------------------------------------
+    def discover(self) -> dict[str, PluginInfo[T]]:
+        """Every entry point of the group (and in-process registration), loaded, in
+        listing order (cached; see :meth:`refresh`)."""
+        if self._found is None:
+            found: dict[str, PluginInfo[T]] = {}
+            for ep in sorted(metadata.entry_points(group=self.group), key=lambda e: e.name):
+                if ep.name in found:  # one name from two distributions: keep the first
+                    other = found[ep.name]
+                    if other.target != ep.value:
+                        other.error = (
+                            f"name '{ep.name}' is declared twice ({other.target} and "
+                            f"{ep.value}); uninstall one of the plugins")
+                        other.cls = None
+                    continue
+                found[ep.name] = self._load(ep.name, ep.value, getattr(ep, "dist", None),
+                                            ep.load)
+            for name, obj in self._registered.items():
+                source = _InProcess(name, obj)
+                found[name] = self._load(name, source.value, None, source.load)
+            order = {name: i for i, name in enumerate(_sorted_by_order(found))}
+            self._found = dict(sorted(found.items(), key=lambda item: order[item[0]]))
+        return self._found
+
+    def refresh(self) -> None:
+        self._found = None
+
+    def available(self) -> list[str]:
+        """Names of the plugins that loaded, in listing order."""
+        return [name for name, info in self.discover().items() if info.ok]
+
+    def loaded(self) -> list[T]:
+        """The plugins that loaded (classes or instances), in listing order."""
+        return [info.cls for info in self.discover().values() if info.cls is not None]
+
+    def get(self, name: str) -> T:
+        """The plugin registered as ``name``.
+
+        Raises:
+            UnknownNameError: no such plugin (the message suggests the closest name).
+            HnnbenchError: the plugin exists but failed to load.
+        """
+        info = self.discover().get(name)
+        if info is None:
+            raise UnknownNameError(self.kind, name, self.available())
+        if info.cls is None:
+            raise HnnbenchError(f"The {self.kind} '{name}' is installed but unusable: "
+                                f"{info.error}")
+        return info.cls
+
+    def ordered(self, names: Iterable[str]) -> list[str]:
+        """``names`` in listing order: the plugins' ``order`` (lower first; none: after
+        those that have one), then by name; names not installed come last, by name."""
+        plugins = self.discover()
+
+        def key(name: str) -> tuple[int, float, str]:
+            info = plugins.get(name)
+            if info is None or info.cls is None:
+                return (1, 0.0, name)
+            order = getattr(info.cls, "order", None)
+            return (0, float("inf") if order is None else float(order), name)
+
+        return sorted(dict.fromkeys(names), key=key)
+
+    def register(self, name: str, obj: Any) -> None:
+        """See :func:`register`."""
+        installed = {ep.name for ep in metadata.entry_points(group=self.group)}
+        if name in installed:
+            raise ConfigError(f"register: the {self.kind} name '{name}' is taken by an "
+                              "installed plugin; choose another name")
+        source = _InProcess(name, obj)
+        info = self._load(name, source.value, None, source.load)
+        if info.cls is None:
+            raise ConfigError(f"register: {info.error}")
+        self._registered[name] = obj
+        refresh()
+
+    # -- loading one ----------------------------------------------------------------
+    def _load(self, name: str, target: str, dist: Any, load: Any) -> PluginInfo[T]:
+        info: PluginInfo[T] = PluginInfo(
+            kind=self.kind, name=name, target=target,
+            distribution=dist.metadata["Name"] if dist is not None else None,
+            dist_version=dist.version if dist is not None else None,
+        )
+        try:
+            obj = load()
+        except HnnbenchError as err:
+            info.error = str(err)
+            return info
+        except Exception as err:  # a broken plugin must not break the others
+            info.error = f"import failed: {type(err).__name__}: {err}".splitlines()[0]
+            return info
+        info.error = self._problem(name, target, obj)
+        if info.error is None:
+            info.cls = obj
+        return info
+
+    def _problem(self, name: str, target: str, obj: Any) -> Optional[str]:
+        """Why ``obj`` cannot be this group's plugin ``name``, or ``None``."""
+        base = self.base
+        if self.instances:
+            if not isinstance(obj, base):
+                return f"{target} is not a {base.__module__}.{base.__name__}"
+            if getattr(obj, "name", None) != name:
+                return (f"{target} is named '{getattr(obj, 'name', '?')}' but is "
+                        f"registered as '{name}': use the same name")
+            if self.kind == "metric" and (problem := metric_name_problem(name)):
+                return f"{target}: {problem}"
+            return None
+        if not (isinstance(obj, type) and issubclass(obj, base)):
+            return f"{target} is not a subclass of hnnbench.{base.__name__}"
+        config_cls = getattr(obj, "Config", None)
+        config_base = self.config_base
+        if config_base is not None and not (
+                isinstance(config_cls, type) and dataclasses.is_dataclass(config_cls)
+                and issubclass(config_cls, config_base)):
+            return (f"{target}.Config must be a dataclass subclassing "
+                    f"hnnbench.{config_base.__name__}")
+        unknown_profiles = sorted(set(getattr(obj, "profiles", {}) or {}) - set(PROFILES))
+        if unknown_profiles:
+            return (f"{target}.profiles declares {unknown_profiles}, but hnnbench's "
+                    f"profiles are {', '.join(PROFILES)}; rename or remove them")
+        missing = getattr(obj, "requirements_missing", lambda: None)()
+        return str(missing) if missing else None
+
+
+def _sorted_by_order(found: dict[str, PluginInfo[Any]]) -> list[str]:
+    def key(name: str) -> tuple[float, str]:
+        order = getattr(found[name].cls, "order", None) if found[name].cls else None
+        return (float("inf") if order is None else float(order), name)
+
+    return sorted(found, key=key)
+
+
+#: The four plugin groups.
+SYSTEMS: PluginGroup[type[System]] = PluginGroup(
+    "system", "hnnbench.systems", System, config_base=SystemConfig)
+MODELS: PluginGroup[type[Model]] = PluginGroup(
+    "model", "hnnbench.models", Model, config_base=ModelConfig)
+METRICS: PluginGroup[Metric] = PluginGroup("metric", "hnnbench.metrics", Metric, instances=True)
+CLAIMS: PluginGroup[ClaimSet] = PluginGroup("claims", "hnnbench.claims", ClaimSet,
+                                            instances=True)
+_GROUPS: dict[str, PluginGroup[Any]] = {g.kind: g for g in (SYSTEMS, MODELS, METRICS, CLAIMS)}
+#: kind -> entry-point group name.
+GROUPS: dict[str, str] = {kind: g.group for kind, g in _GROUPS.items()}
+
+
+def group(kind: str) -> PluginGroup[Any]:
+    """The plugin group of ``kind`` (``system``, ``model``, ``metric``, ``claims``)."""
+    try:
+        return _GROUPS[kind]
+    except KeyError:
+        raise ConfigError(f"unknown plugin kind '{kind}'; expected one of "
+                          f"{', '.join(_GROUPS)}") from None
 
 
 def register(kind: Kind, name: str, obj: Any) -> None:
     """Add a plugin to this process without packaging it: a :class:`System` or
-    :class:`Model` subclass, a :class:`~hnnbench._metric.Metric` or a
-    :class:`~hnnbench._claims.ClaimSet`. It then takes part in ``all``, sweeps and
-    reports exactly like an installed one, in this process: with the basic launcher
-    (other launchers start processes that only know installed plugins). For notebooks
-    and tests; a package declares entry points instead (docs/PLUGINS.md).
+    :class:`Model` subclass, a :class:`~hnnbench.Metric` or a
+    :class:`~hnnbench.ClaimSet`. It then takes part in ``all``, sweeps and reports
+    exactly like an installed one, in this process: with the basic launcher (other
+    launchers start processes that only know installed plugins). For notebooks and
+    tests; a package declares entry points instead (docs/PLUGINS.md).
 
     Raises:
         ConfigError: ``name`` is taken by an installed plugin, or ``obj`` is not a
             plugin of ``kind`` (the message says why).
     """
-    if kind not in GROUPS:
+    if kind not in _GROUPS:
         raise ConfigError(f"register: unknown kind '{kind}'; expected one of "
-                          f"{', '.join(GROUPS)}")
-    installed = {ep.name for ep in metadata.entry_points(group=GROUPS[kind])}
-    if name in installed:
-        raise ConfigError(f"register: the {kind} name '{name}' is taken by an installed "
-                          "plugin; choose another name")
-
-    info = _load(kind, _InProcess(name, obj))  # type: ignore[arg-type]
-    if info.cls is None:
-        raise ConfigError(f"register: {info.error}")
-    _REGISTERED[kind][name] = obj
-    refresh()
+                          f"{', '.join(_GROUPS)}")
+    _GROUPS[kind].register(name, obj)
 
 
-def discover(kind: Kind) -> dict[str, PluginInfo]:
+def discover(kind: Kind) -> dict[str, PluginInfo[Any]]:
     """Every entry point of ``kind``, loaded (cached; see :func:`refresh`)."""
-    return _discover(kind)
+    return group(kind).discover()
 
 
 def refresh() -> None:
     """Forget discovered plugins (after installing one in a running process)."""
-    _discover.cache_clear()
+    for g in _GROUPS.values():
+        g.refresh()
+    _stored_profile.clear()
+
+
+#: The profile whose plugin configs are in Hydra's ConfigStore (a cache, like discovery).
+_stored_profile: dict[str, str] = {}
 
 
 def available(kind: Kind) -> list[str]:
     """Names of the plugins of ``kind`` that loaded, in listing order."""
-    return [name for name, info in discover(kind).items() if info.ok]
+    return group(kind).available()
+
+
+def ordered(kind: Kind, names: Iterable[str]) -> list[str]:
+    """``names`` in listing order (:meth:`PluginGroup.ordered`)."""
+    return group(kind).ordered(names)
 
 
 def metrics() -> list[Metric]:
     """Every registered metric that loaded, in table order."""
-    return [info.cls for info in discover("metric").values() if info.cls is not None]
+    return METRICS.loaded()
 
 
-def get_class(kind: Kind, name: str) -> type[Any]:
-    """The plugin class registered as ``name``.
-
-    Raises:
-        UnknownNameError: no such plugin (the message suggests the closest name).
-        HnnbenchError: the plugin exists but failed to load.
-    """
-    plugins = discover(kind)
-    info = plugins.get(name)
-    if info is None:
-        raise UnknownNameError(kind, name, available(kind))
-    if info.cls is None:
-        raise HnnbenchError(f"The {kind} '{name}' is installed but unusable: {info.error}")
-    return info.cls
+def get_class(kind: Kind, name: str) -> Any:
+    """The plugin of ``kind`` registered as ``name`` (typed: use ``SYSTEMS.get`` /
+    ``MODELS.get``); raises as :meth:`PluginGroup.get`."""
+    return group(kind).get(name)
 
 
 def validate_profile(name: str) -> None:
@@ -277,10 +344,10 @@ def validate_profile(name: str) -> None:
         raise UnknownNameError("profile", name, PROFILES)
 
 
-def config_defaults(kind: Kind, name: str, profile: str = "paper") -> Any:
+def config_defaults(kind: str, name: str, profile: str = "paper") -> Any:
     """The plugin's config dataclass instance for ``profile``: its defaults with the
     plugin's own profile overrides applied."""
-    cls = get_class(kind, name)
+    cls: Any = group(kind).get(name)
     overrides = dict(getattr(cls, "profiles", {}).get(profile, {}))
     fields = {f.name for f in dataclasses.fields(cls.Config)}
     unknown = sorted(set(overrides) - fields)
@@ -299,21 +366,25 @@ def register_configs(profile: str = "paper") -> None:
 
     validate_profile(profile)
     store = ConfigStore.instance()
-    for kind in ("system", "model"):
-        for name in available(kind):
+    stored = store.repo.get("system", {})
+    if _stored_profile.get("profile") == profile and stored:  # already there (cached)
+        return
+    for plugins in (SYSTEMS, MODELS):
+        for name in plugins.available():
             try:
-                node = config_defaults(kind, name, profile)
+                node = config_defaults(plugins.kind, name, profile)
             except HnnbenchError as err:
-                info = discover(kind)[name]
+                info = plugins.discover()[name]
                 info.error, info.cls = str(err), None
                 continue
-            store.store(group=kind, name=name, node=node, provider="hnnbench")
+            store.store(group=plugins.kind, name=name, node=node, provider="hnnbench")
+    _stored_profile["profile"] = profile
 
 
 def family_models() -> dict[str, dict[str, str]]:
     """``{backend: {family: model}}`` of the installed models that declare a family."""
     out: dict[str, dict[str, str]] = {}
-    for name, info in discover("model").items():
+    for name, info in MODELS.discover().items():
         family = info.family
         if info.ok and family != "-":
             out.setdefault(info.backend, {})[family] = name
@@ -322,7 +393,7 @@ def family_models() -> dict[str, dict[str, str]]:
 
 def claim_sets() -> list[ClaimSet]:
     """Every registered claim set (entry-point group ``hnnbench.claims``)."""
-    return [info.cls for info in discover("claims").values() if info.cls is not None]
+    return CLAIMS.loaded()
 
 
 def all_claims() -> list[Claim]:

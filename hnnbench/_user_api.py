@@ -1,9 +1,9 @@
 """The Python API: the ``hnnbench`` command, callable from a notebook.
 
-``run`` and ``sweep`` build the same Hydra command line as the CLI and run it through
-the same machinery in this process (:func:`hnnbench._cli.execute`): the same
-composition, validation, launchers and job code, so the records on disk are the
-CLI's. A bad input raises the CLI's one-line error as a typed exception
+``run`` and ``sweep`` plan and run their jobs through the same sweep path as the CLI
+(:mod:`hnnbench._sweep`): the same composition, validation, launchers and job code,
+so the records on disk are the CLI's, and they return the records of exactly the jobs
+they ran. A bad input raises the CLI's one-line error as a typed exception
 (:class:`~hnnbench._errors.ConfigError`, :class:`~hnnbench._errors.UnknownNameError`,
 ...). ``load`` and ``leaderboard`` read records back into pandas.
 
@@ -16,7 +16,6 @@ differ from the CLI's in the last bits).
 from __future__ import annotations
 
 import datetime as _dt
-import shlex
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Optional, Union
@@ -29,30 +28,25 @@ __all__ = ["leaderboard", "load", "run", "sweep"]
 Names = Union[str, Sequence[str]]
 
 
-def _value(value: Any) -> str:
-    """A Python value as a Hydra override value."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if value is None:
-        return "null"
-    if isinstance(value, (list, tuple)):
-        return "[" + ",".join(_value(v) for v in value) + "]"
-    return str(value)
+def _settings(overrides: dict[str, Any]) -> tuple[dict[str, Any], dict[str, str]]:
+    """``model__steps=500`` -> ``{"model.steps": 500}`` (``__`` stands for a dot, which a
+    keyword cannot hold). A string value is a Hydra value as written (so in
+    :func:`sweep`, ``model__hidden="100,200"`` sweeps over two values); any other value
+    is passed as that value."""
+    typed: dict[str, Any] = {}
+    raw: dict[str, str] = {}
+    for key, value in overrides.items():
+        (raw if isinstance(value, str) else typed)[key.replace("__", ".")] = value
+    return typed, raw
 
 
-def _overrides(overrides: dict[str, Any]) -> list[str]:
-    """``model__steps=500`` -> ``model.steps=500`` (``__`` stands for a dot, which a
-    keyword cannot hold). A string value goes to Hydra as written, so in :func:`sweep`
-    ``model__hidden="100,200"`` sweeps over two values."""
-    return [f"{key.replace('__', '.')}={_value(value)}" for key, value in overrides.items()]
+def _names(value: Names) -> list[str]:
+    return [value] if isinstance(value, str) else list(value)
 
 
-def _names(value: Names) -> str:
-    return value if isinstance(value, str) else ",".join(value)
-
-
-def _command(function: str, args: list[str]) -> str:
-    return shlex.join(["hnnbench", *args]) + f"  # via hnnbench.{function}()"
+def _command(function: str, args: dict[str, Any]) -> str:
+    shown = ", ".join(f"{k}={v!r}" for k, v in args.items())
+    return f"hnnbench.{function}({shown})"
 
 
 def run(system: str, model: str, seed: int = 0, profile: str = "paper",
@@ -65,20 +59,24 @@ def run(system: str, model: str, seed: int = 0, profile: str = "paper",
         seed: the seed of data, evaluation and initial weights.
         profile: ``paper`` or ``quick``.
         out: the job's directory (default: Hydra's run directory, under
-            ``results/runs/single/``).
+            ``results/runs/single/``); any path, spaces and quotes included.
         **overrides: any other setting, ``__`` for a dot: ``model__steps=500``,
             ``system__n_traj=20``, ``device="cpu"``.
 
     Raises:
         HnnbenchError: bad input (the CLI's one-line message).
     """
-    from hnnbench._cli import execute
+    from hnnbench import _sweep
 
-    args = [f"system={system}", f"model={model}", f"seed={seed}", f"profile={profile}",
-            *_overrides(overrides)]
+    typed, raw = _settings(overrides)
+    single: dict[str, Any] = {"system": system, "model": model, "seed": seed,
+                              "profile": profile, **typed}
     if out is not None:
-        args.append(f"hydra.run.dir={Path(out).resolve()}")
-    result = execute(args, command=_command("run", args))
+        single["hydra.run.dir"] = str(Path(out).resolve())
+    checked = _sweep.request(single=single, raw=raw, multirun=False)
+    command = _command("run", {"system": system, "model": model, "seed": seed,
+                               "profile": profile, **overrides})
+    result = _sweep.launch_plan(checked, command)
     return result.records[0]
 
 
@@ -86,7 +84,8 @@ def sweep(systems: Names, models: Names, seeds: Iterable[int] = (0,),
           profile: str = "quick", launcher: str = "basic",
           out: Optional[Union[str, Path]] = None, **overrides: Any) -> pd.DataFrame:
     """Run a sweep, as ``hnnbench -m system=... model=... seed=...``; return its
-    leaderboard (one row per system x model, mean and std over seeds).
+    leaderboard (one row per system x model, mean and std over seeds) of this sweep's
+    jobs (records kept from an earlier run of the same sweep included).
 
     Args:
         systems, models: names, lists of names, or ``"all"``.
@@ -100,19 +99,23 @@ def sweep(systems: Names, models: Names, seeds: Iterable[int] = (0,),
 
     The frame's ``attrs["sweep_dir"]`` is the directory of the records.
     """
-    from hnnbench._cli import execute
-    from hnnbench._records import load_records
+    from hnnbench import _sweep
 
-    seeds = list(seeds)
+    seeds = [int(s) for s in seeds]
     if out is None:
         stamp = _dt.datetime.now().strftime("%Y-%m-%d_%H-%M-%S")
         out = Path("results") / "runs" / f"{profile}_{stamp}"
     out = Path(out).resolve()
-    args = ["-m", f"system={_names(systems)}", f"model={_names(models)}",
-            f"seed={','.join(str(s) for s in seeds)}", f"profile={profile}",
-            f"hydra/launcher={launcher}", f"hydra.sweep.dir={out}", *_overrides(overrides)]
-    execute(args, command=_command("sweep", args))
-    board = leaderboard(load_records(out))
+    typed, raw = _settings(overrides)
+    checked = _sweep.request(
+        single={"profile": profile, "hydra/launcher": launcher, "hydra.sweep.dir": str(out),
+                **typed},
+        swept={"system": _names(systems), "model": _names(models), "seed": seeds},
+        raw=raw, multirun=True)
+    command = _command("sweep", {"systems": systems, "models": models, "seeds": seeds,
+                                 "profile": profile, "launcher": launcher, **overrides})
+    result = _sweep.launch_plan(checked, command)
+    board = leaderboard(result.records)
     board.attrs["sweep_dir"] = str(out)
     return board
 

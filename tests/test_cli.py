@@ -7,7 +7,7 @@ import json
 import pytest
 from conftest import assert_one_line_error, hnnbench
 
-from hnnbench._cli import plan
+from hnnbench._sweep import plan
 
 
 def test_list_names_builtins():

@@ -80,7 +80,7 @@ def test_a_metric_cannot_take_a_table_column_name(name, why, monkeypatch):
     from hnnbench._errors import ConfigError
     from hnnbench._metric import Metric
 
-    monkeypatch.setattr(registry, "_REGISTERED", {k: {} for k in registry.GROUPS})
+    monkeypatch.setattr(registry.METRICS, "_registered", {})
     metric = Metric(name, "a test metric", lambda ctx: None)
     with pytest.raises(ConfigError, match=f"register: .*{why}"):
         registry.register("metric", name, metric)

@@ -22,7 +22,7 @@ from omegaconf import OmegaConf
 
 from hnnbench import _records as records
 from hnnbench import _registry as registry
-from hnnbench._cli import plan
+from hnnbench._sweep import plan
 from hnnbench._cli import run as cli_run
 from hnnbench._config import compose, prepare_job
 from hnnbench._errors import HnnbenchError

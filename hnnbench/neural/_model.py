@@ -158,10 +158,12 @@ class NeuralModel(Model):
         with its own config fields overrides this."""
         return 0, ()
 
-    def _train(self, data: Sequence[Dataset], settings: TrainSettings, seeds: Sequence[int],
-               progress: Progress) -> tuple[list[Any], list[Weights]]:
-        """Train ``seeds`` (seed ``k`` on ``data[k]``) in one program."""
-        problems = [self.view.problem(d, *self.training_options()) for d in data]
+    def _problems(self, data: Sequence[Dataset]) -> list[Problem]:
+        return [self.view.problem(d, *self.training_options()) for d in data]
+
+    def _train(self, problems: Sequence[Problem], settings: TrainSettings,
+               seeds: Sequence[int], progress: Progress) -> tuple[list[Any], list[Weights]]:
+        """Train ``seeds`` (seed ``k`` on ``problems[k]``) in one program."""
         problem = problems[0] if len(problems) == 1 else Problem.stack(problems)
         d_obs = problems[0].train[0].shape[1] if problem.kind == "pixels" else None
         if self.warm_start is not None:
@@ -177,11 +179,9 @@ class NeuralModel(Model):
 
     def fit(self, data: Dataset, train: TrainSettings, seed: int,
             progress: Progress) -> FitResult:
-        (fit,), (weights,) = self._train([data], train, [seed], progress)
+        (fit,), (weights,) = self._train(self._problems([data]), train, [seed], progress)
         self.set_weights(weights)
-        if fit.diverged is not None:
-            raise RolloutDiverged(fit.diverged)
-        return FitResult(history=fit.history, steps=fit.steps)
+        return FitResult(history=fit.history, steps=fit.steps, diverged=fit.diverged)
 
     def fit_seeds(self, data: Sequence[Dataset], train: TrainSettings, seeds: Sequence[int],
                   progress: Progress) -> list[tuple[Model, FitResult]]:
@@ -189,12 +189,10 @@ class NeuralModel(Model):
         seed starts from its own initial weights and trains on its own data with its own
         minibatches, exactly as when it runs alone. Seeds whose data differ in shape
         train one after the other instead."""
-        try:
-            fits, weights = self._train(data, train, seeds, progress)
-        except ValueError as err:
-            if "differ in shape" not in str(err):
-                raise
+        problems = self._problems(data)
+        if not Problem.stackable(problems):
             return super().fit_seeds(data, train, seeds, progress)
+        fits, weights = self._train(problems, train, seeds, progress)
         out: list[tuple[Model, FitResult]] = []
         for fit, w in zip(fits, weights, strict=True):
             model = self.copy()

@@ -85,6 +85,18 @@ class Problem:
         return int(self.train[0].shape[1 if self.stacked else 0])
 
     @staticmethod
+    def stackable(problems: Sequence[Problem]) -> bool:
+        """Whether the problems of several seeds can train as one batch: the same kind
+        and options, and arrays of the same shapes."""
+        first = problems[0]
+        return all(
+            (other.kind, other.options) == (first.kind, first.options)
+            and len(other.train + other.test) == len(first.train + first.test)
+            and all(a.shape == b.shape for a, b in zip(other.train + other.test,
+                                                       first.train + first.test, strict=True))
+            for other in problems[1:])
+
+    @staticmethod
     def stack(problems: Sequence[Problem]) -> Problem:
         """The problems of several seeds as one, each array with a leading seed axis.
 
@@ -92,12 +104,10 @@ class Problem:
             ValueError: the problems differ in kind, options or array shapes (they
                 cannot be trained as one batch).
         """
+        if not Problem.stackable(problems):
+            raise ValueError("the seeds' training data differ in kind, options or shape; "
+                             "check Problem.stackable first")
         first = problems[0]
-        for other in problems[1:]:
-            if (other.kind, other.options) != (first.kind, first.options) or any(
-                    a.shape != b.shape for a, b in zip(other.train + other.test,
-                                                       first.train + first.test, strict=True)):
-                raise ValueError("the seeds' training data differ in shape")
         return Problem(first.kind,
                        tuple(np.stack(arrays) for arrays in zip(*(p.train for p in problems),
                                                                 strict=True)),

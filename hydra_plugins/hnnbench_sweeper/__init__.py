@@ -1,0 +1,13 @@
+"""hnnbench's Hydra sweeper, where Hydra looks for plugins (the ``hydra_plugins``
+namespace). The implementation is :class:`hnnbench._sweep.Sweeper`; conf/config.yaml
+selects it (``hydra/sweeper=hnnbench``)."""
+
+from hnnbench._sweep import Sweeper
+
+
+class HnnbenchSweeper(Sweeper):
+    """Hydra's basic sweeper without its per-job validation composition, collecting the
+    jobs' outcomes (:class:`hnnbench._sweep.Sweeper`)."""
+
+
+__all__ = ["HnnbenchSweeper"]
