@@ -527,13 +527,20 @@ class Model(ABC):
         raise NotImplementedError(f"{type(self).__name__} does not implement load()")
 
 
+#: The training log's columns (:attr:`FitResult.history`): the optimizer step, and the
+#: losses on the training and test sets at that step. (Named like the built-in loss
+#: metrics, but a different thing: the log, not the evaluation.)
+HISTORY_STEP, HISTORY_TRAIN, HISTORY_TEST = "step", "train_loss", "test_loss"
+
+
 @dataclass
 class FitResult:
     """What training returns.
 
     Attributes:
-        history: columns of the training log, e.g. ``{"step": [...], "train_loss":
-            [...], "test_loss": [...]}``, all of the same length.
+        history: columns of the training log (:data:`HISTORY_STEP`,
+            :data:`HISTORY_TRAIN`, :data:`HISTORY_TEST`), all of the same length; a
+            non-finite value in either loss column marks divergence.
         steps: optimizer steps taken; 0 for a model without an iterative training
             loop (closed form, least squares), whose record then shows no training
             protocol.

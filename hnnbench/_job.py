@@ -35,7 +35,15 @@ from hnnbench import _paths as paths
 from hnnbench import _records as records
 from hnnbench import _registry as registry
 from hnnbench._config import EvaluationConfig, Job, prepare_job
-from hnnbench._contract import Dataset, FitResult, TrainSettings, Trajectories
+from hnnbench._contract import (
+    HISTORY_STEP,
+    HISTORY_TEST,
+    HISTORY_TRAIN,
+    Dataset,
+    FitResult,
+    TrainSettings,
+    Trajectories,
+)
 from hnnbench._errors import HnnbenchError, RolloutDiverged, UnsupportedPair
 from hnnbench._evaluate import evaluate, failed_metrics
 from hnnbench._progress import TrainingProgress
@@ -468,11 +476,11 @@ def _finish(record: dict[str, Any], system: Any, model: Any, fit: FitResult, dat
 
 def _history_diverged(history: dict) -> str | None:
     """Why the training log shows divergence (a non-finite loss), or ``None``."""
-    for key in ("train_loss", "test_loss"):
+    for key in (HISTORY_TRAIN, HISTORY_TEST):
         values = np.asarray(history.get(key, []), dtype=np.float64)
         if values.size and not np.all(np.isfinite(values)):
             step = int(np.argmax(~np.isfinite(values)))
-            steps = history.get("step") or []
+            steps = history.get(HISTORY_STEP) or []
             at = f" at step {steps[step]}" if step < len(steps) else ""
             return f"{key} became {values[step]}{at}"
     return None

@@ -255,6 +255,12 @@ def plan(argv: list[str]) -> Plan:
     profile_of(list(ns.overrides))
     parser = OverridesParser.create()
     entries = [_parse_override(parser, text) for text in ns.overrides]
+    if not (ns.help or ns.hydra_help or ns.info is not None):
+        for kind in ("system", "model"):  # the shipped config names no plugin
+            if not any(e.key == kind and not e.text.startswith("~") for e in entries):
+                raise ConfigError(
+                    f"no {kind} chosen: add {kind}=<name> to the command line (`hnnbench "
+                    f"list` shows the {kind}s; {kind}=all for every one)")
     if multirun:
         entries = _batch_seeds(entries)
     rewritten = [e.text for e in entries]

@@ -25,13 +25,14 @@ def test_list_names_builtins():
     "args, needles",
     [
         (["system=sprng", "model=hnn_torch"], ["Unknown system 'sprng'", "Did you mean 'spring'"]),
-        (["model=hnn_trch"], ["Unknown model 'hnn_trch'", "hnn_torch"]),
+        (["system=spring", "model=hnn_trch"], ["Unknown model 'hnn_trch'", "hnn_torch"]),
         (["profile=quik"], ["Unknown profile 'quik'", "quick"]),
-        (["seed=abc"], ["seed"]),
-        (["system.steps=-1"], ["system.steps=-1 is invalid"]),
+        (["system=spring", "model=mlp_jax", "seed=abc"], ["seed"]),
+        (["system=spring", "model=mlp_jax", "system.steps=-1"], ["system.steps=-1 is invalid"]),
         (["system=all"], ["add -m"]),
         (["-m", "system=spring", "model=hnn_torch,nope"], ["Unknown model 'nope'"]),
-        (["-m", "model=mlp_torch", "model.hidden=10,0"], ["model.hidden=0 is invalid"]),
+        (["-m", "system=spring", "model=mlp_torch", "model.hidden=10,0"],
+         ["model.hidden=0 is invalid"]),
     ],
 )
 def test_bad_input_is_one_clean_line(args, needles, tmp_path):

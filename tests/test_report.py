@@ -190,7 +190,7 @@ def test_format_value():
 
 
 def test_paper_table_is_in_natural_units_and_complete():
-    table = report.paper_table()
+    table = report.paper_table("greydanus2019")
     assert set(table["system"]) == {"spring", "pendulum", "real_pendulum", "two_body",
                                     "three_body", "pixel_pendulum"}
     assert len(table) == 6 * 3 * 2

@@ -22,11 +22,11 @@ from omegaconf import OmegaConf
 
 from hnnbench import _records as records
 from hnnbench import _registry as registry
-from hnnbench._sweep import plan
 from hnnbench._cli import run as cli_run
 from hnnbench._config import compose, prepare_job
 from hnnbench._errors import HnnbenchError
 from hnnbench._job import run_job
+from hnnbench._sweep import plan
 
 QUICK = ["profile=quick", "system.steps=20"]
 

@@ -76,7 +76,7 @@ def paper_claim_ratios() -> dict[str, C.ClaimResult]:
     return out
 
 
-def paper_table(name: str = "greydanus2019") -> pd.DataFrame:
+def paper_table(name: str) -> pd.DataFrame:
     """The published values of claim set ``name`` (natural units), one row per value,
     with its role (``model``: the paper's name for it) and family."""
     for claim_set in registry.claim_sets():

@@ -23,7 +23,7 @@ from typing import Any, Optional, Protocol
 
 import numpy as np
 
-from hnnbench._contract import Progress, TrainSettings
+from hnnbench._contract import HISTORY_STEP, HISTORY_TEST, HISTORY_TRAIN, Progress, TrainSettings
 from hnnbench.neural._init import BatchStream
 
 __all__ = ["SeedFit", "Trainer", "chunk_lengths", "train"]
@@ -61,7 +61,7 @@ class SeedFit:
     """
 
     history: dict[str, list[float]] = field(
-        default_factory=lambda: {"step": [], "train_loss": [], "test_loss": []})
+        default_factory=lambda: {HISTORY_STEP: [], HISTORY_TRAIN: [], HISTORY_TEST: []})
     steps: int = 0
     diverged: Optional[str] = None
 
@@ -110,9 +110,9 @@ def train(
                 continue
             fit.steps = step
             train_loss, test_loss = float(losses[s, -1]), float(tests[s])
-            fit.history["step"].append(step)
-            fit.history["train_loss"].append(train_loss)
-            fit.history["test_loss"].append(test_loss)
+            fit.history[HISTORY_STEP].append(step)
+            fit.history[HISTORY_TRAIN].append(train_loss)
+            fit.history[HISTORY_TEST].append(test_loss)
             if np.all(np.isfinite(losses[s])) and np.isfinite(test_loss):
                 live.append(s)
                 continue
@@ -121,8 +121,8 @@ def train(
             value = losses[s, bad[0]] if bad.size else test_loss
             fit.diverged = f"training loss became {value} at step {at}"
         shown = live or list(range(len(seeds)))
-        progress(step, {"train_loss": float(np.mean(losses[shown, -1])),
-                        "test_loss": float(np.mean(tests[shown]))})
+        progress(step, {HISTORY_TRAIN: float(np.mean(losses[shown, -1])),
+                        HISTORY_TEST: float(np.mean(tests[shown]))})
         if not live:
             break
     return fits
