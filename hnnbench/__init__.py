@@ -10,7 +10,8 @@ notebook's own model or system).
 Writing plugins (docs/PLUGINS.md): :class:`System` and :class:`Model` with their config
 dataclasses, the data containers, kinematics for second-order models, :class:`Metric`
 declarations and the :class:`EvalContext` their ``compute`` reads, claim sets
-(:class:`ClaimSet`), the reference integrator (:func:`solve_batch`), measured-data
+(:class:`ClaimSet`), the dataset helpers (:func:`seed_stream`, :class:`TrajectorySplit`,
+:func:`trajectory_dataset`), the reference integrator (:func:`solve_batch`), measured-data
 lookup (:func:`locate`), the validation helpers and the errors. Neural model families
 build on :mod:`hnnbench.neural`.
 
@@ -35,6 +36,15 @@ from hnnbench._contract import (
     check_positive,
 )
 from hnnbench._data import URL_SCHEMES, locate
+from hnnbench._datasets import (
+    DATA_STREAM,
+    EVAL_STREAM,
+    SPLIT_STREAM,
+    TrajectoryIndices,
+    TrajectorySplit,
+    seed_stream,
+    trajectory_dataset,
+)
 from hnnbench._errors import (
     BackendMissingError,
     ConfigError,
@@ -71,8 +81,10 @@ __all__ = [
     "Claim",
     "ClaimSet",
     "ConfigError",
+    "DATA_STREAM",
     "DataError",
     "Dataset",
+    "EVAL_STREAM",
     "EvalContext",
     "EvaluationConfig",
     "FitResult",
@@ -86,11 +98,14 @@ __all__ = [
     "Progress",
     "Published",
     "RolloutDiverged",
+    "SPLIT_STREAM",
     "Split",
     "System",
     "SystemConfig",
     "TrainSettings",
     "Trajectories",
+    "TrajectoryIndices",
+    "TrajectorySplit",
     "URL_SCHEMES",
     "UnknownNameError",
     "UnsupportedPair",
@@ -107,8 +122,10 @@ __all__ = [
     "per_point_squared_error",
     "register",
     "run",
+    "seed_stream",
     "sem",
     "solve_batch",
     "summarize",
     "sweep",
+    "trajectory_dataset",
 ]

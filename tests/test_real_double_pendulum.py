@@ -19,7 +19,6 @@ from hnnbench_plugins.systems.real_double_pendulum import (
     RealDoublePendulumConfig,
     derivative_consistency,
     fit_energy_model,
-    parse_table,
     wrap_angle,
 )
 
@@ -64,7 +63,7 @@ def test_published_hash_matches_sha256sums():
 def test_parse_handles_crlf_and_header(raw):
     head = SOURCE.read_bytes()[:40]
     assert head.startswith(b"% o1 o2 w1 w2\r\n")
-    table = parse_table(SOURCE)
+    table = RealDoublePendulum.parse(SOURCE)
     assert table.shape == (N_ROWS, 10)
     np.testing.assert_array_equal(table, raw)
     trials, counts = np.unique(table[:, 0], return_counts=True)
@@ -86,7 +85,7 @@ def test_parse_rejects_corrupt_tables(tmp_path, mutate, match):
     bad = tmp_path / FILENAME
     bad.write_text("\r\n".join(mutate(lines)) + "\r\n")
     with pytest.raises(DataError, match=match) as info:
-        parse_table(bad)
+        RealDoublePendulum.parse(bad)
     assert str(bad) in str(info.value) and "\n" not in str(info.value)
 
 

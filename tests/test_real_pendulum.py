@@ -15,7 +15,6 @@ from hnnbench_plugins.systems.real_pendulum import (
     SHA256,
     RealPendulum,
     RealPendulumConfig,
-    parse_table,
 )
 
 REPO = Path(__file__).resolve().parents[1]
@@ -59,7 +58,7 @@ def test_published_hash_matches_sha256sums():
 
 def test_parse_handles_crlf_and_header(raw):
     assert b"\r\n" in SOURCE.read_bytes()[:40]
-    table = parse_table(SOURCE)
+    table = RealPendulum.parse(SOURCE)
     assert table.shape == (556, 4)
     np.testing.assert_array_equal(table, raw)
 
@@ -78,7 +77,7 @@ def test_parse_rejects_corrupt_tables(tmp_path, mutate, match):
     bad = tmp_path / FILENAME
     bad.write_text("\r\n".join(mutate(lines)) + "\r\n")
     with pytest.raises(DataError, match=match) as info:
-        parse_table(bad)
+        RealPendulum.parse(bad)
     assert str(bad) in str(info.value) and "\n" not in str(info.value)
 
 

@@ -38,6 +38,7 @@ stay exact): the training domain is compact and the derivative fit better, but
 evaluation trajectories then leave it whenever a rod turns over (measured trade-off in
 docs/SYSTEMS_DOUBLE_PENDULUM.md). Gaussian noise of std ``noise_std`` (default 0) is
 added to the inputs; the first ``1 - test_split`` of the trajectories train, the rest
+(the LAST ``round(n_traj * test_split)``, :meth:`DoublePendulumConfig.trajectory_split`)
 test. Evaluation:
 ``eval_n_traj`` fresh trajectories (their own seed stream) over ``[0, eval_t_end]``,
 continuous (rollouts are compared with them), starting in ``[-π, π]²``.
@@ -55,20 +56,24 @@ from typing import Any, ClassVar, Optional
 import numpy as np
 
 from hnnbench import (
+    DATA_STREAM,
+    EVAL_STREAM,
     ConfigError,
     Dataset,
     Kinematics,
     MassMatrixKinematics,
-    Split,
     System,
     SystemConfig,
     Trajectories,
+    TrajectorySplit,
     VectorField,
     check_fraction,
     check_int_at_least,
     check_ordered,
     check_positive,
+    seed_stream,
     solve_batch,
+    trajectory_dataset,
 )
 
 __all__ = [
@@ -90,10 +95,8 @@ __all__ = [
     "wrap_angle",
 ]
 
-#: Seed-stream tags, so data and evaluation draws never overlap.
-DATA_STREAM = 0
-EVAL_STREAM = 1
-#: Seed stream of the Lyapunov estimate's initial states.
+#: Seed stream of the Lyapunov estimate's initial states (data and evaluation draw from
+#: hnnbench's DATA_STREAM and EVAL_STREAM, :func:`hnnbench.seed_stream`).
 LYAPUNOV_STREAM = 2
 
 #: Lyapunov time (1 / mean largest Lyapunov exponent) of the default regime, in units
@@ -291,7 +294,7 @@ def estimate_lyapunov_time(
         the Lyapunov time (time units of ``sqrt(l1 / g)``) and the ``(n_states,)``
         finite-time exponents of :func:`lyapunov_exponents`.
     """
-    rng = np.random.default_rng((seed, LYAPUNOV_STREAM))
+    rng = seed_stream(seed, LYAPUNOV_STREAM)
     x0 = sample_initial_states(rng, n_states, params, energy_min, energy_max)
 
     def field(x: np.ndarray) -> np.ndarray:
@@ -360,12 +363,11 @@ class DoublePendulumConfig(SystemConfig):
                 f"system.noise_std={self.noise_std} is invalid: expected a number >= 0. "
                 "Fix it with system.noise_std=0 or another non-negative value."
             )
-        n_test = round(self.n_traj * self.test_split)
-        if not 0 < n_test < self.n_traj:
-            raise ConfigError(
-                f"system.test_split={self.test_split} with system.n_traj={self.n_traj} "
-                "leaves an empty train or test set: use more trajectories or another split."
-            )
+        self.trajectory_split().check(self.n_traj)
+
+    def trajectory_split(self) -> TrajectorySplit:
+        """The LAST ``round(n_traj * test_split)`` trajectories test, the rest train."""
+        return TrajectorySplit(self.test_split, test_from="last")
 
     @property
     def params(self) -> Params:
@@ -438,7 +440,7 @@ class DoublePendulum(System):
 
     def dataset(self, seed: int) -> Dataset:
         c = self.cfg
-        rng = np.random.default_rng((seed, DATA_STREAM))
+        rng = seed_stream(seed, DATA_STREAM)  # initial states, then the noise
         t = np.linspace(0.0, c.t_end, c.n_points)
         x0 = self.initial_states(rng, c.n_traj)
         clean = solve_batch(self.vector_field, x0, t, rtol=c.data_rtol, atol=c.data_rtol)
@@ -448,25 +450,16 @@ class DoublePendulum(System):
             x[..., :2] = wrap_angle(x[..., :2])
         if c.noise_std > 0:
             x = x + rng.normal(0.0, c.noise_std, size=clean.shape)
-        traj = np.broadcast_to(np.arange(c.n_traj)[:, None], (c.n_traj, c.n_points))
-        times = np.broadcast_to(t[None, :], (c.n_traj, c.n_points))
-        n_train = c.n_traj - round(c.n_traj * c.test_split)
+        split = c.trajectory_split()
+        n_train, n_test = split.sizes(c.n_traj)
         energy = self.energy(clean)
         drift = np.max(np.abs(energy - energy[:, :1]))
-
-        def split(sl: slice) -> Split:
-            return Split(
-                x=x[sl].reshape(-1, 4).copy(), dxdt=dxdt[sl].reshape(-1, 4).copy(),
-                traj=traj[sl].reshape(-1).copy(), t=times[sl].reshape(-1).copy(),
-            )
-
-        return Dataset(
-            train=split(slice(0, n_train)),
-            test=split(slice(n_train, None)),
+        return trajectory_dataset(
+            x, dxdt, t, split,
             meta={
                 "dt": self.data_dt,
                 "n_train_traj": n_train,
-                "n_test_traj": c.n_traj - n_train,
+                "n_test_traj": n_test,
                 "reference": "DOP853",
                 "rtol": c.data_rtol,
                 "max_energy_drift": float(drift),
@@ -476,7 +469,7 @@ class DoublePendulum(System):
 
     def evaluation(self, seed: int) -> Trajectories:
         c = self.cfg
-        rng = np.random.default_rng((seed, EVAL_STREAM))
+        rng = seed_stream(seed, EVAL_STREAM)
         t = np.linspace(0.0, c.eval_t_end, c.eval_n_points)
         x0 = self.initial_states(rng, c.eval_n_traj)
         states = solve_batch(self.vector_field, x0, t, rtol=c.eval_rtol, atol=c.eval_rtol)

@@ -51,8 +51,9 @@ more than 5% of the orbits (at least 3) need replacing, generation fails with
 
 Data: ``n_orbits`` orbits with ``n_points`` samples over ``[0, t_end]``. The dx/dt targets
 are the analytic vector field at the states. The original added no noise to n-body
-inputs, so ``noise_std`` defaults to 0. The first ``test_split`` of the orbits are the
-test set, the rest train.
+inputs, so ``noise_std`` defaults to 0. The FIRST ``test_split`` of the orbits are the
+test set (``round(n_orbits * test_split)`` of them), the rest train
+(:meth:`NBodyConfig.trajectory_split`).
 
 Evaluation: ``eval_n_orbits`` fresh orbits from the same distribution (another random
 stream), ``eval_n_points`` samples over ``[0, eval_t_end]``, also from REBOUND IAS15;
@@ -68,19 +69,23 @@ import numpy as np
 import rebound
 
 from hnnbench import (
+    DATA_STREAM,
+    EVAL_STREAM,
     ConfigError,
     DataError,
     Dataset,
     Kinematics,
     LinearKinematics,
-    Split,
     System,
     SystemConfig,
     Trajectories,
+    TrajectorySplit,
     check_fraction,
     check_int_at_least,
     check_ordered,
     check_positive,
+    seed_stream,
+    trajectory_dataset,
 )
 
 __all__ = [
@@ -112,10 +117,6 @@ MAX_REL_ENERGY_DRIFT = 1e-10
 #: REBOUND stops an orbit whose bodies come closer than this (a near-collision that IAS15
 #: cannot follow to MAX_REL_ENERGY_DRIFT anyway, and that could take very many steps).
 ENCOUNTER_DISTANCE = 1e-6
-
-#: Seed-stream tags, so data and evaluation draws never overlap.
-DATA_STREAM = 0
-EVAL_STREAM = 1
 
 #: Initial-state samplers (``NBodyConfig.init``): the 2019 code's (two or three bodies)
 #: and hnnbench's earlier evenly spaced ring (any N).
@@ -180,12 +181,11 @@ class NBodyConfig(SystemConfig):
                     f"system.{key}={getattr(self, key)} is invalid: expected a number >= 0. "
                     f"Fix it with system.{key}=0 or another non-negative value."
                 )
-        n_test = round(self.n_orbits * self.test_split)
-        if not 0 < n_test < self.n_orbits:
-            raise ConfigError(
-                f"system.test_split={self.test_split} with system.n_orbits={self.n_orbits} "
-                "leaves an empty train or test set: use more orbits or another split."
-            )
+        self.trajectory_split().check(self.n_orbits, count_key="n_orbits", unit="orbits")
+
+    def trajectory_split(self) -> TrajectorySplit:
+        """The FIRST ``round(n_orbits * test_split)`` orbits test, the rest train."""
+        return TrajectorySplit(self.test_split, test_from="first")
 
 
 @dataclass
@@ -558,40 +558,30 @@ class NBody(System):
 
     def dataset(self, seed: int) -> Dataset:
         c = self.cfg
-        rng = np.random.default_rng((seed, DATA_STREAM))
+        rng = seed_stream(seed, DATA_STREAM)  # initial states (and redraws), then the noise
         t = np.linspace(0.0, c.t_end, c.n_points)
         states, info = self.ground_truth(rng, c.n_orbits, t)  # (n_orbits, T, 4N)
         dxdt = self.vector_field(states)
         x = states
         if c.noise_std > 0:
             x = states + rng.normal(0.0, c.noise_std, size=states.shape)
-        d = 4 * self.n_bodies
-        traj = np.broadcast_to(np.arange(c.n_orbits)[:, None], (c.n_orbits, c.n_points))
-        times = np.broadcast_to(t[None, :], (c.n_orbits, c.n_points))
-        n_test = round(c.n_orbits * c.test_split)
-
-        def split(sl: slice) -> Split:
-            return Split(
-                x=x[sl].reshape(-1, d).copy(), dxdt=dxdt[sl].reshape(-1, d).copy(),
-                traj=traj[sl].reshape(-1).copy(), t=times[sl].reshape(-1).copy(),
-            )
-
-        return Dataset(
-            train=split(slice(n_test, None)),
-            test=split(slice(0, n_test)),
+        split = c.trajectory_split()
+        n_train, n_test = split.sizes(c.n_orbits)
+        return trajectory_dataset(
+            x, dxdt, t, split,
             meta={
                 "dt": self.data_dt,
                 "n_bodies": self.n_bodies,
-                "n_train_traj": c.n_orbits - n_test,
+                "n_train_traj": n_train,
                 "n_test_traj": n_test,
-                "test_orbits": "first",
+                "test_orbits": split.test_from,
                 **info,
             },
         )
 
     def evaluation(self, seed: int) -> Trajectories:
         c = self.cfg
-        rng = np.random.default_rng((seed, EVAL_STREAM))
+        rng = seed_stream(seed, EVAL_STREAM)
         t = np.linspace(0.0, c.eval_t_end, c.eval_n_points)
         states, info = self.ground_truth(rng, c.eval_n_orbits, t)
         return Trajectories(

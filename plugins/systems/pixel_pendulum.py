@@ -41,7 +41,8 @@ Data (the paper's protocol):
   pair is recoverable from a split's ``(x, dxdt)`` alone.
 - ``extras["state"]``: the true (q, p) at the time of frame_k, ``(N, 2)`` float64, for the
   linear probe of the evaluation.
-- The first ``test_split`` of the trials (20 %) are the test set, as in the paper.
+- The FIRST ``test_split`` of the trials (20 %, ``round(n_traj * test_split)`` trials) are
+  the test set, as in the paper (:meth:`PixelPendulumConfig.trajectory_split`).
 - Pixel arrays (``x``, ``dxdt``, ``x_next``, ``observations``) are **float32**: they are
   large (three 20200 x 1568 arrays; ~380 MB instead of ~760 MB in float64) and pixel
   values carry no more precision. Everything else is float64.
@@ -60,23 +61,22 @@ from typing import Optional
 import numpy as np
 
 from hnnbench import (
-    ConfigError,
+    DATA_STREAM,
+    EVAL_STREAM,
     Dataset,
-    Split,
     System,
     SystemConfig,
     Trajectories,
+    TrajectorySplit,
     check_fraction,
     check_int_at_least,
     check_ordered,
     check_positive,
+    seed_stream,
     solve_batch,
+    trajectory_dataset,
 )
 from hnnbench_plugins.systems.pendulum import Pendulum, PendulumConfig
-
-#: Seed-stream tags, so data and evaluation draws never overlap.
-DATA_STREAM = 0
-EVAL_STREAM = 1
 
 #: Geometry as fractions of the image side (28 px: rod 10.1 px, bob radius 3.1 px,
 #: rod 1.4 px wide). Changing any of these changes the data: bump PixelPendulum.version.
@@ -174,12 +174,11 @@ class PixelPendulumConfig(SystemConfig):
             check_int_at_least("system", low, **{key: getattr(self, key)})
         check_fraction("system", "test_split", self.test_split, 0.2)
         check_ordered("system", "radius_min", self.radius_min, "radius_max", self.radius_max)
-        n_test = round(self.n_traj * self.test_split)
-        if not 0 < n_test < self.n_traj:
-            raise ConfigError(
-                f"system.test_split={self.test_split} with system.n_traj={self.n_traj} "
-                "leaves an empty train or test set: use more trials or another split."
-            )
+        self.trajectory_split().check(self.n_traj, unit="trials")
+
+    def trajectory_split(self) -> TrajectorySplit:
+        """The FIRST ``round(n_traj * test_split)`` trials test, the rest train."""
+        return TrajectorySplit(self.test_split, test_from="first")
 
 
 class PixelPendulum(System):
@@ -236,37 +235,25 @@ class PixelPendulum(System):
 
     def dataset(self, seed: int) -> Dataset:
         c = self.cfg
-        rng = np.random.default_rng((seed, DATA_STREAM))
+        rng = seed_stream(seed, DATA_STREAM)
         states, frames, t = self._trials(rng, c.n_traj, c.n_frames, c.data_rtol)
         pairs = self.pairs(frames)  # (n_traj, F - 1, 2P)
         x, x_next = pairs[:, :-1], pairs[:, 1:]  # (n_traj, F - 2, 2P) each
         n_pts = c.n_frames - 2
-        traj = np.broadcast_to(np.arange(c.n_traj)[:, None], (c.n_traj, n_pts))
-        times = np.broadcast_to(t[None, :n_pts], (c.n_traj, n_pts))
-        n_test = round(c.n_traj * c.test_split)
-        d = x.shape[-1]
-
-        def split(sl: slice) -> Split:
-            xs = np.ascontiguousarray(x[sl].reshape(-1, d))
-            xn = np.ascontiguousarray(x_next[sl].reshape(-1, d))
-            return Split(
-                x=xs, dxdt=(xn - xs) / np.float32(c.dt),
-                traj=traj[sl].reshape(-1).copy(), t=times[sl].reshape(-1).copy(),
-                extras={"state": states[sl, :n_pts].reshape(-1, 2).copy(), "x_next": xn},
-            )
-
-        return Dataset(
-            train=split(slice(n_test, None)),
-            test=split(slice(0, n_test)),
+        split = c.trajectory_split()
+        n_train, n_test = split.sizes(c.n_traj)
+        return trajectory_dataset(
+            x, (x_next - x) / np.float32(c.dt), t[:n_pts], split,
+            extras={"state": states[:, :n_pts], "x_next": x_next},
             meta={"dt": float(c.dt), "side": c.side, "frame_shape": [c.side, c.side],
-                  "frames_per_input": 2, "n_train_traj": c.n_traj - n_test,
+                  "frames_per_input": 2, "n_train_traj": n_train,
                   "n_test_traj": n_test, "points_per_traj": n_pts,
                   "dxdt": "(x_next - x) / dt (forward difference of frame pairs)"},
         )
 
     def evaluation(self, seed: int) -> Trajectories:
         c = self.cfg
-        rng = np.random.default_rng((seed, EVAL_STREAM))
+        rng = seed_stream(seed, EVAL_STREAM)
         n = c.eval_n_points
         states, frames, t = self._trials(rng, c.eval_n_traj, n + 1, c.eval_rtol)
         return Trajectories(

@@ -43,7 +43,6 @@ docs/SYSTEMS_REAL_DOUBLE_PENDULUM.md (data checks, fitted parameters, residuals)
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Optional
 
 import numpy as np
@@ -71,7 +70,6 @@ __all__ = [
     "RealDoublePendulumConfig",
     "derivative_consistency",
     "fit_energy_model",
-    "parse_table",
     "predicted_accelerations",
     "wrap_angle",
 ]
@@ -123,61 +121,6 @@ class RealDoublePendulumConfig(RealPendulumConfig):
             raise ConfigError(
                 f"system.wrap_angles={self.wrap_angles} is invalid: expected true or false."
             )
-
-
-def parse_table(path: Path) -> np.ndarray:
-    """Read ``real_double_pend_h_1.txt``: ``(N, 10)`` float64 rows (:data:`COLUMNS`).
-
-    Lines starting with ``%`` are headers; CRLF and LF endings both work. Raises a
-    one-line DataError naming the file and line for anything malformed.
-    """
-    try:
-        text = Path(path).read_bytes().decode("ascii")
-    except UnicodeDecodeError as exc:
-        raise DataError(
-            f"Data file {path} is not a text table (non-ASCII byte at offset {exc.start}). "
-            f"Replace it with the original {FILENAME}."
-        ) from None
-    except OSError as exc:
-        raise DataError(f"Cannot read data file {path}: {exc.strerror or exc}.") from None
-    rows: list[list[float]] = []
-    for lineno, line in enumerate(text.splitlines(), start=1):
-        line = line.strip()
-        if not line or line.startswith("%"):
-            continue
-        fields = line.split()
-        bad = f"Data file {path}, line {lineno}"
-        if len(fields) != len(COLUMNS):
-            raise DataError(
-                f"{bad}: expected {len(COLUMNS)} columns (trial, t, theta1, theta2, omega1, "
-                f"omega2, omega1, omega2, alpha1, alpha2), got {len(fields)}. The file is "
-                f"truncated or not {FILENAME}; replace it with the original."
-            )
-        try:
-            values = [float(v) for v in fields]
-        except ValueError:
-            raise DataError(
-                f"{bad}: non-numeric value in {line[:60]!r}. The file is corrupt; replace "
-                f"it with the original {FILENAME}."
-            ) from None
-        if not all(np.isfinite(values)):
-            raise DataError(f"{bad}: non-finite value. Replace it with the original file.")
-        rows.append(values)
-    if len(rows) < 3:
-        raise DataError(
-            f"Data file {path} has {len(rows)} data rows; expected about 1500. Replace it "
-            f"with the original {FILENAME}."
-        )
-    table = np.asarray(rows, dtype=np.float64)
-    trial, t = table[:, 0], table[:, 1]
-    same = trial[1:] == trial[:-1]
-    if np.any(np.diff(t)[same] <= 0):
-        row = int(np.flatnonzero(same & (np.diff(t) <= 0))[0]) + 2
-        raise DataError(
-            f"Data file {path}: times do not increase within a trial (data row {row}). "
-            f"Replace it with the original {FILENAME}."
-        )
-    return table
 
 
 # --------------------------------------------------------------------------- energy model
@@ -325,8 +268,12 @@ class RealDoublePendulum(MeasuredTableSystem):
     """Measured double pendulum (Schmidt & Lipson 2009), state (θ1, θ2, ω1, ω2)."""
 
     Config = RealDoublePendulumConfig
-    data_file, data_sha256 = FILENAME, SHA256
-    parse = staticmethod(parse_table)
+    data_file, data_sha256, data_columns = FILENAME, SHA256, COLUMNS
+    #: The parser's messages list the repeated ω columns by their names in the file.
+    data_column_labels = (
+        "trial, t, theta1, theta2, omega1, omega2, omega1, omega2, alpha1, alpha2"
+    )
+    data_expected_rows = "about 1500"
     order = 100
     cfg: RealDoublePendulumConfig
     version = "1"

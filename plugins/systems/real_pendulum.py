@@ -48,6 +48,7 @@ from hnnbench import (
     System,
     SystemConfig,
     Trajectories,
+    TrajectorySplit,
     identity_kinematics,
     locate,
 )
@@ -125,18 +126,36 @@ class RealPendulumConfig(SystemConfig):
             )
 
 
-def parse_table(path: Path) -> np.ndarray:
-    """Read ``real_pend_h_1.txt``: ``(N, 4)`` float64 rows ``trial, t, theta, omega``.
+def parse_table(
+    path: Path,
+    filename: str,
+    columns: tuple[str, ...],
+    *,
+    column_labels: Optional[str] = None,
+    expected_rows: str = "hundreds",
+) -> np.ndarray:
+    """Read a measured table of Schmidt & Lipson's data set: ``(N, len(columns))`` float64
+    rows, the first two columns ``trial`` and ``t`` (seconds).
+
+    Args:
+        path: the file.
+        filename: the data set's name of the file, for the messages.
+        columns: the column names, in file order.
+        column_labels: how the messages list the columns (default: ``columns`` joined
+            with commas).
+        expected_rows: how many data rows the original has, in words, for the messages.
 
     Lines starting with ``%`` are headers; CRLF and LF endings both work. Raises a
-    one-line DataError naming the file and line for anything malformed.
+    one-line DataError naming the file and line for anything malformed, and for times
+    that do not increase within a trial.
     """
+    labels = ", ".join(columns) if column_labels is None else column_labels
     try:
         text = Path(path).read_bytes().decode("ascii")
     except UnicodeDecodeError as exc:
         raise DataError(
             f"Data file {path} is not a text table (non-ASCII byte at offset {exc.start}). "
-            f"Replace it with the original {FILENAME}."
+            f"Replace it with the original {filename}."
         ) from None
     except OSError as exc:
         raise DataError(f"Cannot read data file {path}: {exc.strerror or exc}.") from None
@@ -147,26 +166,25 @@ def parse_table(path: Path) -> np.ndarray:
             continue
         fields = line.split()
         bad = f"Data file {path}, line {lineno}"
-        if len(fields) != len(COLUMNS):
+        if len(fields) != len(columns):
             raise DataError(
-                f"{bad}: expected {len(COLUMNS)} columns ({', '.join(COLUMNS)}), got "
-                f"{len(fields)}. The file is truncated or not {FILENAME}; replace it with "
-                "the original."
+                f"{bad}: expected {len(columns)} columns ({labels}), got {len(fields)}. The "
+                f"file is truncated or not {filename}; replace it with the original."
             )
         try:
             values = [float(v) for v in fields]
         except ValueError:
             raise DataError(
                 f"{bad}: non-numeric value in {line[:60]!r}. The file is corrupt; replace "
-                f"it with the original {FILENAME}."
+                f"it with the original {filename}."
             ) from None
         if not all(np.isfinite(values)):
             raise DataError(f"{bad}: non-finite value. Replace it with the original file.")
         rows.append(values)
     if len(rows) < 3:
         raise DataError(
-            f"Data file {path} has {len(rows)} data rows; expected hundreds. Replace it "
-            f"with the original {FILENAME}."
+            f"Data file {path} has {len(rows)} data rows; expected {expected_rows}. Replace "
+            f"it with the original {filename}."
         )
     table = np.asarray(rows, dtype=np.float64)
     trial, t = table[:, 0], table[:, 1]
@@ -175,7 +193,7 @@ def parse_table(path: Path) -> np.ndarray:
         row = int(np.flatnonzero(same & (np.diff(t) <= 0))[0]) + 2
         raise DataError(
             f"Data file {path}: times do not increase within a trial (data row {row}). "
-            f"Replace it with the original {FILENAME}."
+            f"Replace it with the original {filename}."
         )
     return table
 
@@ -187,12 +205,16 @@ class MeasuredTableSystem(System):
     It locates and verifies the file (:func:`hnnbench.locate`), finds its sampling
     interval, gaps and train/test boundary (:meth:`_structure`), and cuts the test
     segment into gap-free evaluation chunks (:meth:`_chunks`). A subclass sets
-    ``data_file``, ``data_sha256`` and ``parse`` (path -> ``(rows, columns)`` array);
-    its config has the fields of :class:`RealPendulumConfig`.
+    ``data_file``, ``data_sha256``, ``data_columns`` (and, for the parser's messages,
+    ``data_column_labels`` and ``data_expected_rows``), read by :meth:`parse`
+    (:func:`parse_table`); its config has the fields of :class:`RealPendulumConfig`.
     """
 
     data_file: ClassVar[str]
     data_sha256: ClassVar[str]
+    data_columns: ClassVar[tuple[str, ...]]
+    data_column_labels: ClassVar[Optional[str]] = None
+    data_expected_rows: ClassVar[str] = "hundreds"
     cfg: RealPendulumConfig
     # A measured device loses energy (damping) and is not time-reversible.
     time_reversible = False
@@ -203,10 +225,14 @@ class MeasuredTableSystem(System):
         super().__init__(cfg)
         self._loaded: Optional[tuple[Path, np.ndarray]] = None
 
-    @staticmethod
-    def parse(path: Path) -> np.ndarray:
-        """The table of ``path``, ``(rows, columns)``; raise DataError if malformed."""
-        raise NotImplementedError
+    @classmethod
+    def parse(cls, path: Path) -> np.ndarray:
+        """The table of ``path``, ``(rows, len(data_columns))`` (:func:`parse_table`);
+        raise DataError if malformed."""
+        return parse_table(
+            path, cls.data_file, cls.data_columns, column_labels=cls.data_column_labels,
+            expected_rows=cls.data_expected_rows,
+        )
 
     def load(self) -> tuple[Path, np.ndarray]:
         """Locate, verify and parse the data file (once per instance)."""
@@ -232,7 +258,8 @@ class MeasuredTableSystem(System):
         gap = same_trial & (steps > self.cfg.max_gap_factor * dt)
         # contiguous[i]: rows i and i+1 are consecutive samples of one trial.
         contiguous = same_trial & ~gap
-        split_row = n - int(round(n * self.cfg.test_split))
+        # The last round(n * test_split) rows, in time order, form the test segment.
+        split_row, _ = TrajectorySplit(self.cfg.test_split, test_from="last").sizes(n)
         if not 2 <= split_row <= n - 2:
             raise ConfigError(
                 f"system.test_split={self.cfg.test_split} leaves an empty train or test "
@@ -296,8 +323,7 @@ class RealPendulum(MeasuredTableSystem):
     """Measured pendulum (Schmidt & Lipson 2009); the HNN paper's real-pendulum task."""
 
     Config = RealPendulumConfig
-    data_file, data_sha256 = FILENAME, SHA256
-    parse = staticmethod(parse_table)
+    data_file, data_sha256, data_columns = FILENAME, SHA256, COLUMNS
     order = 30
     cfg: RealPendulumConfig
     version = "1"

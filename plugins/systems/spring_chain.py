@@ -19,7 +19,8 @@ atol = ``data_rtol``). Each initial state is a direction uniform on the unit sph
 the 2N-dimensional state space scaled to a radius ``|x| ~ U[radius_min, radius_max]``.
 The dx/dt targets are the exact field at the clean states; Gaussian noise of std
 ``noise_std`` (default 0) is added to the inputs. The first ``1 - test_split`` of the
-trajectories train, the rest test. Evaluation: ``eval_n_traj`` fresh trajectories from
+trajectories train, the LAST ``round(n_traj * test_split)`` test
+(:meth:`SpringChainConfig.trajectory_split`). Evaluation: ``eval_n_traj`` fresh trajectories from
 the same distribution (their own seed stream) over ``[0, eval_t_end]``.
 """
 
@@ -31,19 +32,23 @@ from typing import Any, ClassVar, Optional
 import numpy as np
 
 from hnnbench import (
+    DATA_STREAM,
+    EVAL_STREAM,
     ConfigError,
     Dataset,
     Kinematics,
-    Split,
     System,
     SystemConfig,
     Trajectories,
+    TrajectorySplit,
     check_fraction,
     check_int_at_least,
     check_ordered,
     check_positive,
     identity_kinematics,
+    seed_stream,
     solve_batch,
+    trajectory_dataset,
 )
 
 __all__ = [
@@ -54,10 +59,6 @@ __all__ = [
     "stiffness_matrix",
     "vector_field",
 ]
-
-#: Seed-stream tags, so data and evaluation draws never overlap.
-DATA_STREAM = 0
-EVAL_STREAM = 1
 
 
 # --------------------------------------------------------------------------- physics
@@ -148,12 +149,11 @@ class SpringChainConfig(SystemConfig):
                 f"system.noise_std={self.noise_std} is invalid: expected a number >= 0. "
                 "Fix it with system.noise_std=0 or another non-negative value."
             )
-        n_test = round(self.n_traj * self.test_split)
-        if not 0 < n_test < self.n_traj:
-            raise ConfigError(
-                f"system.test_split={self.test_split} with system.n_traj={self.n_traj} "
-                "leaves an empty train or test set: use more trajectories or another split."
-            )
+        self.trajectory_split().check(self.n_traj)
+
+    def trajectory_split(self) -> TrajectorySplit:
+        """The LAST ``round(n_traj * test_split)`` trajectories test, the rest train."""
+        return TrajectorySplit(self.test_split, test_from="last")
 
 
 # --------------------------------------------------------------------------- system
@@ -203,8 +203,7 @@ class SpringChain(System):
 
     def dataset(self, seed: int) -> Dataset:
         c = self.cfg
-        d = 2 * self.dof
-        rng = np.random.default_rng((seed, DATA_STREAM))
+        rng = seed_stream(seed, DATA_STREAM)  # initial states, then the noise
         t = np.linspace(0.0, c.t_end, c.n_points)
         clean = solve_batch(
             self.vector_field, self.initial_states(rng, c.n_traj), t, rtol=c.data_rtol,
@@ -214,27 +213,17 @@ class SpringChain(System):
         x = clean
         if c.noise_std > 0:
             x = clean + rng.normal(0.0, c.noise_std, size=clean.shape)
-        traj = np.broadcast_to(np.arange(c.n_traj)[:, None], (c.n_traj, c.n_points))
-        times = np.broadcast_to(t[None, :], (c.n_traj, c.n_points))
-        n_train = c.n_traj - round(c.n_traj * c.test_split)
-
-        def split(sl: slice) -> Split:
-            return Split(
-                x=x[sl].reshape(-1, d).copy(), dxdt=dxdt[sl].reshape(-1, d).copy(),
-                traj=traj[sl].reshape(-1).copy(), t=times[sl].reshape(-1).copy(),
-            )
-
-        return Dataset(
-            train=split(slice(0, n_train)),
-            test=split(slice(n_train, None)),
+        split = c.trajectory_split()
+        n_train, n_test = split.sizes(c.n_traj)
+        return trajectory_dataset(
+            x, dxdt, t, split,
             meta={"dt": self.data_dt, "n_masses": self.dof, "n_train_traj": n_train,
-                  "n_test_traj": c.n_traj - n_train, "reference": "DOP853",
-                  "rtol": c.data_rtol},
+                  "n_test_traj": n_test, "reference": "DOP853", "rtol": c.data_rtol},
         )
 
     def evaluation(self, seed: int) -> Trajectories:
         c = self.cfg
-        rng = np.random.default_rng((seed, EVAL_STREAM))
+        rng = seed_stream(seed, EVAL_STREAM)
         t = np.linspace(0.0, c.eval_t_end, c.eval_n_points)
         states = solve_batch(
             self.vector_field, self.initial_states(rng, c.eval_n_traj), t, rtol=c.eval_rtol,

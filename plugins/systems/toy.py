@@ -5,7 +5,8 @@ initial state points in a random direction (a uniform draw in the square [-1, 1]
 normalised, as the original did) scaled to a radius drawn uniformly from
 ``[radius_min, radius_max]``. Gaussian noise of std ``noise_std`` is added to q and p;
 the dx/dt targets are the true vector field at the clean states. The first
-``1 - test_split`` of the trajectories train, the rest test.
+``1 - test_split`` of the trajectories train, the rest test (the training count is the
+rounded one, ``round(n_traj * (1 - test_split))``: :meth:`ToyConfig.trajectory_split`).
 
 Evaluation: ``eval_n_traj`` fresh noise-free trajectories over ``[0, eval_t_end]`` with
 ``eval_n_points`` points, integrated with DOP853 at ``eval_rtol``. Their initial states
@@ -28,24 +29,25 @@ from dataclasses import dataclass
 import numpy as np
 
 from hnnbench import (
+    DATA_STREAM,
+    EVAL_STREAM,
     ConfigError,
     Dataset,
     Kinematics,
     LinearKinematics,
-    Split,
     System,
     SystemConfig,
     Trajectories,
+    TrajectorySplit,
     check_fraction,
     check_int_at_least,
     check_ordered,
     check_positive,
+    seed_stream,
     solve_batch,
+    trajectory_dataset,
 )
 
-#: Seed-stream tags, so data and evaluation draws never overlap.
-DATA_STREAM = 0
-EVAL_STREAM = 1
 #: Initial-state distributions of the evaluation trajectories (``ToyConfig.eval_init``).
 EVAL_INITS = ("train", "box")
 
@@ -93,12 +95,12 @@ class ToyConfig(SystemConfig):
                       self.eval_box_max)
         if self.noise_std < 0:
             raise ConfigError(f"system.noise_std={self.noise_std} is invalid: expected >= 0.")
-        n_train = round(self.n_traj * (1 - self.test_split))
-        if not 0 < n_train < self.n_traj:
-            raise ConfigError(
-                f"system.test_split={self.test_split} with system.n_traj={self.n_traj} "
-                "leaves an empty train or test set: use more trajectories or another split."
-            )
+        self.trajectory_split().check(self.n_traj)
+
+    def trajectory_split(self) -> TrajectorySplit:
+        """The last ``test_split`` of the trajectories test; the training count is the
+        rounded one, ``round(n_traj * (1 - test_split))`` (as since version 1)."""
+        return TrajectorySplit(self.test_split, test_from="last", rounding="train")
 
 
 class ToySystem(System):
@@ -152,7 +154,7 @@ class ToySystem(System):
 
     def dataset(self, seed: int) -> Dataset:
         c = self.cfg
-        rng = np.random.default_rng((seed, DATA_STREAM))
+        rng = seed_stream(seed, DATA_STREAM)  # initial states, then the noise
         t = np.linspace(0.0, c.t_end, c.n_points)
         clean = solve_batch(
             self.vector_field, self.initial_states(rng, c.n_traj), t, rtol=c.data_rtol,
@@ -160,26 +162,16 @@ class ToySystem(System):
         )  # (n_traj, T, 2)
         dxdt = self.vector_field(clean)
         noisy = clean + rng.normal(0.0, c.noise_std, size=clean.shape)
-        traj = np.broadcast_to(np.arange(c.n_traj)[:, None], (c.n_traj, c.n_points))
-        times = np.broadcast_to(t[None, :], (c.n_traj, c.n_points))
-        n_train = round(c.n_traj * (1 - c.test_split))
-
-        def split(sl: slice) -> Split:
-            return Split(
-                x=noisy[sl].reshape(-1, 2), dxdt=dxdt[sl].reshape(-1, 2),
-                traj=traj[sl].reshape(-1).copy(), t=times[sl].reshape(-1).copy(),
-            )
-
-        return Dataset(
-            train=split(slice(0, n_train)),
-            test=split(slice(n_train, None)),
-            meta={"dt": float(t[1] - t[0]), "n_train_traj": n_train,
-                  "n_test_traj": c.n_traj - n_train},
+        split = c.trajectory_split()
+        n_train, n_test = split.sizes(c.n_traj)
+        return trajectory_dataset(
+            noisy, dxdt, t, split,
+            meta={"dt": float(t[1] - t[0]), "n_train_traj": n_train, "n_test_traj": n_test},
         )
 
     def evaluation(self, seed: int) -> Trajectories:
         c = self.cfg
-        rng = np.random.default_rng((seed, EVAL_STREAM))
+        rng = seed_stream(seed, EVAL_STREAM)
         t = np.linspace(0.0, c.eval_t_end, c.eval_n_points)
         draw = self.box_initial_states if c.eval_init == "box" else self.initial_states
         states = solve_batch(
