@@ -14,7 +14,7 @@ MODELS ?= all
 SEEDS ?= 0
 PYTEST_ARGS ?=
 
-.PHONY: setup benchmark benchmark-serial quick test test-fast lint typecheck clean \
+.PHONY: setup benchmark benchmark-serial quick test test-fast lint typecheck imports clean \
 	ci-reference guard-reference
 
 setup:
@@ -54,6 +54,7 @@ guard-reference: setup
 test: setup
 	$(VENV)/ruff check .
 	$(VENV)/mypy
+	$(VENV)/lint-imports
 	$(VENV)/python -m pytest $(PYTEST_ARGS)
 
 test-fast: setup
@@ -64,6 +65,11 @@ lint: setup
 
 typecheck: setup
 	$(VENV)/mypy
+
+# The core's layers import only downward and form no cycle (pyproject.toml,
+# [tool.importlinter]; docs/ARCHITECTURE.md).
+imports: setup
+	$(VENV)/lint-imports
 
 clean:
 	rm -rf .venv build dist *.egg-info .pytest_cache .ruff_cache .mypy_cache
