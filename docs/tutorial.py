@@ -97,9 +97,6 @@ frame.groupby(["system", "model"])["energy_mse"].describe()[["count", "mean", "m
 # from then on it is a model like any other, with every metric computed by the core.
 
 # %%
-from hnnbench._integrate import solve_batch  # noqa: E402
-
-
 class Linear(hnnbench.Model):
     """dx/dt = A x + b by least squares (no training loop)."""
 
@@ -112,7 +109,8 @@ class Linear(hnnbench.Model):
         return x @ self.coef[:-1] + self.coef[-1]
 
     def rollout(self, x0, t, rtol=1e-9, atol=1e-9):
-        return solve_batch(self.time_derivative, x0, t, rtol=rtol, atol=atol, method="RK45")
+        return hnnbench.solve_batch(self.time_derivative, x0, t, rtol=rtol, atol=atol,
+                                    method="RK45")
 
 
 hnnbench.register("model", "linear", Linear)
@@ -125,5 +123,5 @@ board[["system", "model", "status", "test_loss_mean", "energy_mse_mean"]]
 # %% [markdown]
 # On the spring the true field *is* linear (`dq/dt = 2p`, `dp/dt = -2q`), so least
 # squares recovers it almost exactly and conserves energy as well as the HNN; on the
-# pendulum (`dp/dt = -3 sin q`) it cannot. `hnnbench report DIR` (or
-# `hnnbench._report.write_report`) turns the same records into the HTML leaderboard.
+# pendulum (`dp/dt = -3 sin q`) it cannot. `hnnbench report DIR` turns the same records
+# into the HTML leaderboard and its figures.

@@ -12,8 +12,9 @@ dataclasses, the data containers, kinematics for second-order models, :class:`Me
 declarations and the :class:`EvalContext` their ``compute`` reads, claim sets
 (:class:`ClaimSet`), the dataset helpers (:func:`seed_stream`, :class:`TrajectorySplit`,
 :func:`trajectory_dataset`), the reference integrator (:func:`solve_batch`), measured-data
-lookup (:func:`locate`), the validation helpers and the errors. Neural model families
-build on :mod:`hnnbench.neural`.
+lookup (:func:`locate`), the validation helpers, the errors and :func:`require_backend`
+(a plugin module's guard for an optional dependency). Neural model families build on
+:mod:`hnnbench.neural`.
 
 Importing hnnbench imports neither torch nor JAX (nor pandas).
 """
@@ -53,6 +54,7 @@ from hnnbench._errors import (
     RolloutDiverged,
     UnknownNameError,
     UnsupportedPair,
+    require_backend,
 )
 from hnnbench._integrate import VectorField, solve_batch
 from hnnbench._kinematics import (
@@ -121,6 +123,7 @@ __all__ = [
     "locate",
     "per_point_squared_error",
     "register",
+    "require_backend",
     "run",
     "seed_stream",
     "sem",
