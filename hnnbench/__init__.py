@@ -75,7 +75,7 @@ from hnnbench._metric import (
 from hnnbench._registry import register
 from hnnbench._user_api import leaderboard, load, run, sweep
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 __all__ = [
     "BackendMissingError",

@@ -7,7 +7,7 @@ those into the mean and its standard error. The second half declares each built-
 metric (:class:`hnnbench.Metric`): how it is computed from an
 :class:`~hnnbench.EvalContext`, where it applies, which way is better, and its
 regression tolerance. They are registered through the entry-point group
-``hnnbench_plugins.metrics`` in hnnbench's pyproject.toml, as a third party's would be.
+``hnnbench.metrics`` in hnnbench's pyproject.toml, as a third party's would be.
 docs/METRICS.md gives the precise definitions and the evaluation protocol.
 """
 

@@ -21,7 +21,7 @@ from hnnbench import (
     SystemConfig,
     Trajectories,
 )
-from hnnbench._integrate import solve_batch
+from hnnbench import solve_batch
 
 
 @dataclass
