@@ -14,7 +14,7 @@ MODELS ?= all
 SEEDS ?= 0
 PYTEST_ARGS ?=
 
-.PHONY: setup benchmark benchmark-serial quick test test-fast lint typecheck clean \
+.PHONY: setup benchmark benchmark-serial quick test test-fast test-distributed lint typecheck clean \
 	ci-reference guard-reference
 
 setup:
@@ -55,6 +55,11 @@ test: setup
 	$(VENV)/ruff check .
 	$(VENV)/mypy
 	$(VENV)/python -m pytest $(PYTEST_ARGS)
+
+# Real one-node Slurm and Ray clusters on this machine (scripts/cluster/, as root:
+# installs slurm/munge/MariaDB with apt-get and ray + hydra-ray-launcher into .venv).
+test-distributed: setup
+	$(VENV)/python -m pytest -m distributed -v $(PYTEST_ARGS)
 
 test-fast: setup
 	$(VENV)/python -m pytest -m "not slow" $(PYTEST_ARGS)
