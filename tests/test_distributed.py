@@ -171,6 +171,8 @@ def test_submitit_slurm_sweep_equals_the_basic_sweep(slurm_cluster: str, basic: 
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     assert f"{len(KEYS)} jobs: {len(KEYS)} ok" in proc.stdout, proc.stdout[-3000:]
     _assert_same_as_basic(basic, sweep)
+    # The tasks saw the command's environment (sbatch exports it): its dataset cache.
+    assert {p.parent.name for p in (sweep.cache / "datasets").glob("*/*.npz")} == {"spring"}
     # Really Slurm: submitit's per-task logs, named by the array job's id, and the jobs
     # are known to the accounting (sacct) as completed.
     logs = sorted((sweep.dir / ".submitit").glob("*_*/*_log.out"))
