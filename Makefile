@@ -57,7 +57,8 @@ test: setup
 	$(VENV)/python -m pytest $(PYTEST_ARGS)
 
 # Real one-node Slurm and Ray clusters on this machine (scripts/cluster/, as root:
-# installs slurm/munge/MariaDB with apt-get and ray + hydra-ray-launcher into .venv).
+# installs slurm/munge/MariaDB with apt-get, ray + hydra-ray-launcher into .venv/ray-site).
+# `make test` runs them too (pytest selects every marker).
 test-distributed: setup
 	$(VENV)/python -m pytest -m distributed -v $(PYTEST_ARGS)
 
