@@ -259,8 +259,8 @@ def test_scancel_mid_run_then_rerun_finishes_every_job_once(slurm_cluster: str, 
     for key, (data, mtime) in before.items():
         assert after[key]["path"].read_bytes() == data, key  # not redone
         assert after[key]["path"].stat().st_mtime_ns == mtime, key
-        # The job's log (Hydra names it after the job: cli.log, or _cli.log under
-        # submitit_slurm) says it was skipped.
+        # The job's log says it was skipped (Hydra names it after the job function's
+        # module: _cli.log since hnnbench/_cli.py, cli.log before).
         logs = "".join(p.read_text() for p in after[key]["path"].parent.glob("*cli.log"))
         assert "already finished (ok)" in logs, key
     _assert_same_as_basic(basic, sweep)
