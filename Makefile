@@ -14,7 +14,8 @@ MODELS ?= all
 SEEDS ?= 0
 PYTEST_ARGS ?=
 
-.PHONY: setup benchmark benchmark-serial quick test test-fast lint typecheck imports clean \
+.PHONY: setup benchmark benchmark-serial quick test test-fast test-distributed lint typecheck \
+	imports clean \
 	ci-reference guard-reference
 
 setup:
@@ -56,6 +57,12 @@ test: setup
 	$(VENV)/mypy
 	$(VENV)/lint-imports
 	$(VENV)/python -m pytest $(PYTEST_ARGS)
+
+# Real one-node Slurm and Ray clusters on this machine (scripts/cluster/, as root:
+# installs slurm/munge/MariaDB with apt-get, ray + hydra-ray-launcher into .venv/ray-site).
+# `make test` runs them too (pytest selects every marker).
+test-distributed: setup
+	$(VENV)/python -m pytest -m distributed -v $(PYTEST_ARGS)
 
 test-fast: setup
 	$(VENV)/python -m pytest -m "not slow" $(PYTEST_ARGS)

@@ -75,3 +75,27 @@ def assert_one_line_error(proc: subprocess.CompletedProcess, *needles: str) -> s
     for needle in needles:
         assert needle in lines[0], lines[0]
     return lines[0]
+
+
+def compose_job(overrides: list[str] | None = None, **kwargs):
+    """:func:`hnnbench._config.compose` with the suite's usual pair (spring x hnn_torch)
+    where ``overrides`` choose none: the shipped config names no plugin, so every job
+    chooses both (``tests/test_layers.py``)."""
+    from hnnbench._config import compose
+
+    overrides = list(overrides or [])
+    keys = {o.lstrip("+~").split("=", 1)[0] for o in overrides}
+    defaults = [f"{k}={v}" for k, v in (("system", "spring"), ("model", "hnn_torch"))
+                if k not in keys]
+    return compose(defaults + overrides, **kwargs)
+
+
+def with_pair(argv: list[str] | tuple[str, ...]) -> list[str]:
+    """A job command line with the suite's usual pair (spring x hnn_torch) where it
+    chooses none (subcommands and help left as they are); see :func:`compose_job`."""
+    argv = list(argv)
+    if argv and argv[0] in ("list", "report", "check", "-h", "--help", "help"):
+        return argv
+    keys = {a.lstrip("+~").split("=", 1)[0] for a in argv if "=" in a}
+    return [*(f"{k}={v}" for k, v in (("system", "spring"), ("model", "hnn_torch"))
+              if k not in keys), *argv]

@@ -9,9 +9,9 @@ import sys
 import textwrap
 
 import pytest
+from conftest import compose_job as compose
 
 from hnnbench import _affinity as affinity
-from hnnbench._config import compose
 from hnnbench._job import run_job
 
 pytestmark = pytest.mark.skipif(

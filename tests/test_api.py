@@ -50,12 +50,17 @@ def test_sweep_with_a_bad_model_raises_the_typed_one_line_error(tmp_path):
 
 
 def test_overrides_become_hydra_values():
-    from hnnbench._user_api import _overrides
+    from hnnbench._sweep import hydra_value
+    from hnnbench._user_api import _settings
 
-    assert _overrides({"model__steps": 5, "device": "cpu", "save_model": False,
-                       "cache_dir": None, "model__hidden": "100,200"}) == [
-        "model.steps=5", "device=cpu", "save_model=false", "cache_dir=null",
-        "model.hidden=100,200"]
+    typed, raw = _settings({"model__steps": 5, "device": "cpu", "save_model": False,
+                            "cache_dir": None, "model__hidden": "100,200"})
+    assert typed == {"model.steps": 5, "save_model": False, "cache_dir": None}
+    assert raw == {"device": "cpu", "model.hidden": "100,200"}  # strings as written
+    assert [hydra_value(v) for v in (5, False, None, 1e-3, [1, 2], "cpu")] == [
+        "5", "false", "null", "0.001", "[1,2]", "cpu"]
+    # Paths reach Hydra as the same string, whatever they hold.
+    assert hydra_value("/tmp/a b/it's #1 [x]=y,z") == "'/tmp/a b/it\\'s #1 [x]=y,z'"
 
 
 def test_load_and_leaderboard_read_records_back(tmp_path):

@@ -29,7 +29,7 @@ def test_list_names_builtins():
         (["profile=quik"], ["Unknown profile 'quik'", "quick"]),
         (["system=spring", "model=mlp_jax", "seed=abc"], ["seed"]),
         (["system=spring", "model=mlp_jax", "system.steps=-1"], ["system.steps=-1 is invalid"]),
-        (["system=all"], ["add -m"]),
+        (["system=all", "model=hnn_torch"], ["add -m"]),
         (["-m", "system=spring", "model=hnn_torch,nope"], ["Unknown model 'nope'"]),
         (["-m", "system=spring", "model=mlp_torch", "model.hidden=10,0"],
          ["model.hidden=0 is invalid"]),

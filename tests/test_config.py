@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import pytest
+from conftest import compose_job as compose
 
-from hnnbench._config import compose, prepare_job
+from hnnbench._config import prepare_job
 from hnnbench._contract import TrainSettings
 from hnnbench._errors import ConfigError
 

@@ -73,7 +73,7 @@ def test_sigkill_mid_sweep_then_resume(tmp_path):
         assert path.read_bytes() == raw
     # The killed job left no record (and no torn one); leftovers of an atomic write are
     # hidden temporary files, which nothing reads.
-    job_dirs = {p.parent for p in sweep.rglob("cli.log")} | {p.parent for p in survived}
+    job_dirs = {p.parent for p in sweep.rglob("hnnbench.log")} | {p.parent for p in survived}
     for directory in job_dirs:
         for path in directory.iterdir():
             if path.name == "result.json":
@@ -135,7 +135,7 @@ def test_workers_stop_when_the_command_is_killed_alone(tmp_path):
     proc = _start(args, tmp_path, log)
     try:
         deadline = time.monotonic() + 600
-        while len(list(sweep.rglob("cli.log"))) < 2:  # both jobs started
+        while len(list(sweep.rglob("hnnbench.log"))) < 2:  # both jobs started
             assert time.monotonic() < deadline and proc.poll() is None, log.read_text()[-3000:]
             time.sleep(0.2)
         time.sleep(5)  # into training (its progress log comes only every 50000 steps)
@@ -152,5 +152,5 @@ def test_workers_stop_when_the_command_is_killed_alone(tmp_path):
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)
     assert not list(sweep.rglob("result.json"))  # no record of an unfinished job
-    logs = "".join(p.read_text() for p in sweep.rglob("cli.log"))
+    logs = "".join(p.read_text() for p in sweep.rglob("hnnbench.log"))
     assert "the hnnbench command that started this job has gone" in logs, logs[-2000:]

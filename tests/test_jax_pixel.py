@@ -100,7 +100,8 @@ def test_jax_pixel_save_load_round_trip(tiny, tmp_path, name):
 
 
 def test_jax_pixel_end_to_end(tmp_path):
-    from hnnbench._config import compose
+    from conftest import compose_job as compose
+
     from hnnbench._job import run_job
 
     # the fixture's data, network and chunk shapes: the compiled steps and solver are reused

@@ -186,7 +186,7 @@ def test_job_processes_get_the_environment(sweeps: Sweeps, launcher: str) -> Non
     typed = shlex.join(["hnnbench", *sweep.args])
     for key, rec in sweep.records().items():
         assert rec["command"] == typed, key
-        log = (rec["path"].parent / "cli.log").read_text()
+        log = (rec["path"].parent / "hnnbench.log").read_text()
         assert f"/{N}] " in log, (key, log[-1000:])
 
 
@@ -203,7 +203,7 @@ def test_resume_skips_finished_jobs(sweeps: Sweeps, launcher: str) -> None:
     assert f"{N} jobs: {N} ok" in proc.stdout
     assert (sweep.dir / "summary.csv").exists()
     for key, rec in sweep.records().items():
-        assert "already finished (ok)" in (rec["path"].parent / "cli.log").read_text(), key
+        assert "already finished (ok)" in (rec["path"].parent / "hnnbench.log").read_text(), key
 
 
 def test_sweep_benchmark_summarises_existing_sweeps(sweeps: Sweeps) -> None:

@@ -184,7 +184,8 @@ def test_data_dir_is_named_where_it_looked(tmp_path):
 @needs_data
 def test_job_settings_reach_data_and_dataset_caches(tmp_path, tmp_path_factory):
     """A job's cache_dir and data_dir settings move every cache it uses."""
-    from hnnbench._config import compose
+    from conftest import compose_job as compose
+
     from hnnbench._job import run_job
 
     site = _fakeplug.install(tmp_path_factory.mktemp("fakeplug"))

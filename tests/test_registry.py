@@ -49,7 +49,7 @@ def test_broken_plugin_is_reported_and_others_work(tmp_path, monkeypatch):
         models = registry.discover("model")
         assert not models["broken"].ok
         assert "No module named 'no_such_module_xyz'" in models["broken"].error
-        assert "not a subclass of hnnbench._contract.Model" in models["notamodel"].error
+        assert "not a subclass of hnnbench.Model" in models["notamodel"].error
         assert "broken" not in registry.available("model")
         assert models["hnn_torch"].ok
         with pytest.raises(HnnbenchError, match="installed but unusable"):

@@ -15,7 +15,8 @@ from pathlib import Path
 import _fakeplug
 import numpy as np
 import pytest
-from conftest import QUICK_ORACLE_BOUND, assert_one_line_error, hnnbench
+from conftest import QUICK_ORACLE_BOUND, assert_one_line_error, hnnbench, with_pair
+from conftest import compose_job as compose
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from omegaconf import OmegaConf
@@ -23,7 +24,7 @@ from omegaconf import OmegaConf
 from hnnbench import _records as records
 from hnnbench import _registry as registry
 from hnnbench._cli import run as cli_run
-from hnnbench._config import compose, prepare_job
+from hnnbench._config import prepare_job
 from hnnbench._errors import HnnbenchError
 from hnnbench._job import run_job
 from hnnbench._sweep import plan
@@ -35,7 +36,7 @@ def run_inprocess(argv: list[str]) -> tuple[int, str, str]:
     """``hnnbench._cli.run(argv)`` with stdout and stderr captured."""
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = cli_run(list(argv))
+        code = cli_run(with_pair(argv))
     return code, out.getvalue(), err.getvalue()
 
 
@@ -88,7 +89,7 @@ def fake_plugins(fake_site: Path):
     ],
 )
 def test_bad_input_console_script(args, needles, tmp_path):
-    assert_one_line_error(hnnbench(*args, cwd=tmp_path), *needles)
+    assert_one_line_error(hnnbench(*with_pair(args), cwd=tmp_path), *needles)
 
 
 @pytest.mark.parametrize(
@@ -141,7 +142,7 @@ def test_bad_input_console_script(args, needles, tmp_path):
         (["+system.extra=0"], ["system.extra is not a setting of system 'spring'"]),
         (["+model.hiden=5"], ["model.hiden is not a setting", "Did you mean 'hidden'"]),
         (["model=hnn_jax", "model.hiden=5"], ["not a setting of model 'hnn_jax'"]),
-        (["~system"], ["system is missing"]),
+        (["~system"], ["no system chosen"]),
         (["system.steps=${nowhere}"], ["nowhere", "system.steps"]),
         (["cache_dir=${oc.env:HNNBENCH_SURELY_UNSET_VAR}"], ["HNNBENCH_SURELY_UNSET_VAR"]),
         (["hydra.run.dir=${oops}"], ["oops", "hydra.run.dir"]),
@@ -171,7 +172,7 @@ def test_bad_input_one_line_inprocess(args, needles):
 
 
 def test_flags_and_overrides_in_any_order_and_abbreviated():
-    p = plan(["system=spring", "--mult", "seed=0,1", *QUICK])
+    p = plan(with_pair(["system=spring", "--mult", "seed=0,1", *QUICK]))
     assert p.multirun and p.n_jobs == 2
     assert p.argv[0] == "--multirun" and "seed=0,1" in p.argv
 
@@ -185,7 +186,7 @@ def test_cfg_job_shows_config():
 
 def test_missing_backend_is_one_line_with_install_hint(fake_site, tmp_path):
     env = _fakeplug.env_for(fake_site)
-    proc = hnnbench("model=needs_backend", *QUICK, cwd=tmp_path, env=env)
+    proc = hnnbench(*with_pair(["model=needs_backend", *QUICK]), cwd=tmp_path, env=env)
     assert_one_line_error(proc, "needs_backend", "pip install 'hnnbench[jax]'")
     listing = hnnbench("list", "--json", cwd=tmp_path, env=env)
     assert listing.returncode == 0, listing.stderr
@@ -198,7 +199,7 @@ def test_missing_backend_inprocess(fake_plugins):
     code, _, err = run_inprocess(["model=needs_backend"])
     assert_clean(code, err, "pip install 'hnnbench[jax]'")
     # `all` leaves the unusable plugin out instead of failing.
-    assert "needs_backend" not in plan(["-m", "model=all", *QUICK]).overrides[0]
+    assert "needs_backend" not in plan(with_pair(["-m", "model=all", *QUICK])).overrides[1]
 
 
 def test_subcommand_import_problems_are_one_line(monkeypatch):

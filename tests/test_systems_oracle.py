@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import pytest
 from conftest import QUICK_ORACLE_BOUND
+from conftest import compose_job as compose
 
 from hnnbench import _registry as registry
-from hnnbench._config import compose
 from hnnbench._job import run_job
 
 SIMULATED = ["double_pendulum", "damped_spring", "damped_pendulum", "spring_chain"]

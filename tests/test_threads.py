@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import compose_job as compose
 from threadpoolctl import threadpool_info, threadpool_limits
 
-from hnnbench._config import compose
 from hnnbench._job import run_job
 
 

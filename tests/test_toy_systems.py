@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import compose_job as compose
 
-from hnnbench._config import compose, prepare_job
+from hnnbench._config import prepare_job
 from hnnbench._errors import ConfigError
 from hnnbench_plugins.systems.pendulum import Pendulum, PendulumConfig
 from hnnbench_plugins.systems.spring import Spring, SpringConfig

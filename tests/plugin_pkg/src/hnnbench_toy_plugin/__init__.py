@@ -20,8 +20,8 @@ from hnnbench import (
     System,
     SystemConfig,
     Trajectories,
+    solve_batch,
 )
-from hnnbench import solve_batch
 
 
 @dataclass
