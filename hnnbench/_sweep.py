@@ -20,6 +20,7 @@ import contextlib
 import copy
 import json
 import os
+import re
 import shlex
 import socket
 import sys
@@ -479,7 +480,10 @@ def hydra_value(value: Any) -> str:
     text = str(value)
     if text and all(c.isascii() and (c.isalnum() or c in "_-./:") for c in text):
         return text
-    return "'" + text.replace("\\", "\\\\").replace("'", "\\'") + "'"
+    # Hydra's quoted strings: backslashes are literal except in a run that ends at a
+    # quote (or at the closing quote), where each one is doubled; quotes are escaped.
+    quoted = re.sub(r"(\\+)(?='|$)", lambda m: m.group(1) * 2, text).replace("'", "\\'")
+    return "'" + quoted + "'"
 
 
 def request(*, single: Mapping[str, Any], swept: Mapping[str, Sequence[Any]] = {},
