@@ -20,12 +20,22 @@ from typing import Optional
 import numpy as np
 
 from hnnbench._contract import Dataset, Model, System, Trajectories
-from hnnbench._errors import RolloutDiverged
+from hnnbench._errors import JobTimeout, RolloutDiverged
 from hnnbench._metric import EvalContext, EvaluationConfig, Metric, summarize
 
 log = logging.getLogger("hnnbench")
 
-__all__ = ["Evaluation", "evaluate", "failed_metrics"]
+__all__ = ["Evaluation", "core_metric", "evaluate", "failed_metrics"]
+
+
+def core_metric(name: str) -> bool:
+    """Whether the metric ``name`` is hnnbench's own: declared by the entry points of
+    the distribution that ships the core (:data:`hnnbench._registry.CORE_DISTRIBUTION`),
+    not by a third-party package or in-process registration."""
+    from hnnbench._registry import CORE_DISTRIBUTION, METRICS
+
+    info = METRICS.discover().get(name)
+    return info is not None and info.distribution == CORE_DISTRIBUTION
 
 
 @dataclass
@@ -82,12 +92,16 @@ def evaluate(system: System, model: Model, data: Dataset, traj: Trajectories,
             if metric.required and diverged is None:
                 diverged = f"rollout diverged ({metric.name}): {err}"
             continue
-        except Exception as err:
-            # A required metric is what the job is for: whatever raised (the model, e.g.
-            # out of memory, or the metric) fails the job with the traceback rather than
-            # leave a NaN that reads "not applicable". An optional metric's error is
-            # recorded and the job goes on.
-            if metric.required:
+        except (KeyboardInterrupt, JobTimeout):
+            raise
+        except BaseException as err:  # noqa: BLE001 - a plugin's sys.exit() too
+            # hnnbench's own required metrics are what every job is for: whatever raised
+            # there (the model, e.g. out of memory, or the metric) fails the job with the
+            # traceback rather than leave a NaN that reads "not applicable". Any other
+            # metric's error (a third party's, required or not, or an optional one) is
+            # recorded and the job goes on: one broken metric plugin must not fail
+            # every job (docs/PLUGINS.md).
+            if metric.required and core_metric(metric.name):
                 raise
             errors[metric.name] = f"{type(err).__name__}: {err}".splitlines()[0]
             log.warning("metric %s failed: %s", metric.name, errors[metric.name])
