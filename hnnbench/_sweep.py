@@ -21,6 +21,7 @@ import copy
 import json
 import logging
 import os
+import re
 import shlex
 import socket
 import sys
@@ -609,8 +610,8 @@ def _one_line_hydra_errors() -> contextlib.AbstractContextManager[None]:
 def hydra_value(value: Any) -> str:
     """A Python value as a Hydra override value: booleans, ``None``, numbers and lists
     as Hydra writes them; a string quoted (``'...'``, backslash-escaped) unless it is a
-    plain word, so paths with spaces, quotes, ``#``, ``~``, brackets, ``=`` or ``,``
-    reach Hydra as the same string."""
+    plain word, so paths with spaces, quotes, ``#``, ``~``, brackets, ``=``, ``,``,
+    backslashes, ``${`` or any non-ASCII character reach the job as the same string."""
     if isinstance(value, bool):
         return "true" if value else "false"
     if value is None:
@@ -622,7 +623,14 @@ def hydra_value(value: Any) -> str:
     text = str(value)
     if text and all(c.isascii() and (c.isalnum() or c in "_-./:") for c in text):
         return text
-    return "'" + text.replace("\\", "\\\\").replace("'", "\\'") + "'"
+    # OmegaConf reads ${...} as an interpolation: \${ is a literal ${ (and backslashes
+    # right before it are doubled, or they would escape it).
+    text = re.sub(r"(\\*)\$\{", lambda m: m.group(1) * 2 + "\\${", text)
+    # In Hydra's quoted value, backslashes are literal except right before a quote or
+    # the closing quote: those are doubled, and a quote is escaped.
+    text = re.sub(r"(\\*)('|\Z)",
+                  lambda m: m.group(1) * 2 + ("\\'" if m.group(2) else ""), text)
+    return "'" + text + "'"
 
 
 def request(*, single: Mapping[str, Any], swept: Mapping[str, Sequence[Any]] = {},
