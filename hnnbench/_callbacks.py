@@ -35,8 +35,8 @@ def _this_run() -> list[dict[str, Any]] | None:
 def _counts_line(total: int, outcomes: list[dict[str, Any]] | None,
                  counts: dict[str, int]) -> str:
     """``N jobs: ...`` of the directory, or of this run when its outcomes are known:
-    this run's jobs by status, those kept from an earlier run, and the directory's
-    other records (another sweep's, or other settings') apart."""
+    this run's jobs by status, those kept from an earlier run, and how many records the
+    directory holds when it holds others (another sweep's, or other settings')."""
     directory = ", ".join(f"{n} {s}" for s, n in sorted(counts.items()))
     if outcomes is None:
         return f"{total} jobs: {directory}"
@@ -57,17 +57,16 @@ def _counts_line(total: int, outcomes: list[dict[str, Any]] | None,
                                         or "none run")
     if kept:
         line += f"; {kept} kept from an earlier run"
-    others = total - (ran - lost) - kept
-    if others > 0:
-        line += f"; {others} other record(s) in the directory"
+    if total != ran - lost + kept:  # other sweeps' records, or other settings'
+        line += f"; {total} records in the directory in all"
     return line
 
 
 def print_summary(sweep_dir: Path) -> None:
     """Print the Markdown summary of the records under ``sweep_dir``; write summary.csv.
-    Its last line counts this run's jobs by status (records kept from an earlier run,
-    and other records in the directory, apart) when run by the hnnbench command or API,
-    else the directory's records."""
+    Its last line counts this run's jobs by status (records kept from an earlier run
+    apart, and the directory's total when it holds other records) when run by the
+    hnnbench command or API, else the directory's records."""
     from hnnbench import _records as records
     from hnnbench._table import records_frame, summary_frame, summary_metrics
 
