@@ -14,8 +14,59 @@ log = logging.getLogger("hnnbench")
 __all__ = ["SweepSummary", "print_summary"]
 
 
+def _this_run() -> list[dict[str, Any]] | None:
+    """The outcomes this invocation's jobs have reported so far (its channel file:
+    ``{"record", "kept"}``, or ``{"lost"}``), or ``None`` outside the hnnbench command
+    and API."""
+    import json
+
+    from hnnbench import _launch as launch
+
+    context = launch.current()
+    if context is None or not context.returns:
+        return None
+    try:
+        text = Path(context.returns).read_text("utf-8")
+    except OSError:
+        return None
+    return [json.loads(line) for line in text.splitlines() if line.strip()]
+
+
+def _counts_line(total: int, outcomes: list[dict[str, Any]] | None,
+                 counts: dict[str, int]) -> str:
+    """``N jobs: ...`` of the directory, or of this run when its outcomes are known:
+    this run's jobs by status, those kept from an earlier run, and how many records the
+    directory holds when it holds others (another sweep's, or other settings')."""
+    directory = ", ".join(f"{n} {s}" for s, n in sorted(counts.items()))
+    if outcomes is None:
+        return f"{total} jobs: {directory}"
+    new: dict[str, int] = {}
+    kept = lost = 0
+    for outcome in outcomes:
+        if "lost" in outcome:
+            lost += 1
+        elif outcome.get("kept"):
+            kept += 1
+        else:
+            status = str(outcome.get("record", {}).get("status"))
+            new[status] = new.get(status, 0) + 1
+    if lost:
+        new["returned no record"] = lost
+    ran = sum(new.values())
+    line = f"this run: {ran} jobs: " + (", ".join(f"{n} {s}" for s, n in sorted(new.items()))
+                                        or "none run")
+    if kept:
+        line += f"; {kept} kept from an earlier run"
+    if total != ran - lost + kept:  # other sweeps' records, or other settings'
+        line += f"; {total} records in the directory in all"
+    return line
+
+
 def print_summary(sweep_dir: Path) -> None:
-    """Print the Markdown summary of the records under ``sweep_dir``; write summary.csv."""
+    """Print the Markdown summary of the records under ``sweep_dir``; write summary.csv.
+    Its last line counts this run's jobs by status (records kept from an earlier run
+    apart, and the directory's total when it holds other records) when run by the
+    hnnbench command or API, else the directory's records."""
     from hnnbench import _records as records
     from hnnbench._table import records_frame, summary_frame, summary_metrics
 
@@ -34,7 +85,7 @@ def print_summary(sweep_dir: Path) -> None:
     print()
     print(shown.to_markdown(index=False, floatfmt=".3g"))
     print()
-    print(f"{len(frame)} jobs: " + ", ".join(f"{n} {s}" for s, n in sorted(counts.items())))
+    print(_counts_line(len(frame), _this_run(), counts))
     print(f"records and summary.csv in {sweep_dir}")
 
 

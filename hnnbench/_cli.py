@@ -156,10 +156,18 @@ def _subcommand(name: str, args: list[str]) -> int:
 
 
 def run_hydra(argv: list[str]) -> int:
+    """Run a Hydra command line. A single run: its status (0 for ``ok`` and
+    ``skipped``). A sweep: 1 when a job of this run failed, timed out or returned no
+    record (``diverged`` and ``skipped`` are outcomes, not failures), else 0; its last
+    line says how many, and how many were kept from an earlier run."""
     result = execute(argv)
     if result.records and not result.multirun:
         return _report_single(result.records[0])
-    return 0
+    if not result.sweep:
+        return 0
+    failed, line = result.verdict()
+    print(f"hnnbench: {line}", file=sys.stderr)
+    return 1 if failed else 0
 
 
 def _report_single(record: dict) -> int:

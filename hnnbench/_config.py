@@ -18,7 +18,7 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 
 from hnnbench import _registry as registry
 from hnnbench._contract import Model, ModelConfig, System, SystemConfig
-from hnnbench._errors import ConfigError, UnknownNameError
+from hnnbench._errors import ConfigError, HnnbenchError, UnknownNameError
 from hnnbench._metric import EvaluationConfig
 
 __all__ = [
@@ -84,6 +84,10 @@ class RunConfig:
             ``seed_batch``); each seed still gets its own record. 1: one seed per job.
         seed_batch: the seeds this job trains as one batch (set by the CLI from
             ``seeds_per_job``; ``seed`` is its first); ``null``: just ``seed``.
+        timeout_s: the job's wall-clock limit in seconds, per seed (a batch of N seeds
+            gets N times it); past it the job stops and is recorded ``timeout``
+            (:func:`hnnbench._job.time_limit`). Set per profile (paper: 6 h, quick:
+            20 min); ``0`` or ``null``: no limit.
     """
 
     system: Any = MISSING
@@ -99,6 +103,7 @@ class RunConfig:
     data_dir: Optional[str] = None
     seeds_per_job: int = 1
     seed_batch: Optional[list[int]] = None
+    timeout_s: Optional[float] = 21600.0
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
 
 
@@ -193,6 +198,13 @@ def validate_run(cfg: Any) -> None:
         raise ConfigError(
             f"device={cfg.device} is invalid: expected auto, cpu, cuda or cuda:N."
         )
+    limit = cfg.get("timeout_s")
+    if limit is not None and (isinstance(limit, bool) or not isinstance(limit, (int, float))
+                              or not (limit >= 0 and math.isfinite(limit))):
+        raise ConfigError(
+            f"timeout_s={limit} is invalid: expected seconds >= 0 (0 or null: no limit), "
+            "e.g. timeout_s=3600."
+        )
     if cfg.threads < 0:
         raise ConfigError(f"threads={cfg.threads} is invalid: expected an integer >= 0.")
     ev = cfg.evaluation
@@ -225,6 +237,18 @@ def _instantiate_config(kind: str, node: Any) -> Any:
         return cls.Config(**{str(k): v for k, v in values.items()})
     except TypeError as err:
         raise ConfigError(f"{kind} '{name}': {err}") from None
+    except (KeyboardInterrupt, HnnbenchError):
+        raise
+    except BaseException as err:  # noqa: BLE001 - the plugin's __post_init__, sys.exit too
+        raise ConfigError(_plugin_raised(kind, name, "config", err)) from None
+
+
+def _plugin_raised(kind: str, name: str, where: str, err: BaseException) -> str:
+    """One line: the plugin's config code raised (a bug of the plugin, named)."""
+    text = " ".join(str(err).split())
+    return (f"{kind} '{name}': its {where} raised {type(err).__name__}"
+            + (f": {text}" if text else "") + " (a bug of the plugin: check its settings or "
+            "report it to its authors)")
 
 
 @dataclass
@@ -257,13 +281,16 @@ def prepare_job(cfg: DictConfig) -> Job:
     for kind, typed in (("system", system_cfg), ("model", model_cfg)):
         try:
             typed.validate()
-        except ConfigError:
+        except (HnnbenchError, KeyboardInterrupt):
             raise
         except (TypeError, ValueError, ArithmeticError) as err:  # a value validate() chokes on
             raise ConfigError(
                 f"{kind} '{typed.name}': invalid config ({type(err).__name__}: {err})"
                 .replace("\n", " ")
             ) from None
+        except BaseException as err:  # noqa: BLE001 - any other: the plugin's bug, named
+            raise ConfigError(_plugin_raised(kind, str(typed.name), "validate()", err)) \
+                from None
     return Job(cfg, system_cls, system_cfg, model_cls, model_cfg)
 
 

@@ -55,6 +55,17 @@ class RolloutDiverged(Exception):
     """
 
 
+class JobTimeout(BaseException):
+    """A job ran past its wall-clock limit (``timeout_s``). Raised inside the job by
+    its timer; the job is recorded as ``timeout`` and the sweep goes on. A
+    :class:`BaseException`, like :class:`KeyboardInterrupt`, so that a plugin's
+    ``except Exception`` does not swallow it."""
+
+    def __init__(self, seconds: float) -> None:
+        self.seconds = seconds
+        super().__init__(f"the job ran past its time limit of {seconds:g} s (timeout_s)")
+
+
 def unknown_name_message(kind: str, name: str, available: Iterable[str]) -> str:
     """``Unknown model 'x'. Did you mean 'y'? Available: a, b, c``."""
     available = sorted(available)

@@ -20,7 +20,7 @@ from typing import Optional
 import numpy as np
 
 from hnnbench._contract import Dataset, Model, System, Trajectories
-from hnnbench._errors import RolloutDiverged
+from hnnbench._errors import JobTimeout, RolloutDiverged
 from hnnbench._metric import EvalContext, EvaluationConfig, Metric, summarize
 
 log = logging.getLogger("hnnbench")
@@ -82,12 +82,16 @@ def evaluate(system: System, model: Model, data: Dataset, traj: Trajectories,
             if metric.required and diverged is None:
                 diverged = f"rollout diverged ({metric.name}): {err}"
             continue
-        except Exception as err:
-            # A required metric is what the job is for: whatever raised (the model, e.g.
-            # out of memory, or the metric) fails the job with the traceback rather than
-            # leave a NaN that reads "not applicable". An optional metric's error is
-            # recorded and the job goes on.
-            if metric.required:
+        except (KeyboardInterrupt, JobTimeout):
+            raise
+        except BaseException as err:  # noqa: BLE001 - a plugin's sys.exit() too
+            # A metric whose declaration says so (hnnbench's own required metrics: what
+            # every job is for; an exception there is usually the model's, e.g. out of
+            # memory) fails the job with the traceback rather than leave a NaN that
+            # reads "not applicable". Any other metric's error is recorded and the job
+            # goes on: one broken metric plugin must not fail every job
+            # (docs/PLUGINS.md).
+            if metric.errors_fail_job:
                 raise
             errors[metric.name] = f"{type(err).__name__}: {err}".splitlines()[0]
             log.warning("metric %s failed: %s", metric.name, errors[metric.name])

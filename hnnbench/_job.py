@@ -17,10 +17,13 @@ import logging
 import os
 import shlex
 import shutil
+import signal
 import sys
+import threading
 import time
 import traceback
 import uuid
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Optional
 
@@ -44,14 +47,14 @@ from hnnbench._contract import (
     TrainSettings,
     Trajectories,
 )
-from hnnbench._errors import HnnbenchError, RolloutDiverged, UnsupportedPair
+from hnnbench._errors import HnnbenchError, JobTimeout, RolloutDiverged, UnsupportedPair
 from hnnbench._evaluate import evaluate, failed_metrics
 from hnnbench._progress import TrainingProgress
 
 log = logging.getLogger("hnnbench")
 
 __all__ = ["SeedOutcome", "config_change", "run_job", "run_seed_outcomes", "run_seeds",
-           "seed_directory"]
+           "seed_directory", "time_limit"]
 
 
 def _set_threads(threads: int) -> None:
@@ -241,6 +244,62 @@ def _seed_overrides(overrides: list[str] | None, seed: int) -> list[str] | None:
     return [*keep, f"seed={seed}"]
 
 
+_unlimited_warned = False
+
+
+@contextlib.contextmanager
+def time_limit(seconds: Optional[float]) -> Iterator[bool]:
+    """Raise :class:`~hnnbench._errors.JobTimeout` in this thread once ``seconds`` of
+    wall-clock time have passed inside the block (``None`` or ``0``: no limit); yields
+    whether a limit is in force. After the first, the alarm repeats every second until
+    the block is left, so a plugin that swallows one (``except BaseException``) gets
+    another. An outer ``SIGALRM`` timer (its handler and what is left of its delay) is
+    restored afterwards. See the module docstring for what it can interrupt."""
+    global _unlimited_warned
+    if not seconds or seconds <= 0:
+        yield False
+        return
+    if not hasattr(signal, "setitimer") \
+            or threading.current_thread() is not threading.main_thread():
+        if not _unlimited_warned:
+            _unlimited_warned = True
+            log.warning("timeout_s=%g is not enforced here: the time limit needs a job "
+                        "run in a process's main thread on Unix, and this one is not",
+                        seconds)
+        yield False
+        return
+    armed = [True]
+
+    def on_alarm(signum: int, frame: Any) -> None:
+        if armed[0]:
+            raise JobTimeout(seconds)
+
+    previous = signal.signal(signal.SIGALRM, on_alarm)
+    outer_delay, outer_interval = signal.setitimer(signal.ITIMER_REAL, seconds, 1.0)
+    start = time.monotonic()
+    try:
+        yield True
+    finally:
+        while True:  # an alarm in the middle of disarming is ignored, never leaks out
+            try:
+                armed[0] = False
+                signal.setitimer(signal.ITIMER_REAL, 0)
+                signal.signal(signal.SIGALRM, previous)
+                if outer_delay > 0:
+                    left = outer_delay - (time.monotonic() - start)
+                    signal.setitimer(signal.ITIMER_REAL, max(left, 1e-3), outer_interval)
+                break
+            except JobTimeout:
+                continue
+
+
+def _failure_text(err: BaseException) -> str:
+    """``Type: first line of the message`` (``SystemExit: 3``; the type alone when the
+    message is empty)."""
+    text = str(err).strip()
+    return f"{type(err).__name__}: {text}".splitlines()[0] if text else type(err).__name__
+
+
 def run_job(
     cfg: DictConfig, directory: Path, index: int | None = None, total: int | None = None,
     overrides: list[str] | None = None,
@@ -329,21 +388,32 @@ def run_seed_outcomes(
     start, cpu_start = time.perf_counter(), time.process_time()
     log.info("%s%s x %s seed=%s: start%s", count, system, model,
              ",".join(map(str, pending)), batch_text)
+    limit = _timeout_seconds(cfg)
+    limit = limit * len(pending) if limit else None  # per seed: a batch gets N times it
     try:
-        job = prepare_job(cfg)
-        # The job's cache_dir and data_dir settings hold for all it does: the dataset
-        # cache, measured data files (data.locate) and the JAX compilation cache.
-        with paths.overrides(cache_dir=cfg.cache_dir, data_dir=cfg.data_dir):
-            _execute(job, cfg, pending, dirs, runs)
+        with time_limit(limit):
+            job = prepare_job(cfg)
+            # The job's cache_dir and data_dir settings hold for all it does: the dataset
+            # cache, measured data files (data.locate) and the JAX compilation cache.
+            with paths.overrides(cache_dir=cfg.cache_dir, data_dir=cfg.data_dir):
+                _execute(job, cfg, pending, dirs, runs)
+    except KeyboardInterrupt:
+        raise
+    except JobTimeout as err:
+        # Every seed not finished when the limit struck: its record says so, with where
+        # the job was (the last lines of the traceback).
+        for record in runs.values():
+            if record["status"] == "failed" and not record.get("error"):
+                record.update(status="timeout", error=str(err))
+                record["traceback"] = traceback.format_exc()
     except HnnbenchError as err:
         for record in runs.values():
             if record["status"] == "failed" and not record.get("error"):
                 record.update(status="failed", error=str(err))
-    except Exception as err:  # isolate the failure; the sweep goes on
+    except BaseException as err:  # noqa: BLE001 - sys.exit() in a plugin too; the sweep goes on
         for record in runs.values():
             if record["status"] == "failed" and not record.get("error"):
-                record.update(status="failed",
-                              error=f"{type(err).__name__}: {err}".splitlines()[0])
+                record.update(status="failed", error=_failure_text(err))
                 record["traceback"] = traceback.format_exc()
     elapsed = time.perf_counter() - start
     # CPU seconds of the job's process, all threads: unlike total_s (wall time), it does
@@ -362,6 +432,15 @@ def run_seed_outcomes(
         _log_outcome(count, tags[seed], record)
     return [SeedOutcome(done[s], s in kept) if s in done else SeedOutcome(runs[s], False)
             for s in seeds]
+
+
+def _timeout_seconds(cfg: DictConfig) -> Optional[float]:
+    """The job's ``timeout_s`` (``None``: no limit; a bad value is left to
+    :func:`~hnnbench._config.prepare_job`, which fails the job with the reason)."""
+    value = _select(cfg, "timeout_s")
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    return float(value) if value > 0 and value < float("inf") else None
 
 
 def _execute(job: Job, cfg: DictConfig, seeds: list[int], dirs: dict[int, Path],

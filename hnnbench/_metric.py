@@ -114,6 +114,9 @@ class Metric:
             heatmap of models by system), ``"data_efficiency"`` (the metric against a
             swept training-set size).
         log: shown in the one-line outcome a job logs when it finishes.
+        errors_fail_job: an exception while computing it fails the job (with the
+            traceback); ``False`` (default): its message is recorded in the record's
+            ``metric_errors``, the value is NaN and the job goes on.
     """
 
     name: str
@@ -129,6 +132,7 @@ class Metric:
     reference: str = "docs/METRICS.md"
     figures: tuple[str, ...] = ()
     log: bool = False
+    errors_fail_job: bool = False
 
     def __post_init__(self) -> None:
         if self.check.better != self.better:  # the metric's direction is the rule's

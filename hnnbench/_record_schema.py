@@ -24,7 +24,8 @@ __all__ = [
 TIMINGS = ("fit_s", "eval_s", "total_s")
 #: Identity and status columns of a leaderboard, in order.
 ID_COLUMNS = ("profile", "system", "model", "backend", "family", "ranked")
-STATUS_COLUMNS = ("n_seeds", "seeds", "n_ok", "n_diverged", "n_failed", "n_skipped", "status")
+STATUS_COLUMNS = ("n_seeds", "seeds", "n_ok", "n_diverged", "n_failed", "n_skipped",
+                  "n_timeout", "status")
 #: Provenance columns of a leaderboard: distinct values over the pair's records.
 PROVENANCE_COLUMNS = ("git_commits", "machines", "dates")
 #: Columns of a records frame that are not metrics.

@@ -33,14 +33,14 @@ ROLLOUT_NAME = "rollout.npz"
 SCHEMA_FILE = "record.schema.json"
 #: Statuses of a job that is done and is not redone on resume.
 FINISHED = ("ok", "diverged", "skipped")
-STATUSES = ("ok", "diverged", "failed", "skipped")
+STATUSES = ("ok", "diverged", "failed", "skipped", "timeout")
 #: Top-level config keys that say where and how a job runs, not what it computes: a
 #: finished record is reused on resume whatever they are, they define no leaderboard
 #: variant, and they are left out of a sweep job's directory name (conf/config.yaml's
 #: ``override_dirname.exclude_keys``, which tests/test_config.py holds to this list).
 RUN_ONLY_KEYS = frozenset({
     "rerun", "device", "threads", "pin_cpu", "save_model", "cache_dir", "data_dir",
-    "seeds_per_job", "seed_batch",
+    "seeds_per_job", "seed_batch", "timeout_s",
 })
 
 __all__ = [

@@ -3,8 +3,13 @@
 Systems are entry points of the group ``hnnbench.systems``, models of
 ``hnnbench.models`` (each names a class) and metrics of ``hnnbench.metrics`` (each names
 a :class:`~hnnbench._metric.Metric` instance); built-ins are declared in hnnbench's own
-pyproject.toml exactly like third-party plugins. A plugin whose import fails is kept
-with its error (``hnnbench list`` shows it) and left out of everything else.
+pyproject.toml exactly like third-party plugins. A plugin that fails at import (any
+exception, ``sys.exit()`` included; not ``KeyboardInterrupt``), in its
+``requirements_missing()``, with a non-numeric ``order`` or with a config that cannot be
+built (its ``Config``'s ``__post_init__`` or ``validate()`` raises on its own defaults)
+is kept with its error (``hnnbench list`` shows it) and left out of everything else.
+What a plugin prints while it is imported goes to stderr with its name, never to stdout
+(``hnnbench list --json``).
 
 Order: listings, ``all`` and tables follow :func:`ordered`: a plugin's ``order``
 attribute (lower first; built-ins set it), then its name.
@@ -12,8 +17,13 @@ attribute (lower first; built-ins set it), then its name.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
-from collections.abc import Iterable
+import functools
+import io
+import logging
+import math
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from importlib import metadata
 from typing import Any, Generic, Literal, Optional, TypeVar
@@ -23,6 +33,8 @@ from hnnbench._contract import Model, ModelConfig, System, SystemConfig
 from hnnbench._errors import ConfigError, HnnbenchError, UnknownNameError
 from hnnbench._metric import Metric
 from hnnbench._record_schema import metric_name_problem
+
+log = logging.getLogger("hnnbench")
 
 Kind = Literal["system", "model", "metric", "claims"]
 T = TypeVar("T")
@@ -187,8 +199,7 @@ class PluginGroup(Generic[T]):
             info = plugins.get(name)
             if info is None or info.cls is None:
                 return (1, 0.0, name)
-            order = getattr(info.cls, "order", None)
-            return (0, float("inf") if order is None else float(order), name)
+            return (0, _order_value(info.cls), name)
 
         return sorted(dict.fromkeys(names), key=key)
 
@@ -212,15 +223,13 @@ class PluginGroup(Generic[T]):
             distribution=dist.metadata["Name"] if dist is not None else None,
             dist_version=dist.version if dist is not None else None,
         )
-        try:
-            obj = load()
-        except HnnbenchError as err:
-            info.error = str(err)
+        obj, info.error = _guarded(f"the {self.kind} '{name}' ({target})", "import failed",
+                                   load)
+        if info.error is not None:
             return info
-        except Exception as err:  # a broken plugin must not break the others
-            info.error = f"import failed: {type(err).__name__}: {err}".splitlines()[0]
-            return info
-        info.error = self._problem(name, target, obj)
+        problem, error = _guarded(f"the {self.kind} '{name}' ({target})", "check failed",
+                                  lambda: self._problem(name, target, obj))
+        info.error = error or problem
         if info.error is None:
             info.cls = obj
         return info
@@ -228,6 +237,7 @@ class PluginGroup(Generic[T]):
     def _problem(self, name: str, target: str, obj: Any) -> Optional[str]:
         """Why ``obj`` cannot be this group's plugin ``name``, or ``None``."""
         base = self.base
+        order_problem = _order_problem(obj)
         if self.instances:
             if not isinstance(obj, base):
                 return f"{target} is not a {base.__module__}.{base.__name__}"
@@ -236,9 +246,11 @@ class PluginGroup(Generic[T]):
                         f"registered as '{name}': use the same name")
             if self.kind == "metric" and (problem := metric_name_problem(name)):
                 return f"{target}: {problem}"
-            return None
+            return f"{target}: {order_problem}" if order_problem else None
         if not (isinstance(obj, type) and issubclass(obj, base)):
             return f"{target} is not a subclass of hnnbench.{base.__name__}"
+        if order_problem:
+            return f"{target}: {order_problem}"
         config_cls = getattr(obj, "Config", None)
         config_base = self.config_base
         if config_base is not None and not (
@@ -246,18 +258,84 @@ class PluginGroup(Generic[T]):
                 and issubclass(config_cls, config_base)):
             return (f"{target}.Config must be a dataclass subclassing "
                     f"hnnbench.{config_base.__name__}")
-        unknown_profiles = sorted(set(getattr(obj, "profiles", {}) or {}) - set(PROFILES))
+        profiles = getattr(obj, "profiles", {}) or {}
+        if not isinstance(profiles, dict):
+            return f"{target}.profiles must be a dict of profile name -> config overrides"
+        unknown_profiles = sorted(set(profiles) - set(PROFILES))
         if unknown_profiles:
             return (f"{target}.profiles declares {unknown_profiles}, but hnnbench's "
                     f"profiles are {', '.join(PROFILES)}; rename or remove them")
-        missing = getattr(obj, "requirements_missing", lambda: None)()
-        return str(missing) if missing else None
+        missing, error = _guarded(f"the {self.kind} '{name}' ({target})",
+                                  "requirements_missing() raised",
+                                  getattr(obj, "requirements_missing", lambda: None))
+        if error is not None:
+            return error
+        if missing:
+            return str(missing)
+        if config_base is not None:
+            for profile in PROFILES:
+                _, error = _guarded(f"the {self.kind} '{name}' ({target})",
+                                    f"its {profile} config cannot be built",
+                                    functools.partial(_default_config, self.kind, name, obj,
+                                                      profile, check=True))
+                if error is not None:
+                    return error
+        return None
+
+
+def _guarded(what: str, failure: str, call: Callable[[], Any]) -> tuple[Any, Optional[str]]:
+    """``(call(), None)``, or ``(None, "<failure>: <Error>: <message>")`` when it raised
+    anything but :class:`KeyboardInterrupt` (``sys.exit()`` included): a plugin's code
+    runs here, and one broken plugin must not stop the others. Whatever the call prints
+    to stdout goes to stderr, with ``what`` it came from (stdout is ``hnnbench list
+    --json``'s)."""
+    captured = io.StringIO()
+    result: Any = None
+    error: Optional[str] = None
+    try:
+        with contextlib.redirect_stdout(captured):
+            result = call()
+    except KeyboardInterrupt:
+        raise
+    except HnnbenchError as err:
+        error = " ".join(str(err).split())
+    except BaseException as err:  # noqa: BLE001 - SystemExit too: isolate the plugin
+        text = " ".join(str(err).split()) if str(err).strip() else ""
+        error = f"{failure}: {type(err).__name__}" + (f": {text}" if text else "")
+    printed = captured.getvalue()
+    if printed.strip():
+        lines = printed.strip().splitlines()
+        log.warning("%s printed %d line(s) to stdout while loading (shown here, on "
+                    "stderr): %s", what, len(lines), " | ".join(lines[:5])
+                    + (" | ..." if len(lines) > 5 else ""))
+    return result, error
+
+
+def _order_problem(obj: Any) -> Optional[str]:
+    """Why a plugin's ``order`` cannot place it in listings (a real number, or none)."""
+    try:
+        order = getattr(obj, "order", None)
+    except Exception as err:  # noqa: BLE001 - a raising property
+        return f"reading its order raised {type(err).__name__}"
+    if order is None:
+        return None
+    if isinstance(order, bool) or not isinstance(order, (int, float)) \
+            or math.isnan(float(order)):
+        return f"order must be a number (lower first), not {order!r}"
+    return None
+
+
+def _order_value(obj: Any) -> float:
+    """A plugin's ``order`` for sorting: ``inf`` (last) when it has none or no usable one."""
+    if obj is None or _order_problem(obj) is not None:
+        return math.inf
+    order = getattr(obj, "order", None)
+    return math.inf if order is None else float(order)
 
 
 def _sorted_by_order(found: dict[str, PluginInfo[Any]]) -> list[str]:
     def key(name: str) -> tuple[float, str]:
-        order = getattr(found[name].cls, "order", None) if found[name].cls else None
-        return (float("inf") if order is None else float(order), name)
+        return (_order_value(found[name].cls), name)
 
     return sorted(found, key=key)
 
@@ -347,8 +425,14 @@ def validate_profile(name: str) -> None:
 def config_defaults(kind: str, name: str, profile: str = "paper") -> Any:
     """The plugin's config dataclass instance for ``profile``: its defaults with the
     plugin's own profile overrides applied."""
-    cls: Any = group(kind).get(name)
-    overrides = dict(getattr(cls, "profiles", {}).get(profile, {}))
+    return _default_config(kind, name, group(kind).get(name), profile)
+
+
+def _default_config(kind: str, name: str, cls: Any, profile: str, check: bool = False) -> Any:
+    """:func:`config_defaults` of the plugin class ``cls``; ``check``: also run the
+    config's ``validate()`` (at discovery: a plugin whose own defaults are invalid is
+    refused with the reason)."""
+    overrides = dict((getattr(cls, "profiles", {}) or {}).get(profile, {}))
     fields = {f.name for f in dataclasses.fields(cls.Config)}
     unknown = sorted(set(overrides) - fields)
     if unknown:
@@ -356,12 +440,16 @@ def config_defaults(kind: str, name: str, profile: str = "paper") -> Any:
             f"The {kind} '{name}' declares profile '{profile}' overrides for unknown config "
             f"fields {unknown}; fix {cls.__module__}.{cls.__name__}.profiles"
         )
-    return cls.Config(**{**overrides, "name": name})
+    config = cls.Config(**{**overrides, "name": name})
+    if check:
+        config.validate()
+    return config
 
 
 def register_configs(profile: str = "paper") -> None:
     """Store every working plugin's config as an option of the ``system`` / ``model``
-    Hydra config group, with the defaults of ``profile``."""
+    Hydra config group, with the defaults of ``profile``. A plugin whose config cannot
+    be built (whatever it raises) is marked broken, with the reason, and left out."""
     from hydra.core.config_store import ConfigStore
 
     validate_profile(profile)
@@ -371,11 +459,13 @@ def register_configs(profile: str = "paper") -> None:
         return
     for plugins in (SYSTEMS, MODELS):
         for name in plugins.available():
-            try:
-                node = config_defaults(plugins.kind, name, profile)
-            except HnnbenchError as err:
-                info = plugins.discover()[name]
-                info.error, info.cls = str(err), None
+            info = plugins.discover()[name]
+            node, error = _guarded(f"the {plugins.kind} '{name}' ({info.target})",
+                                   f"its {profile} config cannot be built",
+                                   functools.partial(config_defaults, plugins.kind, name,
+                                                     profile))
+            if error is not None:
+                info.error, info.cls = error, None
                 continue
             store.store(group=plugins.kind, name=name, node=node, provider="hnnbench")
     _stored_profile["profile"] = profile

@@ -19,13 +19,14 @@ import argparse
 import contextlib
 import copy
 import json
+import logging
 import os
 import re
 import shlex
 import socket
 import sys
 import tempfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NoReturn, Optional
@@ -41,10 +42,13 @@ from hnnbench._config import (
     profile_of,
     register_schema,
 )
-from hnnbench._errors import ConfigError, UnknownNameError
+from hnnbench._errors import ConfigError, HnnbenchError, UnknownNameError
 from hnnbench._hydra import HydraSweeper, args_parser, basic_sweeper_class, one_line_errors
 
-__all__ = ["Execution", "Plan", "Sweeper", "execute", "plan", "request"]
+log = logging.getLogger("hnnbench")
+
+__all__ = ["LOCK_NAME", "Execution", "Plan", "Sweeper", "execute", "plan", "request",
+           "sweep_lock"]
 
 
 @dataclass
@@ -104,8 +108,14 @@ def _parse_flags(argv: list[str]) -> argparse.Namespace:
             ns.config_dir = resolved
         else:
             ns.config_path = resolved
-    if ns.experimental_rerun is not None and not Path(ns.experimental_rerun).is_file():
-        raise ConfigError(f"--experimental-rerun {ns.experimental_rerun}: no such file")
+    if ns.experimental_rerun is not None:
+        # Hydra's --experimental-rerun unpickles the file it is given: a pickle runs any
+        # code it holds, so hnnbench never loads one.
+        raise ConfigError(
+            f"--experimental-rerun {ns.experimental_rerun} is refused: it unpickles the "
+            "file, which can run any code. Re-run a sweep with its command line (a "
+            "record's rerun_command; the same hydra.sweep.dir resumes it), or check it "
+            "with hnnbench check DIR --rerun")
     return ns
 
 
@@ -119,9 +129,7 @@ def _flag_args(ns: argparse.Namespace) -> list[str]:
             out.append(flag)
     for name, flag in (("cfg", "--cfg"), ("package", "--package"),
                        ("config_path", "--config-path"), ("config_name", "--config-name"),
-                       ("config_dir", "--config-dir"), ("experimental_rerun",
-                                                        "--experimental-rerun"),
-                       ("info", "--info")):
+                       ("config_dir", "--config-dir"), ("info", "--info")):
         if getattr(ns, name) is not None:
             out += [flag, getattr(ns, name)]
     return out
@@ -370,8 +378,11 @@ class Sweeper(HydraSweeper):
     """Hydra's basic sweeper (same job order, batches and ``hydra.sweeper.params``),
     minus its per-job recomposition to validate each batch: :func:`plan` has composed
     and validated every swept value before Hydra starts, so each job's config is
-    composed once, by the launcher. It hands the jobs' outcomes (the task's return
-    values, from whichever launcher ran them) to the invocation's channel.
+    composed once, by the launcher. It holds the sweep directory's lock
+    (:func:`sweep_lock`) while the sweep runs, and hands the jobs' outcomes (the task's
+    return values, from whichever launcher ran them) to the invocation's channel after
+    each batch; a job that returned none (it raised, or its worker died) is reported as
+    lost, and the sweep goes on.
 
     It wraps a basic sweeper rather than subclassing it: Hydra's plugin scan executes
     its module again, which would leave a subclass with a stale base."""
@@ -380,34 +391,162 @@ class Sweeper(HydraSweeper):
                  params: Optional[dict[str, str]] = None) -> None:
         self._args = (max_batch_size, params)
         self._basic: Any = None
+        self._config: Any = None
 
     def setup(self, *, hydra_context: Any, task_function: Any, config: Any) -> None:
         self._basic = basic_sweeper_class()(*self._args)
         self._basic.validate_batch_is_legal = lambda batch: None  # validated by plan()
         self._basic.setup(hydra_context=hydra_context, task_function=task_function,
                           config=config)
+        self._config = config
+        launcher = self._basic.launcher
+        launch_batch = launcher.launch
+
+        def launch_and_collect(job_overrides: Any, initial_job_idx: int) -> Any:
+            results = launch_batch(job_overrides, initial_job_idx=initial_job_idx)
+            for overrides, job in zip(job_overrides, results, strict=False):
+                _collect(job, overrides)
+            return results
+
+        launcher.launch = launch_and_collect
 
     def sweep(self, arguments: list[str]) -> Any:
-        returns = self._basic.sweep(arguments)
-        for batch in returns or []:
-            for job in batch:
-                try:
-                    value = job.return_value
-                except Exception:  # noqa: BLE001 - a job that raised has no outcome
-                    continue
-                if isinstance(value, list):
-                    _post(value)
-        return returns
+        context = launch.current()
+        with sweep_lock(Path(str(self._config.hydra.sweep.dir)),
+                        context.command if context is not None else None):
+            return self._basic.sweep(arguments)
+
+
+def _collect(job: Any, overrides: Sequence[str]) -> None:
+    """Post one finished job's outcomes; a job that raised (it returned none) is posted
+    as lost, with the reason, and marked done so that the sweep goes on."""
+    from hydra.core.utils import JobStatus
+
+    try:
+        value = job.return_value
+    except BaseException as err:  # noqa: BLE001 - whatever the job raised, SystemExit too
+        if isinstance(err, KeyboardInterrupt):
+            raise
+        shown = " ".join(str(err).split())
+        reason = f"{' '.join(overrides)}: {type(err).__name__}" + (f": {shown}" if shown else "")
+        log.error("job returned no record: %s", reason[:500])
+        _post_lost(reason[:500])
+        job.status, job.return_value = JobStatus.COMPLETED, []
+        return
+    if isinstance(value, list):
+        _post(value)
+
+
+def _post_lost(reason: str) -> None:
+    context = launch.current()
+    if context is None or not context.returns:
+        return
+    with open(context.returns, "a", encoding="utf-8") as fh:
+        fh.write(json.dumps({"lost": reason}) + "\n")
+
+
+#: The lock file of a sweep directory (held while a sweep runs into it).
+LOCK_NAME = ".hnnbench.lock"
+
+
+@contextlib.contextmanager
+def sweep_lock(directory: Path, command: Optional[str] = None) -> Iterator[None]:
+    """Hold ``<directory>/.hnnbench.lock`` (``flock``) while a sweep runs into it, with
+    the holder's pid, host, start time and command written in it; raise a one-line
+    :class:`HnnbenchError` naming the holder when another sweep holds it. The lock is
+    the open file's: it goes when its process ends, however it ends, so a lock left by
+    a killed sweep never blocks the next one. (No locking where ``fcntl`` is missing.)"""
+    try:
+        import fcntl
+    except ImportError:  # Windows: no flock
+        yield
+        return
+    directory.mkdir(parents=True, exist_ok=True)
+    path = directory / LOCK_NAME
+    fh = open(path, "a+", encoding="utf-8")  # noqa: SIM115 - held for the whole sweep
+    try:
+        try:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            fh.seek(0)
+            raise HnnbenchError(
+                f"{directory} is in use by another sweep ({_holder(fh.read())}); wait for it "
+                "to finish, or choose another hydra.sweep.dir (out= in the Python API)"
+            ) from None
+        fh.seek(0)
+        fh.truncate()
+        fh.write(json.dumps({"pid": os.getpid(), "host": socket.gethostname(),
+                             "started": records.now_iso(), "command": command}) + "\n")
+        fh.flush()
+        try:
+            yield
+        finally:
+            fh.seek(0)
+            fh.truncate()
+            fh.flush()
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+    finally:
+        fh.close()
+
+
+def _holder(text: str) -> str:
+    """``pid 123 on host, since <time>: <command>`` from a lock file's content."""
+    try:
+        info = json.loads(text)
+        assert isinstance(info, dict)
+    except Exception:  # noqa: BLE001 - written in the middle, or by something else
+        return "holder unknown"
+    shown = f"pid {info.get('pid', '?')} on {info.get('host', '?')}"
+    if info.get("started"):
+        shown += f", since {info['started']}"
+    if info.get("command"):
+        shown += f": {info['command']}"
+    return shown
 
 
 @dataclass
 class Execution:
     """What a Hydra command line ran: the records of its jobs, in the order they
-    finished (a resumed job's record as it was kept), and which were kept."""
+    finished (a resumed job's record as it was kept), which were kept, and the jobs
+    that returned no outcome (``lost``: what was run and why). ``sweep``: whether jobs
+    were to run as a sweep (``-m`` without ``--help`` and the like)."""
 
     multirun: bool
     records: list[dict[str, Any]]
     kept: list[bool] = field(default_factory=list)
+    lost: list[str] = field(default_factory=list)
+    sweep: bool = False
+
+    def counts(self) -> dict[str, int]:
+        """This run's records by status (kept ones left out), plus ``kept`` and ``lost``."""
+        out: dict[str, int] = {}
+        for record, kept in zip(self.records, self.kept, strict=False):
+            if not kept:
+                status = str(record.get("status"))
+                out[status] = out.get(status, 0) + 1
+        out["kept"] = sum(self.kept)
+        out["lost"] = len(self.lost)
+        return out
+
+    def verdict(self) -> tuple[bool, str]:
+        """``(failed, line)``: whether a job of this run failed, timed out or was lost
+        (``diverged`` and ``skipped`` are outcomes, not failures), and one line saying
+        so, with how many were kept from an earlier run."""
+        counts = self.counts()
+        kept = counts.pop("kept")
+        lost = counts.pop("lost")
+        new = sum(counts.values()) + lost
+        failed = counts.get("failed", 0) + lost
+        timeout = counts.get("timeout", 0)
+        tail = f"; {kept} kept from an earlier run" if kept else ""
+        if failed or timeout:
+            parts = ([f"{failed} failed"] if failed else []) + (
+                [f"{timeout} timed out"] if timeout else [])
+            lost_text = f" ({lost} returned no record)" if lost else ""
+            return True, (f"{' and '.join(parts)} of {new} job(s){lost_text} (see the log "
+                          f"and each record's error){tail}")
+        shown = ", ".join(f"{n} {s}" for s, n in sorted(counts.items())) or "none run"
+        return False, f"{new} job(s): {shown}{tail}"
 
 
 def execute(argv: list[str], command: str | None = None) -> Execution:
@@ -448,11 +587,15 @@ def _launch_plan(checked: Plan, command: str) -> Execution:
                            config_name="config")(_task)()
         finally:
             sys.argv = saved
-        outcomes = [json.loads(line) for line in channel.read_text("utf-8").splitlines()
-                    if line.strip()]
+        lines = [json.loads(line) for line in channel.read_text("utf-8").splitlines()
+                 if line.strip()]
+    outcomes = [o for o in lines if "record" in o]
+    shows_only = ("--help", "--hydra-help", "--info", "--cfg", "--shell-completion")
     return Execution(multirun=checked.multirun,
                      records=[records.decode(o["record"]) for o in outcomes],
-                     kept=[bool(o.get("kept")) for o in outcomes])
+                     kept=[bool(o.get("kept")) for o in outcomes],
+                     lost=[str(o["lost"]) for o in lines if "lost" in o],
+                     sweep=checked.multirun and not any(a in shows_only for a in checked.argv))
 
 
 def _one_line_hydra_errors() -> contextlib.AbstractContextManager[None]:
@@ -467,8 +610,8 @@ def _one_line_hydra_errors() -> contextlib.AbstractContextManager[None]:
 def hydra_value(value: Any) -> str:
     """A Python value as a Hydra override value: booleans, ``None``, numbers and lists
     as Hydra writes them; a string quoted (``'...'``, backslash-escaped) unless it is a
-    plain word, so paths with spaces, quotes, ``#``, ``~``, brackets, ``=`` or ``,``
-    reach Hydra as the same string."""
+    plain word, so paths with spaces, quotes, ``#``, ``~``, brackets, ``=``, ``,``,
+    backslashes, ``${`` or any non-ASCII character reach the job as the same string."""
     if isinstance(value, bool):
         return "true" if value else "false"
     if value is None:
@@ -480,10 +623,14 @@ def hydra_value(value: Any) -> str:
     text = str(value)
     if text and all(c.isascii() and (c.isalnum() or c in "_-./:") for c in text):
         return text
-    # Hydra's quoted strings: backslashes are literal except in a run that ends at a
-    # quote (or at the closing quote), where each one is doubled; quotes are escaped.
-    quoted = re.sub(r"(\\+)(?='|$)", lambda m: m.group(1) * 2, text).replace("'", "\\'")
-    return "'" + quoted + "'"
+    # OmegaConf reads ${...} as an interpolation: \${ is a literal ${ (and backslashes
+    # right before it are doubled, or they would escape it).
+    text = re.sub(r"(\\*)\$\{", lambda m: m.group(1) * 2 + "\\${", text)
+    # In Hydra's quoted value, backslashes are literal except right before a quote or
+    # the closing quote: those are doubled, and a quote is escaped.
+    text = re.sub(r"(\\*)('|\Z)",
+                  lambda m: m.group(1) * 2 + ("\\'" if m.group(2) else ""), text)
+    return "'" + text + "'"
 
 
 def request(*, single: Mapping[str, Any], swept: Mapping[str, Sequence[Any]] = {},

@@ -44,6 +44,22 @@ def _names(value: Names) -> list[str]:
     return [value] if isinstance(value, str) else list(value)
 
 
+def _out_dir(out: Union[str, Path]) -> str:
+    """``out`` as an absolute path for Hydra's run or sweep directory: any characters
+    (quotes, ``#``, ``~``, brackets, ``=``, ``,``, non-ASCII; quoted by
+    :func:`hnnbench._sweep.hydra_value`) except ``${``, which Hydra reads again as an
+    interpolation wherever it uses the directory (its log file's path)."""
+    from hnnbench._errors import ConfigError
+
+    if not isinstance(out, (str, Path)):
+        raise TypeError(f"out= must be a path (str or pathlib.Path), not {type(out).__name__}")
+    path = str(Path(out).resolve())
+    if "${" in path:
+        raise ConfigError(f"out={str(out)!r}: a directory whose path holds '${{' cannot be "
+                          "used (Hydra reads it as an interpolation); choose another")
+    return path
+
+
 def _command(function: str, args: dict[str, Any]) -> str:
     shown = ", ".join(f"{k}={v!r}" for k, v in args.items())
     return f"hnnbench.{function}({shown})"
@@ -72,7 +88,7 @@ def run(system: str, model: str, seed: int = 0, profile: str = "paper",
     single: dict[str, Any] = {"system": system, "model": model, "seed": seed,
                               "profile": profile, **typed}
     if out is not None:
-        single["hydra.run.dir"] = str(Path(out).resolve())
+        single["hydra.run.dir"] = _out_dir(out)
     checked = _sweep.request(single=single, raw=raw, multirun=False)
     command = _command("run", {"system": system, "model": model, "seed": seed,
                                "profile": profile, **overrides})
@@ -105,10 +121,10 @@ def sweep(systems: Names, models: Names, seeds: Iterable[int] = (0,),
     if out is None:
         stamp = _dt.datetime.now().strftime("%Y-%m-%d_%H-%M-%S")
         out = Path("results") / "runs" / f"{profile}_{stamp}"
-    out = Path(out).resolve()
+    out = _out_dir(out)
     typed, raw = _settings(overrides)
     checked = _sweep.request(
-        single={"profile": profile, "hydra/launcher": launcher, "hydra.sweep.dir": str(out),
+        single={"profile": profile, "hydra/launcher": launcher, "hydra.sweep.dir": out,
                 **typed},
         swept={"system": _names(systems), "model": _names(models), "seed": seeds},
         raw=raw, multirun=True)
@@ -148,4 +164,30 @@ def leaderboard(frame: Union[pd.DataFrame, Iterable[dict[str, Any]]]) -> pd.Data
 
     if isinstance(frame, pd.DataFrame):
         return leaderboard_frame(frame)
-    return from_records(frame)
+    return from_records(_records_given(frame))
+
+
+def _records_given(value: Any) -> list[dict[str, Any]]:
+    """The records passed to :func:`leaderboard`, checked: a one-line error saying what
+    was expected instead of pandas' or a ``KeyError`` from deep inside."""
+    from hnnbench._errors import HnnbenchError
+
+    expected = ("leaderboard() takes the frame of hnnbench.load(DIR) or a list of records "
+                "(dicts, as hnnbench.run returns)")
+    if isinstance(value, (str, Path)):
+        raise TypeError(f"{expected}, not a path: for the records under {str(value)!r} use "
+                        f"hnnbench.leaderboard(hnnbench.load({str(value)!r}))")
+    if isinstance(value, dict):
+        raise TypeError(f"{expected}, not one record: pass [record]")
+    try:
+        items = list(value)
+    except TypeError:
+        raise TypeError(f"{expected}, not {type(value).__name__}") from None
+    for i, item in enumerate(items):
+        if not isinstance(item, dict):
+            raise TypeError(f"{expected}; item {i} is {type(item).__name__}, not a dict")
+        missing = [k for k in ("system", "model", "seed", "status") if k not in item]
+        if missing:
+            raise HnnbenchError(f"{expected}; item {i} is not a record: it has no "
+                                f"{', '.join(repr(k) for k in missing)}")
+    return items

@@ -167,30 +167,37 @@ def _pixels(system: System) -> bool:
 
 TRAIN_LOSS = Metric(
     "train_loss", "MSE of predicted vs target dx/dt on the training set (pixels: the "
-    "training objective)", _loss("train"), check=CheckRule(2, 1e-12), order=10)
+    "training objective)", _loss("train"), check=CheckRule(2, 1e-12), order=10,
+    errors_fail_job=True)
 TEST_LOSS = Metric(
     "test_loss", "MSE of predicted vs target dx/dt on the test set (pixels: the training "
     "objective)", _loss("test"), check=CheckRule(2, 1e-12), order=20,
-    figures=("data_efficiency",), log=True)
+    figures=("data_efficiency",), log=True,
+    errors_fail_job=True)
 ENERGY_MSE = Metric(
     "energy_mse", "Mean squared error of the true energy along the model's rollout vs "
     "along the true trajectory", _energy_mse, check=CheckRule(10, 1e-10), order=30,
-    figures=("heatmap", "data_efficiency"), log=True)
+    figures=("heatmap", "data_efficiency"), log=True,
+    errors_fail_job=True)
 ROLLOUT_MSE = Metric(
     "rollout_mse", "Mean squared state error along the rollout", _rollout_mse,
-    check=CheckRule(3, 1e-8), order=40, figures=("heatmap", "data_efficiency"))
+    check=CheckRule(3, 1e-8), order=40, figures=("heatmap", "data_efficiency"),
+    errors_fail_job=True)
 REVERSIBILITY_ERROR = Metric(
     "reversibility_error", "Time-reversal test of the learned flow: mean |R Phi_T R Phi_T "
     "x0 - x0|^2 (R flips momenta; pixels: latent momenta)", _reversibility,
-    check=CheckRule(10, 1e-10), applies=_time_reversible, order=50)
+    check=CheckRule(10, 1e-10), applies=_time_reversible, order=50,
+    errors_fail_job=True)
 VALID_PREDICTION_TIME = Metric(
     "valid_prediction_time", "Time until the rollout's relative state error first exceeds "
     "evaluation.vpt_threshold", _vpt, better="higher", scale="linear",
-    check=CheckRule(3, 0.0), order=60)
+    check=CheckRule(3, 0.0), order=60,
+    errors_fail_job=True)
 VPT_LYAPUNOV = Metric(
     "vpt_lyapunov", "Valid prediction time in Lyapunov times (chaotic systems)",
     _vpt_lyapunov, better="higher", scale="linear", check=CheckRule(3, 0.0),
-    applies=_has_lyapunov_time, order=70)
+    applies=_has_lyapunov_time, order=70,
+    errors_fail_job=True)
 ENERGY_DRIFT_LONG = Metric(
     "energy_drift_long", f"Relative true-energy drift at the end of a rollout "
     f"{LONG_HORIZON_FACTOR}x the evaluation horizon (conservative systems)",
@@ -198,7 +205,8 @@ ENERGY_DRIFT_LONG = Metric(
     order=80)
 PIXEL_MSE = Metric(
     "pixel_mse", "MSE of the decoded latent rollout against the true frames",
-    _pixel_mse, check=CheckRule(2, 1e-12), applies=_pixels, summary=False, order=90)
+    _pixel_mse, check=CheckRule(2, 1e-12), applies=_pixels, summary=False, order=90,
+    errors_fail_job=True)
 
 #: hnnbench's own metrics, in table order (registered by entry points, not from here).
 BUILTIN = (TRAIN_LOSS, TEST_LOSS, ENERGY_MSE, ROLLOUT_MSE, REVERSIBILITY_ERROR,
