@@ -20,7 +20,7 @@ from typing import Optional
 import numpy as np
 
 from hnnbench._contract import Dataset, Model, System, Trajectories
-from hnnbench._errors import RolloutDiverged
+from hnnbench._errors import ModelOutputError, RolloutDiverged
 from hnnbench._metric import EvalContext, EvaluationConfig, Metric, summarize
 
 log = logging.getLogger("hnnbench")
@@ -82,6 +82,8 @@ def evaluate(system: System, model: Model, data: Dataset, traj: Trajectories,
             if metric.required and diverged is None:
                 diverged = f"rollout diverged ({metric.name}): {err}"
             continue
+        except ModelOutputError:
+            raise  # a model that breaks its contract fails the job, whichever metric asked
         except Exception as err:
             # A required metric is what the job is for: whatever raised (the model, e.g.
             # out of memory, or the metric) fails the job with the traceback rather than
