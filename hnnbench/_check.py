@@ -8,7 +8,9 @@ empty where the runs vary in nothing but seeds; :func:`hnnbench._table.variant_l
 
 - records: every ``result.json`` must be readable and valid against the record schema
   (:func:`hnnbench._records.validate`), carry provenance (hnnbench version, date,
-  platform) and, where the plugin is installed, its current version;
+  platform) and, where the plugin is installed, its current version and package
+  (a missing version is a mismatch); a metric or timing key named like a table column
+  is refused (:func:`hnnbench._provenance.reserved_key_problem`);
 - metrics: each ``<metric>_mean`` by the metric's declared rule
   (:class:`hnnbench._metric.CheckRule`: direction, tolerated factor in log space, noise
   floor), overridable with ``--rules FILE`` (YAML: ``default:`` and ``metrics:``);
@@ -17,8 +19,16 @@ empty where the runs vary in nothing but seeds; :func:`hnnbench._table.variant_l
   a sweep that ran only some systems or models);
 - claims (:mod:`hnnbench._claims`): one reproduced in the reference must still be
   reproduced; the others are reported as information;
-- ``--rerun SYSTEM/MODEL/SEED``: that job is run again from its record's config, and
-  its metrics must agree with the record's by the same rules;
+- variants: each record's variant is derived from its stored config against the
+  defaults of its (system, model, profile) (:mod:`hnnbench._provenance`), not read
+  from its overrides; a setting that differs from the defaults with no override saying
+  so is named, and such a record is never the main row;
+- ``--rerun SYSTEM/MODEL/SEED``: that job is run again from its record's config, with
+  the record's run-only settings (cache, data directory, device, ...) ignored, in a
+  fresh cache and a temporary directory; its data hashes must equal the canonical ones
+  (those the installed system generates now), its status the record's, and its metrics
+  agree with the record's by the same rules, in both directions (a table shows record
+  against re-run per metric);
 - ``--same RTOL``: two-sided instead. Every gated metric mean must equal the
   reference's within RTOL relative (both values at or below the metric's noise floor
   count as equal) and every pair's statuses must be the same: a reproduction check,
@@ -41,11 +51,12 @@ from typing import Any, Optional
 import pandas as pd
 
 from hnnbench import _claims as C
+from hnnbench import _provenance as P
 from hnnbench import _records as R
 from hnnbench import _registry as registry
 from hnnbench._errors import HnnbenchError
 from hnnbench._metric import CheckRule
-from hnnbench._table import TIMINGS, leaderboard
+from hnnbench._table import TIMINGS, leaderboard, variant_labels
 
 __all__ = [
     "REQUIRED_COLUMNS",
@@ -413,14 +424,50 @@ def _parser() -> _Parser:
     return p
 
 
+def record_variants(recs: Sequence[dict[str, Any]]) -> list[P.Variant]:
+    """Each record's variant, derived from its stored config and the defaults of its
+    profile (:func:`hnnbench._provenance.config_variant`); where that cannot be done,
+    the label its overrides claim (:func:`hnnbench._table.variant_labels`)."""
+    claimed = variant_labels([rec.get("overrides") for rec in recs])
+    return [P.config_variant(rec, label) for rec, label in zip(recs, claimed, strict=True)]
+
+
+def _file(rec: dict[str, Any]) -> str:
+    return str(Path(rec["path"]) / R.RECORD_NAME) if rec.get("path") else "?"
+
+
+def variant_findings(recs: Sequence[dict[str, Any]], variants: Sequence[P.Variant]
+                     ) -> tuple[list[Finding], list[Finding]]:
+    """``(regressions, information)`` about the records' variants: a setting that
+    differs from the profile's defaults with no override saying so, a config of another
+    job than the record's, a config that cannot be compared (no config: a regression;
+    a plugin not installed here: information)."""
+    bad: list[Finding] = []
+    info: list[Finding] = []
+    for rec, variant in zip(recs, variants, strict=True):
+        system, model, where = str(rec.get("system")), str(rec.get("model")), _file(rec)
+        if variant.mismatch:
+            bad.append(Finding("variant", "config", system, model, where,
+                               f"its config is of another job ({variant.mismatch})"))
+        if variant.problem:
+            finding = Finding("variant", "config", system, model, where,
+                              str(variant.problem))
+            (bad if variant.installed else info).append(finding)
+        elif variant.undeclared:
+            text = variant.undeclared_text(str(rec.get("profile") or "paper"))
+            bad.append(Finding("variant", variant.undeclared[0], system, model, where,
+                               text))
+    return bad, info
+
+
 def validate_records(recs: Sequence[dict[str, Any]], bad: Sequence[R.Unreadable]
                      ) -> list[Finding]:
     """Findings about the records themselves: unreadable files, schema violations,
-    missing provenance, plugin versions that differ from the installed ones."""
+    missing provenance, plugin versions or packages that differ from the installed ones
+    (:func:`hnnbench._provenance.plugin_problems`; a missing version is a mismatch).
+    The gating ones; :func:`plugin_information` has the others."""
     out = [Finding("invalid" if item.reason.startswith("invalid") else "unreadable", "-", "-",
                    str(item.path), "", item.reason) for item in bad]
-    installed = {kind: {name: info.version for name, info in registry.discover(kind).items()
-                        if info.ok} for kind in ("system", "model")}
     for rec in recs:
         where = str(rec.get("path", "?"))
         system, model = str(rec.get("system")), str(rec.get("model"))
@@ -432,19 +479,72 @@ def validate_records(recs: Sequence[dict[str, Any]], bad: Sequence[R.Unreadable]
         if missing:
             out.append(Finding("provenance", "-", system, model, where,
                                f"missing {', '.join(missing)}"))
-        for kind, name, key in (("system", system, "system_version"),
-                                ("model", model, "model_version")):
-            have = installed[kind].get(name)
-            if have is not None and rec.get(key) not in (None, have):
-                out.append(Finding("version", key, system, model, f"record {rec.get(key)}",
-                                   f"installed {have}", "", "same plugin version"))
+        for key, mine, have, gate in P.plugin_problems(rec):
+            if gate:
+                out.append(Finding("version", key, system, model, f"record {mine}",
+                                   f"installed {have}", "", f"same plugin ({where})"))
     return out
 
 
+def plugin_information(recs: Sequence[dict[str, Any]]) -> list[Finding]:
+    """Plugin packages of another (non-null) version than the installed one: shown, not
+    failing (the plugin's own ``version`` says when its results change)."""
+    out = []
+    for rec in recs:
+        for key, mine, have, gate in P.plugin_problems(rec):
+            if not gate:
+                out.append(Finding("version", key, str(rec.get("system")),
+                                   str(rec.get("model")), f"record {mine}",
+                                   f"installed {have}", "", "information"))
+    return out
+
+
+#: The record's ``data`` hashes a re-run must reproduce.
+DATA_HASHES = ("dataset_sha256", "evaluation_sha256")
+RERUN_HEADERS = ["metric", "record", "re-run", "apart", "allowed", ""]
+
+
+@dataclass
+class Rerun:
+    """One ``--rerun``: its findings (regressions) and its table, record against
+    re-run per metric and data hash."""
+
+    spec: str
+    findings: list[Finding] = field(default_factory=list)
+    rows: list[list[str]] = field(default_factory=list)
+
+
+def rerun_config(rec: dict[str, Any], cache_dir: Path) -> dict[str, Any]:
+    """The config a ``--rerun`` of ``rec`` runs: the record's stored config, with every
+    run-only setting (:data:`hnnbench._records.RUN_ONLY_KEYS`: cache and data
+    directories, device, threads, pinning, saving, batching) taken from the defaults of
+    its (system, model, profile) instead of the record, a fresh ``cache_dir``, and no
+    weights written. Nothing the record names decides where the re-run reads or writes."""
+    config = rec.get("config")
+    spec = f"{rec.get('system')}/{rec.get('model')}/{rec.get('seed')}"
+    if not isinstance(config, dict) or not isinstance(config.get("system"), dict):
+        raise CheckError(f"--rerun {spec}: the record holds no resolved config to run again")
+    try:
+        defaults = P.default_config(str(rec.get("system")), str(rec.get("model")),
+                                    str(rec.get("profile") or "paper"))
+    except HnnbenchError as err:
+        raise CheckError(f"--rerun {spec}: cannot compose its defaults: {err}") from None
+    out = {k: v for k, v in config.items() if k not in R.RUN_ONLY_KEYS}
+    out.update({k: defaults[k] for k in R.RUN_ONLY_KEYS if k in defaults})
+    out.update(rerun=True, save_model=False, cache_dir=str(cache_dir))
+    return out
+
+
+def _short(value: Any) -> str:
+    return str(value)[:12] if value else "none"
+
+
 def rerun(recs: Sequence[dict[str, Any]], spec: str, rules: tuple[CheckRule, dict[str, CheckRule]]
-          ) -> list[Finding]:
-    """Run the job ``SYSTEM/MODEL/SEED`` of ``recs`` again (its recorded config, in a
-    temporary directory) and compare each metric with the record's by ``rules``."""
+          ) -> Rerun:
+    """Run the job ``SYSTEM/MODEL/SEED`` of ``recs`` again (:func:`rerun_config`, in a
+    temporary directory with a fresh dataset cache) and compare: its status, its data
+    hashes (the re-run's, generated now by the installed system, are the canonical ones),
+    and each metric with the record's by ``rules``, in both directions."""
     import tempfile
 
     from omegaconf import OmegaConf
@@ -460,17 +560,33 @@ def rerun(recs: Sequence[dict[str, Any]], spec: str, rules: tuple[CheckRule, dic
     if not match:
         raise CheckError(f"--rerun {spec}: no record of that job in the checked directories")
     rec = match[0]
-    config = rec.get("config")
-    if not isinstance(config, dict) or "system" not in config:
-        raise CheckError(f"--rerun {spec}: the record holds no resolved config to run again")
-    cfg = OmegaConf.create({**config, "rerun": True, "save_model": False})
+    result = Rerun(spec)
     with tempfile.TemporaryDirectory(prefix="hnnbench-rerun-") as tmp:
-        again = run_job(cfg, Path(tmp), overrides=rec.get("overrides"))
+        cfg = OmegaConf.create(rerun_config(rec, Path(tmp) / "cache"))
+        again = run_job(cfg, Path(tmp) / "job", overrides=rec.get("overrides"))
     default, by_metric = rules
-    out = []
-    if again.get("status") != rec.get("status"):
-        out.append(Finding("rerun", "status", system, model, str(rec.get("status")),
-                           str(again.get("status")), "", "same status"))
+    where = _file(rec)
+
+    def add(name: str, ref: str, cur: str, apart: str, allowed: str, ok: bool) -> None:
+        result.rows.append([name, ref, cur, apart, allowed, "ok" if ok else "FAILS"])
+        if not ok:
+            result.findings.append(Finding("rerun", name, system, model, ref, cur, apart,
+                                           allowed))
+
+    add("status", str(rec.get("status")), str(again.get("status")), "", "same status",
+        again.get("status") == rec.get("status"))
+    if again.get("status") == "failed" and again.get("error"):
+        result.rows.append(["error", "", str(again["error"]), "", "", ""])
+    for key in DATA_HASHES:
+        mine = (rec.get("data") or {}).get(key)
+        canonical = (again.get("data") or {}).get(key)
+        if mine is None and canonical is None and rec.get("status") == "skipped":
+            continue
+        add(f"data.{key}", _short(mine), _short(canonical), "",
+            "the installed system's data", bool(canonical) and mine == canonical)
+        if canonical and mine != canonical:
+            result.findings[-1].current = (f"canonical {_short(canonical)} ({where} names "
+                                           "other data)")
     for name, value in (rec.get("metrics") or {}).items():
         rule = by_metric.get(name, default)
         ref = float(value.get("mean", math.nan))
@@ -479,10 +595,9 @@ def rerun(recs: Sequence[dict[str, Any]], spec: str, rules: tuple[CheckRule, dic
             continue
         # A re-run must agree with the record both ways, not merely be no worse.
         worst = max(rule.worsening(ref, cur), rule.worsening(cur, ref))
-        if math.isnan(cur) or worst > rule.factor:
-            out.append(Finding("rerun", name, system, model, _fmt(ref), _fmt(cur),
-                               f"{_fmt(worst)}x apart", f"within {rule.factor:g}x"))
-    return out
+        ok = not (math.isnan(cur) or math.isnan(ref)) and worst <= rule.factor
+        add(name, _fmt(ref), _fmt(cur), f"{_fmt(worst)}x", f"within {rule.factor:g}x", ok)
+    return result
 
 
 def main(args: Sequence[str]) -> int:
@@ -493,9 +608,15 @@ def main(args: Sequence[str]) -> int:
     ns = _parser().parse_args(list(args))
     dirs = [Path(d) for d in ns.dirs]
     recs, bad = load_sweeps(dirs)
-    board = leaderboard(recs)
     rules = load_rules(ns.rules)
     reference = Path(ns.reference)
+    ref_board = None if ns.update else read_reference(reference)
+    if ns.same is not None and not ns.same >= 0:
+        raise CheckError(f"--same {ns.same}: expected a relative tolerance >= 0, e.g. 1e-3")
+    # Each record's variant is derived from its stored config, never read from its
+    # overrides (hnnbench._provenance).
+    variants = record_variants(recs)
+    board = leaderboard(recs, [v.label for v in variants])
     where = " ".join(ns.dirs)
     if ns.update:
         if bad:
@@ -510,19 +631,27 @@ def main(args: Sequence[str]) -> int:
         print(f"hnnbench check: wrote reference {reference} from {where} "
               f"({len(board)} system x model pairs)")
         return 0
-    if ns.same is not None and not ns.same >= 0:
-        raise CheckError(f"--same {ns.same}: expected a relative tolerance >= 0, e.g. 1e-3")
-    result = compare(read_reference(reference), board, rules, allow_missing=ns.allow_missing,
+    assert ref_board is not None
+    result = compare(ref_board, board, rules, allow_missing=ns.allow_missing,
                      same=ns.same)
-    result.regressions[:0] = validate_records(recs, bad)
-    for spec in ns.rerun:
-        result.regressions += rerun(recs, spec, rules)
+    variant_bad, variant_info = variant_findings(recs, variants)
+    result.regressions[:0] = validate_records(recs, bad) + variant_bad
+    result.info += variant_info + plugin_information(recs)
+    reruns = [rerun(recs, spec, rules) for spec in ns.rerun]
+    for done in reruns:
+        result.regressions += done.findings
     print(f"hnnbench check: {where} vs {reference}"
           + (f" (two-sided, within {ns.same:g} relative)" if ns.same is not None else
              f" (rules: declared + {ns.rules})" if ns.rules else " (rules: declared)"))
     print(f"validated {len(recs) + len(bad)} record(s); compared {result.n_pairs} pair(s), "
           f"{result.n_metrics} gated metric value(s), {result.n_claims} claim(s) reproduced "
           f"in the reference" + (f"; re-ran {len(ns.rerun)} job(s)" if ns.rerun else ""))
+    for done in reruns:
+        print()
+        print(f"--rerun {done.spec} (fresh cache; the record's run-only settings ignored): "
+              "record vs re-run")
+        print(tabulate(done.rows, headers=RERUN_HEADERS, tablefmt="simple",
+                       disable_numparse=True))
     if result.info:
         print()
         print("information (not failing):")

@@ -30,6 +30,7 @@ import numpy as np
 
 from hnnbench._errors import ConfigError
 from hnnbench._kinematics import Kinematics
+from hnnbench._outputs import checked
 
 __all__ = [
     "Dataset",
@@ -498,7 +499,8 @@ class Model(ABC):
     def loss(self, x: np.ndarray, dxdt: np.ndarray) -> float:
         """The loss reported as train/test loss: MSE of ``dx/dt`` (override for
         models whose objective is more than that, e.g. autoencoders)."""
-        pred = self.time_derivative(x)
+        pred = checked(self, "time_derivative", self.time_derivative(x), np.shape(dxdt),
+                       "(N, D) like its targets")
         return float(np.mean((pred - dxdt) ** 2))
 
     def energy(self, x: np.ndarray) -> Optional[np.ndarray]:

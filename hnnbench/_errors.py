@@ -42,6 +42,12 @@ class BackendMissingError(HnnbenchError):
     """An optional backend (torch, JAX) is not installed."""
 
 
+class ModelOutputError(HnnbenchError):
+    """A model method returned an array of another shape or dtype than its contract
+    documents (docs/PLUGINS.md): the job is recorded ``failed`` with this one line, which
+    names the method, the expected and the actual shape (:mod:`hnnbench._outputs`)."""
+
+
 class UnsupportedPair(Exception):
     """This model cannot run on this system (raised by a model's ``fit`` when that only
     shows in the data, e.g. no trajectory windows). Not a user error: the job is

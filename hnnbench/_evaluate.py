@@ -20,7 +20,7 @@ from typing import Optional
 import numpy as np
 
 from hnnbench._contract import Dataset, Model, System, Trajectories
-from hnnbench._errors import JobTimeout, RolloutDiverged
+from hnnbench._errors import JobTimeout, ModelOutputError, RolloutDiverged
 from hnnbench._metric import EvalContext, EvaluationConfig, Metric, summarize
 
 log = logging.getLogger("hnnbench")
@@ -82,8 +82,8 @@ def evaluate(system: System, model: Model, data: Dataset, traj: Trajectories,
             if metric.required and diverged is None:
                 diverged = f"rollout diverged ({metric.name}): {err}"
             continue
-        except (KeyboardInterrupt, JobTimeout):
-            raise
+        except (KeyboardInterrupt, JobTimeout, ModelOutputError):
+            raise  # a model that breaks its output contract fails the job, whatever asked
         except BaseException as err:  # noqa: BLE001 - a plugin's sys.exit() too
             # A metric whose declaration says so (hnnbench's own required metrics: what
             # every job is for; an exception there is usually the model's, e.g. out of

@@ -25,7 +25,7 @@ import traceback
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, Literal, Optional
 
 import numpy as np
 import threadpoolctl
@@ -53,8 +53,8 @@ from hnnbench._progress import TrainingProgress
 
 log = logging.getLogger("hnnbench")
 
-__all__ = ["SeedOutcome", "config_change", "run_job", "run_seed_outcomes", "run_seeds",
-           "seed_directory", "time_limit"]
+__all__ = ["SeedOutcome", "config_change", "plugin_provenance", "run_job",
+           "run_seed_outcomes", "run_seeds", "seed_directory", "time_limit"]
 
 
 def _set_threads(threads: int) -> None:
@@ -132,6 +132,19 @@ def config_change(old: Any, new: Any, prefix: str = "") -> str | None:
                     return change
         return None
     return None if old == new else f"{prefix.rstrip('.')}: {old!r} -> {new!r}"
+
+
+def plugin_provenance(kind: Literal["system", "model"], name: str) -> dict[str, Any]:
+    """The record's ``plugins.<kind>``: the plugin's name and ``version`` (its class
+    attribute), and the distribution (pip package) that installed it, with that
+    package's version (``null`` for a plugin registered in this process, which no
+    package provides)."""
+    info = registry.discover(kind).get(name)
+    cls = getattr(info, "cls", None)
+    version = getattr(cls, "version", None)
+    return {"name": name, "version": None if version is None else str(version),
+            "distribution": getattr(info, "distribution", None),
+            "distribution_version": getattr(info, "dist_version", None)}
 
 
 def _base_record(cfg: DictConfig, overrides: list[str] | None) -> dict[str, Any]:
@@ -450,7 +463,9 @@ def _execute(job: Job, cfg: DictConfig, seeds: list[int], dirs: dict[int, Path],
     for record in runs.values():
         record.update(system_version=system.version, model_version=job.model_cls.version,
                       backend=job.model_cls.backend, family=getattr(family, "name", None),
-                      ranked=bool(getattr(job.model_cls, "ranked", True)))
+                      ranked=bool(getattr(job.model_cls, "ranked", True)),
+                      plugins={"system": plugin_provenance("system", str(cfg.system.name)),
+                               "model": plugin_provenance("model", str(cfg.model.name))})
     reason = job.model_cls.unsupported_reason(system)
     if reason is not None:
         for record in runs.values():

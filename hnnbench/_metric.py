@@ -24,6 +24,7 @@ import numpy as np
 
 from hnnbench._contract import Dataset, Model, System, Trajectories
 from hnnbench._errors import RolloutDiverged
+from hnnbench._outputs import checked, checked_scalar
 
 __all__ = [
     "CheckRule",
@@ -237,15 +238,20 @@ class EvalContext:
         the model's own objective on pixel systems (a mean, no standard error)."""
         data = getattr(self.data, split)
         if self.system.observation == "state":
-            return per_point_squared_error(self.model.time_derivative(data.x), data.dxdt)
-        return {"mean": float(self.model.loss(data.x, data.dxdt)), "sem": math.nan}
+            pred = checked(self.model, "time_derivative", self.model.time_derivative(data.x),
+                           np.shape(data.dxdt), "(N, D) like its targets")
+            return per_point_squared_error(pred, data.dxdt)
+        loss = checked_scalar(self.model, "loss", self.model.loss(data.x, data.dxdt))
+        return {"mean": loss, "sem": math.nan}
 
     # -- rollouts ---------------------------------------------------------------------
     def z0(self) -> np.ndarray:
         """Initial states in the model's coordinates (latents for pixel models)."""
         def make() -> np.ndarray:
-            if self.traj.observations is not None:
-                return self.model.encode(self.traj.observations[:, 0])
+            obs = self.traj.observations
+            if obs is not None:
+                return checked(self.model, "encode", self.model.encode(obs[:, 0]),
+                               (obs.shape[0], None), "(N, k)", float64=False)
             return self.traj.x0
         return self._once("z0", make)
 
@@ -254,13 +260,19 @@ class EvalContext:
         def make() -> Optional[LinearProbe]:
             if not self.pixels:
                 return None
-            return LinearProbe.fit(self.model.encode(self.data.train.x),
-                                   self.data.train.extras["state"])
+            x = self.data.train.x
+            latents = checked(self.model, "encode", self.model.encode(x),
+                              (len(x), np.shape(self.z0())[-1]), "(N, k) like the rollout's",
+                              float64=False)
+            return LinearProbe.fit(latents, self.data.train.extras["state"])
         return self._once("probe", make)
 
     def roll(self, z0: np.ndarray, t: np.ndarray) -> np.ndarray:
         """A rollout of the model (``(M, T, d)``); non-finite states raise."""
-        out = self.model.rollout(z0, t, rtol=self.cfg.rtol, atol=self.cfg.atol)
+        out = checked(self.model, "rollout",
+                      self.model.rollout(z0, t, rtol=self.cfg.rtol, atol=self.cfg.atol),
+                      (len(z0), len(t), np.shape(z0)[-1]),
+                      "(M, T, d): M initial states, T times, d their width")
         if not np.all(np.isfinite(out)):
             raise RolloutDiverged("rollout produced non-finite states")
         return out
@@ -291,7 +303,9 @@ class EvalContext:
         def make() -> np.ndarray:
             states = self.to_states(self.rollout())
             self.arrays["states_hat"] = states
-            learned = self.model.energy(self.rollout().reshape(-1, self.rollout().shape[-1]))
+            flat = self.rollout().reshape(-1, self.rollout().shape[-1])
+            learned = checked(self.model, "energy", self.model.energy(flat), (len(flat),),
+                              "(N,) or None", optional=True)
             if learned is not None:
                 m, t_len = states.shape[:2]
                 self.arrays["learned_energy"] = np.asarray(learned).reshape(m, t_len)
@@ -324,8 +338,10 @@ class EvalContext:
             return None
         z = self.rollout()
         m, t_len, d = z.shape
-        decoded = self.model.decode(z.reshape(m * t_len, d))
+        obs = self.traj.observations.reshape(m * t_len, -1)
+        decoded = checked(self.model, "decode", self.model.decode(z.reshape(m * t_len, d)),
+                          obs.shape, "(N, D_obs) like the frames", float64=False,
+                          optional=True)
         if decoded is None:
             return None
-        obs = self.traj.observations.reshape(m * t_len, -1)
         return np.mean(((decoded - obs) ** 2).reshape(m, -1), axis=1)

@@ -18,6 +18,7 @@ import pandas as pd
 from hnnbench import _registry as registry
 from hnnbench._errors import HnnbenchError
 from hnnbench._metric import Metric
+from hnnbench._provenance import reserved_key_problem
 from hnnbench._record_schema import (
     ID_COLUMNS,
     PROVENANCE_COLUMNS,
@@ -99,13 +100,26 @@ def _has_variants(frame: pd.DataFrame) -> bool:
     return "variant" in frame and bool((frame["variant"].fillna("") != "").any())
 
 
-def records_frame(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
-    """One row per record: identity columns (``variant``: see :func:`variant_labels`),
-    ``<metric>`` means, ``<metric>_sem`` and ``<timing>`` columns."""
+def records_frame(records: Iterable[dict[str, Any]],
+                  variants: Sequence[str] | None = None) -> pd.DataFrame:
+    """One row per record: identity columns (``variant``: ``variants``, one per record,
+    e.g. derived from the records' configs by ``hnnbench check``; default: from their
+    overrides, :func:`variant_labels`), ``<metric>`` means, ``<metric>_sem`` and
+    ``<timing>`` columns.
+
+    Raises:
+        HnnbenchError: a record whose metric or timing key is named like another column
+            (it would replace it; one line naming the file and the key).
+    """
     records = list(records)
-    variants = variant_labels([rec.get("overrides") for rec in records])
+    if variants is None:
+        variants = variant_labels([rec.get("overrides") for rec in records])
     rows = []
     for rec, variant in zip(records, variants, strict=True):
+        problem = reserved_key_problem(rec)
+        if problem is not None:
+            where = f"{rec['path']}/result.json" if rec.get("path") else "a record"
+            raise HnnbenchError(f"{where}: {problem}; the record is refused")
         env = rec.get("environment") or {}
         row: dict[str, Any] = {
             "system": rec.get("system"),
@@ -206,9 +220,11 @@ def status_text(counts: dict[str, int]) -> str:
     return ", ".join(f"{n} {s}" for s, n in present.items())
 
 
-def leaderboard(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
-    """The leaderboard of run records (see :func:`leaderboard_frame`)."""
-    return leaderboard_frame(records_frame(list(records)))
+def leaderboard(records: Iterable[dict[str, Any]],
+                variants: Sequence[str] | None = None) -> pd.DataFrame:
+    """The leaderboard of run records (see :func:`leaderboard_frame`; ``variants``:
+    as :func:`records_frame`)."""
+    return leaderboard_frame(records_frame(list(records), variants))
 
 
 def _refuse_repeated_seeds(group: pd.DataFrame) -> None:

@@ -52,6 +52,7 @@ def table_and_provenance(markdown: str) -> tuple[str, str]:
 def copy_records(sweeps: list[Path]) -> int:
     """Copy each sweep's records into results/records; returns how many."""
     from hnnbench import _records as R
+    from hnnbench._provenance import config_variant
 
     count = 0
     seen: dict[tuple[str, str, int], str] = {}
@@ -67,6 +68,14 @@ def copy_records(sweeps: list[Path]) -> int:
             problems = R.validate(rec)
             if problems:
                 raise SystemExit(f"publish: {rec['path']}: invalid record: {problems[0]}")
+            # The published rows are the plugins' paper settings: the variant is derived
+            # from the stored config against the paper defaults, not read from overrides.
+            variant = config_variant(rec)
+            why = variant.problem or variant.mismatch or (
+                f"its config is a variant ({variant.label}), not the paper settings"
+                if variant.label else None)
+            if why:
+                raise SystemExit(f"publish: {rec['path']}: {why}")
             job = (str(rec["system"]), str(rec["model"]), int(rec["seed"]))
             if job in seen:
                 raise SystemExit(f"publish: {job} is in both {seen[job]} and {rec['path']}: "

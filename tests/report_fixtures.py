@@ -5,6 +5,8 @@ layout that :mod:`hnnbench._job` writes."""
 from __future__ import annotations
 
 import copy
+import functools
+import json
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +14,7 @@ import numpy as np
 
 from hnnbench import _records as records
 from hnnbench import _registry as registry
+from hnnbench._job import plugin_provenance
 
 INF = float("inf")
 NAN = float("nan")
@@ -79,6 +82,24 @@ def _installed_version(kind: str, name: str) -> str:
     return info.version if info is not None and info.ok else "1"
 
 
+@functools.cache
+def _config_text(system: str, model: str, profile: str, overrides: tuple[str, ...]) -> str:
+    from omegaconf import OmegaConf
+
+    from hnnbench._config import compose
+
+    cfg = compose([f"system={system}", f"model={model}", f"profile={profile}", *overrides])
+    return json.dumps(records.encode(OmegaConf.to_container(cfg, resolve=True)))
+
+
+def job_config(system: str, model: str, seed: int, profile: str = "quick",
+               overrides: tuple[str, ...] = ()) -> dict[str, Any]:
+    """The resolved config a job of these settings stores in its record."""
+    config = json.loads(_config_text(system, model, profile, tuple(overrides)))
+    config["seed"] = seed
+    return config
+
+
 def write_run(root: Path, system: str, model: str, seed: int, status: str = "ok",
               metrics: dict[str, float] | None = None, profile: str = "quick",
               rollout: bool = True, overrides: tuple[str, ...] = ()) -> Path:
@@ -107,7 +128,9 @@ def write_run(root: Path, system: str, model: str, seed: int, status: str = "ok"
         "steps": 20, "device": "cpu", "data": {},
         "command": f"hnnbench -m system={system} seed={seed}",
         "overrides": [f"system={system}", f"model={model}", f"seed={seed}", *overrides],
-        "config": {"seed": seed, "profile": {"name": profile}},
+        "config": job_config(system, model, seed, profile, overrides),
+        "plugins": {"system": plugin_provenance("system", system),
+                    "model": plugin_provenance("model", model)},
         "environment": records.environment(), "created_at": records.now_iso(),
     }
     records.write_record(directory, record)

@@ -24,3 +24,24 @@ def test_a_job_in_two_sweeps_is_refused_not_counted_twice(tmp_path, monkeypatch)
         publish_results.copy_records([old, new])
     (old / "spring" / "hnn_torch" / "seed0" / "result.json").unlink()
     assert publish_results.copy_records([old, new]) == 2
+
+
+def test_a_record_of_other_settings_is_not_published(tmp_path, monkeypatch):
+    """Whatever its overrides say, a record whose stored config is not the paper
+    defaults is refused, naming the setting."""
+    import json
+
+    monkeypatch.setattr(publish_results, "RECORDS", tmp_path / "records")
+    declared = tmp_path / "declared"
+    write_run(declared, "spring", "hnn_torch", 0, profile="paper", rollout=False,
+              overrides=("model.hidden=300",))
+    with pytest.raises(SystemExit, match=r"a variant \(model.hidden=300\), not the paper"):
+        publish_results.copy_records([declared])
+    stripped = tmp_path / "stripped"
+    job = write_run(stripped, "spring", "hnn_torch", 0, profile="paper", rollout=False)
+    record = json.loads((job / "result.json").read_text())
+    record["config"]["model"]["hidden"] = 300
+    (job / "result.json").write_text(json.dumps(record))
+    with pytest.raises(SystemExit, match=f"{job}: .*model.hidden=300"):
+        publish_results.copy_records([stripped])
+    assert not (tmp_path / "records").exists()
