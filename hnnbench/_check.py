@@ -7,7 +7,7 @@ The records of the directories are validated, then their leaderboard
 empty where the runs vary in nothing but seeds; :func:`hnnbench._table.variant_labels`):
 
 - records: every ``result.json`` must be readable and valid against the record schema
-  (:func:`hnnbench._records.validate`), carry provenance (hnnbench version, date,
+  (a strict :func:`hnnbench._records.load`), carry provenance (hnnbench version, date,
   platform) and, where the plugin is installed, its current version;
 - metrics: each ``<metric>_mean`` by the metric's declared rule
   (:class:`hnnbench._metric.CheckRule`: direction, tolerated factor in log space, noise
@@ -44,7 +44,14 @@ from hnnbench import _claims as C
 from hnnbench import _records as R
 from hnnbench import _registry as registry
 from hnnbench._errors import HnnbenchError
-from hnnbench._table import TIMINGS, leaderboard
+from hnnbench._record_schema import (
+    BOARD_KEY,
+    PROVENANCE_FIELDS,
+    STATUSES,
+    TIMINGS,
+    VERSION_FIELDS,
+)
+from hnnbench._table import leaderboard
 
 __all__ = [
     "REQUIRED_COLUMNS",
@@ -58,10 +65,11 @@ __all__ = [
     "read_reference",
 ]
 
-KEY = ("profile", "system", "model")
+KEY = BOARD_KEY
 #: Wall times depend on the machine: shown, never gating.
 TIMING_RULE = {"better": "lower", "factor": 3.0, "floor": 1.0, "gate": False}
-REQUIRED_COLUMNS = (*KEY, "n_seeds", "n_ok", "n_diverged", "n_failed", "n_skipped")
+COUNT_COLUMNS = ("n_seeds", *(f"n_{s}" for s in STATUSES))
+REQUIRED_COLUMNS = (*KEY, *COUNT_COLUMNS)
 RULE_KEYS = {"better", "factor", "floor", "gate"}
 
 
@@ -223,8 +231,7 @@ def read_reference(path: Path | str) -> pd.DataFrame:
     if path.is_dir():
         raise CheckError(f"Reference {path} is a directory; expected a leaderboard CSV file")
     try:
-        frame = pd.read_csv(path, dtype={"profile": str, "system": str, "model": str,
-                                         "seeds": str})
+        frame = pd.read_csv(path, dtype={**dict.fromkeys(KEY, str), "seeds": str})
     except pd.errors.EmptyDataError:
         raise CheckError(f"Reference {path} is empty; expected a leaderboard.csv") from None
     except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as err:
@@ -238,7 +245,7 @@ def read_reference(path: Path | str) -> pd.DataFrame:
     if not any(c.endswith("_mean") for c in frame.columns):
         raise CheckError(f"Reference {path} has no metric columns (<metric>_mean); expected "
                          "a leaderboard.csv")
-    for col in ("n_seeds", "n_ok", "n_diverged", "n_failed", "n_skipped"):
+    for col in COUNT_COLUMNS:
         values = pd.to_numeric(frame[col], errors="coerce")
         if values.isna().any():
             raise CheckError(f"Reference {path}: column {col} must hold integers")
@@ -287,7 +294,7 @@ def _ok_share(row: Any) -> float:
 
 
 def _status_text(row: Any) -> str:
-    parts = [f"{int(row[f'n_{s}'])} {s}" for s in R.STATUSES if int(row.get(f"n_{s}", 0))]
+    parts = [f"{int(row[f'n_{s}'])} {s}" for s in STATUSES if int(row.get(f"n_{s}", 0))]
     return ", ".join(parts) or "no runs"
 
 
@@ -446,28 +453,32 @@ def _parser() -> _Parser:
     return p
 
 
+def _field(rec: dict[str, Any], name: str) -> Any:
+    """The value of ``name`` in ``rec`` (``a.b``: key ``b`` of field ``a``), or ``None``."""
+    value: Any = rec
+    for part in name.split("."):
+        value = value.get(part) if isinstance(value, dict) else None
+    return value
+
+
 def validate_records(recs: Sequence[dict[str, Any]], bad: Sequence[R.Unreadable]
                      ) -> list[Finding]:
-    """Findings about the records themselves: unreadable files, schema violations,
+    """Findings about the records themselves: unreadable files, schema violations (the
+    records of a strict :func:`hnnbench._records.load`, and the files it left out),
     missing provenance, plugin versions that differ from the installed ones."""
     out = [Finding("invalid" if item.reason.startswith("invalid") else "unreadable", "-", "-",
                    str(item.path), "", item.reason) for item in bad]
     installed = {kind: {name: info.version for name, info in registry.discover(kind).items()
-                        if info.ok} for kind in ("system", "model")}
+                        if info.ok} for kind, _ in VERSION_FIELDS}
     for rec in recs:
         where = str(rec.get("path", "?"))
         system, model = str(rec.get("system")), str(rec.get("model"))
-        env = rec.get("environment") or {}
-        missing = [k for k, v in (("environment.hnnbench", env.get("hnnbench")),
-                                  ("environment.python", env.get("python")),
-                                  ("environment.platform", env.get("platform")),
-                                  ("created_at", rec.get("created_at"))) if not v]
+        missing = [name for name in PROVENANCE_FIELDS if not _field(rec, name)]
         if missing:
             out.append(Finding("provenance", "-", system, model, where,
                                f"missing {', '.join(missing)}"))
-        for kind, name, key in (("system", system, "system_version"),
-                                ("model", model, "model_version")):
-            have = installed[kind].get(name)
+        for kind, key in VERSION_FIELDS:
+            have = installed[kind].get(str(rec.get(kind)))
             if have is not None and rec.get(key) not in (None, have):
                 out.append(Finding("version", key, system, model, f"record {rec.get(key)}",
                                    f"installed {have}", "", "same plugin version"))
@@ -525,7 +536,7 @@ def main(args: Sequence[str]) -> int:
 
     ns = _parser().parse_args(list(args))
     dirs = [Path(d) for d in ns.dirs]
-    recs, bad = load_sweeps(dirs)
+    recs, bad = load_sweeps(dirs, strict=True, refuse=False)
     board = leaderboard(recs)
     rules = load_rules(ns.rules)
     reference = Path(ns.reference)
