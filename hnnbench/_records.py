@@ -282,14 +282,15 @@ def _validator() -> Any:
 
 
 def _schema_problems(data: Any) -> list[str]:
-    """The JSON Schema violations of encoded record data, one line each naming where."""
+    """The JSON Schema violations of encoded record data, one line each naming the
+    field (``a.b: ...``; a missing field: ``'a' is a required property``)."""
     validator = _validator()
     if validator.is_valid(data):
         return []
     out = []
     for err in sorted(validator.iter_errors(data), key=lambda e: list(map(str, e.absolute_path))):
-        where = ".".join(str(p) for p in err.absolute_path) or "(record)"
-        out.append(f"{where}: {err.message}")
+        where = ".".join(str(p) for p in err.absolute_path)
+        out.append(f"{where}: {err.message}" if where else err.message)
     return out
 
 
