@@ -207,11 +207,6 @@ def _check_names() -> None:
 _check_names()
 
 
-def field(name: str) -> Field:
-    """The declaration of the field ``name`` (``KeyError`` if the record has none)."""
-    return _BY_NAME[name]
-
-
 def new_record(**values: Any) -> dict[str, Any]:
     """A job's new record: every field a job writes (:attr:`Field.written`), in
     :data:`FIELDS` order, with its :attr:`Field.initial` value unless given in
