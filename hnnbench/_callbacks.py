@@ -70,9 +70,9 @@ def print_summary(sweep_dir: Path) -> None:
     from hnnbench import _records as records
     from hnnbench._table import records_frame, summary_frame, summary_metrics
 
-    recs, bad = records.scan_records(sweep_dir)
+    recs, bad = records.load(sweep_dir)
     for item in bad:
-        log.warning("unreadable record left out: %s", item)
+        log.warning("record left out: %s", item)
     frames = records_frame(recs)
     frame = summary_frame(frames)  # every metric, for summary.csv
     if frame.empty:

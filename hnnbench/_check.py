@@ -7,7 +7,7 @@ The records of the directories are validated, then their leaderboard
 empty where the runs vary in nothing but seeds; :func:`hnnbench._table.variant_labels`):
 
 - records: every ``result.json`` must be readable and valid against the record schema
-  (:func:`hnnbench._records.validate`), carry provenance (hnnbench version, date,
+  (a strict :func:`hnnbench._records.load`), carry provenance (hnnbench version, date,
   platform) and, where the plugin is installed, its current version and package
   (a missing version is a mismatch); a metric or timing key named like a table column
   is refused (:func:`hnnbench._provenance.reserved_key_problem`);
@@ -56,7 +56,13 @@ from hnnbench import _records as R
 from hnnbench import _registry as registry
 from hnnbench._errors import HnnbenchError
 from hnnbench._metric import CheckRule
-from hnnbench._table import TIMINGS, leaderboard, variant_labels
+from hnnbench._record_schema import (
+    BOARD_KEY,
+    PROVENANCE_FIELDS,
+    STATUSES,
+    TIMINGS,
+)
+from hnnbench._table import leaderboard, variant_labels
 
 __all__ = [
     "REQUIRED_COLUMNS",
@@ -69,10 +75,12 @@ __all__ = [
     "read_reference",
 ]
 
-KEY = ("profile", "system", "model")
+KEY = BOARD_KEY
 #: Wall times depend on the machine: shown, never gating.
 TIMING_RULE = CheckRule(factor=3.0, floor=1.0, gate=False, better="lower")
-REQUIRED_COLUMNS = (*KEY, "n_seeds", "n_ok", "n_diverged", "n_failed", "n_skipped")
+#: Status counts a reference must have (``n_timeout``, new in 0.3, reads 0 where absent).
+COUNT_COLUMNS = ("n_seeds", *(f"n_{s}" for s in STATUSES if s != "timeout"))
+REQUIRED_COLUMNS = (*KEY, *COUNT_COLUMNS)
 RULE_KEYS = {"better", "factor", "floor", "gate"}
 
 
@@ -201,8 +209,7 @@ def read_reference(path: Path | str) -> pd.DataFrame:
     if path.is_dir():
         raise CheckError(f"Reference {path} is a directory; expected a leaderboard CSV file")
     try:
-        frame = pd.read_csv(path, dtype={"profile": str, "system": str, "model": str,
-                                         "seeds": str})
+        frame = pd.read_csv(path, dtype={**dict.fromkeys(KEY, str), "seeds": str})
     except pd.errors.EmptyDataError:
         raise CheckError(f"Reference {path} is empty; expected a leaderboard.csv") from None
     except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as err:
@@ -216,7 +223,7 @@ def read_reference(path: Path | str) -> pd.DataFrame:
     if not any(c.endswith("_mean") for c in frame.columns):
         raise CheckError(f"Reference {path} has no metric columns (<metric>_mean); expected "
                          "a leaderboard.csv")
-    for col in ("n_seeds", "n_ok", "n_diverged", "n_failed", "n_skipped"):
+    for col in COUNT_COLUMNS:
         values = pd.to_numeric(frame[col], errors="coerce")
         if values.isna().any():
             raise CheckError(f"Reference {path}: column {col} must hold integers")
@@ -265,7 +272,7 @@ def _ok_share(row: Any) -> float:
 
 
 def _status_text(row: Any) -> str:
-    parts = [f"{int(row[f'n_{s}'])} {s}" for s in R.STATUSES if int(row.get(f"n_{s}", 0))]
+    parts = [f"{int(row[f'n_{s}'])} {s}" for s in STATUSES if int(row.get(f"n_{s}", 0))]
     return ", ".join(parts) or "no runs"
 
 
@@ -460,9 +467,18 @@ def variant_findings(recs: Sequence[dict[str, Any]], variants: Sequence[P.Varian
     return bad, info
 
 
+def _field(rec: dict[str, Any], name: str) -> Any:
+    """The value of ``name`` in ``rec`` (``a.b``: key ``b`` of field ``a``), or ``None``."""
+    value: Any = rec
+    for part in name.split("."):
+        value = value.get(part) if isinstance(value, dict) else None
+    return value
+
+
 def validate_records(recs: Sequence[dict[str, Any]], bad: Sequence[R.Unreadable]
                      ) -> list[Finding]:
-    """Findings about the records themselves: unreadable files, schema violations,
+    """Findings about the records themselves: unreadable files, schema violations (the
+    records of a strict :func:`hnnbench._records.load`, and the files it left out),
     missing provenance, plugin versions or packages that differ from the installed ones
     (:func:`hnnbench._provenance.plugin_problems`; a missing version is a mismatch).
     The gating ones; :func:`plugin_information` has the others."""
@@ -471,11 +487,7 @@ def validate_records(recs: Sequence[dict[str, Any]], bad: Sequence[R.Unreadable]
     for rec in recs:
         where = str(rec.get("path", "?"))
         system, model = str(rec.get("system")), str(rec.get("model"))
-        env = rec.get("environment") or {}
-        missing = [k for k, v in (("environment.hnnbench", env.get("hnnbench")),
-                                  ("environment.python", env.get("python")),
-                                  ("environment.platform", env.get("platform")),
-                                  ("created_at", rec.get("created_at"))) if not v]
+        missing = [name for name in PROVENANCE_FIELDS if not _field(rec, name)]
         if missing:
             out.append(Finding("provenance", "-", system, model, where,
                                f"missing {', '.join(missing)}"))
@@ -607,7 +619,7 @@ def main(args: Sequence[str]) -> int:
 
     ns = _parser().parse_args(list(args))
     dirs = [Path(d) for d in ns.dirs]
-    recs, bad = load_sweeps(dirs)
+    recs, bad = load_sweeps(dirs, strict=True, refuse=False)
     rules = load_rules(ns.rules)
     reference = Path(ns.reference)
     ref_board = None if ns.update else read_reference(reference)

@@ -50,6 +50,7 @@ from hnnbench._contract import (
 from hnnbench._errors import HnnbenchError, JobTimeout, RolloutDiverged, UnsupportedPair
 from hnnbench._evaluate import evaluate, failed_metrics
 from hnnbench._progress import TrainingProgress
+from hnnbench._record_schema import new_record
 
 log = logging.getLogger("hnnbench")
 
@@ -148,35 +149,27 @@ def plugin_provenance(kind: Literal["system", "model"], name: str) -> dict[str, 
 
 
 def _base_record(cfg: DictConfig, overrides: list[str] | None) -> dict[str, Any]:
+    """A new record of the job (:func:`hnnbench._record_schema.new_record`: every field
+    a job writes, in order; a field without a value here starts with its declared
+    initial value: status ``failed``, no metrics, ...)."""
     context = launch.current()
     command = context.command if context is not None else None
     job_overrides = [o for o in overrides or [] if not o.startswith(("hydra.", "hydra/"))]
-    return {
-        "schema_version": records.SCHEMA_VERSION,
-        "system": _select(cfg, "system.name"),
-        "system_version": None,
-        "model": _select(cfg, "model.name"),
-        "model_version": None,
-        "backend": None,
-        "seed": _select(cfg, "seed"),
-        "profile": _select(cfg, "profile.name"),
-        "status": "failed",
-        "error": None,
-        "metrics": {},
-        "timings": {},
-        "steps": 0,
-        "device": None,
-        "data": {},
-        "config": _config_container(cfg),
+    return new_record(
+        system=_select(cfg, "system.name"),
+        model=_select(cfg, "model.name"),
+        seed=_select(cfg, "seed"),
+        profile=_select(cfg, "profile.name"),
+        config=_config_container(cfg),
         # How to run exactly this job again (the resolved config above is the truth;
         # these are the command lines that produced it).
-        "overrides": list(overrides) if overrides is not None else None,
-        "command": command,
-        "rerun_command": shlex.join(["hnnbench", *job_overrides])
+        overrides=list(overrides) if overrides is not None else None,
+        command=command,
+        rerun_command=shlex.join(["hnnbench", *job_overrides])
         if overrides is not None else None,
-        "environment": records.environment(),
-        "created_at": records.now_iso(),
-    }
+        environment=records.environment(),
+        created_at=records.now_iso(),
+    )
 
 
 def _save_arrays(directory: Path, arrays: dict[str, np.ndarray], history: dict) -> None:

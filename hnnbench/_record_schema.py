@@ -1,38 +1,323 @@
-"""The run record's names, declared once: its identity fields, statuses, timings and
-the leaderboard columns built from them, and the rule a metric name must follow so that
-it never takes one of those names.
+"""The run record (``result.json``), defined once: its fields, and the names built from
+them.
+
+:data:`FIELDS` declares every field a record may hold: its JSON Schema, whether every
+record has it, the value a job's record starts with, and what it means. Everything
+else about the record takes its names from here:
+
+- the JSON Schema (:func:`json_schema`; the shipped ``hnnbench/resources/
+  record.schema.json`` is written from it by ``python scripts/record_schema.py --write``,
+  and tests/test_records_schema.py fails when the two disagree);
+- a new record (:func:`new_record`, which ``hnnbench._job`` builds every record from);
+- the quick check a loaded record must pass (:func:`shape_problems`; the full schema
+  check is ``hnnbench._records.validate``);
+- the columns of a records frame and a leaderboard (:data:`FRAME_COLUMNS`,
+  :data:`ID_COLUMNS`, ...), and the fields the gate reads (:data:`PROVENANCE_FIELDS`,
+  :data:`VERSION_FIELDS`);
+- the rule a metric name must follow so that it never takes one of those names
+  (:func:`metric_name_problem`).
 
 A contract (it imports nothing else of hnnbench): the registry checks metric names
-against it, the leaderboard and the gate take their column names from it.
+against it, the job, the loader, the leaderboard and the gate take their names from it.
 """
 
 from __future__ import annotations
 
+import copy
+import json
 import re
-from typing import Optional
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal, Optional
 
 __all__ = [
+    "BOARD_KEY",
+    "DERIVED_COLUMNS",
+    "FIELDS",
+    "FRAME_COLUMNS",
     "ID_COLUMNS",
+    "JOB_FIELDS",
+    "LOADER_FIELDS",
     "PROVENANCE_COLUMNS",
+    "PROVENANCE_FIELDS",
     "RESERVED",
+    "SCHEMA_VERSION",
+    "SCHEMA_VERSIONS",
+    "STATUSES",
     "STATUS_COLUMNS",
     "TIMINGS",
+    "VERSION_FIELDS",
+    "Field",
+    "json_schema",
     "metric_name_problem",
+    "new_record",
+    "shape_problems",
 ]
 
+#: The version of the records this hnnbench writes, and the versions it reads.
+SCHEMA_VERSION = 2
+SCHEMA_VERSIONS = (1, 2)
+#: A job's outcome.
+STATUSES = ("ok", "diverged", "failed", "skipped", "timeout")
+
+#: Whether a record has a field: every record of every schema version (the schema
+#: requires it), every record a job writes now (older ones may lack it), or only where
+#: it applies.
+REQUIRED, WRITTEN, OPTIONAL = "required", "written", "optional"
+_NONE = object()  # no initial value: the job supplies it
+
+#: A metric's mean or sem: a number; ``null`` where undefined (NaN); the string ``inf``
+#: or ``-inf`` where infinite (``pattern`` applies to strings only). Written inline, not
+#: as a ``$ref``: a training history holds thousands of them, and the check of a
+#: record on write and in strict loading stays a few milliseconds.
+VALUE: Mapping[str, Any] = {"type": ["number", "null", "string"], "pattern": "^-?inf$"}
+_STRING_OR_NULL: Mapping[str, Any] = {"type": ["string", "null"]}
+#: Where a plugin came from (``plugins.system``, ``plugins.model``).
+_PLUGIN: Mapping[str, Any] = {
+    "type": "object", "required": ["name", "version", "distribution", "distribution_version"],
+    "properties": {"name": {"type": "string"}, "version": _STRING_OR_NULL,
+                   "distribution": _STRING_OR_NULL, "distribution_version": _STRING_OR_NULL}}
+
+
+@dataclass(frozen=True)
+class Field:
+    """One field of a record."""
+
+    name: str
+    #: The JSON Schema of its value.
+    schema: Mapping[str, Any]
+    description: str
+    #: :data:`REQUIRED`, :data:`WRITTEN` or :data:`OPTIONAL`.
+    presence: str = OPTIONAL
+    #: The value a new record starts with (a :data:`REQUIRED` or :data:`WRITTEN` field
+    #: without one is given by the job: :func:`new_record`).
+    initial: Any = _NONE
+
+    @property
+    def written(self) -> bool:
+        """Whether every record a job writes now starts with it."""
+        return self.presence in (REQUIRED, WRITTEN)
+
+
+#: Every field of a record, in the order a job writes them (:func:`new_record`; the
+#: optional ones are added where they apply).
+FIELDS: tuple[Field, ...] = (
+    Field("schema_version", {"enum": list(SCHEMA_VERSIONS)},
+          "the version of this format", REQUIRED, SCHEMA_VERSION),
+    Field("system", {"type": "string", "minLength": 1}, "the system's registered name",
+          REQUIRED),
+    Field("system_version", _STRING_OR_NULL, "the system plugin's version", REQUIRED, None),
+    Field("model", {"type": "string", "minLength": 1}, "the model's registered name",
+          REQUIRED),
+    Field("model_version", _STRING_OR_NULL, "the model plugin's version", REQUIRED, None),
+    Field("backend", _STRING_OR_NULL, "the model's backend (torch, jax, numpy)", REQUIRED,
+          None),
+    Field("family", _STRING_OR_NULL, "the model family (e.g. hnn), grouping backends"),
+    Field("ranked", {"type": "boolean"},
+          "false for references such as the oracle: shown, never ranked"),
+    Field("plugins", {"type": "object", "required": ["system", "model"],
+                      "properties": {"system": _PLUGIN, "model": _PLUGIN}},
+          "the packages that provided the system and the model: each plugin's name, its "
+          "version, its distribution and the distribution's version (absent in records "
+          "before 0.3)"),
+    Field("seed", {"type": "integer", "minimum": 0},
+          "the seed of data, evaluation and initial weights", REQUIRED),
+    Field("profile", {"type": "string"}, "the profile (quick, paper)", REQUIRED),
+    Field("status", {"enum": list(STATUSES)}, "the job's outcome", REQUIRED, "failed"),
+    Field("error", _STRING_OR_NULL, "why the job is not ok", REQUIRED, None),
+    Field("metrics", {"type": "object", "additionalProperties": {
+              "type": "object", "required": ["mean", "sem"],
+              "properties": {"mean": VALUE, "sem": VALUE}}},
+          "{name: {mean, sem}} for every registered metric", REQUIRED, {}),
+    Field("timings", {"type": "object", "additionalProperties": {"type": "number"}},
+          "wall and CPU seconds of the job's parts", REQUIRED, {}),
+    Field("steps", {"type": "integer", "minimum": 0}, "optimizer steps taken", REQUIRED, 0),
+    Field("device", _STRING_OR_NULL, "the device used", WRITTEN, None),
+    Field("cpu_pin", {"type": ["integer", "null"]},
+          "the CPU the job's process was pinned to"),
+    Field("train", {"type": ["object", "null"]},
+          "the training protocol (null for a model without a training loop)"),
+    Field("data", {"type": "object"},
+          "cache hit, SHA-256 of the dataset and evaluation files, sizes, generator "
+          "metadata", WRITTEN, {}),
+    Field("history", {"type": "object", "additionalProperties": {
+              "type": "array", "items": VALUE}},
+          "the training log: step, train_loss, test_loss"),
+    Field("config", {"type": "object"}, "the fully resolved job config", REQUIRED),
+    Field("overrides", {"type": ["array", "null"], "items": {"type": "string"}},
+          "Hydra's overrides", WRITTEN),
+    Field("command", _STRING_OR_NULL, "the command line as typed", WRITTEN),
+    Field("rerun_command", _STRING_OR_NULL, "a single-run command that reproduces the job",
+          WRITTEN),
+    Field("environment", {
+              "type": "object",
+              "required": ["hnnbench", "python", "platform", "git_commit"],
+              "properties": {"hnnbench": _STRING_OR_NULL, "git_commit": _STRING_OR_NULL}},
+          "versions, platform, machine, host, git commit", REQUIRED),
+    Field("created_at", {"type": "string", "format": "date-time"}, "UTC timestamp",
+          REQUIRED),
+    Field("weights_file", _STRING_OR_NULL,
+          "the weights file the model wrote next to the record"),
+    Field("metric_errors", {"type": "object", "additionalProperties": {"type": "string"}},
+          "metrics whose computation raised, and the message"),
+    Field("seed_batch", {"type": "array", "items": {"type": "integer"}},
+          "the seeds trained together with this one"),
+    Field("traceback", {"type": "string"}, "for a failed job whose error was not a user error"),
+)
+_BY_NAME = {f.name: f for f in FIELDS}
+
+#: Fields the loader adds to each record it returns (never written): the record's
+#: directory, and the directory it was found under.
+LOADER_FIELDS = ("path", "source")
+
+#: The fields that say which job a record is of (with the variant, from its overrides:
+#: ``hnnbench._table.variant_labels``); no override of them defines a variant.
+JOB_FIELDS = ("system", "model", "seed", "profile")
 #: Timings averaged into the leaderboard (``<name>_mean``).
 TIMINGS = ("fit_s", "eval_s", "total_s")
 #: Identity and status columns of a leaderboard, in order.
 ID_COLUMNS = ("profile", "system", "model", "backend", "family", "ranked")
-STATUS_COLUMNS = ("n_seeds", "seeds", "n_ok", "n_diverged", "n_failed", "n_skipped",
-                  "n_timeout", "status")
+STATUS_COLUMNS = ("n_seeds", "seeds", *(f"n_{s}" for s in STATUSES), "status")
+#: What a leaderboard row is of (and its ``variant``, where runs differ in settings).
+BOARD_KEY = ("profile", "system", "model")
 #: Provenance columns of a leaderboard: distinct values over the pair's records.
 PROVENANCE_COLUMNS = ("git_commits", "machines", "dates")
+#: Columns of a records frame made from a record rather than copied from its field of
+#: that name.
+DERIVED_COLUMNS = {
+    "variant": "the settings this run differs in from the others (from overrides)",
+    "git_commit": "environment.git_commit",
+    "machine": "environment.host, else environment.platform",
+}
+#: The columns of a records frame that are not metrics or timings, in order: record
+#: fields, loader fields and :data:`DERIVED_COLUMNS`.
+FRAME_COLUMNS = ("system", "model", "variant", "backend", "family", "ranked", "seed",
+                 "profile", "status", "error", "steps", "device", *LOADER_FIELDS,
+                 "git_commit", "machine", "created_at")
 #: Columns of a records frame that are not metrics.
-RESERVED = frozenset({"system", "model", "variant", "backend", "family", "ranked", "seed",
-                      "profile",
-                      "status", "error", "steps", "device", "path", "source", "git_commit",
-                      "machine", "created_at"})
+RESERVED = frozenset(FRAME_COLUMNS)
+#: Provenance a submitted record must carry (``a.b``: key ``b`` of field ``a``).
+PROVENANCE_FIELDS = ("environment.hnnbench", "environment.python", "environment.platform",
+                     "created_at")
+#: The field holding the plugin version of a record's system and of its model.
+VERSION_FIELDS: tuple[tuple[Literal["system", "model"], str], ...] = (
+    ("system", "system_version"), ("model", "model_version"))
+
+
+def _check_names() -> None:
+    unknown = [n for n in (*JOB_FIELDS, *FRAME_COLUMNS, *ID_COLUMNS, *BOARD_KEY,
+                           *(p.split(".")[0] for p in PROVENANCE_FIELDS),
+                           *(n for pair in VERSION_FIELDS for n in pair))
+               if n not in _BY_NAME and n not in LOADER_FIELDS and n not in DERIVED_COLUMNS]
+    if unknown or set(LOADER_FIELDS) & set(_BY_NAME):
+        raise AssertionError(f"record names not declared in FIELDS: {unknown}")
+
+
+_check_names()
+
+
+def new_record(**values: Any) -> dict[str, Any]:
+    """A job's new record: every field a job writes (:attr:`Field.written`), in
+    :data:`FIELDS` order, with its :attr:`Field.initial` value unless given in
+    ``values``. Raises ``TypeError`` for a value of a field the record does not start
+    with, or a field without an initial value that is not given."""
+    extra = sorted(set(values) - {f.name for f in FIELDS if f.written})
+    if extra:
+        raise TypeError(f"new_record(): {', '.join(extra)} is not a field a new record "
+                        "starts with")
+    out: dict[str, Any] = {}
+    for f in FIELDS:
+        if not f.written:
+            continue
+        if f.name in values:
+            out[f.name] = values[f.name]
+        elif f.initial is not _NONE:
+            out[f.name] = copy.deepcopy(f.initial)
+        else:
+            raise TypeError(f"new_record(): no value for {f.name}")
+    return out
+
+
+def json_schema() -> dict[str, Any]:
+    """The record's JSON Schema (draft 2020-12), from :data:`FIELDS`."""
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "$id": "https://github.com/hnnbench/hnnbench/record.schema.json",
+        "title": "hnnbench run record (result.json)",
+        "description": (
+            "One job: a system, a model, a seed. Written by hnnbench._records.write_record "
+            "from the definition in hnnbench/_record_schema.py (this file is generated "
+            "from it); strict JSON: a non-finite metric value is the string \"inf\" or "
+            "\"-inf\", an undefined one null (docs/ARCHITECTURE.md)."),
+        "type": "object",
+        "required": [f.name for f in FIELDS if f.presence == REQUIRED],
+        "properties": {f.name: {**copy.deepcopy(dict(f.schema)), "description": f.description}
+                       for f in FIELDS},
+    }
+
+
+#: The shipped JSON Schema, written from :func:`json_schema` by
+#: ``python scripts/record_schema.py --write``.
+SCHEMA_FILE = Path(__file__).resolve().parent / "resources" / "record.schema.json"
+
+
+def schema_text() -> str:
+    """The text of :data:`SCHEMA_FILE`: :func:`json_schema` as indented JSON."""
+    return json.dumps(json_schema(), indent=2) + "\n"
+
+
+# --------------------------------------------------------------------------- quick check
+
+_TYPES: dict[str, Any] = {
+    "object": dict, "array": list, "string": str, "boolean": bool, "null": type(None),
+}
+
+
+def _is(value: Any, kind: str) -> bool:
+    if kind == "integer":
+        return isinstance(value, int) and not isinstance(value, bool)
+    if kind == "number":
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    return isinstance(value, _TYPES[kind])
+
+
+def _value_problem(where: str, value: Any, schema: Mapping[str, Any]) -> Optional[str]:
+    kinds = schema.get("type")
+    if kinds is not None:
+        kinds = [kinds] if isinstance(kinds, str) else list(kinds)
+        if not any(_is(value, k) for k in kinds):
+            return f"{where}: {value!r} is not of type {', '.join(map(repr, kinds))}"
+    if "enum" in schema and value not in schema["enum"]:
+        return f"{where}: {value!r} is not one of {list(schema['enum'])!r}"
+    return None
+
+
+def shape_problems(record: Mapping[str, Any]) -> list[str]:
+    """What makes ``record`` (decoded JSON) unusable as a record, one line each naming
+    the field (empty: usable): a missing required field, or a declared field of the
+    wrong JSON type or outside its ``enum``, checked one level deep (so each metric is
+    an object, each timing a number). A quick check, for every record loaded; the full
+    JSON Schema is checked on write and by strict loading (``hnnbench._records``)."""
+    out = [f"'{f.name}' is a required property" for f in FIELDS
+           if f.presence == REQUIRED and f.name not in record]
+    for f in FIELDS:
+        if f.name not in record:
+            continue
+        value = record[f.name]
+        problem = _value_problem(f.name, value, f.schema)
+        if problem is None and isinstance(value, dict):
+            inner = f.schema.get("additionalProperties")
+            if isinstance(inner, Mapping):
+                problem = next((p for key, item in value.items()
+                                if (p := _value_problem(f"{f.name}.{key}", item, inner))),
+                               None)
+        if problem is not None:
+            out.append(problem)
+    return out
+
+
+# --------------------------------------------------------------------------- metric names
 
 
 def metric_name_problem(name: str) -> Optional[str]:

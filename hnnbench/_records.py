@@ -1,10 +1,11 @@
-"""Run records: one ``result.json`` per job, written atomically; loading sweeps.
+"""Run records: one ``result.json`` per job, written atomically and checked against
+the record's JSON Schema; the one loader of records, :func:`load`.
 
-The record is strict JSON (any parser reads it), described by the JSON Schema
-``hnnbench/resources/record.schema.json`` (:func:`schema`, :func:`validate`;
-docs/ARCHITECTURE.md lists the fields). Non-finite numbers are encoded: ``inf`` and
-``-inf`` as the strings ``"inf"`` / ``"-inf"``, NaN ("not applicable", "undefined") as
-``null``. :func:`read_record` decodes them back to floats in ``metrics`` and
+The record is defined in :mod:`hnnbench._record_schema` (its fields; the JSON Schema
+:func:`schema` and the shipped ``hnnbench/resources/record.schema.json`` are made from
+that). It is strict JSON (any parser reads it). Non-finite numbers are encoded: ``inf``
+and ``-inf`` as the strings ``"inf"`` / ``"-inf"``, NaN ("not applicable", "undefined")
+as ``null``. :func:`read_record` decodes them back to floats in ``metrics`` and
 ``history``. Records of schema version 1 (bare ``NaN`` / ``Infinity``) are still read.
 """
 
@@ -19,21 +20,27 @@ import platform
 import subprocess
 import sys
 import uuid
-from collections.abc import Iterable, Iterator
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-SCHEMA_VERSION = 2
+from hnnbench._errors import HnnbenchError
+from hnnbench._record_schema import (
+    LOADER_FIELDS,
+    SCHEMA_VERSION,
+    STATUSES,
+    json_schema,
+    shape_problems,
+)
+
 RECORD_NAME = "result.json"
 #: A job's arrays (rollouts, true states, training history) beside its record.
 ROLLOUT_NAME = "rollout.npz"
-SCHEMA_FILE = "record.schema.json"
 #: Statuses of a job that is done and is not redone on resume.
 FINISHED = ("ok", "diverged", "skipped")
-STATUSES = ("ok", "diverged", "failed", "skipped", "timeout")
 #: Top-level config keys that say where and how a job runs, not what it computes: a
 #: finished record is reused on resume whatever they are, they define no leaderboard
 #: variant, and they are left out of a sweep job's directory name (conf/config.yaml's
@@ -50,19 +57,27 @@ __all__ = [
     "ROLLOUT_NAME",
     "SCHEMA_VERSION",
     "STATUSES",
+    "InvalidRecord",
+    "Loaded",
     "Unreadable",
     "atomic_path",
     "atomic_write_text",
     "decode",
     "encode",
     "environment",
+    "load",
     "load_records",
     "read_record",
     "scan_records",
     "schema",
+    "strict_problems",
     "validate",
     "write_record",
 ]
+
+
+class InvalidRecord(HnnbenchError):
+    """A record that does not conform to the record's JSON Schema was not written."""
 
 
 @contextlib.contextmanager
@@ -151,28 +166,44 @@ def decode(record: dict[str, Any]) -> dict[str, Any]:
 
 
 def write_record(directory: Path, record: dict[str, Any]) -> Path:
-    """Write ``record`` as strict JSON to ``directory/result.json``, atomically."""
+    """Write ``record`` as strict JSON to ``directory/result.json``, atomically, after
+    checking it against the record's JSON Schema: a record that does not conform is not
+    written (:class:`InvalidRecord`, naming the field)."""
     path = Path(directory) / RECORD_NAME
-    text = json.dumps(encode(record), indent=2, allow_nan=False)
+    data = encode({k: v for k, v in record.items() if k not in LOADER_FIELDS})
+    problems = _schema_problems(data)
+    if problems:
+        raise InvalidRecord(f"refusing to write {path}: invalid record: {problems[0]}")
+    text = json.dumps(data, indent=2, allow_nan=False)
     atomic_write_text(path, text + "\n")
     return path
 
 
-def read_record(path: Path) -> dict[str, Any] | None:
-    """The record at ``path`` (decoded), or ``None`` if missing or unreadable."""
+def _parse(path: Path) -> dict[str, Any] | str:
+    """The JSON object at ``path``, or why there is none (one line)."""
     try:
         with open(path, encoding="utf-8") as fh:
-            record = json.load(fh)
-    except (OSError, ValueError):
-        return None
-    if not (isinstance(record, dict) and "status" in record):
+            data = json.load(fh)
+    except OSError as err:
+        return f"cannot read it ({err.strerror})"
+    except ValueError as err:
+        return f"not valid JSON ({err})"
+    return data if isinstance(data, dict) else "not a JSON object"
+
+
+def read_record(path: Path) -> dict[str, Any] | None:
+    """The record at ``path`` (decoded), or ``None`` if missing or unreadable (a job
+    reads its own earlier record with it, on resume). Not checked: :func:`load` is
+    what reads records for their results."""
+    record = _parse(path)
+    if isinstance(record, str) or "status" not in record:
         return None
     return decode(record)
 
 
 @dataclass(frozen=True)
 class Unreadable:
-    """A ``result.json`` that could not be read, and why."""
+    """A ``result.json`` that could not be read, or is not a valid record, and why."""
 
     path: Path
     reason: str
@@ -181,63 +212,105 @@ class Unreadable:
         return f"{self.path}: {self.reason}"
 
 
-def _why_unreadable(path: Path) -> str:
-    try:
-        with open(path, encoding="utf-8") as fh:
-            record = json.load(fh)
-    except OSError as err:
-        return f"cannot read it ({err.strerror})"
-    except ValueError as err:
-        return f"not valid JSON ({err})"
-    return "not a run record (no 'status' field)" if isinstance(record, dict) else \
-        "not a JSON object"
+@dataclass(frozen=True)
+class Loaded:
+    """What :func:`load` found: the records, and the files left out (each with its
+    one-line reason). Unpacks as ``records, problems = load(...)``."""
+
+    records: list[dict[str, Any]] = field(default_factory=list)
+    problems: list[Unreadable] = field(default_factory=list)
+
+    def __iter__(self) -> Iterator[Any]:
+        return iter((self.records, self.problems))
 
 
-def scan_records(*directories: Path | str) -> tuple[list[dict[str, Any]], list[Unreadable]]:
-    """Every record below each directory (each with ``"path"`` set, and ``"source"``:
-    the directory it was found under), and the files that could not be read."""
-    out: list[dict[str, Any]] = []
-    bad: list[Unreadable] = []
+def load(*directories: Path | str, strict: bool = False) -> Loaded:
+    """The records below the directories (every ``result.json``; several directories
+    merge), each with ``"path"`` (its directory) and ``"source"`` (the directory it was
+    found under) added, and the files left out, with why.
+
+    A file is left out when it cannot be read, is not a JSON object, or is not usable
+    as a record (:func:`hnnbench._record_schema.shape_problems`: a required field
+    missing, a field of the wrong type); ``strict`` also leaves out every record that
+    does not pass :func:`strict_problems` (the JSON Schema in full: what ``hnnbench
+    check`` and publishing need). A directory that does not exist holds no records.
+    """
+    out = Loaded()
     for directory in directories:
         for path in sorted(Path(directory).rglob(RECORD_NAME)):
             if path.name.startswith("."):
                 continue
-            record = read_record(path)
-            if record is None:
-                bad.append(Unreadable(path, _why_unreadable(path)))
+            record = _parse(path)
+            if isinstance(record, str):
+                out.problems.append(Unreadable(path, record))
+                continue
+            problems = shape_problems(record)
+            if not problems:
+                record = decode(record)
+                problems = strict_problems(record) if strict else []
+            if problems:
+                out.problems.append(Unreadable(path, f"invalid record: {problems[0]}"))
                 continue
             record["path"] = str(path.parent)
             record["source"] = str(directory)
-            out.append(record)
-    return out, bad
+            out.records.append(record)
+    return out
+
+
+def scan_records(*directories: Path | str) -> tuple[list[dict[str, Any]], list[Unreadable]]:
+    """``(records, problems)`` of :func:`load` (not strict)."""
+    loaded = load(*directories)
+    return loaded.records, loaded.problems
 
 
 def load_records(*directories: Path | str) -> list[dict[str, Any]]:
-    """All readable records below the directories (see :func:`scan_records`)."""
-    return scan_records(*directories)[0]
+    """The records of :func:`load` (not strict)."""
+    return load(*directories).records
+
+
+def schema() -> dict[str, Any]:
+    """The record's JSON Schema (:func:`hnnbench._record_schema.json_schema`; shipped
+    as ``hnnbench/resources/record.schema.json``)."""
+    return dict(_validator().schema)
 
 
 @lru_cache(maxsize=1)
-def schema() -> dict[str, Any]:
-    """The record's JSON Schema (``hnnbench/resources/record.schema.json``)."""
-    from importlib import resources
+def _validator() -> Any:
+    import jsonschema
 
-    text = resources.files("hnnbench").joinpath("resources", SCHEMA_FILE).read_text("utf-8")
-    return dict(json.loads(text))
+    return jsonschema.Draft202012Validator(json_schema())
+
+
+def _schema_problems(data: Any) -> list[str]:
+    """The JSON Schema violations of encoded record data, one line each naming the
+    field (``a.b: ...``; a missing field: ``'a' is a required property``)."""
+    validator = _validator()
+    if validator.is_valid(data):
+        return []
+    out = []
+    for err in sorted(validator.iter_errors(data), key=lambda e: list(map(str, e.absolute_path))):
+        where = ".".join(str(p) for p in err.absolute_path)
+        out.append(f"{where}: {err.message}" if where else err.message)
+    return out
 
 
 def validate(record: dict[str, Any]) -> list[str]:
     """Schema violations of ``record`` (one line each; empty: valid). Fields the loader
     adds (``path``, ``source``) are ignored."""
-    import jsonschema
+    return _schema_problems(encode({k: v for k, v in record.items()
+                                    if k not in LOADER_FIELDS}))
 
-    data = encode({k: v for k, v in record.items() if k not in ("path", "source")})
-    validator = jsonschema.Draft202012Validator(schema())
-    out = []
-    for err in sorted(validator.iter_errors(data), key=lambda e: list(e.absolute_path)):
-        where = ".".join(str(p) for p in err.absolute_path) or "(record)"
-        out.append(f"{where}: {err.message}")
-    return out
+
+#: The checks of a strict load, in order (each: a decoded record -> its problems, one
+#: line each). Further checks of submitted records (bounds on sizes, the domains of metric
+#: values) go here.
+STRICT_CHECKS: tuple[Callable[[dict[str, Any]], list[str]], ...] = (validate,)
+
+
+def strict_problems(record: dict[str, Any]) -> list[str]:
+    """What a strict :func:`load` finds wrong with ``record`` (one line each; empty:
+    none): every check of :data:`STRICT_CHECKS`."""
+    return [problem for check in STRICT_CHECKS for problem in check(record)]
 
 
 def _version(dist: str) -> str | None:

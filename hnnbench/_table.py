@@ -20,13 +20,17 @@ from hnnbench._errors import HnnbenchError
 from hnnbench._metric import Metric
 from hnnbench._provenance import reserved_key_problem
 from hnnbench._record_schema import (
+    BOARD_KEY,
+    FRAME_COLUMNS,
     ID_COLUMNS,
+    JOB_FIELDS,
     PROVENANCE_COLUMNS,
     RESERVED,
     STATUS_COLUMNS,
+    STATUSES,
     TIMINGS,
 )
-from hnnbench._records import RUN_ONLY_KEYS, STATUSES
+from hnnbench._records import RUN_ONLY_KEYS
 
 __all__ = [
     "display_frame",
@@ -51,7 +55,7 @@ def metric_declarations() -> dict[str, Metric]:
 
 #: Override keys that do not define a variant: the identity columns, and settings that
 #: say where and how a job runs rather than what it computes.
-NON_VARIANT_KEYS = frozenset({"system", "model", "seed", "profile"}) | RUN_ONLY_KEYS
+NON_VARIANT_KEYS = frozenset(JOB_FIELDS) | RUN_ONLY_KEYS
 
 
 def _variant_items(overrides: Iterable[str] | None) -> dict[str, str]:
@@ -102,7 +106,8 @@ def _has_variants(frame: pd.DataFrame) -> bool:
 
 def records_frame(records: Iterable[dict[str, Any]],
                   variants: Sequence[str] | None = None) -> pd.DataFrame:
-    """One row per record: identity columns (``variant``: ``variants``, one per record,
+    """One row per record: the identity and status columns of
+    :data:`hnnbench._record_schema.FRAME_COLUMNS` (``variant``: ``variants``, one per record,
     e.g. derived from the records' configs by ``hnnbench check``; default: from their
     overrides, :func:`variant_labels`), ``<metric>`` means, ``<metric>_sem`` and
     ``<timing>`` columns.
@@ -121,25 +126,14 @@ def records_frame(records: Iterable[dict[str, Any]],
             where = f"{rec['path']}/result.json" if rec.get("path") else "a record"
             raise HnnbenchError(f"{where}: {problem}; the record is refused")
         env = rec.get("environment") or {}
-        row: dict[str, Any] = {
-            "system": rec.get("system"),
-            "model": rec.get("model"),
+        derived = {
             "variant": variant,
-            "backend": rec.get("backend"),
-            "family": rec.get("family"),
             "ranked": _ranked(rec),
-            "seed": rec.get("seed"),
-            "profile": rec.get("profile"),
-            "status": rec.get("status"),
-            "error": rec.get("error"),
-            "steps": rec.get("steps"),
-            "device": rec.get("device"),
-            "path": rec.get("path"),
-            "source": rec.get("source"),
             "git_commit": env.get("git_commit"),
             "machine": env.get("host") or env.get("platform"),
-            "created_at": rec.get("created_at"),
         }
+        row: dict[str, Any] = {name: derived[name] if name in derived else rec.get(name)
+                               for name in FRAME_COLUMNS}
         for name, value in (rec.get("metrics") or {}).items():
             row[name] = value.get("mean")
             row[f"{name}_sem"] = value.get("sem")
@@ -271,7 +265,7 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
     frame["variant"] = frame["variant"].fillna("") if "variant" in frame else ""
     rows = []
     for (profile, system, model, variant), group in frame.groupby(
-            ["profile", "system", "model", "variant"], dropna=False, sort=False):
+            [*BOARD_KEY, "variant"], dropna=False, sort=False):
         _refuse_repeated_seeds(group)
         counts = {s: int((group["status"] == s).sum()) for s in STATUSES}
         seeds = sorted({int(s) for s in group["seed"].dropna()})

@@ -139,18 +139,14 @@ def sweep(systems: Names, models: Names, seeds: Iterable[int] = (0,),
 def load(*dirs: Union[str, Path]) -> pd.DataFrame:
     """The records under the directories as a DataFrame: one row per record, with
     identity columns, ``<metric>`` means and ``<metric>_sem``, timings and provenance
-    (:func:`hnnbench._table.records_frame`). Unreadable files are named in a warning."""
-    from hnnbench._report.inputs import load_sweeps
+    (:func:`hnnbench._table.records_frame`). Unreadable or invalid files are named in
+    a warning."""
+    from hnnbench._report.inputs import load_sweep
     from hnnbench._table import records_frame
 
     if not dirs:
         raise TypeError("load() needs at least one directory")
-    import logging
-
-    recs, bad = load_sweeps([Path(d) for d in dirs])
-    for item in bad:
-        logging.getLogger("hnnbench").warning("record left out: %s", item)
-    return records_frame(recs)
+    return records_frame(load_sweep(*dirs))
 
 
 def leaderboard(frame: Union[pd.DataFrame, Iterable[dict[str, Any]]]) -> pd.DataFrame:

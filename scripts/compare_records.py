@@ -5,7 +5,8 @@
 Records are matched on (system, model, seed, variant overrides). For each pair every
 metric present in either record is compared: equal (bit for bit, or within ``--rtol``
 relative), different (with the relative difference), or missing on one side. Exit
-status 0 when every matched metric agrees and both sweeps hold the same jobs, else 1.
+status 0 when every matched metric agrees, both sweeps hold the same jobs and every
+record could be read, else 1.
 
 Used to show that a refactor leaves results unchanged (``--rtol 0``: identical), and
 that seeds trained as one batch agree with seeds trained alone.
@@ -14,7 +15,6 @@ that seeds trained as one batch agree with seeds trained alone.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
@@ -25,20 +25,23 @@ RUN_KEYS = {"system", "model", "seed", "profile", "rerun", "device", "threads", 
             "save_model", "cache_dir", "data_dir", "seeds_per_job"}
 
 
-def load(directory: Path) -> dict[tuple[Any, ...], dict[str, Any]]:
+def load(directory: Path) -> tuple[dict[tuple[Any, ...], dict[str, Any]], list[str]]:
+    """The records below ``directory`` by job (:func:`hnnbench._records.load`), and a
+    line for each file left out (unreadable or not a record)."""
+    from hnnbench import _records as R
+
+    loaded = R.load(directory)
     out = {}
-    for path in sorted(directory.rglob("result.json")):
-        rec = json.loads(path.read_text())
+    for rec in loaded.records:
         variant = tuple(sorted(
             o.lstrip("+") for o in rec.get("overrides") or []
             if o.lstrip("+~").split("=", 1)[0] not in RUN_KEYS and not o.startswith("hydra")))
         out[(rec["system"], rec["model"], rec["seed"], variant)] = rec
-    return out
+    return out, [str(item) for item in loaded.problems]
 
 
 def value(metric: Any) -> float:
-    """A metric's mean as a float (records may encode non-finite values as null or
-    strings)."""
+    """A metric's mean as a float (``None``: NaN)."""
     mean = metric.get("mean") if isinstance(metric, dict) else metric
     if mean is None:
         return math.nan
@@ -63,9 +66,12 @@ def main(argv: list[str] | None = None) -> int:
                         help="relative tolerance (default 0: identical)")
     parser.add_argument("--metrics", default="", help="comma-separated subset to compare")
     args = parser.parse_args(argv)
-    before, after = load(args.before), load(args.after)
+    (before, left_before), (after, left_after) = load(args.before), load(args.after)
     wanted = {m for m in args.metrics.split(",") if m}
     bad = 0
+    for item in left_before + left_after:
+        print(f"LEFT OUT {item}")
+        bad += 1
     n_values = 0
     for key in sorted(set(before) | set(after), key=str):
         tag = f"{key[0]} x {key[1]} seed={key[2]}" + (f" [{' '.join(key[3])}]" if key[3] else "")

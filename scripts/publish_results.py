@@ -57,17 +57,14 @@ def copy_records(sweeps: list[Path]) -> int:
     count = 0
     seen: dict[tuple[str, str, int], str] = {}
     for sweep in sweeps:
-        recs, bad = R.scan_records(sweep)
+        recs, bad = R.load(sweep, strict=True)
         if bad:
-            raise SystemExit(f"publish: {len(bad)} unreadable record(s) in {sweep}, e.g. "
-                             f"{bad[0]}")
+            raise SystemExit(f"publish: {len(bad)} unreadable or invalid record(s) in "
+                             f"{sweep}, e.g. {bad[0]}")
         for rec in recs:
             if rec.get("profile") != "paper":
                 raise SystemExit(f"publish: {rec['path']} is profile {rec.get('profile')}, "
                                  "not paper")
-            problems = R.validate(rec)
-            if problems:
-                raise SystemExit(f"publish: {rec['path']}: invalid record: {problems[0]}")
             # The published rows are the plugins' paper settings: the variant is derived
             # from the stored config against the paper defaults, not read from overrides.
             variant = config_variant(rec)

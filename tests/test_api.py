@@ -69,7 +69,7 @@ def test_load_and_leaderboard_read_records_back(tmp_path):
     assert len(frame) == 10 and {"system", "model", "seed", "energy_mse"} <= set(frame.columns)
     board = hnnbench.leaderboard(frame)
     assert len(board) == 5 and (board["n_seeds"] == 2).all()
-    assert board.equals(hnnbench.leaderboard(hnnbench._records.load_records(sweep)))
+    assert board.equals(hnnbench.leaderboard(hnnbench._records.load(sweep).records))
     with pytest.raises(hnnbench.HnnbenchError, match="does not exist"):
         hnnbench.load(tmp_path / "nope")
 

@@ -155,7 +155,7 @@ def test_a_training_set_size_sweep_draws_the_data_efficiency_figure(tmp_path):
                                    seed_metrics("spring", model, seed).items()})
     assert report.main([str(sweep)]) == 0
     assert (sweep / "figures" / "spring_sweep_system.n_traj.png").is_file()
-    recs = records.load_records(sweep)
+    recs = records.load(sweep).records
     figs = sweep_figures(leaderboard(recs), recs)
     (fig,) = figs.values()
     panels = [ax for ax in fig.axes if ax.get_ylabel()]

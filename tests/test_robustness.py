@@ -27,6 +27,7 @@ from hnnbench._cli import run as cli_run
 from hnnbench._config import prepare_job
 from hnnbench._errors import HnnbenchError
 from hnnbench._job import run_job
+from hnnbench._record_schema import new_record
 from hnnbench._sweep import plan
 
 QUICK = ["profile=quick", "system.steps=20"]
@@ -345,12 +346,12 @@ def test_torn_record_and_stale_temp_files(tmp_path):
     for path in stale:
         path.write_text("garbage")
     assert records.read_record(job / "result.json") is None
-    assert records.load_records(tmp_path) == []
+    assert records.load(tmp_path).records == []
     rec = run_job(compose([*QUICK, "model=oracle"]), job)
     assert rec["status"] == "ok"
     assert records.read_record(job / "result.json")["created_at"] == rec["created_at"]
     assert not [p for p in job.iterdir() if ".tmp" in p.name]
-    assert [r["status"] for r in records.load_records(tmp_path)] == ["ok"]
+    assert [r["status"] for r in records.load(tmp_path).records] == ["ok"]
 
 
 def test_atomic_write_keeps_old_file_on_failure(tmp_path):
@@ -364,8 +365,11 @@ def test_atomic_write_keeps_old_file_on_failure(tmp_path):
 
 
 def test_records_serialise_numpy_and_non_finite(tmp_path):
-    rec = {"status": "diverged", "metrics": {"a": {"mean": np.float32(0.5), "sem": math.nan},
-                                             "b": {"mean": math.inf}},
+    rec = {**new_record(system="spring", model="oracle", seed=0, profile="quick", config={},
+                        overrides=None, command=None, rerun_command=None,
+                        environment=records.environment(), created_at=records.now_iso()),
+           "status": "diverged", "metrics": {"a": {"mean": np.float32(0.5), "sem": math.nan},
+                                             "b": {"mean": math.inf, "sem": math.nan}},
            "n": np.int64(3), "arr": np.arange(2)}
     records.write_record(tmp_path, rec)
     back = records.read_record(tmp_path / "result.json")
@@ -553,7 +557,7 @@ def test_fuzz_cli_entry_prints_one_line_or_succeeds(args):
 
 
 def _sweep_records(root: Path) -> dict[str, dict]:
-    return {r["model"]: r for r in records.load_records(root)}
+    return {r["model"]: r for r in records.load(root).records}
 
 
 @pytest.mark.slow

@@ -9,7 +9,7 @@ from report_fixtures import write_run
 
 from hnnbench import _check as check
 from hnnbench import _report as report
-from hnnbench._records import load_records
+from hnnbench._records import load
 from hnnbench._report.figures import slug
 from hnnbench._report.published import ours_cell
 from hnnbench._table import leaderboard, records_frame, summary_frame, variant_labels
@@ -49,7 +49,7 @@ def hidden_sweep(tmp_path):
 
 
 def test_leaderboard_has_a_row_per_variant(hidden_sweep):
-    board = leaderboard(load_records(hidden_sweep))
+    board = leaderboard(load(hidden_sweep).records)
     assert list(board.columns[:4]) == ["profile", "system", "model", "variant"]
     rows = {(r.model, r.variant): r for r in board.itertuples()}
     assert set(rows) == {("mlp_torch", ""), ("hnn_torch", "model.hidden=100"),
@@ -58,7 +58,7 @@ def test_leaderboard_has_a_row_per_variant(hidden_sweep):
         assert rows[key].n_seeds == 2 and rows[key].seeds == "0;1"
     assert rows[("hnn_torch", "model.hidden=100")].energy_mse_mean == pytest.approx(1e-4)
     assert rows[("hnn_torch", "model.hidden=200")].energy_mse_mean == pytest.approx(2e-4)
-    summary = summary_frame(records_frame(load_records(hidden_sweep)))
+    summary = summary_frame(records_frame(load(hidden_sweep).records))
     assert "variant" in summary.columns and len(summary) == 6
     # leaderboard order (mlp before hnn), numeric variant order, then seeds
     assert [(r.model, r.variant, r.seed) for r in summary.itertuples()] == [
@@ -70,7 +70,7 @@ def test_leaderboard_has_a_row_per_variant(hidden_sweep):
 def test_numeric_variants_sort_by_value(tmp_path):
     for hidden in (1000, 200, 50):
         write_run(tmp_path, "spring", "hnn_torch", 0, overrides=(f"model.hidden={hidden}",))
-    board = leaderboard(load_records(tmp_path))
+    board = leaderboard(load(tmp_path).records)
     assert list(board["variant"]) == ["model.hidden=50", "model.hidden=200",
                                       "model.hidden=1000"]
 
@@ -78,9 +78,9 @@ def test_numeric_variants_sort_by_value(tmp_path):
 def test_a_sweep_without_variants_keeps_the_plain_schema(tmp_path):
     for seed in (0, 1):
         write_run(tmp_path, "spring", "hnn_torch", seed)
-    board = leaderboard(load_records(tmp_path))
+    board = leaderboard(load(tmp_path).records)
     assert "variant" not in board.columns
-    assert "variant" not in summary_frame(records_frame(load_records(tmp_path))).columns
+    assert "variant" not in summary_frame(records_frame(load(tmp_path).records)).columns
 
 
 def test_report_draws_each_variant_apart_and_claims_use_the_plain_runs(hidden_sweep):
@@ -98,7 +98,7 @@ def test_report_draws_each_variant_apart_and_claims_use_the_plain_runs(hidden_sw
 
 
 def test_check_matches_rows_by_variant(hidden_sweep, tmp_path):
-    reference = leaderboard(load_records(hidden_sweep))
+    reference = leaderboard(load(hidden_sweep).records)
     assert check.compare(reference, reference).ok
     worse = reference.copy()
     row = (worse["variant"] == "model.hidden=200").to_numpy()
@@ -116,7 +116,7 @@ def test_check_matches_rows_by_variant(hidden_sweep, tmp_path):
 
 
 def test_paper_comparison_shows_only_the_plain_runs(hidden_sweep):
-    board = leaderboard(load_records(hidden_sweep))
+    board = leaderboard(load(hidden_sweep).records)
     assert ours_cell(board, "quick", "spring", "hnn_torch", "energy_mse") == "—"
     assert ours_cell(board, "quick", "spring", "mlp_torch", "energy_mse") != "—"
 

@@ -48,7 +48,8 @@ class Report:
 def write_report(sweep_dir: Path | str | Sequence[Path | str], out: Path | str | None = None,
                  figures: bool = True, strict: bool = False) -> Report:
     """Build every table and figure of the sweep directories into ``out`` (default: the
-    sweep, when there is one); ``figures=False`` skips the figures; ``strict``: an
+    sweep, when there is one); ``figures=False`` skips the figures; ``strict``: every
+    record is checked in full (:func:`hnnbench._records.load`, strict), and an
     unreadable or invalid record is an error instead of a warning."""
     dirs = [Path(sweep_dir)] if isinstance(sweep_dir, (str, Path)) else [Path(d) for d in
                                                                         sweep_dir]

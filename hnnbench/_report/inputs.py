@@ -20,12 +20,14 @@ class ReportError(HnnbenchError):
     """Directories that cannot be reported on."""
 
 
-def load_sweeps(directories: Sequence[Path | str], *, strict: bool = False
+def load_sweeps(directories: Sequence[Path | str], *, strict: bool = False,
+                refuse: bool | None = None
                 ) -> tuple[list[dict[str, Any]], list[R.Unreadable]]:
     """The records under every directory (several sweeps merge into one leaderboard),
-    and the ``result.json`` files left out, unreadable or invalid against the record
-    schema (:func:`hnnbench._records.validate`; the caller names them), and ``strict``
-    makes any of them a :class:`ReportError`."""
+    and the ``result.json`` files left out, unreadable or invalid (the caller names
+    them): :func:`hnnbench._records.load`, ``strict`` or not. ``refuse`` (default:
+    ``strict``) makes any file left out a :class:`ReportError`, as does a directory
+    that does not exist or holds no record."""
     if not directories:
         raise ReportError("No sweep directory given: expected one or more directories "
                           "holding result.json records")
@@ -34,17 +36,8 @@ def load_sweeps(directories: Sequence[Path | str], *, strict: bool = False
             raise ReportError(f"Sweep directory {directory} does not exist")
         if not directory.is_dir():
             raise ReportError(f"{directory} is not a directory (expected a sweep directory)")
-    recs, bad = R.scan_records(*directories)
-    valid = []
-    for rec in recs:
-        problems = R.validate(rec)
-        if problems:
-            path = Path(str(rec.get("path", "?"))) / R.RECORD_NAME
-            bad.append(R.Unreadable(path, f"invalid record: {problems[0]}"))
-        else:
-            valid.append(rec)
-    recs = valid
-    if bad and strict:
+    recs, bad = R.load(*directories, strict=strict)
+    if bad and (strict if refuse is None else refuse):
         raise ReportError(f"{len(bad)} record(s) unreadable or invalid, e.g. {bad[0]}")
     if not recs:
         where = ", ".join(str(d) for d in directories)
@@ -60,8 +53,8 @@ def load_sweeps(directories: Sequence[Path | str], *, strict: bool = False
 
 
 def load_sweep(*directories: Path | str) -> list[dict[str, Any]]:
-    """The valid records under the directories (see :func:`load_sweeps`); a warning
-    names each file left out."""
+    """The records under the directories (see :func:`load_sweeps`); a warning names
+    each file left out. What :func:`hnnbench.load` and :func:`hnnbench.sweep` read."""
     recs, bad = load_sweeps(list(directories))
     for item in bad:
         log.warning("record left out: %s", item)
