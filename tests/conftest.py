@@ -99,3 +99,17 @@ def with_pair(argv: list[str] | tuple[str, ...]) -> list[str]:
     keys = {a.lstrip("+~").split("=", 1)[0] for a in argv if "=" in a}
     return [*(f"{k}={v}" for k, v in (("system", "spring"), ("model", "hnn_torch"))
               if k not in keys), *argv]
+
+
+def sweep_records(directory: Path) -> dict:
+    """A sweep's records by (system, model, seed), each with its ``path`` (the
+    ``result.json``); two records of one job fail."""
+    import json
+
+    out: dict = {}
+    for path in sorted(Path(directory).rglob("result.json")):
+        rec = json.loads(path.read_text())
+        key = (rec["system"], rec["model"], rec["seed"])
+        assert key not in out, f"two records for {key} under {directory}"
+        out[key] = {**rec, "path": path}
+    return out

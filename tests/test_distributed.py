@@ -11,7 +11,6 @@ not start fails the tests."""
 
 from __future__ import annotations
 
-import json
 import os
 import re
 import shutil
@@ -22,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import REPO, hnnbench
+from conftest import REPO, hnnbench, sweep_records
 
 pytestmark = [pytest.mark.distributed, pytest.mark.slow]
 
@@ -122,13 +121,7 @@ class Sweep:
 
     def records(self) -> dict[tuple[str, str, int], dict[str, Any]]:
         """By (system, model, seed), each with its ``path``; two records for a key fail."""
-        out: dict[tuple[str, str, int], dict[str, Any]] = {}
-        for path in sorted(self.dir.rglob("result.json")):
-            rec = json.loads(path.read_text())
-            key = (rec["system"], rec["model"], rec["seed"])
-            assert key not in out, f"two records for {key} under {self.dir}"
-            out[key] = {**rec, "path": path}
-        return out
+        return sweep_records(self.dir)
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,6 @@ caller's environment, and resume (slow)."""
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 import shlex
@@ -19,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import REPO, hnnbench
+from conftest import REPO, hnnbench, sweep_records
 
 pytestmark = pytest.mark.slow
 
@@ -69,13 +68,7 @@ class Sweep:
 
     def records(self) -> dict[tuple[str, str, int], dict[str, Any]]:
         """The records by (system, model, seed), each with its ``path``."""
-        out: dict[tuple[str, str, int], dict[str, Any]] = {}
-        for path in sorted(self.dir.rglob("result.json")):
-            rec = json.loads(path.read_text())
-            key = (rec["system"], rec["model"], rec["seed"])
-            assert key not in out, f"two records for {key} under {self.dir}"
-            out[key] = {**rec, "path": path}
-        return out
+        return sweep_records(self.dir)
 
 
 Sweeps = dict[str, tuple[Sweep, "subprocess.CompletedProcess[str]"]]
