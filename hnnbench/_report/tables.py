@@ -9,20 +9,24 @@ from typing import Optional, cast
 import pandas as pd
 
 from hnnbench._report.inputs import provenance_lines
+from hnnbench._report.markdown import md_cell, md_code
 from hnnbench._table import display_frame, metric_declarations
 
 __all__ = ["best_cells", "leaderboard_markdown", "md_table", "seed_line"]
 
 
 def md_table(frame: pd.DataFrame) -> str:
+    """``frame`` as a GitHub Markdown table, every header and cell escaped
+    (:func:`hnnbench._report.markdown.md_cell`): the one writer of Markdown tables."""
     from tabulate import tabulate
 
-    return tabulate(frame.to_dict(orient="list"), headers="keys", tablefmt="github",
-                    showindex=False, disable_numparse=True)
+    columns = {md_cell(c): [md_cell(v) for v in frame[c]] for c in frame.columns}
+    return tabulate(columns, headers="keys", tablefmt="github", showindex=False,
+                    disable_numparse=True)
 
 
 def seed_line(board: pd.DataFrame) -> str:
-    profiles = ", ".join(f"`{p}`" for p in dict.fromkeys(board["profile"].astype(str))) or "?"
+    profiles = ", ".join(md_code(p) for p in dict.fromkeys(board["profile"].astype(str))) or "?"
     seeds = sorted({s for v in board["seeds"].astype(str) for s in v.split(";") if s != ""},
                    key=lambda s: (len(s), s))
     n = board["n_seeds"].astype(int)
@@ -75,7 +79,7 @@ def leaderboard_markdown(board: pd.DataFrame, prov: Optional[dict[str, list[str]
         lines += [*provenance_lines(prov), ""]
     lines.append(md_table(_marked(board)))
     for figure in figures:
-        lines += ["", f"![{figure}](figures/{figure}.png)"]
+        lines += ["", f"![{md_cell(figure)}](figures/{md_cell(figure)}.png)"]
     lines += ["", "Machine-readable: `leaderboard.csv`. Built by `hnnbench report` from the "
               "run records; do not edit by hand.", ""]
     return "\n".join(lines)
