@@ -62,6 +62,7 @@ __all__ = [
     "VERSION_FIELDS",
     "Field",
     "created_at_problem",
+    "history_problems",
     "is_date_time",
     "json_schema",
     "metric_name_problem",
@@ -390,7 +391,9 @@ def shape_problems(record: Mapping[str, Any]) -> list[str]:
                     problem = _item_problem(f"{f.name}.{key}", item, inner)
                 if problem is not None:
                     break
-        elif problem is None and isinstance(value, list) and f.name != "history":
+        if problem is None and f.name == "history":
+            problem = next(iter(history_problems(value)), None)
+        elif problem is None and isinstance(value, list):
             inner = f.schema.get("items")
             if isinstance(inner, Mapping):
                 problem = next((p for i, item in enumerate(value)
@@ -398,6 +401,30 @@ def shape_problems(record: Mapping[str, Any]) -> list[str]:
         if problem is not None:
             out.append(problem)
     return out
+
+
+#: What a training history's values may be (the schema's ``history`` items; bare NaN
+#: and Infinity, as schema version 1 wrote them, are floats), checked by a loop: per-item
+#: JSON Schema validation of a long history took seconds.
+_HISTORY_TYPES = (int, float)
+_HISTORY_STRINGS = ("inf", "-inf")
+
+
+def history_problems(history: Any) -> list[str]:
+    """The first problem of a record's ``history`` (an object of arrays of numbers,
+    ``null``, ``"inf"`` or ``"-inf"``), one line naming the field; ``[]`` if none."""
+    if not isinstance(history, dict):
+        return [f"history: {_shown(history)} is not of type 'object'"]
+    for key, values in history.items():
+        if not isinstance(values, list):
+            return [f"history.{key}: {_shown(values)} is not of type 'array'"]
+        for i, value in enumerate(values):
+            if value is None or type(value) in _HISTORY_TYPES \
+                    or (type(value) is str and value in _HISTORY_STRINGS):
+                continue
+            return [f"history.{key}.{i}: {_shown(value)} is not a number, null, 'inf' or "
+                    "'-inf'"]
+    return []
 
 
 # --------------------------------------------------------------------------- names

@@ -49,6 +49,7 @@ from hnnbench._record_schema import (
     SCHEMA_VERSION,
     STATUSES,
     created_at_problem,
+    history_problems,
     is_date_time,
     json_schema,
     shape_problems,
@@ -403,31 +404,11 @@ def _validator() -> Any:
     return jsonschema.Draft202012Validator(json_schema(), format_checker=formats)
 
 
-#: What a training history's values may be (the schema's ``history`` items), checked by
-#: a loop: per-item JSON Schema validation of a long history took seconds.
-_HISTORY_TYPES = (int, float)
-_HISTORY_STRINGS = ("inf", "-inf")
-
-
-def _history_problems(history: Any) -> list[str]:
-    if not isinstance(history, dict):
-        return [f"history: {type(history).__name__} is not of type 'object'"]
-    for key, values in history.items():
-        if not isinstance(values, list):
-            return [f"history.{key}: {type(values).__name__} is not of type 'array'"]
-        for i, value in enumerate(values):
-            if value is None or type(value) in _HISTORY_TYPES \
-                    or (type(value) is str and value in _HISTORY_STRINGS):
-                continue
-            return [f"history.{key}.{i}: {str(value)[:40]!r} is not a number, null, 'inf' "
-                    "or '-inf'"]
-    return []
-
-
 def _schema_problems(data: Any) -> list[str]:
     """The JSON Schema violations of encoded record data, one line each naming the
     field (``a.b: ...``; a missing field: ``'a' is a required property``). The training
-    history is checked by a loop (:func:`_history_problems`), the rest by jsonschema."""
+    history is checked by a loop (:func:`~hnnbench._record_schema.history_problems`),
+    the rest by jsonschema."""
     if not isinstance(data, dict):
         return [f"{type(data).__name__} is not of type 'object'"]
     validator = _validator()
@@ -441,7 +422,7 @@ def _schema_problems(data: Any) -> list[str]:
             message = message if len(message) <= 300 else message[:297] + "..."
             out.append(f"{where}: {message}" if where else message)
     if "history" in data:
-        out += _history_problems(data["history"])
+        out += history_problems(data["history"])
     return out
 
 
@@ -502,16 +483,17 @@ def strict_problems(record: dict[str, Any]) -> list[str]:
     return validate(record) or _decoded_problems(record)
 
 
-def load_arrays(path: Path | str, limit: int = MAX_ROLLOUT_BYTES) -> dict[str, Any]:
+def load_arrays(path: Path | str, limit: int | None = None) -> dict[str, Any]:
     """The arrays of a rollout file (``.npz``), read bounded: a regular file
     (:func:`open_regular`), whose members' declared decompressed sizes add up to at most
-    ``limit`` bytes, each a ``.npy`` array of plain numbers whose header's shape fits
-    the member (so no decompression bomb, no huge allocation) and no objects (never
-    unpickled). Raises :class:`UnsafeFile` (or ``OSError``, ``ValueError``,
-    ``zipfile.BadZipFile``) with the reason."""
+    ``limit`` bytes (default :data:`MAX_ROLLOUT_BYTES`), each a ``.npy`` array of plain
+    numbers whose header's shape fits the member (so no decompression bomb, no huge
+    allocation) and no objects (never unpickled). Raises :class:`UnsafeFile` (or
+    ``OSError``, ``ValueError``, ``zipfile.BadZipFile``) with the reason."""
     import numpy as np
     from numpy.lib import format as npy
 
+    limit = MAX_ROLLOUT_BYTES if limit is None else limit
     out: dict[str, Any] = {}
     with open_regular(path, limit) as fh, zipfile.ZipFile(fh) as zf:
         members = zf.infolist()
