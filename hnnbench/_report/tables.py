@@ -42,8 +42,9 @@ def seed_line(board: pd.DataFrame) -> str:
 def best_cells(board: pd.DataFrame) -> set[tuple[int, str]]:
     """``{(row position, metric)}`` holding the best finite mean of its (profile, system,
     variant) among ranked rows whose every seed is ``ok``, in the metric's declared
-    direction. A pair with a diverged or failed seed is averaged over its ``ok`` seeds
-    only, so it would be ranked on its luckier seeds: it is never marked best."""
+    direction and within its declared domain. A pair with a diverged or failed seed is
+    averaged over its ``ok`` seeds only, so it would be ranked on its luckier seeds: it
+    is never marked best."""
     declared = metric_declarations()
     metrics = [c[:-5] for c in board.columns if c.endswith("_mean") and c[:-5] in declared]
     out: set[tuple[int, str]] = set()
@@ -55,8 +56,12 @@ def best_cells(board: pd.DataFrame) -> set[tuple[int, str]]:
         ranked &= board["n_ok"] == board["n_seeds"]
     for _, group in board[ranked].groupby(keys, dropna=False, sort=False):
         for metric in metrics:
+            low, high = declared[metric].domain
             values = pd.to_numeric(group[f"{metric}_mean"], errors="coerce")
-            values = values[values.apply(lambda v: math.isfinite(v))]
+            # a value outside the metric's declared domain (a negative error, from a
+            # record that a strict load refuses) is shown, never marked best
+            values = values[values.apply(lambda v, lo=low, hi=high: math.isfinite(v)
+                                         and lo <= v <= hi)]
             if len(values) < 2:
                 continue
             pick = values.idxmax() if declared[metric].better == "higher" else values.idxmin()
