@@ -7,8 +7,10 @@ The records of the directories are validated, then their leaderboard
 empty where the runs vary in nothing but seeds; :func:`hnnbench._table.variant_labels`):
 
 - records: every ``result.json`` must be readable and valid against the record schema
-  (a strict :func:`hnnbench._records.load`), carry provenance (hnnbench version, date,
-  platform) and, where the plugin is installed, its current version and package
+  (a strict :func:`hnnbench._records.load`: bounded size and nesting, names that are
+  names, ``created_at`` a date-time not in the future, each metric within its declared
+  domain; one line per file left out, naming the field), carry provenance (hnnbench
+  version, date, platform) and, where the plugin is installed, its current version and package
   (a missing version is a mismatch); a metric or timing key named like a table column
   is refused (:func:`hnnbench._provenance.reserved_key_problem`);
 - metrics: each ``<metric>_mean`` by the metric's declared rule
@@ -61,6 +63,7 @@ from hnnbench._record_schema import (
     PROVENANCE_FIELDS,
     STATUSES,
     TIMINGS,
+    variant_problem,
 )
 from hnnbench._table import leaderboard, variant_labels
 
@@ -448,11 +451,15 @@ def variant_findings(recs: Sequence[dict[str, Any]], variants: Sequence[P.Varian
     """``(regressions, information)`` about the records' variants: a setting that
     differs from the profile's defaults with no override saying so, a config of another
     job than the record's, a config that cannot be compared (no config: a regression;
-    a plugin not installed here: information)."""
+    a plugin not installed here: information), a variant label that is not of safe
+    ``key=value`` tokens (:data:`hnnbench._record_schema.VARIANT_TOKEN_PATTERN`)."""
     bad: list[Finding] = []
     info: list[Finding] = []
     for rec, variant in zip(recs, variants, strict=True):
         system, model, where = str(rec.get("system")), str(rec.get("model")), _file(rec)
+        unsafe = variant_problem(variant.label)
+        if unsafe:
+            bad.append(Finding("variant", "config", system, model, where, unsafe))
         if variant.mismatch:
             bad.append(Finding("variant", "config", system, model, where,
                                f"its config is of another job ({variant.mismatch})"))

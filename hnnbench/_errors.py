@@ -38,6 +38,11 @@ class DataError(HnnbenchError):
     """Missing or corrupt data files."""
 
 
+class UnsafePathError(HnnbenchError, ValueError):
+    """A path built from a name (a record's or a plugin's) that is not one plain file-name
+    component, or that would lead outside its root (:func:`hnnbench._paths.safe_join`)."""
+
+
 class BackendMissingError(HnnbenchError):
     """An optional backend (torch, JAX) is not installed."""
 

@@ -118,6 +118,10 @@ class Metric:
         errors_fail_job: an exception while computing it fails the job (with the
             traceback); ``False`` (default): its message is recorded in the record's
             ``metric_errors``, the value is NaN and the job goes on.
+        domain: ``(low, high)``, the values its mean can take (an error or a time is
+            ``(0, inf)``). A strict load of records (``hnnbench check``, publishing)
+            refuses a mean outside it; ``nan`` (not applicable) and :meth:`worst` (a
+            diverged model's ``inf``) are always allowed (:meth:`value_problem`).
     """
 
     name: str
@@ -134,8 +138,14 @@ class Metric:
     figures: tuple[str, ...] = ()
     log: bool = False
     errors_fail_job: bool = False
+    domain: tuple[float, float] = (-math.inf, math.inf)
 
     def __post_init__(self) -> None:
+        low, high = self.domain
+        if not (isinstance(low, (int, float)) and isinstance(high, (int, float))
+                and low <= high):
+            raise ValueError(f"metric {self.name!r}: domain must be (low, high) numbers "
+                             f"with low <= high, not {self.domain!r}")
         if self.check.better != self.better:  # the metric's direction is the rule's
             object.__setattr__(self, "check", dataclasses.replace(self.check,
                                                                   better=self.better))
@@ -144,6 +154,23 @@ class Metric:
         """The value recorded when the model failed (diverged): ``inf`` for errors,
         ``0`` where higher is better (a diverged model predicts nothing)."""
         return 0.0 if self.better == "higher" else math.inf
+
+    def value_problem(self, mean: Any, sem: Any = math.nan) -> Optional[str]:
+        """Why ``mean`` / ``sem`` (floats, decoded) cannot be this metric's summary, or
+        ``None``: a mean is NaN (not applicable), :meth:`worst`, or a finite number in
+        :attr:`domain`; a standard error is NaN or ``>= 0`` (``inf`` where a value is)."""
+        low, high = self.domain
+        if not isinstance(mean, (int, float)) or isinstance(mean, bool):
+            return f"mean {mean!r} is not a number"
+        if not (math.isnan(mean) or mean == self.worst()
+                or (math.isfinite(mean) and low <= mean <= high)):
+            return (f"mean {mean!r} is outside the domain [{low:g}, {high:g}] of "
+                    f"{self.name}" + ("" if math.isfinite(mean) else
+                                      f" (a diverged run records {self.worst():g})"))
+        if not isinstance(sem, (int, float)) or isinstance(sem, bool) \
+                or not (math.isnan(sem) or sem >= 0):
+            return f"sem {sem!r} is not a standard error (>= 0)"
+        return None
 
 
 # --------------------------------------------------------------- summaries

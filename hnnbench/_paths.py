@@ -15,8 +15,12 @@ Overrides are context variables: they apply to the code that runs inside the ``w
 block (in this thread, or in tasks that copy its context), and end with it. The
 environment is read at each call, never cached.
 
-This module imports only the standard library (platformdirs on first use): no numpy,
-torch or JAX.
+Every path built from a name that comes from a record or a plugin (a figure per system,
+``results/records/<system>/<model>/seed<k>``) is built by :func:`safe_join`, which
+refuses a name that is not one plain component and a result outside its root.
+
+This module imports only the standard library and :mod:`hnnbench._errors`
+(platformdirs on first use): no numpy, torch or JAX.
 """
 
 from __future__ import annotations
@@ -28,6 +32,8 @@ from collections.abc import Iterator
 from contextvars import ContextVar
 from pathlib import Path
 from typing import Optional, Union
+
+from hnnbench._errors import UnsafePathError
 
 __all__ = [
     "APP_NAME",
@@ -41,6 +47,7 @@ __all__ = [
     "dataset_cache_dir",
     "jax_compilation_cache_dir",
     "overrides",
+    "safe_join",
     "sha256_file",
 ]
 
@@ -167,3 +174,31 @@ def sha256_file(path: PathLike) -> str:
         for block in iter(lambda: fh.read(_CHUNK), b""):
             digest.update(block)
     return digest.hexdigest()
+
+
+#: Characters a path component built from a name may never hold: separators (both
+#: platforms'), NUL, and line breaks.
+_UNSAFE_CHARS = frozenset("/\\\0\n\r")
+
+
+def safe_join(root: PathLike, *names: str) -> Path:
+    """``root / name / ...``, where each name must be one plain file-name component (a
+    non-empty string, not ``.`` or ``..``, with no separator, NUL or line break) and the
+    result, symbolic links resolved, must lie inside ``root`` (resolved). The one way a
+    path is built from a name that a record or a plugin supplies.
+
+    Raises:
+        UnsafePathError: a name that is not a plain component, or a path that would lead
+            outside ``root`` (naming both).
+    """
+    base = Path(root)
+    for name in names:
+        if not isinstance(name, str) or name in ("", ".", "..") \
+                or any(c in _UNSAFE_CHARS for c in name) or os.path.isabs(name):
+            raise UnsafePathError(f"refusing the path component {name!r} under {base}: "
+                                  "a name must be one plain file-name component")
+    path = base.joinpath(*names)
+    inside, target = base.resolve(), path.resolve()
+    if target != inside and inside not in target.parents:
+        raise UnsafePathError(f"refusing {path}: it resolves to {target}, outside {inside}")
+    return path

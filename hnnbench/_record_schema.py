@@ -15,7 +15,13 @@ else about the record takes its names from here:
   :data:`ID_COLUMNS`, ...), and the fields the gate reads (:data:`PROVENANCE_FIELDS`,
   :data:`VERSION_FIELDS`);
 - the rule a metric name must follow so that it never takes one of those names
-  (:func:`metric_name_problem`).
+  (:func:`metric_name_problem`);
+- what a record from someone else's machine is held to (docs/LEADERBOARD.md, "Threat
+  model"): the one pattern of plugin and profile names (:data:`NAME_PATTERN`, checked by
+  the schema, the registry and every path built from a name), the pattern of a
+  variant's ``key=value`` tokens (:data:`VARIANT_TOKEN_PATTERN`), a record's largest size
+  and nesting (:data:`MAX_RECORD_BYTES`, :data:`MAX_DEPTH`) and its ``created_at``
+  (:func:`created_at_problem`).
 
 A contract (it imports nothing else of hnnbench): the registry checks metric names
 against it, the job, the loader, the leaderboard and the gate take their names from it.
@@ -24,15 +30,21 @@ against it, the job, the loader, the leaderboard and the gate take their names f
 from __future__ import annotations
 
 import copy
+import datetime as _dt
 import json
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import Any, Literal, Optional
 
 __all__ = [
     "BOARD_KEY",
+    "MAX_DEPTH",
+    "MAX_RECORD_BYTES",
+    "NAME_PATTERN",
+    "VARIANT_TOKEN_PATTERN",
     "DERIVED_COLUMNS",
     "FIELDS",
     "FRAME_COLUMNS",
@@ -49,10 +61,16 @@ __all__ = [
     "TIMINGS",
     "VERSION_FIELDS",
     "Field",
+    "created_at_problem",
+    "history_problems",
+    "is_date_time",
     "json_schema",
     "metric_name_problem",
+    "name_problem",
     "new_record",
+    "pattern_matches",
     "shape_problems",
+    "variant_problem",
 ]
 
 #: The version of the records this hnnbench writes, and the versions it reads.
@@ -60,6 +78,25 @@ SCHEMA_VERSION = 2
 SCHEMA_VERSIONS = (1, 2)
 #: A job's outcome.
 STATUSES = ("ok", "diverged", "failed", "skipped", "timeout")
+
+#: The one pattern of a system, model, metric, claim-set or profile name: a plain file-name
+#: component (no separator, no dot, nothing a Markdown table or a shell reads specially),
+#: so a name can be a directory, a file-name part and a table cell as it is. The record
+#: schema's ``system``, ``model`` and ``profile`` fields, the registry (a plugin of
+#: another name is refused) and :func:`hnnbench._paths.safe_join` hold names to it.
+NAME_PATTERN = "^[a-z][a-z0-9_]{0,63}$"
+#: One token of a variant label (``model.hidden=200``): a dotted setting, ``=``, and a
+#: value of safe characters (numbers, words, JSON lists and mappings without spaces);
+#: no path separator, no Markdown or HTML markup, no line break.
+VARIANT_TOKEN_PATTERN = '^[A-Za-z_][A-Za-z0-9_.]{0,127}=[A-Za-z0-9_.,:+\\-\\[\\]{}"]{0,128}$'
+#: The largest ``result.json`` read (bytes): a record is a few to a few hundred KB (its
+#: training history is the bulk); a larger file is refused before it is parsed.
+MAX_RECORD_BYTES = 2 * 1024 * 1024
+#: The deepest nesting of objects and arrays in a record (a record nests 4 to 6 levels;
+#: its stored config a few more); deeper JSON is refused before the schema sees it.
+MAX_DEPTH = 32
+#: How far in the future (the reader's clock) a ``created_at`` may be: clocks differ.
+FUTURE_SKEW = _dt.timedelta(hours=1)
 
 #: Whether a record has a field: every record of every schema version (the schema
 #: requires it), every record a job writes now (older ones may lack it), or only where
@@ -105,11 +142,11 @@ class Field:
 FIELDS: tuple[Field, ...] = (
     Field("schema_version", {"enum": list(SCHEMA_VERSIONS)},
           "the version of this format", REQUIRED, SCHEMA_VERSION),
-    Field("system", {"type": "string", "minLength": 1}, "the system's registered name",
-          REQUIRED),
+    Field("system", {"type": "string", "pattern": NAME_PATTERN},
+          "the system's registered name", REQUIRED),
     Field("system_version", _STRING_OR_NULL, "the system plugin's version", REQUIRED, None),
-    Field("model", {"type": "string", "minLength": 1}, "the model's registered name",
-          REQUIRED),
+    Field("model", {"type": "string", "pattern": NAME_PATTERN},
+          "the model's registered name", REQUIRED),
     Field("model_version", _STRING_OR_NULL, "the model plugin's version", REQUIRED, None),
     Field("backend", _STRING_OR_NULL, "the model's backend (torch, jax, numpy)", REQUIRED,
           None),
@@ -123,14 +160,17 @@ FIELDS: tuple[Field, ...] = (
           "before 0.3)"),
     Field("seed", {"type": "integer", "minimum": 0},
           "the seed of data, evaluation and initial weights", REQUIRED),
-    Field("profile", {"type": "string"}, "the profile (quick, paper)", REQUIRED),
+    Field("profile", {"type": "string", "pattern": NAME_PATTERN},
+          "the profile (quick, paper)", REQUIRED),
     Field("status", {"enum": list(STATUSES)}, "the job's outcome", REQUIRED, "failed"),
     Field("error", _STRING_OR_NULL, "why the job is not ok", REQUIRED, None),
-    Field("metrics", {"type": "object", "additionalProperties": {
+    Field("metrics", {"type": "object", "propertyNames": {"pattern": NAME_PATTERN},
+                      "additionalProperties": {
               "type": "object", "required": ["mean", "sem"],
               "properties": {"mean": VALUE, "sem": VALUE}}},
           "{name: {mean, sem}} for every registered metric", REQUIRED, {}),
-    Field("timings", {"type": "object", "additionalProperties": {"type": "number"}},
+    Field("timings", {"type": "object", "additionalProperties": {"type": "number",
+                                                                 "minimum": 0}},
           "wall and CPU seconds of the job's parts", REQUIRED, {}),
     Field("steps", {"type": "integer", "minimum": 0}, "optimizer steps taken", REQUIRED, 0),
     Field("device", _STRING_OR_NULL, "the device used", WRITTEN, None),
@@ -282,23 +322,58 @@ def _is(value: Any, kind: str) -> bool:
     return isinstance(value, _TYPES[kind])
 
 
+def _shown(value: Any, limit: int = 60) -> str:
+    """``repr(value)`` cut to ``limit`` characters (a message is one short line)."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+@lru_cache(maxsize=64)
+def _compiled(pattern: str) -> re.Pattern[str]:
+    # JSON Schema's "$" is the end of the text; Python's also matches before a final
+    # newline, which would let "spring\n" through.
+    return re.compile(pattern[:-1] + r"\Z" if pattern.endswith("$") else pattern)
+
+
+def pattern_matches(pattern: str, text: str) -> bool:
+    """Whether ``text`` matches the JSON Schema ``pattern`` (``$``: the end of the text,
+    as in JSON Schema, never before a final newline)."""
+    return _compiled(pattern).search(text) is not None
+
+
 def _value_problem(where: str, value: Any, schema: Mapping[str, Any]) -> Optional[str]:
     kinds = schema.get("type")
     if kinds is not None:
         kinds = [kinds] if isinstance(kinds, str) else list(kinds)
         if not any(_is(value, k) for k in kinds):
-            return f"{where}: {value!r} is not of type {', '.join(map(repr, kinds))}"
+            return f"{where}: {_shown(value)} is not of type {', '.join(map(repr, kinds))}"
     if "enum" in schema and value not in schema["enum"]:
-        return f"{where}: {value!r} is not one of {list(schema['enum'])!r}"
+        return f"{where}: {_shown(value)} is not one of {list(schema['enum'])!r}"
+    if isinstance(value, str) and "pattern" in schema \
+            and not pattern_matches(schema["pattern"], value):
+        return f"{where}: {_shown(value)} does not match {schema['pattern']!r}"
     return None
+
+
+def _item_problem(where: str, value: Any, schema: Mapping[str, Any]) -> Optional[str]:
+    """:func:`_value_problem`, and that of each declared property of an object."""
+    problem = _value_problem(where, value, schema)
+    if problem is None and isinstance(value, dict):
+        for key, inner in (schema.get("properties") or {}).items():
+            if key in value and (problem := _value_problem(f"{where}.{key}", value[key],
+                                                           inner)):
+                break
+    return problem
 
 
 def shape_problems(record: Mapping[str, Any]) -> list[str]:
     """What makes ``record`` (decoded JSON) unusable as a record, one line each naming
     the field (empty: usable): a missing required field, or a declared field of the
-    wrong JSON type or outside its ``enum``, checked one level deep (so each metric is
-    an object, each timing a number). A quick check, for every record loaded; the full
-    JSON Schema is checked on write and by strict loading (``hnnbench._records``)."""
+    wrong JSON type, outside its ``enum`` or not matching its ``pattern`` (a name that is
+    not :data:`NAME_PATTERN`), checked two levels deep (so each metric is an object of
+    values, each timing a number, each override a string). A quick check, for every
+    record loaded; the full JSON Schema is checked on write and by strict loading
+    (``hnnbench._records``)."""
     out = [f"'{f.name}' is a required property" for f in FIELDS
            if f.presence == REQUIRED and f.name not in record]
     for f in FIELDS:
@@ -308,13 +383,113 @@ def shape_problems(record: Mapping[str, Any]) -> list[str]:
         problem = _value_problem(f.name, value, f.schema)
         if problem is None and isinstance(value, dict):
             inner = f.schema.get("additionalProperties")
+            names = (f.schema.get("propertyNames") or {}).get("pattern")
+            for key, item in value.items():
+                if names and not pattern_matches(names, key):
+                    problem = f"{f.name}: the key {_shown(key)} does not match {names!r}"
+                elif isinstance(inner, Mapping):
+                    problem = _item_problem(f"{f.name}.{key}", item, inner)
+                if problem is not None:
+                    break
+        if problem is None and f.name == "history":
+            problem = next(iter(history_problems(value)), None)
+        elif problem is None and isinstance(value, list):
+            inner = f.schema.get("items")
             if isinstance(inner, Mapping):
-                problem = next((p for key, item in value.items()
-                                if (p := _value_problem(f"{f.name}.{key}", item, inner))),
-                               None)
+                problem = next((p for i, item in enumerate(value)
+                                if (p := _value_problem(f"{f.name}.{i}", item, inner))), None)
         if problem is not None:
             out.append(problem)
     return out
+
+
+#: What a training history's values may be (the schema's ``history`` items; bare NaN
+#: and Infinity, as schema version 1 wrote them, are floats), checked by a loop: per-item
+#: JSON Schema validation of a long history took seconds.
+_HISTORY_TYPES = (int, float)
+_HISTORY_STRINGS = ("inf", "-inf")
+
+
+def history_problems(history: Any) -> list[str]:
+    """The first problem of a record's ``history`` (an object of arrays of numbers,
+    ``null``, ``"inf"`` or ``"-inf"``), one line naming the field; ``[]`` if none."""
+    if not isinstance(history, dict):
+        return [f"history: {_shown(history)} is not of type 'object'"]
+    for key, values in history.items():
+        if not isinstance(values, list):
+            return [f"history.{key}: {_shown(values)} is not of type 'array'"]
+        for i, value in enumerate(values):
+            if value is None or type(value) in _HISTORY_TYPES \
+                    or (type(value) is str and value in _HISTORY_STRINGS):
+                continue
+            return [f"history.{key}.{i}: {_shown(value)} is not a number, null, 'inf' or "
+                    "'-inf'"]
+    return []
+
+
+# --------------------------------------------------------------------------- names
+
+
+def name_problem(kind: str, name: Any) -> Optional[str]:
+    """Why ``name`` cannot name a ``kind`` (system, model, metric, claims, profile), or
+    ``None``: it must match :data:`NAME_PATTERN`."""
+    if isinstance(name, str) and pattern_matches(NAME_PATTERN, name):
+        return None
+    return (f"{_shown(name)} is not a {kind} name: use 1 to 64 lower-case letters, digits "
+            "and '_', starting with a letter")
+
+
+def variant_problem(label: str) -> Optional[str]:
+    """Why the variant label ``label`` (space-separated ``key=value`` tokens) is not one
+    of safe tokens (:data:`VARIANT_TOKEN_PATTERN`), or ``None``."""
+    if not isinstance(label, str) or len(label) > 4096:
+        return f"the variant {_shown(label)} is not a short text"
+    for token in label.split(" ") if label else ():
+        if not pattern_matches(VARIANT_TOKEN_PATTERN, token):
+            return (f"the variant setting {_shown(token)} is not key=value of safe "
+                    "characters (letters, digits, _ . , : + - [ ] { } \")")
+    return None
+
+
+# --------------------------------------------------------------------------- dates
+
+_DATE_TIME = re.compile(r"\d{4}-\d{2}-\d{2}[Tt]\d{2}:\d{2}:\d{2}(\.\d{1,9})?"
+                        r"([Zz]|[+-]\d{2}:\d{2})")
+
+
+def _parse_date_time(text: str) -> Optional[_dt.datetime]:
+    if not _DATE_TIME.fullmatch(text):
+        return None
+    norm = text.upper()
+    norm = norm[:-1] + "+00:00" if norm.endswith("Z") else norm
+    head, dot, rest = norm.partition(".")
+    if dot:  # fromisoformat takes at most 6 fractional digits
+        digits = rest[:-6]
+        norm = f"{head}.{(digits + '000000')[:6]}{rest[-6:]}"
+    try:
+        return _dt.datetime.fromisoformat(norm)
+    except ValueError:
+        return None
+
+
+def is_date_time(text: Any) -> bool:
+    """Whether ``text`` is an RFC 3339 date-time (``2026-11-24T21:28:43+00:00``, ``...Z``,
+    fractional seconds allowed; a real date and time with an explicit offset). The
+    record schema's ``format: date-time``, enforced (``hnnbench._records``)."""
+    return isinstance(text, str) and _parse_date_time(text) is not None
+
+
+def created_at_problem(value: Any, now: Optional[_dt.datetime] = None) -> Optional[str]:
+    """Why ``value`` cannot be a record's ``created_at``, or ``None``: an RFC 3339
+    date-time (:func:`is_date_time`) not later than ``now`` (default: this clock) plus
+    :data:`FUTURE_SKEW`."""
+    when = _parse_date_time(value) if isinstance(value, str) else None
+    if when is None:
+        return f"created_at: {_shown(value)} is not an RFC 3339 date-time"
+    now = now if now is not None else _dt.datetime.now(_dt.timezone.utc)
+    if when > now + FUTURE_SKEW:
+        return (f"created_at: {value} is in the future (now {now.isoformat(timespec='seconds')})")
+    return None
 
 
 # --------------------------------------------------------------------------- metric names
@@ -325,8 +500,9 @@ def metric_name_problem(name: str) -> Optional[str]:
     with identity fields and timings, and a leaderboard with status columns and the
     ``_mean``/``_std`` columns built from them, so a metric may not take those names."""
     taken = RESERVED | set(STATUS_COLUMNS) | set(PROVENANCE_COLUMNS) | set(TIMINGS)
-    if not re.fullmatch(r"[a-z][a-z0-9_]*", name):
-        return f"'{name}' is not a metric name: use lower-case letters, digits and '_'"
+    if name_problem("metric", name):
+        return (f"{_shown(name)} is not a metric name: use 1 to 64 lower-case letters, "
+                "digits and '_', starting with a letter")
     if name in taken:
         return f"the metric name '{name}' is a leaderboard column; choose another name"
     for suffix in ("_s", "_sem", "_mean", "_std"):

@@ -7,7 +7,10 @@ pyproject.toml exactly like third-party plugins. A plugin that fails at import (
 exception, ``sys.exit()`` included; not ``KeyboardInterrupt``), in its
 ``requirements_missing()``, with a non-numeric ``order`` or with a config that cannot be
 built (its ``Config``'s ``__post_init__`` or ``validate()`` raises on its own defaults)
-is kept with its error (``hnnbench list`` shows it) and left out of everything else.
+is kept with its error (``hnnbench list`` shows it) and left out of everything else, and so is
+a plugin whose entry-point name is not a name
+(:data:`hnnbench._record_schema.NAME_PATTERN`: it names directories, files and table
+cells), before its code is imported.
 What a plugin prints while it is imported goes to stderr with its name, never to stdout
 (``hnnbench list --json``).
 
@@ -32,7 +35,7 @@ from hnnbench._claims import Claim, ClaimSet
 from hnnbench._contract import Model, ModelConfig, System, SystemConfig
 from hnnbench._errors import ConfigError, HnnbenchError, UnknownNameError
 from hnnbench._metric import Metric
-from hnnbench._record_schema import metric_name_problem
+from hnnbench._record_schema import metric_name_problem, name_problem
 
 log = logging.getLogger("hnnbench")
 
@@ -223,6 +226,12 @@ class PluginGroup(Generic[T]):
             distribution=dist.metadata["Name"] if dist is not None else None,
             dist_version=dist.version if dist is not None else None,
         )
+        # A name becomes a directory, a file-name part and a table cell: one that is not
+        # a plain name is refused before the plugin's code runs.
+        info.error = name_problem(self.kind, name)
+        if info.error is not None:
+            info.error = f"{target}: {info.error}"
+            return info
         obj, info.error = _guarded(f"the {self.kind} '{name}' ({target})", "import failed",
                                    load)
         if info.error is not None:

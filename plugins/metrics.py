@@ -13,6 +13,7 @@ docs/METRICS.md gives the precise definitions and the evaluation protocol.
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any, Optional
 
 import numpy as np
@@ -97,6 +98,9 @@ def energy_drift_per_traj(energy_end: np.ndarray, energy_start: np.ndarray) -> n
 
 # --------------------------------------------------------------------------- declarations
 
+#: The domain of every metric here: squared errors, relative drifts and times are >= 0.
+NONNEGATIVE = (0.0, math.inf)
+
 #: The long-horizon metric rolls out over this many evaluation horizons.
 LONG_HORIZON_FACTOR = 10
 
@@ -168,45 +172,45 @@ def _pixels(system: System) -> bool:
 TRAIN_LOSS = Metric(
     "train_loss", "MSE of predicted vs target dx/dt on the training set (pixels: the "
     "training objective)", _loss("train"), check=CheckRule(2, 1e-12), order=10,
-    errors_fail_job=True)
+    errors_fail_job=True, domain=NONNEGATIVE)
 TEST_LOSS = Metric(
     "test_loss", "MSE of predicted vs target dx/dt on the test set (pixels: the training "
     "objective)", _loss("test"), check=CheckRule(2, 1e-12), order=20,
     figures=("data_efficiency",), log=True,
-    errors_fail_job=True)
+    errors_fail_job=True, domain=NONNEGATIVE)
 ENERGY_MSE = Metric(
     "energy_mse", "Mean squared error of the true energy along the model's rollout vs "
     "along the true trajectory", _energy_mse, check=CheckRule(10, 1e-10), order=30,
     figures=("heatmap", "data_efficiency"), log=True,
-    errors_fail_job=True)
+    errors_fail_job=True, domain=NONNEGATIVE)
 ROLLOUT_MSE = Metric(
     "rollout_mse", "Mean squared state error along the rollout", _rollout_mse,
     check=CheckRule(3, 1e-8), order=40, figures=("heatmap", "data_efficiency"),
-    errors_fail_job=True)
+    errors_fail_job=True, domain=NONNEGATIVE)
 REVERSIBILITY_ERROR = Metric(
     "reversibility_error", "Time-reversal test of the learned flow: mean |R Phi_T R Phi_T "
     "x0 - x0|^2 (R flips momenta; pixels: latent momenta)", _reversibility,
     check=CheckRule(10, 1e-10), applies=_time_reversible, order=50,
-    errors_fail_job=True)
+    errors_fail_job=True, domain=NONNEGATIVE)
 VALID_PREDICTION_TIME = Metric(
     "valid_prediction_time", "Time until the rollout's relative state error first exceeds "
     "evaluation.vpt_threshold", _vpt, better="higher", scale="linear",
     check=CheckRule(3, 0.0), order=60,
-    errors_fail_job=True)
+    errors_fail_job=True, domain=NONNEGATIVE)
 VPT_LYAPUNOV = Metric(
     "vpt_lyapunov", "Valid prediction time in Lyapunov times (chaotic systems)",
     _vpt_lyapunov, better="higher", scale="linear", check=CheckRule(3, 0.0),
     applies=_has_lyapunov_time, order=70,
-    errors_fail_job=True)
+    errors_fail_job=True, domain=NONNEGATIVE)
 ENERGY_DRIFT_LONG = Metric(
     "energy_drift_long", f"Relative true-energy drift at the end of a rollout "
     f"{LONG_HORIZON_FACTOR}x the evaluation horizon (conservative systems)",
     _energy_drift_long, check=CheckRule(10, 1e-10), applies=_conservative, required=False,
-    order=80)
+    order=80, domain=NONNEGATIVE)
 PIXEL_MSE = Metric(
     "pixel_mse", "MSE of the decoded latent rollout against the true frames",
     _pixel_mse, check=CheckRule(2, 1e-12), applies=_pixels, summary=False, order=90,
-    errors_fail_job=True)
+    errors_fail_job=True, domain=NONNEGATIVE)
 
 #: hnnbench's own metrics, in table order (registered by entry points, not from here).
 BUILTIN = (TRAIN_LOSS, TEST_LOSS, ENERGY_MSE, ROLLOUT_MSE, REVERSIBILITY_ERROR,

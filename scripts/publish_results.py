@@ -15,13 +15,18 @@
    the heatmap, and the block between ``<!-- provenance:begin -->`` and
    ``<!-- provenance:end -->`` in results/README.md with the provenance and the list of
    systems published so far.
+
+Records come from other machines (docs/LEADERBOARD.md, "Threat model"): a record's
+directory is built from its names by ``hnnbench._paths.safe_join`` (a name that is not a
+name, or a path outside results/records, is refused), every Markdown cell and line is
+escaped (``hnnbench._report.markdown``), and a marker counts only as a whole line of its
+own, exactly once, so no content can forge one.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import re
 import sys
 from pathlib import Path
 
@@ -32,13 +37,27 @@ BEGIN, END = "<!-- {name}:begin -->", "<!-- {name}:end -->"
 
 
 def replace_block(text: str, name: str, body: str) -> str:
-    """``text`` with the marked block ``name`` replaced by ``body``; the markers stay."""
+    """``text`` with the marked block ``name`` replaced by ``body``; the markers stay.
+
+    A marker is a line of its own (nothing else on it), and each must be there exactly
+    once: a marker inside a line (content quoting one) never counts, and a second one
+    is refused rather than guessed at. ``body`` may hold no marker text at all."""
     begin, end = BEGIN.format(name=name), END.format(name=name)
-    pattern = re.compile(re.escape(begin) + r".*?" + re.escape(end), flags=re.S)
-    if not pattern.search(text):
-        raise SystemExit(f"publish: marker {begin} ... {end} not found; add it where the "
-                         "block should go")
-    return pattern.sub(lambda _: f"{begin}\n{body.strip()}\n{end}", text, count=1)
+    for marker in (begin, end, "<!--"):
+        if marker in body:
+            raise SystemExit(f"publish: the {name} block would contain {marker!r}; "
+                             "refusing to write it")
+    lines = text.split("\n")
+    starts = [i for i, line in enumerate(lines) if line.strip() == begin]
+    stops = [i for i, line in enumerate(lines) if line.strip() == end]
+    if not starts or not stops:
+        raise SystemExit(f"publish: marker {begin} ... {end} not found (each on a line of "
+                         "its own); add it where the block should go")
+    if len(starts) > 1 or len(stops) > 1 or stops[0] < starts[0]:
+        raise SystemExit(f"publish: markers {begin} ... {end} must each be on one line, "
+                         f"once, in that order (found lines {[i + 1 for i in starts]} and "
+                         f"{[i + 1 for i in stops]})")
+    return "\n".join([*lines[:starts[0] + 1], body.strip(), *lines[stops[0]:]])
 
 
 def table_and_provenance(markdown: str) -> tuple[str, str]:
@@ -49,10 +68,36 @@ def table_and_provenance(markdown: str) -> tuple[str, str]:
     return table, prov
 
 
+def record_dir(rec: dict) -> Path:
+    """``results/records/<system>/<model>/seed<k>`` of a record, built by
+    ``hnnbench._paths.safe_join``: a system or model that is not a name
+    (``hnnbench._record_schema.NAME_PATTERN``), a seed that is not a non-negative
+    integer, or a path outside results/records is refused (``SystemExit``, naming the
+    record)."""
+    from hnnbench._errors import UnsafePathError
+    from hnnbench._paths import safe_join
+    from hnnbench._record_schema import name_problem
+
+    where = rec.get("path", "a record")
+    seed = rec.get("seed")
+    problem = name_problem("system", rec.get("system")) or \
+        name_problem("model", rec.get("model")) or \
+        (None if isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0
+         else f"seed {seed!r} is not a non-negative integer")
+    if problem:
+        raise SystemExit(f"publish: {where}: {problem}")
+    try:
+        return safe_join(RECORDS, rec["system"], rec["model"], f"seed{seed}")
+    except UnsafePathError as err:
+        raise SystemExit(f"publish: {where}: {err}") from None
+
+
 def copy_records(sweeps: list[Path]) -> int:
     """Copy each sweep's records into results/records; returns how many."""
     from hnnbench import _records as R
+    from hnnbench._paths import safe_join
     from hnnbench._provenance import config_variant
+    from hnnbench._record_schema import MAX_RECORD_BYTES
 
     count = 0
     seen: dict[tuple[str, str, int], str] = {}
@@ -80,9 +125,12 @@ def copy_records(sweeps: list[Path]) -> int:
                                  "run out of its sweep")
             seen[job] = str(rec["path"])
             source = Path(rec["path"]) / R.RECORD_NAME
-            target = RECORDS / str(rec["system"]) / str(rec["model"]) / f"seed{rec['seed']}"
+            target = record_dir(rec)
+            text = source.read_text()
+            if len(text.encode()) > MAX_RECORD_BYTES:
+                raise SystemExit(f"publish: {source} grew over {MAX_RECORD_BYTES} bytes")
             target.mkdir(parents=True, exist_ok=True)
-            R.atomic_write_text(target / R.RECORD_NAME, source.read_text())
+            R.atomic_write_text(safe_join(target, R.RECORD_NAME), text)
             count += 1
     return count
 
@@ -97,6 +145,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from hnnbench._errors import HnnbenchError
     from hnnbench._report import write_report
+    from hnnbench._report.markdown import md_code
 
     copied = copy_records(args.sweeps)
     # Figures need the rollouts, which only the sweeps keep; every published record
@@ -130,7 +179,7 @@ def main(argv: list[str] | None = None) -> int:
     ])
     readme.write_text(replace_block(readme.read_text(), "leaderboard", body))
     results_readme = RESULTS / "README.md"
-    listing = f"- Systems published: {', '.join(f'`{s}`' for s in systems)}"
+    listing = f"- Systems published: {', '.join(md_code(s) for s in systems)}"
     for line in partial_lines(published):
         listing += "\n" + line
     results_readme.write_text(replace_block(results_readme.read_text(), "provenance",
@@ -144,6 +193,7 @@ def partial_lines(published: set[Path] | list[Path]) -> list[str]:
     """One line per published system that lacks some installed models, naming them
     (``records/<system>/<model>/...`` paths)."""
     from hnnbench._registry import available
+    from hnnbench._report.markdown import md_code
 
     models: dict[str, set[str]] = {}
     for path in published:
@@ -152,7 +202,7 @@ def partial_lines(published: set[Path] | list[Path]) -> list[str]:
     for system in sorted(models):
         missing = [m for m in available("model") if m not in models[system]]
         if missing:
-            lines.append(f"- Partly published: `{system}` lacks {', '.join(missing)} "
+            lines.append(f"- Partly published: {md_code(system)} lacks {', '.join(missing)} "
                          "(not run yet at the paper profile)")
     return lines
 

@@ -111,7 +111,9 @@ def write_run(root: Path, system: str, model: str, seed: int, status: str = "ok"
     directory.mkdir(parents=True, exist_ok=True)
     values = seed_metrics(system, model, seed) if metrics is None else metrics
     if status == "diverged" and metrics is None:
-        values = {k: (v if k.endswith("_loss") else INF) for k, v in values.items()}
+        # what a diverged job records: each rollout metric's worst value (Metric.worst)
+        values = {k: (v if k.endswith("_loss") else 0.0 if k in HIGHER_BETTER else INF)
+                  for k, v in values.items()}
     if status in ("failed", "skipped"):
         values = {}
     record: dict[str, Any] = {

@@ -19,6 +19,7 @@ import hashlib
 import logging
 import math
 import re
+import zipfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,6 +32,9 @@ from matplotlib.lines import Line2D
 
 from hnnbench import _records as R
 from hnnbench import _registry as registry
+from hnnbench._errors import UnsafePathError
+from hnnbench._paths import safe_join
+from hnnbench._record_schema import name_problem
 from hnnbench._report import style
 from hnnbench._table import format_value, metric_declarations, variant_labels
 
@@ -111,11 +115,13 @@ def figure(name: str, title: str, scope: Literal["system", "board"] = "system"
 
 
 def _load_npz(path: Path) -> dict[str, np.ndarray]:
+    """The arrays of a rollout file, read bounded (:func:`hnnbench._records.load_arrays`:
+    no decompression bomb, no objects, no link or device); ``{}`` with a warning naming
+    the file when it cannot be read."""
     try:
-        with np.load(path, allow_pickle=False) as z:
-            return {k: np.asarray(z[k]) for k in z.files}
-    except (OSError, ValueError) as err:
-        log.warning("cannot read %s: %s", path, err)
+        return {k: np.asarray(v) for k, v in R.load_arrays(path).items()}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, R.UnsafeFile) as err:
+        log.warning("cannot read %s: %s", path, " ".join(str(err).split()))
         return {}
 
 
@@ -425,11 +431,22 @@ def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Pat
             log.warning("figure %s failed: %s", kind.name, err)
             continue
         for stem, fig in figures.items():
-            made.append(Made("all systems", kind.name, _save(fig, directory / f"{stem}.png")))
+            try:
+                made.append(Made("all systems", kind.name,
+                                 _save(fig, safe_join(directory, f"{stem}.png"))))
+            except UnsafePathError as err:
+                log.warning("figure %s not written: %s", kind.name, err)
     profiles = sorted({str(r.get("profile")) for r in recs})
     groups: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
     for rec, variant in zip(recs, variant_labels([r.get("overrides") for r in recs]),
                             strict=True):
+        # A figure's file is named after the system and profile: a record whose names
+        # are not names draws none (hnnbench._paths.safe_join refuses it regardless).
+        problem = name_problem("system", rec.get("system")) or \
+            name_problem("profile", rec.get("profile"))
+        if problem:
+            log.warning("no figures from %s: %s", rec.get("path", "a record"), problem)
+            continue
         groups.setdefault((str(rec.get("profile")), str(rec.get("system")), variant),
                           []).append(rec)
     systems = registry.ordered("system", [k[1] for k in groups])
@@ -453,7 +470,11 @@ def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Pat
                 log.warning("figure %s/%s failed: %s", system, kind.name, err)
                 continue
             if fig is not None:
-                path = _save(fig, directory / f"{stem}_{kind.name}.png")
+                try:
+                    path = _save(fig, safe_join(directory, f"{stem}_{kind.name}.png"))
+                except UnsafePathError as err:
+                    log.warning("figure %s/%s not written: %s", system, kind.name, err)
+                    continue
                 made.append(Made(label, kind.name, path))
     return made
 

@@ -10,6 +10,7 @@ from typing import Any
 
 from hnnbench import _records as R
 from hnnbench._errors import HnnbenchError
+from hnnbench._report.markdown import md_code, md_text
 
 log = logging.getLogger("hnnbench")
 
@@ -80,10 +81,11 @@ def provenance(recs: Sequence[dict[str, Any]]) -> dict[str, list[str]]:
 
 
 def provenance_lines(prov: dict[str, list[str]], limit: int = 6) -> list[str]:
-    """Markdown bullet lines for :func:`provenance` (long lists cut at ``limit``)."""
+    """Markdown bullet lines for :func:`provenance` (long lists cut at ``limit``; every
+    value escaped: :mod:`hnnbench._report.markdown`)."""
     def join(key: str, code: bool = True) -> str:
         vals = prov.get(key) or ["unknown"]
-        shown = [f"`{v}`" if code else v for v in vals[:limit]]
+        shown = [md_code(v) if code else md_text(v) for v in vals[:limit]]
         more = f" and {len(vals) - limit} more" if len(vals) > limit else ""
         return ", ".join(shown) + more
 

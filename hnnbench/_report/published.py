@@ -11,6 +11,7 @@ import pandas as pd
 
 from hnnbench import _claims as C
 from hnnbench import _registry as registry
+from hnnbench._report.markdown import md_code, md_text
 from hnnbench._report.tables import md_table, seed_line
 from hnnbench._table import format_value
 
@@ -173,12 +174,12 @@ def comparison_markdown(board: pd.DataFrame) -> str:
     profile = main_profile(board)
     lines = ["# Comparison with published results", "", seed_line(board), ""]
     if profile != "paper":
-        lines += [f"Note: profile `{profile}` is not the paper settings (profile `paper`); "
+        lines += [f"Note: profile {md_code(profile)} is not the paper settings (profile `paper`); "
                   "this comparison is indicative only.", ""]
     for claim_set in registry.claim_sets():
         if not claim_set.published:
             continue
-        lines += [f"## {claim_set.title}", "", claim_set.note, "",
+        lines += [f"## {md_text(claim_set.title)}", "", md_text(claim_set.note), "",
                   md_table(comparison_frame(board, claim_set)), ""]
     claims = claims_frame(board)
     counts = claims["result"].value_counts().to_dict() if not claims.empty else {}

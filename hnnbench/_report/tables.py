@@ -9,20 +9,24 @@ from typing import Optional, cast
 import pandas as pd
 
 from hnnbench._report.inputs import provenance_lines
+from hnnbench._report.markdown import md_cell, md_code
 from hnnbench._table import display_frame, metric_declarations
 
 __all__ = ["best_cells", "leaderboard_markdown", "md_table", "seed_line"]
 
 
 def md_table(frame: pd.DataFrame) -> str:
+    """``frame`` as a GitHub Markdown table, every header and cell escaped
+    (:func:`hnnbench._report.markdown.md_cell`): the one writer of Markdown tables."""
     from tabulate import tabulate
 
-    return tabulate(frame.to_dict(orient="list"), headers="keys", tablefmt="github",
-                    showindex=False, disable_numparse=True)
+    columns = {md_cell(c): [md_cell(v) for v in frame[c]] for c in frame.columns}
+    return tabulate(columns, headers="keys", tablefmt="github", showindex=False,
+                    disable_numparse=True)
 
 
 def seed_line(board: pd.DataFrame) -> str:
-    profiles = ", ".join(f"`{p}`" for p in dict.fromkeys(board["profile"].astype(str))) or "?"
+    profiles = ", ".join(md_code(p) for p in dict.fromkeys(board["profile"].astype(str))) or "?"
     seeds = sorted({s for v in board["seeds"].astype(str) for s in v.split(";") if s != ""},
                    key=lambda s: (len(s), s))
     n = board["n_seeds"].astype(int)
@@ -38,8 +42,9 @@ def seed_line(board: pd.DataFrame) -> str:
 def best_cells(board: pd.DataFrame) -> set[tuple[int, str]]:
     """``{(row position, metric)}`` holding the best finite mean of its (profile, system,
     variant) among ranked rows whose every seed is ``ok``, in the metric's declared
-    direction. A pair with a diverged or failed seed is averaged over its ``ok`` seeds
-    only, so it would be ranked on its luckier seeds: it is never marked best."""
+    direction and within its declared domain. A pair with a diverged or failed seed is
+    averaged over its ``ok`` seeds only, so it would be ranked on its luckier seeds: it
+    is never marked best."""
     declared = metric_declarations()
     metrics = [c[:-5] for c in board.columns if c.endswith("_mean") and c[:-5] in declared]
     out: set[tuple[int, str]] = set()
@@ -51,8 +56,12 @@ def best_cells(board: pd.DataFrame) -> set[tuple[int, str]]:
         ranked &= board["n_ok"] == board["n_seeds"]
     for _, group in board[ranked].groupby(keys, dropna=False, sort=False):
         for metric in metrics:
+            low, high = declared[metric].domain
             values = pd.to_numeric(group[f"{metric}_mean"], errors="coerce")
-            values = values[values.apply(lambda v: math.isfinite(v))]
+            # a value outside the metric's declared domain (a negative error, from a
+            # record that a strict load refuses) is shown, never marked best
+            values = values[values.apply(lambda v, lo=low, hi=high: math.isfinite(v)
+                                         and lo <= v <= hi)]
             if len(values) < 2:
                 continue
             pick = values.idxmax() if declared[metric].better == "higher" else values.idxmin()
@@ -75,7 +84,7 @@ def leaderboard_markdown(board: pd.DataFrame, prov: Optional[dict[str, list[str]
         lines += [*provenance_lines(prov), ""]
     lines.append(md_table(_marked(board)))
     for figure in figures:
-        lines += ["", f"![{figure}](figures/{figure}.png)"]
+        lines += ["", f"![{md_cell(figure)}](figures/{md_cell(figure)}.png)"]
     lines += ["", "Machine-readable: `leaderboard.csv`. Built by `hnnbench report` from the "
               "run records; do not edit by hand.", ""]
     return "\n".join(lines)
