@@ -113,3 +113,25 @@ def sweep_records(directory: Path) -> dict:
         assert key not in out, f"two records for {key} under {directory}"
         out[key] = {**rec, "path": path}
     return out
+
+
+@pytest.fixture(autouse=True)
+def _restore_logging():
+    """A command run in-process configures logging (Hydra's job logging) with handlers
+    on the streams of that moment, e.g. a test's captured stdout, which pytest closes
+    when the test ends: put every logger's handlers back as they were, so no later log
+    line writes to a closed stream."""
+    import logging
+
+    loggers = [logging.getLogger(), *(logging.getLogger(name) for name in
+                                      list(logging.Logger.manager.loggerDict))]
+    saved = {id(lg): (lg, lg.handlers[:], lg.level, lg.propagate) for lg in loggers}
+    yield
+    for lg, handlers, level, propagate in saved.values():
+        lg.handlers[:] = handlers
+        lg.setLevel(level)
+        lg.propagate = propagate
+    for name in list(logging.Logger.manager.loggerDict):
+        lg = logging.getLogger(name)
+        if id(lg) not in saved:  # created during the test: no handlers of its streams
+            lg.handlers[:] = []

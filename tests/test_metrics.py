@@ -50,7 +50,7 @@ def test_reference_solver_closes_a_spring_period():
     np.testing.assert_allclose(xs[0, :, 0], np.cos(2 * t), atol=1e-9)
 
 
-def test_an_optional_metric_that_raises_is_recorded_a_required_one_fails_the_job():
+def test_a_metric_that_raises_is_recorded_unless_it_declares_errors_fail_job():
     from hnnbench._contract import Trajectories
     from hnnbench._evaluate import evaluate
     from hnnbench._metric import Metric
@@ -64,6 +64,9 @@ def test_an_optional_metric_that_raises_is_recorded_a_required_one_fails_the_job
     result = evaluate(None, None, None, traj, None, metrics=[fine, optional])  # type: ignore[arg-type]
     assert result.metrics["fine"]["mean"] == 1.0 and np.isnan(result.metrics["probe"]["mean"])
     assert result.errors == {"probe": "ValueError: a bug"} and result.diverged is None
+    required = evaluate(None, None, None, traj, None,  # type: ignore[arg-type]
+                        metrics=[fine, Metric("needed", "raises", broken)])
+    assert required.errors == {"needed": "ValueError: a bug"}  # a plugin bug: recorded
     with pytest.raises(ValueError, match="a bug"):
         evaluate(None, None, None, traj, None,  # type: ignore[arg-type]
-                 metrics=[fine, Metric("needed", "raises", broken)])
+                 metrics=[fine, Metric("core", "raises", broken, errors_fail_job=True)])
