@@ -16,6 +16,7 @@ differ from the CLI's in the last bits).
 from __future__ import annotations
 
 import datetime as _dt
+import shlex
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Optional, Union
@@ -60,9 +61,10 @@ def _out_dir(out: Union[str, Path]) -> str:
     return path
 
 
-def _command(function: str, args: dict[str, Any]) -> str:
-    shown = ", ".join(f"{k}={v!r}" for k, v in args.items())
-    return f"hnnbench.{function}({shown})"
+def _command(function: str, checked: Any) -> str:
+    """The command line that runs the same jobs (the plan's, as the CLI would take it),
+    marked as made by the API."""
+    return shlex.join(["hnnbench", *checked.argv]) + f"  # via hnnbench.{function}()"
 
 
 def run(system: str, model: str, seed: int = 0, profile: str = "paper",
@@ -90,8 +92,7 @@ def run(system: str, model: str, seed: int = 0, profile: str = "paper",
     if out is not None:
         single["hydra.run.dir"] = _out_dir(out)
     checked = _sweep.request(single=single, raw=raw, multirun=False)
-    command = _command("run", {"system": system, "model": model, "seed": seed,
-                               "profile": profile, **overrides})
+    command = _command("run", checked)
     result = _sweep.launch_plan(checked, command)
     return result.records[0]
 
@@ -128,8 +129,7 @@ def sweep(systems: Names, models: Names, seeds: Iterable[int] = (0,),
                 **typed},
         swept={"system": _names(systems), "model": _names(models), "seed": seeds},
         raw=raw, multirun=True)
-    command = _command("sweep", {"systems": systems, "models": models, "seeds": seeds,
-                                 "profile": profile, "launcher": launcher, **overrides})
+    command = _command("sweep", checked)
     result = _sweep.launch_plan(checked, command)
     board = leaderboard(result.records)
     board.attrs["sweep_dir"] = str(out)
