@@ -74,7 +74,7 @@ def _set_threads(threads: int) -> None:
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         os.environ[var] = str(threads)
     threadpoolctl.threadpool_limits(limits=threads)
-    if "torch" in sys.modules:
+    if sys.modules.get("torch") is not None:  # loaded (None: blocked)
         import torch
 
         torch.set_num_threads(threads)

@@ -1,7 +1,7 @@
 """The launch context: what the ``hnnbench`` command tells the jobs it starts.
 
 A sweep's jobs may run in launcher workers (joblib's processes, Slurm tasks), which
-see the command's environment but none of its Python state. Three facts travel
+see the command's environment but none of its Python state. These facts travel
 there, in one environment variable (:data:`ENV`, JSON):
 
 - ``command``: the command line as typed, stored in every record;
@@ -13,7 +13,9 @@ there, in one environment variable (:data:`ENV`, JSON):
 - ``host``: the command's host name. A worker on the same host whose command has gone
   (killed without its process group, e.g. ``kill PID``) exits at its next progress
   update, writing no record, instead of training on as an orphan (:func:`abandoned`,
-  :mod:`hnnbench._progress`); a worker on another host (Slurm) never checks.
+  :mod:`hnnbench._progress`); a worker on another host (Slurm) never checks;
+- ``returns`` and ``pinned``: the command's channel file for the jobs' outcomes, and the
+  sweeps of groups its sweeper restores (:mod:`hnnbench._sweep`).
 
 :func:`launched` sets it for the duration of a command and restores what was there
 before, so a notebook's later in-process runs are not affected.
@@ -44,6 +46,8 @@ class LaunchContext:
     host: Optional[str] = None
     #: the command's channel file: jobs' outcomes (``hnnbench._sweep``).
     returns: Optional[str] = None
+    #: swept groups pinned for Hydra's sweep-wide config (``hnnbench._sweep.Plan``).
+    pinned: Optional[dict[str, str]] = None
 
 
 def current() -> Optional[LaunchContext]:
@@ -54,7 +58,8 @@ def current() -> Optional[LaunchContext]:
     try:
         data = json.loads(value)
         return LaunchContext(**{k: data.get(k)
-                                for k in ("command", "n_jobs", "cli_pid", "host", "returns")})
+                                for k in ("command", "n_jobs", "cli_pid", "host", "returns",
+                                          "pinned")})
     except (ValueError, TypeError, AttributeError):  # set by hand: "started by the CLI"
         return LaunchContext()
 

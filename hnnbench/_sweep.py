@@ -59,6 +59,18 @@ class Plan:
     multirun: bool
     n_jobs: int | None
     overrides: list[str] = field(default_factory=list)
+    #: A swept group pinned to its first value in the command line Hydra composes its
+    #: sweep-wide config with (``model=a`` for ``model=a,b``), because that config
+    #: skips sweeps of groups: with the group empty, an override of one of its keys
+    #: (``model.steps=5``) would not compose. The pinned text -> the sweep's text;
+    #: :class:`Sweeper` hands Hydra's sweeper the sweep again.
+    pinned: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def hydra_argv(self) -> list[str]:
+        """The command line given to Hydra (:attr:`argv`, swept groups pinned)."""
+        back = {sweep: one for one, sweep in self.pinned.items()}
+        return [back.get(arg, arg) for arg in self.argv]
 
 
 @dataclass
@@ -339,7 +351,13 @@ def plan(argv: list[str]) -> Plan:
             counts[e.key] = None if e.values is None else max(len(e.values), 1)
     for count in counts.values():
         n_jobs = None if n_jobs is None or count is None else n_jobs * count
-    return Plan(argv=flags + rewritten, multirun=multirun, n_jobs=n_jobs, overrides=rewritten)
+    pinned = {}
+    for e in sweeps.values():
+        if (e.key in ("system", "model", "profile") and not e.prefix and e.values
+                and any(o.key.startswith(f"{e.key}.") for o in entries)):
+            pinned[f"{e.key}={e.values[0]}"] = e.text
+    return Plan(argv=flags + rewritten, multirun=multirun, n_jobs=n_jobs, overrides=rewritten,
+                pinned=pinned)
 
 
 def _task(cfg) -> list[dict[str, Any]]:  # noqa: ANN001 - Hydra passes a DictConfig
@@ -412,6 +430,8 @@ class Sweeper(HydraSweeper):
 
     def sweep(self, arguments: list[str]) -> Any:
         context = launch.current()
+        pinned = (context.pinned or {}) if context is not None else {}
+        arguments = [pinned.get(arg, arg) for arg in arguments]  # Plan.pinned
         with sweep_lock(Path(str(self._config.hydra.sweep.dir)),
                         context.command if context is not None else None):
             return self._basic.sweep(arguments)
@@ -578,9 +598,9 @@ def _launch_plan(checked: Plan, command: str) -> Execution:
         # that the hnnbench command started them (they then pin a core: _affinity).
         context = launch.LaunchContext(command=command, n_jobs=checked.n_jobs or None,
                                        cli_pid=os.getpid(), host=socket.gethostname(),
-                                       returns=str(channel))
+                                       returns=str(channel), pinned=checked.pinned or None)
         saved = sys.argv
-        sys.argv = [saved[0] if saved else "hnnbench", *checked.argv]
+        sys.argv = [saved[0] if saved else "hnnbench", *checked.hydra_argv]
         try:
             with launch.launched(context), _one_line_hydra_errors():
                 hydra.main(version_base="1.3", config_path="pkg://hnnbench_conf",

@@ -143,6 +143,28 @@ def test_a_job_composes_its_config_once(tmp_path, monkeypatch):
     assert sorted(r["seed"] for r in again.records) == [0, 1, 2, 3] and all(again.kept)
 
 
+def test_a_swept_group_takes_overrides_of_its_keys(tmp_path):
+    """Hydra composes a sweep-wide config that skips sweeps of groups; with no system
+    chosen by default, ``system.eval_t_end=2`` would not compose there. The plan pins
+    the swept group to its first value for that config, and every job still gets its
+    own value and the override (its directory named as before)."""
+    from hnnbench import _sweep
+
+    argv = ["-m", "system=spring,pendulum", "model=oracle", "profile=quick", "seed=0",
+            "system.eval_t_end=2", "pin_cpu=false", f"hydra.sweep.dir={tmp_path}"]
+    checked = _sweep.plan(argv)
+    assert checked.pinned == {"system=spring": "system=spring,pendulum"}
+    assert "system=spring" in checked.hydra_argv and "system=spring,pendulum" in checked.argv
+    result = _sweep.execute(argv)
+    got = {(r["system"], r["config"]["system"]["eval_t_end"]) for r in result.records}
+    assert got == {("spring", 2), ("pendulum", 2)}, got
+    for system in ("spring", "pendulum"):
+        assert (tmp_path / system / "oracle" / "seed0" / "system.eval_t_end=2"
+                / "result.json").is_file()
+    # Nothing is pinned where nothing needs it.
+    assert not _sweep.plan(["-m", "system=spring,pendulum", "model=oracle"]).pinned
+
+
 def test_old_module_names_still_import_with_a_warning():
     import hnnbench
 
@@ -175,8 +197,16 @@ def test_plugins_import_only_the_public_surface():
 def test_without_torch_model_all_runs_every_jax_model_and_the_oracle(tmp_path):
     """torch made unimportable (as when it is not installed): ``model=all`` is every
     model that can run, the sweep exits 0."""
-    code = ("import sys; sys.modules['torch'] = None; from hnnbench._cli import run; "
-            "sys.exit(run(sys.argv[1:]))")
+    # An import hook that finds no torch, as on an install without it (a None in
+    # sys.modules would also block it, but trips libraries that look torch up there).
+    code = ("import sys\n"
+            "class NoTorch:\n"
+            "    def find_spec(self, name, path=None, target=None):\n"
+            "        if name.split('.')[0] == 'torch':\n"
+            "            raise ModuleNotFoundError(f'No module named {name!r}', name=name)\n"
+            "sys.meta_path.insert(0, NoTorch())\n"
+            "from hnnbench._cli import run\n"
+            "sys.exit(run(sys.argv[1:]))\n")
     proc = subprocess.run(
         [sys.executable, "-c", code, "-m", "system=spring", "model=all", "profile=quick",
          f"hydra.sweep.dir={tmp_path}"], capture_output=True, text=True, timeout=900)

@@ -11,7 +11,7 @@ import pytest
 NO_BACKEND = """
 import sys
 from hnnbench import _cli as cli, _registry as registry
-from conftest import compose_job as compose
+from hnnbench._config import compose
 from hnnbench._config import prepare_job
 cli.cmd_list([])
 for model in registry.available("model"):
@@ -22,7 +22,7 @@ print("IMPORTED", "torch" in sys.modules, "jax" in sys.modules)
 
 JOB = """
 import sys, pathlib
-from conftest import compose_job as compose
+from hnnbench._config import compose
 from hnnbench._job import run_job
 overrides = ["system=spring", "model={model}", "profile=quick", "system.steps=10",
              "device=cpu", "save_model=false", "system.eval_n_points=10"]

@@ -563,14 +563,17 @@ def _sweep_records(root: Path) -> dict[str, dict]:
 @pytest.mark.slow
 def test_sweep_isolates_divergence_and_failure_then_resumes(fake_site, tmp_path):
     """Through the console script: one job diverges for real (torch at lr=1e30), one
-    predicts NaN, one crashes; the sweep goes on, the oracle is ok. Resuming redoes
-    only the failed job; rerun=true redoes everything."""
+    predicts NaN, one crashes; the sweep goes on, the oracle is ok, and the command
+    exits 1 (a job failed) saying so. Resuming redoes only the failed job; rerun=true
+    redoes everything."""
     env = _fakeplug.env_for(fake_site)
     sweep = tmp_path / "sweep"
-    args = ["-m", "model=oracle,mlp_torch,crash_model,nan_model", "model.lr=1e30",
+    args = ["-m", "system=spring", "model=oracle,mlp_torch,crash_model,nan_model",
+            "model.lr=1e30",
             "model.weight_decay=0", *QUICK, f"hydra.sweep.dir={sweep}"]
     proc = hnnbench(*args, cwd=tmp_path, env=env)
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.returncode == 1, proc.stderr[-3000:]
+    assert proc.stderr.strip().splitlines()[-1].startswith("hnnbench: 1 failed of 4 job(s)")
     recs = _sweep_records(sweep)
     assert {m: r["status"] for m, r in recs.items()} == {
         "oracle": "ok", "mlp_torch": "diverged", "crash_model": "failed", "nan_model": "diverged"}
@@ -579,18 +582,18 @@ def test_sweep_isolates_divergence_and_failure_then_resumes(fake_site, tmp_path)
         assert recs[name]["metrics"]["energy_mse"]["mean"] == math.inf
         assert recs[name]["metrics"]["test_loss"]["mean"] == math.inf
     assert recs["oracle"]["metrics"]["energy_mse"]["mean"] < QUICK_ORACLE_BOUND
-    assert "4 jobs: 2 diverged, 1 failed, 1 ok" in proc.stdout
+    assert "this run: 4 jobs: 2 diverged, 1 failed, 1 ok" in proc.stdout
     oracle = recs["oracle"]
-    assert oracle["overrides"] == ["model=oracle", "model.lr=1e+30", "model.weight_decay=0",
-                                   "profile=quick", "system.steps=20"]
-    assert oracle["command"].startswith("hnnbench -m model=oracle,mlp_torch")
-    assert oracle["rerun_command"] == ("hnnbench model=oracle model.lr=1e+30 "
+    assert oracle["overrides"] == ["system=spring", "model=oracle", "model.lr=1e+30",
+                                   "model.weight_decay=0", "profile=quick", "system.steps=20"]
+    assert oracle["command"].startswith("hnnbench -m system=spring model=oracle,mlp_torch")
+    assert oracle["rerun_command"] == ("hnnbench system=spring model=oracle model.lr=1e+30 "
                                        "model.weight_decay=0 profile=quick system.steps=20")
 
     before = {m: r["created_at"] for m, r in recs.items()}
     texts = {m: (Path(r["path"]) / "result.json").read_text() for m, r in recs.items()}
     proc = hnnbench(*args, cwd=tmp_path, env=env)
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.returncode == 1, proc.stderr[-3000:]  # crash_model fails again
     assert (proc.stdout + proc.stderr).count("already finished") == 3
     again = _sweep_records(sweep)
     for name in ("oracle", "mlp_torch", "nan_model"):
@@ -598,7 +601,7 @@ def test_sweep_isolates_divergence_and_failure_then_resumes(fake_site, tmp_path)
     assert again["crash_model"]["status"] == "failed"  # failed jobs are tried again
 
     proc = hnnbench(*args, "rerun=true", cwd=tmp_path, env=env)
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.returncode == 1, proc.stderr[-3000:]
     assert "already finished" not in proc.stdout + proc.stderr
     redone = _sweep_records(sweep)
     assert len(redone) == 4  # rerun=true is not part of the job directory name
