@@ -186,15 +186,17 @@ def _squeue(job_id: str) -> list[tuple[str, str]]:
     return [tuple(line.split()) for line in out.splitlines() if line.strip()]  # type: ignore[misc]
 
 
-def test_scancel_mid_run_then_rerun_finishes_every_job_once(slurm_cluster: str, basic: Sweep,
+def test_scancel_mid_run_then_rerun_finishes_every_job_once(slurm_cluster: str,
                                                              tmp_path: Path) -> None:
     """One task at a time; once the first record is written, the next task is cancelled
     with ``scancel`` while its job runs. The command reports the sweep unfinished;
-    re-running it into the same directory finishes every job: one record each, equal to
-    the basic launcher's, and the records written before the cancel are kept as they
-    were (not redone)."""
+    re-running it into the same directory finishes every job: one record each, and the
+    records written before the cancel are kept as they were (not redone).
+
+    The jobs train longer than the other tests' (a cancelled task is killed KillWait,
+    5 s, after the cancel; a job of the shared sweep can finish within that)."""
     launcher = (*SLURM[:-1], "hydra.launcher.array_parallelism=1")
-    sweep = Sweep(tmp_path, "scancel", launcher)
+    sweep = Sweep(tmp_path, "scancel", launcher, extra=("system.steps=3000",))
     driver = sweep.popen()
     cancelled = None
     deadline = time.monotonic() + 600
@@ -205,7 +207,7 @@ def test_scancel_mid_run_then_rerun_finishes_every_job_once(slurm_cluster: str, 
                 log = sweep.dir / ".submitit" / task / f"{task}_0_log.out"
                 text = log.read_text() if state == "RUNNING" and log.exists() else ""
                 # Mid-run: the task's job has started and written no record yet. At
-                # once: a job takes 8-20 s here, and a cancelled task has KillWait (5 s,
+                # once: a job takes 10-20 s here, and a cancelled task has KillWait (5 s,
                 # scripts/cluster/slurm.sh) between SIGTERM, which submitit ignores, and
                 # SIGKILL, in which it could still finish.
                 started = re.search(r"(\w+) x (\w+) seed=(\d+): start", text)
@@ -258,7 +260,7 @@ def test_scancel_mid_run_then_rerun_finishes_every_job_once(slurm_cluster: str, 
         # module before 0.3: cli.log; hydra.job.name=hnnbench since).
         logs = "".join(p.read_text() for p in after[key]["path"].parent.glob("*.log"))
         assert "already finished (ok)" in logs, key
-    _assert_same_as_basic(basic, sweep)
+    assert after[cancelled[1]]["status"] == "ok"
 
 
 def test_ray_sweep_on_a_running_head_equals_the_basic_sweep(ray_head: tuple[str, str],
