@@ -43,7 +43,6 @@ how much); user errors raise :class:`~hnnbench._errors.HnnbenchError` (the CLI e
 
 from __future__ import annotations
 
-import argparse
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -56,7 +55,7 @@ from hnnbench import _claims as C
 from hnnbench import _provenance as P
 from hnnbench import _records as R
 from hnnbench import _registry as registry
-from hnnbench._errors import HnnbenchError
+from hnnbench._errors import HnnbenchError, OneLineArgumentParser
 from hnnbench._metric import CheckRule
 from hnnbench._record_schema import (
     BOARD_KEY,
@@ -405,10 +404,8 @@ def compare(reference: pd.DataFrame, current: pd.DataFrame,
 HEADERS = ["check", "metric", "system", "model", "reference", "current", "factor", "limit"]
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> Any:
-        usage = " ".join(self.format_usage().split()[1:])
-        raise CheckError(f"{message} (usage: {usage})")
+class _Parser(OneLineArgumentParser):
+    error_type = CheckError
 
 
 def _parser() -> _Parser:

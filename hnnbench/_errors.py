@@ -8,8 +8,10 @@ and how to fix it.
 
 from __future__ import annotations
 
+import argparse
 import difflib
 from collections.abc import Iterable
+from typing import Any, ClassVar
 
 
 class HnnbenchError(Exception):
@@ -75,6 +77,17 @@ class JobTimeout(BaseException):
     def __init__(self, seconds: float) -> None:
         self.seconds = seconds
         super().__init__(f"the job ran past its time limit of {seconds:g} s (timeout_s)")
+
+
+class OneLineArgumentParser(argparse.ArgumentParser):
+    """argparse that raises a one-line :attr:`error_type` (naming the problem and the
+    usage) instead of printing usage and exiting; a subcommand sets its own error type."""
+
+    error_type: ClassVar[type[HnnbenchError]] = HnnbenchError
+
+    def error(self, message: str) -> Any:
+        usage = " ".join(self.format_usage().split()[1:])
+        raise self.error_type(f"{message} (usage: {usage})")
 
 
 def unknown_name_message(kind: str, name: str, available: Iterable[str]) -> str:

@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import argparse
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
-from hnnbench._errors import HnnbenchError
+from hnnbench._errors import OneLineArgumentParser
 from hnnbench._report.build import write_report
 from hnnbench._report.tables import md_table
 from hnnbench._table import display_frame
@@ -15,16 +13,8 @@ from hnnbench._table import display_frame
 __all__ = ["main"]
 
 
-class _Parser(argparse.ArgumentParser):
-    """argparse that raises a one-line :class:`HnnbenchError` instead of exiting."""
-
-    def error(self, message: str) -> Any:
-        usage = " ".join(self.format_usage().split()[1:])
-        raise HnnbenchError(f"{message} (usage: {usage})")
-
-
-def _parser() -> _Parser:
-    p = _Parser(prog="hnnbench report",
+def _parser() -> OneLineArgumentParser:
+    p = OneLineArgumentParser(prog="hnnbench report",
                 description="Tables (CSV, Markdown, HTML) and figures from run records; "
                             "several directories merge into one leaderboard.")
     p.add_argument("dirs", metavar="DIR", nargs="+",
