@@ -47,6 +47,7 @@ ci-reference: setup
 	  hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS) hydra.sweep.dir=$(GATE_DIR)/torch
 	$(VENV)/hnnbench check $(GATE_DIR)/jax $(GATE_DIR)/torch \
 	  --reference results/reference/quick.csv --update
+	$(VENV)/python scripts/job_costs.py
 
 # The reproduction guard's reference (tests/test_reproduction_guard.py).
 guard-reference: setup

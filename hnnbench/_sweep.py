@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NoReturn, Optional
 
+from hnnbench import _costs as costs
 from hnnbench import _launch as launch
 from hnnbench import _records as records
 from hnnbench import _registry as registry
@@ -410,6 +411,7 @@ class Sweeper(HydraSweeper):
         self._args = (max_batch_size, params)
         self._basic: Any = None
         self._config: Any = None
+        self._progress: Optional[costs.SweepProgress] = None
 
     def setup(self, *, hydra_context: Any, task_function: Any, config: Any) -> None:
         self._basic = basic_sweeper_class()(*self._args)
@@ -421,6 +423,8 @@ class Sweeper(HydraSweeper):
         launch_batch = launcher.launch
 
         def launch_and_collect(job_overrides: Any, initial_job_idx: int) -> Any:
+            if self._progress is not None:
+                self._started(job_overrides)
             results = launch_batch(job_overrides, initial_job_idx=initial_job_idx)
             for overrides, job in zip(job_overrides, results, strict=False):
                 _collect(job, overrides)
@@ -432,9 +436,31 @@ class Sweeper(HydraSweeper):
         context = launch.current()
         pinned = (context.pinned or {}) if context is not None else {}
         arguments = [pinned.get(arg, arg) for arg in arguments]  # Plan.pinned
-        with sweep_lock(Path(str(self._config.hydra.sweep.dir)),
-                        context.command if context is not None else None):
-            return self._basic.sweep(arguments)
+        directory = Path(str(self._config.hydra.sweep.dir))
+        # Progress lines with an ETA, for the hnnbench command and API (hnnbench._costs).
+        self._progress = None if context is None else costs.SweepProgress(
+            directory, default_profile=str(self._config.profile.name),
+            costs=costs.load_costs())
+        try:
+            with sweep_lock(directory, context.command if context is not None else None):
+                return self._basic.sweep(arguments)
+        finally:
+            if self._progress is not None:
+                self._progress.stop()
+
+    def _started(self, batch: Sequence[Sequence[str]]) -> None:
+        """A batch is about to launch: on the first, say what its jobs took when
+        published; then watch for their records."""
+        assert self._progress is not None
+        if not self._progress.started:
+            keys = [costs.job_key(list(o), self._progress.default_profile) for o in batch]
+            launcher = self._config.hydra.launcher
+            workers = next((int(launcher[k]) for k in ("n_jobs", "array_parallelism")
+                            if isinstance(launcher.get(k), int) and launcher[k] > 0), None)
+            line = costs.estimate_line(keys, self._progress.costs, workers)
+            if line:
+                print(f"hnnbench: {line}", file=sys.stderr, flush=True)
+        self._progress.add([list(o) for o in batch])
 
 
 def _collect(job: Any, overrides: Sequence[str]) -> None:

@@ -184,6 +184,9 @@ def main(argv: list[str] | None = None) -> int:
         listing += "\n" + line
     results_readme.write_text(replace_block(results_readme.read_text(), "provenance",
                                             f"{prov}\n{listing}"))
+    import job_costs  # scripts/: the sweep's estimate reads the published job times
+
+    job_costs.main([])
     print(json.dumps({"copied_records": copied, "published_records": len(published),
                       "systems": systems, "figures": len(report.figures)}))
     return 0

@@ -1,0 +1,88 @@
+"""Write hnnbench/resources/job_costs.csv: the wall time of one job per (profile, system,
+model), from the runs this repository publishes (hnnbench._costs reads it for the
+sweep's estimate and ETA).
+
+- paper profile: the median ``timings.total_s`` over the main-row records in
+  results/records (every seed; variants left out);
+- quick profile: ``total_s_mean`` of results/reference/quick.csv (the CI gate's seed-0
+  sweep).
+
+    python scripts/job_costs.py            # rewrite the file
+    python scripts/job_costs.py --check    # exit 1 when the file is not what it writes
+
+scripts/publish_results.py and ``make ci-reference`` run it after they write results.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+RECORDS = REPO / "results" / "records"
+QUICK = REPO / "results" / "reference" / "quick.csv"
+OUT = REPO / "hnnbench" / "resources" / "job_costs.csv"
+COLUMNS = ("profile", "system", "model", "seconds", "n_runs", "source")
+
+
+def rows() -> list[dict[str, object]]:
+    from hnnbench._costs import median_seconds
+
+    times: dict[tuple[str, str, str], list[float]] = defaultdict(list)
+    for path in sorted(RECORDS.rglob("result.json")):
+        rec = json.loads(path.read_text("utf-8"))
+        if rec.get("variant") or not isinstance(rec.get("timings"), dict):
+            continue
+        total = rec["timings"].get("total_s")
+        if isinstance(total, (int, float)):
+            times[(rec["profile"], rec["system"], rec["model"])].append(float(total))
+    out: list[dict[str, object]] = []
+    for (profile, system, model), values in sorted(times.items()):
+        out.append({"profile": profile, "system": system, "model": model,
+                    "seconds": f"{median_seconds(values):.3g}", "n_runs": len(values),
+                    "source": "results/records (median total_s)"})
+    if QUICK.exists():
+        with QUICK.open(newline="", encoding="utf-8") as fh:
+            for row in csv.DictReader(fh):
+                if row.get("variant") or not row.get("total_s_mean"):
+                    continue
+                out.append({"profile": row["profile"], "system": row["system"],
+                            "model": row["model"],
+                            "seconds": f"{float(row['total_s_mean']):.3g}",
+                            "n_runs": row.get("n_seeds", ""),
+                            "source": "results/reference/quick.csv (total_s_mean)"})
+    return out
+
+
+def render() -> str:
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows())
+    return buf.getvalue()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--check", action="store_true",
+                        help="exit 1 when the committed file differs from what this writes")
+    args = parser.parse_args(argv)
+    text = render()
+    if args.check:
+        if not OUT.exists() or OUT.read_text("utf-8") != text:
+            print(f"{OUT.relative_to(REPO)} is out of date: run python scripts/job_costs.py",
+                  file=sys.stderr)
+            return 1
+        return 0
+    OUT.write_text(text, encoding="utf-8")
+    print(f"wrote {OUT.relative_to(REPO)} ({text.count(chr(10)) - 1} rows)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,87 @@
+"""The sweep's estimate and ETA (hnnbench._costs) and the job-cost table it reads."""
+
+from __future__ import annotations
+
+import io
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from conftest import REPO
+
+from hnnbench import _costs as costs
+
+
+def test_the_committed_job_costs_are_what_the_script_writes():
+    proc = subprocess.run([sys.executable, str(REPO / "scripts" / "job_costs.py"), "--check"],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    table = costs.load_costs()
+    assert table[("paper", "spring", "hnn_jax")] > 0
+    assert table[("quick", "spring", "oracle")] > 0
+
+
+def test_a_broken_cost_file_gives_no_estimate(tmp_path):
+    bad = tmp_path / "costs.csv"
+    bad.write_text("profile,system\nx,y\n")
+    assert costs.load_costs(bad) == {}
+    assert costs.load_costs(tmp_path / "missing.csv") == {}
+
+
+def test_job_key_and_durations():
+    assert costs.job_key(["system=spring", "model=hnn_jax", "seed=1"], "paper") == (
+        "paper", "spring", "hnn_jax")
+    assert costs.job_key(["profile=quick", "system=a", "model=b"], "paper") == ("quick", "a", "b")
+    assert costs.job_key(["seed=1"], "paper") is None
+    assert [costs.duration_text(s) for s in (3, 600, 3 * 3600 + 300)] == [
+        "3 s", "10 min", "3 h 05 min"]
+    assert costs.duration_text(80 * 60) == "80 min"
+
+
+def test_estimate_line_counts_what_is_known():
+    table = {("paper", "s", "a"): 3600.0, ("paper", "s", "b"): 1800.0}
+    keys = [("paper", "s", "a"), ("paper", "s", "b"), ("paper", "s", "c"), None]
+    line = costs.estimate_line(keys, table, workers=2)
+    assert line is not None
+    assert "took 1 h 30 min of job time (about 45 min on 2 workers)" in line
+    assert "2 job(s) have no published run" in line
+    assert costs.estimate_line([("paper", "s", "c")], table, workers=2) is None
+
+
+def _record(directory: Path, job: str) -> None:
+    path = directory / job / "x" / "result.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("{}")
+
+
+def test_progress_counts_new_records_and_scales_the_eta(tmp_path):
+    """Kept records are not counted; the ETA scales the published cost of the jobs
+    left by this sweep's pace so far."""
+    table = {("paper", "s", "a"): 10.0, ("paper", "s", "b"): 30.0}
+    _record(tmp_path, "s/a/seed0")  # kept from an earlier run
+    out = io.StringIO()
+    progress = costs.SweepProgress(tmp_path, default_profile="paper", costs=table,
+                                   every_s=0.05, out=out)
+    jobs = [["system=s", f"model={m}", f"seed={k}"] for m in ("a", "b") for k in (0, 1)]
+    progress.add(jobs)
+    assert progress.started
+    _record(tmp_path, "s/a/seed1")
+    deadline = time.monotonic() + 10
+    while "1/3 jobs done" not in out.getvalue() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    progress.stop()
+    line = out.getvalue().strip().splitlines()[-1]
+    assert line.startswith("hnnbench: 1/3 jobs done in "), line
+    # One job of cost 10 done; two of cost 30 left: the ETA is 6x the elapsed time.
+    assert "for the 2 left" in line
+    assert progress.line().startswith("1/3 jobs done")
+
+
+def test_a_sweep_prints_its_estimate_and_progress(tmp_path):
+    from conftest import hnnbench
+
+    proc = hnnbench("-m", "system=spring", "model=oracle", "profile=quick", "seed=0,1",
+                    f"hydra.sweep.dir={tmp_path / 'sweep'}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "hnnbench: the published runs of these jobs took" in proc.stderr, proc.stderr
