@@ -31,7 +31,28 @@ from hnnbench.neural._family import Family
 from hnnbench.neural._loop import Trainer
 from hnnbench.neural._views import Problem
 
-__all__ = ["BACKENDS", "Backend", "Inference", "Weights", "load_backend", "missing_backend"]
+__all__ = ["BACKENDS", "MIN_STEP_FRACTION", "Backend", "Inference", "Weights", "load_backend",
+           "missing_backend", "rollout_min_step", "stall_text"]
+
+#: The stall rule of every neural rollout, in both backends (docs/METRICS.md,
+#: "Diverged"): when the adaptive solver's next step size falls below this fraction of
+#: the rollout's time span, the rollout has stalled (a learned field that turned stiff
+#: or singular, e.g. an LNN's velocity Hessian passing through zero) and is recorded
+#: ``diverged`` at once, instead of spending its whole step budget
+#: (``model.rollout_max_steps``) on steps that cannot reach the horizon.
+MIN_STEP_FRACTION = 1e-8
+
+
+def rollout_min_step(t: np.ndarray) -> float:
+    """The smallest step size a rollout over times ``t`` may take (the stall rule,
+    :data:`MIN_STEP_FRACTION` of its span), in ``t``'s units."""
+    t = np.asarray(t, dtype=np.float64)
+    return MIN_STEP_FRACTION * float(abs(t[-1] - t[0])) if t.size else 0.0
+
+
+def stall_text(min_step: float) -> str:
+    """How both backends name the stall rule in a diverged rollout's reason."""
+    return f"the stall limit {min_step:.3g} ({MIN_STEP_FRACTION:g} of the rollout's span)"
 
 #: Flat ``{"<net>.linears.<i>.weight": array, ...}`` of one seed (pixel models add
 #: ``"autoencoder.encoder.<i>.weight"`` etc.), in the training dtype.
@@ -60,7 +81,9 @@ class Inference(Protocol):
                 max_steps: int) -> np.ndarray:
         """Adaptive Dormand-Prince 5(4) in float64 from ``(M, d)`` over ``(T,)``
         (monotonic, may decrease), the batch integrated as one system; ``(M, T, d)``.
-        Raises :class:`~hnnbench._errors.RolloutDiverged`."""
+        Raises :class:`~hnnbench._errors.RolloutDiverged` when the solver gives up: more
+        than ``max_steps`` steps, or a step size below :func:`rollout_min_step` (the
+        stall rule, the same in every backend)."""
         ...
 
     def encode(self, x: np.ndarray) -> np.ndarray:

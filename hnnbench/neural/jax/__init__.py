@@ -45,7 +45,7 @@ import optax  # noqa: E402
 from hnnbench import _paths as paths
 from hnnbench._contract import TrainSettings  # noqa: E402
 from hnnbench._errors import ConfigError, RolloutDiverged  # noqa: E402
-from hnnbench.neural._backend import Weights  # noqa: E402
+from hnnbench.neural._backend import Weights, rollout_min_step, stall_text  # noqa: E402
 from hnnbench.neural._config import NeuralConfig  # noqa: E402
 from hnnbench.neural._family import Family  # noqa: E402
 from hnnbench.neural._views import Problem  # noqa: E402
@@ -299,16 +299,24 @@ def _apply(fn: Field, nets: Nets, z: jax.Array) -> jax.Array:
 
 @eqx.filter_jit
 def _solve(field: Field, nets: Nets, y0: jax.Array, t: jax.Array, rtol: jax.Array,
-           atol: jax.Array, max_steps: int) -> tuple[jax.Array, jax.Array]:
+           atol: jax.Array, min_step: jax.Array, max_steps: int
+           ) -> tuple[jax.Array, jax.Array]:
     """Dopri5 from the ``(M, D)`` batch ``y0`` over ``t``, the batch integrated as one
-    system; returns ``ys (M, T, D)`` and the diffrax result code (0: success)."""
+    system; returns ``ys (M, T, D)`` and the diffrax result code (0: success). A
+    proposed step below ``min_step`` ends the solve (``dt_min_reached``: the stall
+    rule, :func:`hnnbench.neural._backend.rollout_min_step`)."""
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(lambda _t, y, _args: field(nets, y)), diffrax.Dopri5(),
         t0=t[0], t1=t[-1], dt0=None, y0=y0, saveat=diffrax.SaveAt(ts=t),
-        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol),
+        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol, dtmin=min_step,
+                                                  force_dtmin=False),
         max_steps=max_steps, throw=False,
     )
     return jnp.swapaxes(sol.ys, 0, 1), sol.result._value
+
+
+#: diffrax's result code of a step size below ``dtmin`` (the stall rule).
+_STALLED = int(diffrax.RESULTS.dt_min_reached._value)  # type: ignore[attr-defined]
 
 
 def _result_message(code: int) -> str:
@@ -360,17 +368,18 @@ class JaxInference:
     def rollout(self, z0: np.ndarray, t: np.ndarray, rtol: float, atol: float,
                 max_steps: int) -> np.ndarray:
         array = self.backend.array
+        min_step = rollout_min_step(t)
         ys, codes = _solve(self.impl.field, self.nets64, array(z0, jnp.float64),
                            array(t, jnp.float64), jnp.float64(rtol), jnp.float64(atol),
-                           int(max_steps))
+                           jnp.float64(min_step), int(max_steps))
         out, code = np.asarray(ys, dtype=np.float64), int(np.asarray(codes))
         if code != 0:
             finite = np.all(np.isfinite(out), axis=(0, 2))
             reached = float(t[np.flatnonzero(finite)[-1]]) if finite.any() else float(t[0])
-            raise RolloutDiverged(
-                f"dopri5 gave up after t={reached:g} (of {float(t[0]):g}..{float(t[-1]):g}): "
-                f"{_result_message(code)} (model.rollout_max_steps={max_steps})"
-            )
+            why = (f"the step size fell below {stall_text(min_step)}" if code == _STALLED
+                   else f"{_result_message(code)} (model.rollout_max_steps={max_steps})")
+            raise RolloutDiverged(f"dopri5 gave up after t={reached:g} (of {float(t[0]):g}.."
+                                  f"{float(t[-1]):g}): {why}")
         return out
 
     def encode(self, x: np.ndarray) -> np.ndarray:

@@ -17,7 +17,7 @@ import torch
 
 from hnnbench._contract import TrainSettings
 from hnnbench._errors import ConfigError, RolloutDiverged
-from hnnbench.neural._backend import Weights
+from hnnbench.neural._backend import Weights, rollout_min_step
 from hnnbench.neural._config import NeuralConfig
 from hnnbench.neural._family import Family
 from hnnbench.neural._views import Problem
@@ -172,7 +172,8 @@ class TorchInference:
         try:
             with torch.no_grad():  # the fields need no autograd (closed-form gradients)
                 ys = dopri5(lambda y: self.impl.field(self.nets64, y), y0, np.asarray(t),
-                            rtol=rtol, atol=atol, max_steps=max_steps)
+                            rtol=rtol, atol=atol, max_steps=max_steps,
+                            min_step=rollout_min_step(t))
         except SolverGaveUp as err:
             raise RolloutDiverged(f"dopri5 gave up: {err}") from None
         except torch.linalg.LinAlgError as err:  # e.g. a model's own singular solve

@@ -17,6 +17,8 @@ from collections.abc import Callable
 import numpy as np
 import torch
 
+from hnnbench.neural._backend import stall_text
+
 __all__ = ["dopri5", "SolverGaveUp"]
 
 Field = Callable[[torch.Tensor], torch.Tensor]
@@ -75,12 +77,16 @@ def _initial_step(f: Field, y0: torch.Tensor, f0: torch.Tensor, direction: float
 
 
 def dopri5(
-    f: Field, y0: torch.Tensor, t: np.ndarray, rtol: float, atol: float, max_steps: int
+    f: Field, y0: torch.Tensor, t: np.ndarray, rtol: float, atol: float, max_steps: int,
+    min_step: float = 0.0,
 ) -> torch.Tensor:
     """Integrate ``dy/dt = f(y)`` from ``y0`` ``(N, D)`` and report ``y`` at ``t`` ``(T,)``.
 
     ``t`` is monotonic (increasing or decreasing) and starts at the initial time.
-    Returns ``(T, N, D)`` in ``y0``'s dtype and device. Raises :class:`SolverGaveUp`.
+    Returns ``(T, N, D)`` in ``y0``'s dtype and device. Raises :class:`SolverGaveUp`
+    after ``max_steps`` steps, or when the step size the controller proposes (after a
+    step is accepted or rejected, before it is shortened to end on ``t[-1]``) falls
+    below ``min_step``, as diffrax's ``PIDController(dtmin=..., force_dtmin=False)``.
 
     The seven stage derivatives live as rows of one ``(7, N*D)`` tensor, so each stage
     state, the 5th-order solution, the error estimate and the dense output are a single
@@ -123,6 +129,7 @@ def dopri5(
         if not np.isfinite(err_norm):  # a trial step into overflow: reject, shrink
             h *= MIN_FACTOR
             nonfinite_at = t_now
+            _check_stall(h, min_step, t_now, nonfinite_at == t_now)
             continue
         if err_norm <= 1.0:
             t_new = t_now + hs
@@ -140,7 +147,16 @@ def dopri5(
             h = h * min(MAX_FACTOR, max(MIN_FACTOR, factor))
         else:
             h = h * max(MIN_FACTOR, SAFETY * err_norm ** -0.2)
+        _check_stall(h, min_step, t_now, nonfinite_at == t_now)
     return out
+
+
+def _check_stall(h: float, min_step: float, t_now: float, nonfinite: bool) -> None:
+    """Raise :class:`SolverGaveUp` when the proposed step ``h`` is below ``min_step``."""
+    if h < min_step:
+        why = " after non-finite trial states" if nonfinite else ""
+        raise SolverGaveUp(f"the step size fell to {h:.3g} at t={t_now:.6g}{why}, below "
+                           f"{stall_text(min_step)}")
 
 
 def _dense(times: np.ndarray, t0: float, hs: float, y0: torch.Tensor, y1: torch.Tensor,
