@@ -30,7 +30,7 @@ from hydra.plugins.sweeper import Sweeper as HydraSweeper
 from hnnbench._errors import HnnbenchError
 
 __all__ = ["HydraSweeper", "args_parser", "basic_sweeper_class", "group_lister",
-           "one_line_errors"]
+           "one_line_errors", "waiting_for_every_submitit_job"]
 
 
 def basic_sweeper_class() -> type:
@@ -39,8 +39,6 @@ def basic_sweeper_class() -> type:
     from hydra._internal.core_plugins import basic_sweeper
 
     return basic_sweeper.BasicSweeper
-
-__all__ = ["args_parser", "group_lister", "one_line_errors"]
 
 
 def args_parser() -> argparse.ArgumentParser:
@@ -93,3 +91,38 @@ def group_lister(loader: Any, extra_paths: list[str]
     repo = ConfigRepository(config_search_path=search_path)
     return (lambda parent: repo.get_group_options(parent, ObjectType.GROUP),
             lambda group: repo.get_group_options(group, ObjectType.CONFIG))
+
+
+@contextlib.contextmanager
+def waiting_for_every_submitit_job(launcher: Any) -> Iterator[None]:
+    """While a batch runs under a submitit launcher: wait for every job.
+
+    Hydra's submitit launcher collects ``job.results()`` job by job and stops at the
+    first that raises (a task cancelled with ``scancel``, preempted, or killed), so the
+    command ends while the other tasks still run (on its own host they then exit,
+    abandoned, and their work is lost). Here a job that raises gives a failed
+    ``JobReturn`` holding the error instead: the launcher goes on waiting for the
+    others, and the sweeper records the failed one as returning no record. Other
+    launchers are left as they are."""
+    if not type(launcher).__module__.startswith("hydra_plugins.hydra_submitit_launcher"):
+        yield
+        return
+    from hydra.core.utils import JobReturn, JobStatus
+    from submitit.core.core import Job
+
+    original = Job.results
+
+    def results(self: Any) -> list[Any]:
+        try:
+            return list(original(self))
+        except Exception as err:  # noqa: BLE001 - whatever ended the task
+            failed = JobReturn()
+            failed.status = JobStatus.FAILED
+            failed.return_value = err
+            return [failed]
+
+    Job.results = results  # type: ignore[method-assign]
+    try:
+        yield
+    finally:
+        Job.results = original  # type: ignore[method-assign]

@@ -44,7 +44,13 @@ from hnnbench._config import (
     register_schema,
 )
 from hnnbench._errors import ConfigError, HnnbenchError, UnknownNameError
-from hnnbench._hydra import HydraSweeper, args_parser, basic_sweeper_class, one_line_errors
+from hnnbench._hydra import (
+    HydraSweeper,
+    args_parser,
+    basic_sweeper_class,
+    one_line_errors,
+    waiting_for_every_submitit_job,
+)
 
 log = logging.getLogger("hnnbench")
 
@@ -425,12 +431,18 @@ class Sweeper(HydraSweeper):
         def launch_and_collect(job_overrides: Any, initial_job_idx: int) -> Any:
             if self._progress is not None:
                 self._started(job_overrides)
-            results = launch_batch(job_overrides, initial_job_idx=initial_job_idx)
+            with waiting_for_every_submitit_job(launcher):
+                results = launch_batch(job_overrides, initial_job_idx=initial_job_idx)
             for overrides, job in zip(job_overrides, results, strict=False):
                 _collect(job, overrides)
             return results
 
         launcher.launch = launch_and_collect
+
+    def __getstate__(self) -> dict[str, Any]:
+        # A submitit launcher pickles itself for its tasks, with this sweeper (its
+        # launch method is wrapped here); the progress thread stays in the command.
+        return {**self.__dict__, "_progress": None}
 
     def sweep(self, arguments: list[str]) -> Any:
         context = launch.current()
