@@ -27,11 +27,12 @@ from importlib import resources
 from pathlib import Path
 from typing import Optional, TextIO
 
-__all__ = ["COSTS_FILE", "JobKey", "SweepProgress", "duration_text", "estimate_line",
+__all__ = ["COLUMNS", "COSTS_FILE", "JobKey", "SweepProgress", "duration_text", "estimate_line",
            "job_key", "load_costs"]
 
 #: The resource file of job costs (``hnnbench/resources``).
 COSTS_FILE = "job_costs.csv"
+#: Its columns (one declaration; scripts/job_costs.py writes them).
 COLUMNS = ("profile", "system", "model", "seconds", "n_runs", "source")
 
 #: ``(profile, system, model)``.

@@ -26,8 +26,6 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 RECORDS = REPO / "results" / "records"
 QUICK = REPO / "results" / "reference" / "quick.csv"
-OUT = REPO / "hnnbench" / "resources" / "job_costs.csv"
-COLUMNS = ("profile", "system", "model", "seconds", "n_runs", "source")
 
 
 def rows() -> list[dict[str, object]]:
@@ -60,6 +58,8 @@ def rows() -> list[dict[str, object]]:
 
 
 def render() -> str:
+    from hnnbench._costs import COLUMNS
+
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
     writer.writeheader()
@@ -67,20 +67,27 @@ def render() -> str:
     return buf.getvalue()
 
 
+def _out() -> Path:
+    from hnnbench._costs import COSTS_FILE
+
+    return REPO / "hnnbench" / "resources" / COSTS_FILE
+
+
 def main(argv: list[str] | None = None) -> int:
+    out_path = _out()
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--check", action="store_true",
                         help="exit 1 when the committed file differs from what this writes")
     args = parser.parse_args(argv)
     text = render()
     if args.check:
-        if not OUT.exists() or OUT.read_text("utf-8") != text:
-            print(f"{OUT.relative_to(REPO)} is out of date: run python scripts/job_costs.py",
+        if not out_path.exists() or out_path.read_text("utf-8") != text:
+            print(f"{out_path.relative_to(REPO)} is out of date: run python scripts/job_costs.py",
                   file=sys.stderr)
             return 1
         return 0
-    OUT.write_text(text, encoding="utf-8")
-    print(f"wrote {OUT.relative_to(REPO)} ({text.count(chr(10)) - 1} rows)")
+    out_path.write_text(text, encoding="utf-8")
+    print(f"wrote {out_path.relative_to(REPO)} ({text.count(chr(10)) - 1} rows)")
     return 0
 
 
