@@ -21,7 +21,7 @@ import statistics
 import sys
 import threading
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -100,13 +100,21 @@ class SweepProgress:
     lines (``done/total`` and an ETA) to ``out``. Register jobs with :meth:`add` (a
     batch, each job its overrides; the first call starts the thread) and end with
     :meth:`stop`. A job whose directory (``<system>/<model>/seed<k>``) already holds a
-    record when it is registered counts as kept from an earlier run."""
+    record when it is registered counts as kept from an earlier run. ``on_new`` is
+    called from the thread when new records have arrived, at most once every
+    ``on_new_every_s`` seconds; an exception there is printed once and the sweep goes
+    on."""
 
     directory: Path
     default_profile: str
     costs: Mapping[JobKey, float]
     every_s: float = 10.0
     out: TextIO = field(default_factory=lambda: sys.stderr)
+    on_new: Optional[Callable[[], None]] = None
+    on_new_every_s: float = 60.0
+    _pending: bool = False
+    _last_on_new: float = float("-inf")
+    _on_new_failed: bool = False
     _jobs: dict[str, JobKey] = field(default_factory=dict)  # job directory -> key
     _kept: set[str] = field(default_factory=set)
     _done: set[str] = field(default_factory=set)
@@ -144,7 +152,7 @@ class SweepProgress:
     def stop(self) -> None:
         self._stop.set()
         if self._thread is not None:
-            self._thread.join(timeout=5)
+            self._thread.join(timeout=120)  # a report rewrite in progress ends first
 
     def _records(self) -> list[Path]:
         try:
@@ -159,12 +167,26 @@ class SweepProgress:
     def _run(self) -> None:
         while not self._stop.wait(self.every_s):
             new = [p for p in self._records() if p not in self._seen]
-            if not new:
-                continue
-            self._seen.update(new)
-            self._done.update(j for j in map(self._job_of, new) if j not in self._kept)
-            self.out.write(f"hnnbench: {self.line()}\n")
-            self.out.flush()
+            if new:
+                self._seen.update(new)
+                self._done.update(j for j in map(self._job_of, new) if j not in self._kept)
+                self.out.write(f"hnnbench: {self.line()}\n")
+                self.out.flush()
+                self._pending = True
+            if (self._pending and self.on_new is not None
+                    and time.monotonic() - self._last_on_new >= self.on_new_every_s):
+                self._call_on_new()
+
+    def _call_on_new(self) -> None:
+        assert self.on_new is not None
+        self._pending, self._last_on_new = False, time.monotonic()
+        try:
+            self.on_new()
+        except Exception as err:  # noqa: BLE001 - a convenience must not stop the sweep
+            if not self._on_new_failed:
+                self._on_new_failed = True
+                self.out.write(f"hnnbench: could not update the sweep's report: {err}\n")
+                self.out.flush()
 
     def line(self) -> str:
         """``k/N jobs done in T; ETA ... for the M left`` (kept jobs not counted)."""

@@ -452,7 +452,7 @@ class Sweeper(HydraSweeper):
         # Progress lines with an ETA, for the hnnbench command and API (hnnbench._costs).
         self._progress = None if context is None else costs.SweepProgress(
             directory, default_profile=str(self._config.profile.name),
-            costs=costs.load_costs())
+            costs=costs.load_costs(), on_new=lambda: _partial_report(directory))
         try:
             with sweep_lock(directory, context.command if context is not None else None):
                 return self._basic.sweep(arguments)
@@ -473,6 +473,14 @@ class Sweeper(HydraSweeper):
             if line:
                 print(f"hnnbench: {line}", file=sys.stderr, flush=True)
         self._progress.add([list(o) for o in batch])
+
+
+def _partial_report(directory: Path) -> None:
+    """The sweep's leaderboard (csv, Markdown, HTML; no figures) of the records so far,
+    rewritten while the sweep runs; the end of the sweep writes the whole report."""
+    from hnnbench import _report as report
+
+    report.write_report(directory, figures=False)
 
 
 def _collect(job: Any, overrides: Sequence[str]) -> None:

@@ -78,6 +78,36 @@ def test_progress_counts_new_records_and_scales_the_eta(tmp_path):
     assert progress.line().startswith("1/3 jobs done")
 
 
+def test_progress_calls_on_new_when_records_arrive_and_survives_its_errors(tmp_path):
+    """``on_new`` (the sweeper's leaderboard rewrite) runs once new records are there,
+    not before, at most once per ``on_new_every_s``; an exception in it is printed once
+    and the watching goes on."""
+    calls: list[float] = []
+
+    def on_new() -> None:
+        calls.append(time.monotonic())
+        raise OSError("disk full")
+
+    out = io.StringIO()
+    progress = costs.SweepProgress(tmp_path, default_profile="paper", costs={},
+                                   every_s=0.02, out=out, on_new=on_new, on_new_every_s=0.0)
+    progress.add([["system=s", "model=a", "seed=0"], ["system=s", "model=a", "seed=1"]])
+    time.sleep(0.2)
+    assert calls == []  # no record yet
+    _record(tmp_path, "s/a/seed0")
+    deadline = time.monotonic() + 10
+    while len(calls) < 1 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    _record(tmp_path, "s/a/seed1")
+    while len(calls) < 2 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    time.sleep(0.2)
+    progress.stop()
+    assert len(calls) == 2, calls  # once per arrival, not once per poll
+    assert out.getvalue().count("could not update the sweep's report: disk full") == 1
+    assert "2/2 jobs done" in out.getvalue()
+
+
 def test_a_sweep_prints_its_estimate_and_progress(tmp_path):
     from conftest import hnnbench
 

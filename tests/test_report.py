@@ -290,6 +290,18 @@ def test_on_sweep_end_writes_the_report_into_the_sweep(tmp_path, capsys):
     assert not (empty / "leaderboard.csv").exists()
 
 
+def test_a_running_sweep_gets_a_leaderboard_of_its_finished_pairs(tmp_path):
+    """The sweeper's rewrite while jobs finish (hnnbench._sweep._partial_report): the
+    tables of the records so far, no figures (those come at the end)."""
+    from hnnbench import _sweep
+
+    sweep = make_sweep(tmp_path / "s", pairs=(("spring", "hnn_torch"),), seeds=(0,))
+    _sweep._partial_report(sweep)
+    board = pd.read_csv(sweep / "leaderboard.csv")
+    assert list(board["model"]) == ["hnn_torch"]
+    assert (sweep / "leaderboard.md").exists() and not (sweep / "figures").exists()
+
+
 # --------------------------------------------------------------------------- CLI
 
 
