@@ -26,6 +26,7 @@ from hnnbench._contract import (
     Model,
     ModelConfig,
     Progress,
+    Selection,
     Split,
     System,
     SystemConfig,
@@ -41,10 +42,12 @@ from hnnbench._datasets import (
     DATA_STREAM,
     EVAL_STREAM,
     SPLIT_STREAM,
+    VALID_STREAM,
     TrajectoryIndices,
     TrajectorySplit,
     seed_stream,
     trajectory_dataset,
+    with_validation,
 )
 from hnnbench._errors import (
     BackendMissingError,
@@ -91,6 +94,7 @@ __all__ = [
     "EvalContext",
     "EvaluationConfig",
     "FitResult",
+    "Selection",
     "HnnbenchError",
     "Kinematics",
     "LinearKinematics",
@@ -103,6 +107,7 @@ __all__ = [
     "Published",
     "RolloutDiverged",
     "SPLIT_STREAM",
+    "VALID_STREAM",
     "Split",
     "System",
     "SystemConfig",
@@ -133,4 +138,5 @@ __all__ = [
     "summarize",
     "sweep",
     "trajectory_dataset",
+    "with_validation",
 ]

@@ -35,6 +35,7 @@ from hnnbench._outputs import checked
 __all__ = [
     "Dataset",
     "FitResult",
+    "Selection",
     "Model",
     "ModelConfig",
     "Progress",
@@ -205,17 +206,25 @@ class Split:
 
 @dataclass(frozen=True)
 class Dataset:
-    """A train/test split of points and targets, plus JSON-serialisable metadata."""
+    """A train/test split of points and targets, plus JSON-serialisable metadata.
+
+    ``valid`` is the validation split the job carves from a system's training data
+    before a model sees it (:func:`hnnbench._datasets.with_validation`, one rule for
+    every system); a system's ``dataset`` leaves it ``None``. Models select their
+    checkpoint on it, never on ``test``."""
 
     train: Split
     test: Split
     meta: dict[str, Any] = field(default_factory=dict)
+    valid: Optional[Split] = None
 
     def save(self, path: Path) -> None:
         """Write to ``path`` (an ``.npz``), without pickle."""
         arrays: dict[str, np.ndarray] = {"__meta__": np.array(json.dumps(self.meta))}
-        for split_name in ("train", "test"):
-            split: Split = getattr(self, split_name)
+        for split_name in ("train", "test", "valid"):
+            split: Optional[Split] = getattr(self, split_name)
+            if split is None:
+                continue
             for key in ("x", "dxdt", "traj", "t"):
                 arrays[f"{split_name}.{key}"] = getattr(split, key)
             for key, value in split.extras.items():
@@ -237,7 +246,8 @@ class Dataset:
             return Split(x=arrays[f"{prefix}.x"], dxdt=arrays[f"{prefix}.dxdt"],
                          traj=arrays[f"{prefix}.traj"], t=arrays[f"{prefix}.t"], extras=extras)
 
-        return cls(train=split("train"), test=split("test"), meta=meta)
+        valid = split("valid") if "valid.x" in arrays else None
+        return cls(train=split("train"), test=split("test"), meta=meta, valid=valid)
 
 
 @dataclass(frozen=True)
@@ -530,9 +540,44 @@ class Model(ABC):
 
 
 #: The training log's columns (:attr:`FitResult.history`): the optimizer step, and the
-#: losses on the training and test sets at that step. (Named like the built-in loss
-#: metrics, but a different thing: the log, not the evaluation.)
-HISTORY_STEP, HISTORY_TRAIN, HISTORY_TEST = "step", "train_loss", "test_loss"
+#: losses on the training and validation sets at that step. (Named like the built-in
+#: loss metrics, but a different thing: the log, not the evaluation.) Records written
+#: before the validation split logged the test loss instead (``test_loss``).
+HISTORY_STEP, HISTORY_TRAIN, HISTORY_VALID = "step", "train_loss", "val_loss"
+
+
+@dataclass(frozen=True)
+class Selection:
+    """Which checkpoint of a training run is scored: the weights with the lowest
+    validation loss among the evaluations made every ``interval`` steps.
+
+    Attributes:
+        step: the optimizer step of the selected weights.
+        val_loss: their validation loss.
+        evaluations: validation evaluations made (one per logging interval).
+        first_step: the step of the first evaluation; ``step == first_step`` means the
+            run did not improve after its first interval (:attr:`trained` is false).
+        stopped: why training stopped before its last step (a non-finite loss after
+            the selected checkpoint), else ``None``.
+    """
+
+    step: int
+    val_loss: float
+    evaluations: int
+    first_step: int
+    stopped: Optional[str] = None
+
+    @property
+    def trained(self) -> bool:
+        """Whether the selected weights come after the first evaluation."""
+        return self.step > self.first_step
+
+    def as_record(self) -> dict[str, Any]:
+        """The record's ``selection`` field."""
+        return {"rule": "lowest validation loss over the evaluations", "step": self.step,
+                "val_loss": self.val_loss, "evaluations": self.evaluations,
+                "first_step": self.first_step, "trained": self.trained,
+                "stopped": self.stopped}
 
 
 @dataclass
@@ -541,15 +586,20 @@ class FitResult:
 
     Attributes:
         history: columns of the training log (:data:`HISTORY_STEP`,
-            :data:`HISTORY_TRAIN`, :data:`HISTORY_TEST`), all of the same length; a
-            non-finite value in either loss column marks divergence.
+            :data:`HISTORY_TRAIN`, :data:`HISTORY_VALID`), all of the same length; a
+            non-finite value in either loss column marks divergence, unless a
+            checkpoint was selected before it (``selection``).
         steps: optimizer steps taken; 0 for a model without an iterative training
             loop (closed form, least squares), whose record then shows no training
             protocol.
         diverged: why training diverged (the job records ``diverged`` with this
             reason); ``None`` otherwise. The only way a fit reports divergence.
+        selection: the checkpoint the model holds after ``fit`` (its weights are the
+            selected ones), for a model that selects on validation; ``None`` for one
+            that keeps its last iterate.
     """
 
     history: dict[str, list[float]] = field(default_factory=dict)
     steps: int = 0
     diverged: Optional[str] = None
+    selection: Optional[Selection] = None

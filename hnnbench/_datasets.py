@@ -10,6 +10,7 @@ leaves the others unchanged:
 - :data:`EVAL_STREAM` (1): the evaluation trajectories' initial states.
 - :data:`SPLIT_STREAM` (3): the shuffled train/test assignment of
   ``TrajectorySplit(test_from="shuffled")``.
+- :data:`VALID_STREAM` (4): the validation trajectories (:func:`with_validation`).
 
 Other tags are free for a system's own draws (the built-in double pendulum's Lyapunov
 estimate uses 2).
@@ -21,14 +22,23 @@ that states which trajectories are test: a fraction of them, taken from the star
 count is rounded. The rest train. Every point of a trajectory lands in the same split, so
 train and test share no trajectory.
 
-A validation split is meant to come later as a further :class:`TrajectorySplit` parameter
-carved from the training trajectories (never from the test ones), whose default, no
-validation, leaves :meth:`TrajectorySplit.indices` and :func:`trajectory_dataset` exactly
-as they are.
+The validation split. :func:`with_validation` carves it from a dataset's *training*
+split, never from test, by one rule for every system, applied by the job before a
+model sees the data (a system's ``dataset`` and its cache entry do not change):
+
+- a training split of at least :data:`MIN_VALID_TRAJECTORIES` trajectories gives
+  ``round(VALID_FRACTION * n)`` (at least one) whole trajectories, drawn without
+  replacement from :data:`VALID_STREAM` of the job's seed, so validation shares no
+  trajectory with training;
+- a training split of fewer trajectories (measured series: one or two long recordings)
+  gives the last ``VALID_FRACTION`` of each trajectory's points in time order (at least
+  one point each, and at least one point left to train on), a held-out continuation
+  of each recording.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Literal, Optional
@@ -44,8 +54,13 @@ __all__ = [
     "SPLIT_STREAM",
     "TrajectoryIndices",
     "TrajectorySplit",
+    "MIN_VALID_TRAJECTORIES",
+    "VALID_FRACTION",
+    "VALID_STREAM",
     "seed_stream",
     "trajectory_dataset",
+    "validation_rule",
+    "with_validation",
 ]
 
 #: Stream tag of the training/test data (initial states, then input noise).
@@ -54,6 +69,14 @@ DATA_STREAM = 0
 EVAL_STREAM = 1
 #: Stream tag of the shuffled train/test assignment (``test_from="shuffled"``).
 SPLIT_STREAM = 3
+
+#: Stream tag of the validation trajectories (:func:`with_validation`).
+VALID_STREAM = 4
+#: The share of the training data held out for validation.
+VALID_FRACTION = 0.1
+#: Fewest training trajectories from which whole trajectories are held out; below it,
+#: the tail of each trajectory is.
+MIN_VALID_TRAJECTORIES = 10
 
 #: Where the test trajectories come from (:attr:`TrajectorySplit.test_from`).
 TestFrom = Literal["first", "last", "shuffled"]
@@ -257,3 +280,59 @@ def trajectory_dataset(
         )
 
     return Dataset(train=make(chosen.train), test=make(chosen.test), meta=dict(meta or {}))
+
+
+def validation_rule(data: Dataset) -> str:
+    """The rule :func:`with_validation` applies to ``data``, in words (for records)."""
+    n = len(np.unique(data.train.traj))
+    if n >= MIN_VALID_TRAJECTORIES:
+        return (f"{VALID_FRACTION:g} of the {n} training trajectories, whole, drawn from "
+                f"seed stream {VALID_STREAM}")
+    return (f"the last {VALID_FRACTION:g} of the points of each of the {n} training "
+            "trajectories (time order)")
+
+
+def _subset(split: Split, rows: np.ndarray) -> Split:
+    return Split(x=split.x[rows], dxdt=split.dxdt[rows], traj=split.traj[rows],
+                 t=split.t[rows], extras={k: v[rows] for k, v in split.extras.items()})
+
+
+def with_validation(data: Dataset, seed: int) -> Dataset:
+    """``data`` with a validation split carved from its training split (the rule of
+    the module docstring); ``test`` and ``meta`` are unchanged, and the points of each
+    part keep their order.
+
+    Args:
+        data: a system's dataset (``data.valid`` must be ``None``).
+        seed: the job's seed (the draw of the validation trajectories).
+
+    Raises:
+        ValueError: ``data`` already has a validation split, or its training split has
+            fewer than two points.
+    """
+    if data.valid is not None:
+        raise ValueError("the dataset already has a validation split")
+    train = data.train
+    ids = np.asarray(train.traj)
+    unique = np.unique(ids)
+    if len(unique) >= MIN_VALID_TRAJECTORIES:
+        n_valid = max(1, round(VALID_FRACTION * len(unique)))
+        chosen = np.sort(seed_stream(seed, VALID_STREAM).permutation(unique)[:n_valid])
+        held = np.isin(ids, chosen)
+    else:
+        if len(train) < 2:
+            raise ValueError(f"a training split of {len(train)} point(s) leaves no "
+                             "validation: a system needs at least 2 training points")
+        held = np.zeros(len(train), dtype=bool)
+        times = np.asarray(train.t)
+        for traj in unique:
+            rows = np.flatnonzero(ids == traj)
+            rows = rows[np.argsort(times[rows], kind="stable")]
+            k = min(max(1, round(VALID_FRACTION * len(rows))), len(rows) - 1)
+            if k > 0:
+                held[rows[len(rows) - k:]] = True
+        if held.all() or not held.any():  # one single-point trajectory, or none held
+            held[:] = False
+            held[-1] = True
+    return dataclasses.replace(data, train=_subset(train, np.flatnonzero(~held)),
+                               valid=_subset(train, np.flatnonzero(held)))

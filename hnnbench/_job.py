@@ -33,6 +33,7 @@ from omegaconf import DictConfig, OmegaConf, open_dict
 
 from hnnbench import _affinity as affinity
 from hnnbench import _cache as cache
+from hnnbench import _datasets as datasets
 from hnnbench import _launch as launch
 from hnnbench import _paths as paths
 from hnnbench import _records as records
@@ -40,8 +41,6 @@ from hnnbench import _registry as registry
 from hnnbench._config import EvaluationConfig, Job, prepare_job
 from hnnbench._contract import (
     HISTORY_STEP,
-    HISTORY_TEST,
-    HISTORY_TRAIN,
     Dataset,
     FitResult,
     TrainSettings,
@@ -482,12 +481,17 @@ def _execute(job: Job, cfg: DictConfig, seeds: list[int], dirs: dict[int, Path],
         traj, traj_path, _ = cache.cached(
             system, seed, "evaluation", functools.partial(system.evaluation, seed),
             Trajectories.load)
+        rule = datasets.validation_rule(data)
+        data = datasets.with_validation(data, seed)  # carved from train, never from test
+        assert data.valid is not None
         runs[seed]["timings"]["data_s"] = time.perf_counter() - t0
         runs[seed]["data"] = {
             "cache_hit": data_hit,
             "dataset_sha256": paths.sha256_file(data_path),
             "evaluation_sha256": paths.sha256_file(traj_path),
             "n_train": len(data.train),
+            "n_valid": len(data.valid),
+            "validation": rule,
             "n_test": len(data.test),
             "n_eval_traj": int(traj.states.shape[0]),
             "meta": data.meta,
@@ -537,7 +541,9 @@ def _finish(record: dict[str, Any], system: Any, model: Any, fit: FitResult, dat
     record["steps"] = fit.steps
     if fit.steps == 0:  # no training loop (closed form, oracle): no protocol used
         record["train"] = None
-    if _history_diverged(history):
+    if fit.selection is not None:
+        record["selection"] = fit.selection.as_record()
+    elif _history_diverged(history):  # a model that keeps its last iterate
         timings.update(model.timings)
         record["history"] = history
         _diverged(record, system, f"training diverged: {_history_diverged(history)}")
@@ -562,9 +568,13 @@ def _finish(record: dict[str, Any], system: Any, model: Any, fit: FitResult, dat
 
 
 def _history_diverged(history: dict) -> str | None:
-    """Why the training log shows divergence (a non-finite loss), or ``None``."""
-    for key in (HISTORY_TRAIN, HISTORY_TEST):
-        values = np.asarray(history.get(key, []), dtype=np.float64)
+    """Why the training log shows divergence (a non-finite value in a loss column: any
+    column but the step), or ``None``."""
+    for key in [k for k in history if k != HISTORY_STEP]:
+        try:
+            values = np.asarray(history.get(key, []), dtype=np.float64)
+        except (TypeError, ValueError):
+            continue
         if values.size and not np.all(np.isfinite(values)):
             step = int(np.argmax(~np.isfinite(values)))
             steps = history.get(HISTORY_STEP) or []

@@ -183,7 +183,21 @@ FIELDS: tuple[Field, ...] = (
           "metadata", WRITTEN, {}),
     Field("history", {"type": "object", "additionalProperties": {
               "type": "array", "items": VALUE}},
-          "the training log: step, train_loss, test_loss"),
+          "the training log: step, train_loss, val_loss (test_loss in records before "
+          "the validation split)"),
+    Field("selection", {
+              "type": "object",
+              "required": ["step", "val_loss", "evaluations", "first_step", "trained"],
+              "properties": {"rule": {"type": "string"},
+                             "step": {"type": "integer", "minimum": 0},
+                             "val_loss": VALUE,
+                             "evaluations": {"type": "integer", "minimum": 0},
+                             "first_step": {"type": "integer", "minimum": 0},
+                             "trained": {"type": "boolean"},
+                             "stopped": _STRING_OR_NULL}},
+          "the scored checkpoint of a model that selects on validation: its step, "
+          "validation loss, the evaluations made, the first one's step, whether it "
+          "trained past that (false: 'did not train'), and why training stopped early"),
     Field("config", {"type": "object"}, "the fully resolved job config", REQUIRED),
     Field("overrides", {"type": ["array", "null"], "items": {"type": "string"}},
           "Hydra's overrides", WRITTEN),

@@ -33,6 +33,7 @@ __all__ = [
     "ROLLOUT_MSE",
     "TEST_LOSS",
     "TRAIN_LOSS",
+    "VAL_LOSS",
     "VALID_PREDICTION_TIME",
     "VPT_LYAPUNOV",
     "energy_drift_per_traj",
@@ -112,6 +113,12 @@ def _loss(split: str) -> Any:
     return compute
 
 
+def _valid_loss(ctx: EvalContext) -> Any:
+    """``None`` (undefined) for a dataset without a validation split (a model evaluated
+    outside a job)."""
+    return None if ctx.data.valid is None else ctx.loss_values("valid")
+
+
 def _energy_mse(ctx: EvalContext) -> np.ndarray:
     return energy_error_per_traj(ctx.energy_hat(), ctx.energy_true())
 
@@ -173,6 +180,11 @@ TRAIN_LOSS = Metric(
     "train_loss", "MSE of predicted vs target dx/dt on the training set (pixels: the "
     "training objective)", _loss("train"), check=CheckRule(2, 1e-12), order=10,
     errors_fail_job=True, domain=NONNEGATIVE)
+VAL_LOSS = Metric(
+    "val_loss", "MSE of predicted vs target dx/dt on the validation set, carved from the "
+    "training data (pixels: the training objective); the checkpoint is selected on it",
+    _valid_loss, check=CheckRule(2, 1e-12), order=15,
+    errors_fail_job=True, domain=NONNEGATIVE)
 TEST_LOSS = Metric(
     "test_loss", "MSE of predicted vs target dx/dt on the test set (pixels: the training "
     "objective)", _loss("test"), check=CheckRule(2, 1e-12), order=20,
@@ -213,5 +225,5 @@ PIXEL_MSE = Metric(
     errors_fail_job=True, domain=NONNEGATIVE)
 
 #: hnnbench's own metrics, in table order (registered by entry points, not from here).
-BUILTIN = (TRAIN_LOSS, TEST_LOSS, ENERGY_MSE, ROLLOUT_MSE, REVERSIBILITY_ERROR,
+BUILTIN = (TRAIN_LOSS, VAL_LOSS, TEST_LOSS, ENERGY_MSE, ROLLOUT_MSE, REVERSIBILITY_ERROR,
            VALID_PREDICTION_TIME, VPT_LYAPUNOV, ENERGY_DRIFT_LONG, PIXEL_MSE)

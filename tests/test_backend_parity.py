@@ -22,6 +22,7 @@ import optax  # noqa: E402
 import torch  # noqa: E402
 
 from hnnbench._contract import Dataset, TrainSettings  # noqa: E402
+from hnnbench._datasets import with_validation  # noqa: E402
 from hnnbench._errors import RolloutDiverged  # noqa: E402
 from hnnbench.neural import NeuralConfig
 from hnnbench_plugins.models.dhnn import DHNNJax, DHNNTorch  # noqa: E402
@@ -67,7 +68,7 @@ def torch_state(model) -> dict[str, np.ndarray]:
 def built_weights(model, data: Dataset, seed: int) -> dict[str, np.ndarray]:
     """The weights a model's backend builds from its seeded initial arrays, read back
     before any training step."""
-    problem = model.view.problem(data)
+    problem = model.view.problem(with_validation(data, seed))
     init = [model.initial_weights(seed)]
     train = TrainSettings(steps=1, batch_size=None, lr=1e-3, weight_decay=0.0)
     trainer = model._backend.trainer(model.family, model._impl, problem, init, train,
@@ -112,7 +113,7 @@ def trained_pair(request, spring: Spring, data: Dataset):
 def test_loss_curves_agree(trained_pair):
     _, _, t_hist, j_hist = trained_pair
     assert t_hist["step"] == j_hist["step"] == list(range(1, STEPS + 1))
-    for key in ("train_loss", "test_loss"):
+    for key in ("train_loss", "val_loss"):
         np.testing.assert_allclose(j_hist[key], t_hist[key], rtol=1e-4)
     # The curve must actually move, or agreement means nothing.
     assert t_hist["train_loss"][-1] < 0.9 * t_hist["train_loss"][0]
@@ -197,7 +198,7 @@ def test_same_seed_same_autoencoder():
 
 
 def built_weights_pixels(model, data: Dataset, seed: int) -> dict[str, np.ndarray]:
-    problem = model.view.problem(data)
+    problem = model.view.problem(with_validation(data, seed))
     init = [model.initial_weights(seed, problem.train[0].shape[1])]
     train = TrainSettings(steps=1, batch_size=None, lr=1e-3, weight_decay=0.0)
     trainer = model._backend.trainer(model.family, model._impl, problem, init, train,

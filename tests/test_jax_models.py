@@ -70,7 +70,7 @@ def test_fit_history_progress_and_timings(cls, spring, data):
     result, calls = fit(model, data, steps=12)  # log_every=5: intervals of 5, 5, 2
     assert result.steps == 12
     assert result.history["step"] == [5, 10, 12]
-    assert set(result.history) == {"step", "train_loss", "test_loss"}
+    assert set(result.history) == {"step", "train_loss", "val_loss"}
     assert all(len(v) == 3 for v in result.history.values())
     assert [step for step, _ in calls] == [5, 10, 12]
     assert set(calls[0][1]) == {"train_loss", "test_loss"}

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from hnnbench._contract import TrainSettings
+from hnnbench._datasets import with_validation
 from hnnbench_plugins.systems.pixel_pendulum import PixelPendulum, PixelPendulumConfig
 
 pytest.importorskip("jax")
@@ -43,7 +44,7 @@ def tiny():
                            progress=lambda step, _m, out=logged: out.append(step))
         assert result.steps == 6 and logged == [3, 6]
         assert np.all(np.isfinite(result.history["train_loss"]))
-        model.history = result.history
+        model.history, model.selection = result.history, result.selection
         models[cls.__name__] = model
     return system, data, ev, models
 
@@ -63,8 +64,12 @@ def test_jax_pixel_model_shapes_and_finiteness(tiny, name):
     assert model.time_derivative(z0).shape == (3, 2)
     loss = model.loss(data.test.x, data.test.dxdt)
     assert np.isfinite(loss) and loss > 0
-    # loss() recovers x_next from dxdt; the tiny test set is logged whole
-    assert model.history["test_loss"][-1] == pytest.approx(loss, rel=1e-4)
+    # loss() recovers x_next from dxdt; the tiny validation set is logged whole, and the
+    # model holds the selected checkpoint: its logged validation loss is loss() on it
+    valid = with_validation(data, 0).valid
+    at = model.history["step"].index(model.selection.step)
+    assert model.history["val_loss"][at] == pytest.approx(
+        model.loss(valid.x, valid.dxdt), rel=1e-4)
     energy = model.energy(z0)
     assert (energy is None) == (name == "MLPJax")
     if energy is not None:

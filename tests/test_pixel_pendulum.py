@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from hnnbench._contract import TrainSettings
+from hnnbench._datasets import with_validation
 from hnnbench._errors import ConfigError
 from hnnbench_plugins.systems.pendulum import Pendulum, PendulumConfig
 from hnnbench_plugins.systems.pixel_pendulum import (
@@ -186,7 +187,7 @@ def tiny():
                            progress=lambda step, _m, out=logged: out.append(step))
         assert result.steps == 6 and logged[-1] == 6
         assert np.all(np.isfinite(result.history["train_loss"]))
-        model.history = result.history
+        model.history, model.selection = result.history, result.selection
         models[cls.__name__] = model
     return system, data, ev, models
 
@@ -231,8 +232,12 @@ def test_pixel_loss_matches_training_objective(tiny):
         x_next = data.test.extras["x_next"]
         exact = model._infer().objective(data.test.x, x_next)
         assert logged == pytest.approx(exact, rel=1e-5)
-        # the tiny test set is logged whole: the last logged test loss is loss() on it
-        assert model.history["test_loss"][-1] == pytest.approx(logged, rel=1e-5)
+        # the tiny validation set is logged whole, and the model holds the selected
+        # checkpoint: its logged validation loss is loss() on it
+        valid = with_validation(data, 0).valid
+        at = model.history["step"].index(model.selection.step)
+        assert model.history["val_loss"][at] == pytest.approx(
+            model.loss(valid.x, valid.dxdt), rel=1e-5)
 
 
 @pytest.mark.parametrize("name", ["MLPTorch", "HNNTorch"])

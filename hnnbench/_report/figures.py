@@ -32,6 +32,7 @@ from matplotlib.lines import Line2D
 
 from hnnbench import _records as R
 from hnnbench import _registry as registry
+from hnnbench._contract import HISTORY_TRAIN, HISTORY_VALID
 from hnnbench._errors import UnsafePathError
 from hnnbench._paths import safe_join
 from hnnbench._record_schema import name_problem
@@ -252,8 +253,9 @@ def loss_figure(ctx: SystemRuns) -> Any:
     for run in shown:
         step = run.arrays["history.step"]
         color = ctx.color(run.model)
-        for key, ls, label in (("history.train_loss", "-", "train"),
-                               ("history.test_loss", "--", "test")):
+        for key, ls, label in ((f"history.{HISTORY_TRAIN}", "-", "train"),
+                               (f"history.{HISTORY_VALID}", "--", "validation"),
+                               ("history.test_loss", ":", "test")):  # before the validation split
             if key in run.arrays and run.arrays[key].size == step.size:
                 y = np.where(run.arrays[key] > 0, run.arrays[key], np.nan)
                 ax.plot(step, y, ls, color=color, lw=1.3, label=f"{run.model} {label}")
@@ -262,7 +264,7 @@ def loss_figure(ctx: SystemRuns) -> Any:
     ax.set_ylabel("loss")
     ax.grid(alpha=0.3, which="both")
     ax.legend(loc="best", fontsize=7, ncol=2)
-    ax.set_title(f"{ctx.label}: training and test loss (seed {ctx.seed})")
+    ax.set_title(f"{ctx.label}: training and validation loss (seed {ctx.seed})")
     return fig
 
 

@@ -10,20 +10,34 @@ rest, identically for every backend and family:
   :class:`~hnnbench.neural._init.BatchStream` (the next chunk's while the current one
   runs), so a seed trained in a batch of seeds sees exactly the minibatches it sees
   alone;
-- the loss history of each seed, progress reports, and divergence: a seed whose loss
-  becomes non-finite is marked diverged at its first non-finite step; the others go
-  on, and training stops when every seed has diverged.
+- the loss history of each seed (training loss, and validation loss after each
+  chunk) and progress reports;
+- checkpoint selection: after each chunk, a seed whose validation loss is finite and
+  below its best so far has its weights kept (``Trainer.keep``); ``fit`` ends with the
+  kept weights, and :class:`~hnnbench.Selection` says which step they are;
+- divergence: a seed whose training or validation loss becomes non-finite stops
+  training at that chunk; it is *diverged* only if no checkpoint was kept before
+  (its validation loss was never finite), and otherwise keeps its selected checkpoint
+  (the reason it stopped is recorded). Training ends when every seed has stopped.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Optional, Protocol
 
 import numpy as np
 
-from hnnbench._contract import HISTORY_STEP, HISTORY_TEST, HISTORY_TRAIN, Progress, TrainSettings
+from hnnbench._contract import (
+    HISTORY_STEP,
+    HISTORY_TRAIN,
+    HISTORY_VALID,
+    Progress,
+    Selection,
+    TrainSettings,
+)
 from hnnbench.neural._init import BatchStream
 
 __all__ = ["SeedFit", "Trainer", "chunk_lengths", "train"]
@@ -41,12 +55,18 @@ class Trainer(Protocol):
             length: steps in this chunk.
 
         Returns:
-            ``(losses, test_loss)``, array-likes of shape ``(S, length)`` (each step's
-            training loss, taken before its update) and ``(S,)`` (the test loss after
-            the chunk). They may be device arrays still being computed: the loop
+            ``(losses, val_loss)``, array-likes of shape ``(S, length)`` (each step's
+            training loss, taken before its update) and ``(S,)`` (the validation loss
+            after the chunk). They may be device arrays still being computed: the loop
             converts them with ``numpy.asarray`` after drawing the next chunk's
             indices.
         """
+        ...
+
+    def keep(self, seeds: np.ndarray) -> None:
+        """Keep the current weights of the seeds where ``seeds`` (``(S,)`` bool) is
+        true as their selected checkpoint; the backend's ``weights`` returns the kept
+        weights of each seed (its current ones where none was kept)."""
         ...
 
 
@@ -55,15 +75,17 @@ class SeedFit:
     """The training log of one seed.
 
     Attributes:
-        history: ``{"step": [...], "train_loss": [...], "test_loss": [...]}``.
+        history: ``{"step": [...], "train_loss": [...], "val_loss": [...]}``.
         steps: optimizer steps run.
         diverged: why training diverged (``None`` if it did not).
+        selection: the kept checkpoint (``None`` when none was: diverged).
     """
 
     history: dict[str, list[float]] = field(
-        default_factory=lambda: {HISTORY_STEP: [], HISTORY_TRAIN: [], HISTORY_TEST: []})
+        default_factory=lambda: {HISTORY_STEP: [], HISTORY_TRAIN: [], HISTORY_VALID: []})
     steps: int = 0
     diverged: Optional[str] = None
+    selection: Optional[Selection] = None
 
 
 def chunk_lengths(steps: int, interval: int) -> list[int]:
@@ -94,35 +116,52 @@ def train(
         return np.stack([stream.block(length) for stream in streams])
 
     fits = [SeedFit() for _ in seeds]
+    best = [np.inf] * len(seeds)
+    stopped: list[Optional[str]] = [None] * len(seeds)
+    first_step: Optional[int] = None
     lengths = chunk_lengths(settings.steps, interval)
     step = 0
     indices = draw(lengths[0])
     for k, length in enumerate(lengths):
-        losses_out, test_out = trainer.run_chunk(indices, length)
+        losses_out, valid_out = trainer.run_chunk(indices, length)
         if k + 1 < len(lengths):  # drawn while an asynchronous backend computes
             indices = draw(lengths[k + 1])
         losses = np.asarray(losses_out, dtype=np.float64).reshape(len(seeds), length)
-        tests = np.asarray(test_out, dtype=np.float64).reshape(len(seeds))
+        valids = np.asarray(valid_out, dtype=np.float64).reshape(len(seeds))
         step += length
-        live = []
+        first_step = step if first_step is None else first_step
+        live, improved = [], np.zeros(len(seeds), dtype=bool)
         for s, fit in enumerate(fits):
-            if fit.diverged is not None:
+            if stopped[s] is not None:
                 continue
             fit.steps = step
-            train_loss, test_loss = float(losses[s, -1]), float(tests[s])
+            train_loss, valid_loss = float(losses[s, -1]), float(valids[s])
             fit.history[HISTORY_STEP].append(step)
             fit.history[HISTORY_TRAIN].append(train_loss)
-            fit.history[HISTORY_TEST].append(test_loss)
-            if np.all(np.isfinite(losses[s])) and np.isfinite(test_loss):
+            fit.history[HISTORY_VALID].append(valid_loss)
+            if np.all(np.isfinite(losses[s])) and np.isfinite(valid_loss):
                 live.append(s)
+                if valid_loss < best[s]:
+                    best[s], improved[s] = valid_loss, True
+                    fit.selection = Selection(step, valid_loss, 0, first_step)
                 continue
             bad = np.flatnonzero(~np.isfinite(losses[s]))
             at = step - length + 1 + int(bad[0]) if bad.size else step
-            value = losses[s, bad[0]] if bad.size else test_loss
-            fit.diverged = f"training loss became {value} at step {at}"
+            value = losses[s, bad[0]] if bad.size else valid_loss
+            kind = "training" if bad.size else "validation"
+            stopped[s] = f"{kind} loss became {value} at step {at}"
+        if improved.any():
+            trainer.keep(improved)
         shown = live or list(range(len(seeds)))
         progress(step, {HISTORY_TRAIN: float(np.mean(losses[shown, -1])),
-                        HISTORY_TEST: float(np.mean(tests[shown]))})
+                        HISTORY_VALID: float(np.mean(valids[shown]))})
         if not live:
             break
+    for s, fit in enumerate(fits):
+        evaluations = len(fit.history[HISTORY_STEP])
+        if fit.selection is None:
+            fit.diverged = stopped[s] or "the validation loss was never finite"
+        else:
+            fit.selection = dataclasses.replace(fit.selection, evaluations=evaluations,
+                                                stopped=stopped[s])
     return fits

@@ -25,6 +25,7 @@ from typing import Any, ClassVar, Optional
 import numpy as np
 
 from hnnbench._contract import Dataset, FitResult, Model, Progress, System, TrainSettings
+from hnnbench._datasets import with_validation
 from hnnbench._errors import RolloutDiverged
 from hnnbench.neural import _views as views
 from hnnbench.neural._backend import Inference, Weights, load_backend, missing_backend
@@ -158,8 +159,12 @@ class NeuralModel(Model):
         with its own config fields overrides this."""
         return 0, ()
 
-    def _problems(self, data: Sequence[Dataset]) -> list[Problem]:
-        return [self.view.problem(d, *self.training_options()) for d in data]
+    def _problems(self, data: Sequence[Dataset], seeds: Sequence[int]) -> list[Problem]:
+        """Each seed's training problem; a dataset without a validation split (a fit
+        outside a job) gets the job's one (:func:`hnnbench._datasets.with_validation`)."""
+        return [self.view.problem(d if d.valid is not None else with_validation(d, seed),
+                                  *self.training_options())
+                for d, seed in zip(data, seeds, strict=True)]
 
     def _train(self, problems: Sequence[Problem], settings: TrainSettings,
                seeds: Sequence[int], progress: Progress) -> tuple[list[Any], list[Weights]]:
@@ -179,9 +184,11 @@ class NeuralModel(Model):
 
     def fit(self, data: Dataset, train: TrainSettings, seed: int,
             progress: Progress) -> FitResult:
-        (fit,), (weights,) = self._train(self._problems([data]), train, [seed], progress)
+        (fit,), (weights,) = self._train(self._problems([data], [seed]), train, [seed],
+                                         progress)
         self.set_weights(weights)
-        return FitResult(history=fit.history, steps=fit.steps, diverged=fit.diverged)
+        return FitResult(history=fit.history, steps=fit.steps, diverged=fit.diverged,
+                         selection=fit.selection)
 
     def fit_seeds(self, data: Sequence[Dataset], train: TrainSettings, seeds: Sequence[int],
                   progress: Progress) -> list[tuple[Model, FitResult]]:
@@ -189,7 +196,7 @@ class NeuralModel(Model):
         seed starts from its own initial weights and trains on its own data with its own
         minibatches, exactly as when it runs alone. Seeds whose data differ in shape
         train one after the other instead."""
-        problems = self._problems(data)
+        problems = self._problems(data, seeds)
         if not Problem.stackable(problems):
             return super().fit_seeds(data, train, seeds, progress)
         fits, weights = self._train(problems, train, seeds, progress)
@@ -198,7 +205,7 @@ class NeuralModel(Model):
             model = self.copy()
             model.set_weights(w)
             out.append((model, FitResult(history=fit.history, steps=fit.steps,
-                                         diverged=fit.diverged)))
+                                         diverged=fit.diverged, selection=fit.selection)))
         return out
 
     def copy(self) -> NeuralModel:

@@ -31,7 +31,7 @@ from hnnbench.neural._family import Family
 __all__ = [
     "CC_WEIGHT",
     "DYNAMICS_WEIGHT",
-    "LOG_TEST_POINTS",
+    "VALID_POINTS",
     "CanonicalView",
     "PixelView",
     "Problem",
@@ -43,7 +43,7 @@ __all__ = [
 
 #: The pixel test loss logged during training is taken on this many evenly spaced test
 #: points (the whole test set costs as much as ~10 training steps).
-LOG_TEST_POINTS = 1024
+VALID_POINTS = 1024
 #: Weights of the pixel objective's canonical-coordinates and latent-dynamics terms
 #: (the 2019 paper's; :class:`PixelView`), read by both backends' ``pixel_objective``.
 CC_WEIGHT = 1.0
@@ -63,8 +63,9 @@ class Problem:
         kind: ``"derivatives"``: ``(z, ż)``, loss ``mean((field(z) - ż)^2)``;
             ``"windows"``: ``(windows (W, L, d), dts (W, L - 1))``, the family's
             ``window_loss``; ``"pixels"``: ``(x, x_next)``, the autoencoder objective.
-        train, test: the arrays of each split (for pixels, at most
-            :data:`LOG_TEST_POINTS` test rows).
+        train, valid: the arrays of the training split and of the validation split
+            the training loop selects its checkpoint on (for pixels, at most
+            :data:`VALID_POINTS` validation rows).
         options: keyword arguments of the family's ``window_loss`` (hashable, e.g.
             ``(("substeps", 1),)``).
         stacked: the arrays carry a leading seed axis (:meth:`stack`): each seed of a
@@ -73,7 +74,7 @@ class Problem:
 
     kind: Kind
     train: tuple[np.ndarray, ...]
-    test: tuple[np.ndarray, ...]
+    valid: tuple[np.ndarray, ...]
     options: tuple[tuple[str, Any], ...] = ()
 
     #: Whether the arrays hold one leading axis per seed (``S`` problems stacked).
@@ -91,9 +92,9 @@ class Problem:
         first = problems[0]
         return all(
             (other.kind, other.options) == (first.kind, first.options)
-            and len(other.train + other.test) == len(first.train + first.test)
-            and all(a.shape == b.shape for a, b in zip(other.train + other.test,
-                                                       first.train + first.test, strict=True))
+            and len(other.train + other.valid) == len(first.train + first.valid)
+            and all(a.shape == b.shape for a, b in zip(other.train + other.valid,
+                                                       first.train + first.valid, strict=True))
             for other in problems[1:])
 
     @staticmethod
@@ -111,7 +112,7 @@ class Problem:
         return Problem(first.kind,
                        tuple(np.stack(arrays) for arrays in zip(*(p.train for p in problems),
                                                                 strict=True)),
-                       tuple(np.stack(arrays) for arrays in zip(*(p.test for p in problems),
+                       tuple(np.stack(arrays) for arrays in zip(*(p.valid for p in problems),
                                                                 strict=True)),
                        first.options, stacked=True)
 
@@ -192,15 +193,17 @@ class View:
     def problem(self, data: Dataset, window: int = 0,
                 options: tuple[tuple[str, Any], ...] = ()) -> Problem:
         """The training problem of ``data`` for this family (``window``: states per
-        trajectory window; ``options``: the family's loss options)."""
+        trajectory window; ``options``: the family's loss options). ``data`` must
+        hold a validation split (:func:`hnnbench._datasets.with_validation`)."""
+        valid = _validation(data)
         if self.family.data == "windows":
             length = window or self.family.window
             out = []
             wrapped = tuple(self.system.wrapped_angles)
-            for split in (data.train, data.test):
+            for split in (data.train, valid):
                 z, _ = self._pairs(split)
                 out.append(trajectory_windows(split, z, length, wrapped))
-            for (windows, _), part in zip(out, ("training", "test"), strict=True):
+            for (windows, _), part in zip(out, ("training", "validation"), strict=True):
                 if windows.shape[0] == 0:
                     raise UnsupportedPair(
                         f"the {self.system.name} {part} data has no {length} consecutive, "
@@ -209,7 +212,14 @@ class View:
                         "shorter window may fit)"
                     )
             return Problem("windows", out[0], out[1], options)
-        return Problem("derivatives", self._pairs(data.train), self._pairs(data.test))
+        return Problem("derivatives", self._pairs(data.train), self._pairs(valid))
+
+
+def _validation(data: Dataset) -> Split:
+    if data.valid is None:
+        raise ValueError("the dataset has no validation split: carve one with "
+                         "hnnbench.with_validation(data, seed)")
+    return data.valid
 
 
 class CanonicalView(View):
@@ -272,12 +282,12 @@ class PixelView(View):
                 options: tuple[tuple[str, Any], ...] = ()) -> Problem:
         self.set_frame_dt(data)
         train = self.pairs(data.train.x, data.train.dxdt, data.train.extras)
-        test = data.test
-        sub = np.unique(np.linspace(0, len(test) - 1,
-                                    min(len(test), LOG_TEST_POINTS)).astype(int))
-        test_pairs = self.pairs(test.x[sub], test.dxdt[sub],
-                                {k: v[sub] for k, v in test.extras.items()})
-        return Problem("pixels", train, test_pairs)
+        valid = _validation(data)
+        sub = np.unique(np.linspace(0, len(valid) - 1,
+                                    min(len(valid), VALID_POINTS)).astype(int))
+        valid_pairs = self.pairs(valid.x[sub], valid.dxdt[sub],
+                                 {k: v[sub] for k, v in valid.extras.items()})
+        return Problem("pixels", train, valid_pairs)
 
 
 def view_for(family: Family, system: System) -> View:

@@ -2,7 +2,7 @@
 torch's, compiled training chunks, diffrax rollouts.
 
 - Training is jit-compiled and stays on the device: one compiled call runs a chunk of
-  optimizer steps with :func:`jax.lax.scan` and returns each step's loss and the test
+  optimizer steps with :func:`jax.lax.scan` and returns each step's loss and the validation
   loss after the chunk, so the host only wakes up to log. Compilation is timed apart
   (``timings["compile_s"]``) and cached per process, so later fits of the same shapes
   (other seeds, learning rates) compile nothing. Several seeds train as one batch by
@@ -185,9 +185,9 @@ def scan_steps(
 def _chunk(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], static: Any,
            length: int, params: Any,
            opt_state: Any, idx: Optional[jax.Array], train: tuple[jax.Array, ...],
-           test: tuple[jax.Array, ...], lr: jax.Array, weight_decay: jax.Array
+           valid: tuple[jax.Array, ...], lr: jax.Array, weight_decay: jax.Array
            ) -> tuple[Any, Any, jax.Array, jax.Array]:
-    """One chunk of ``length`` steps, then the test loss. ``lr`` and ``weight_decay``
+    """One chunk of ``length`` steps, then the validation loss. ``lr`` and ``weight_decay``
     are traced, so one executable serves every learning rate."""
     optimizer = adam_like_torch(lr, weight_decay)
 
@@ -196,13 +196,13 @@ def _chunk(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], st
 
     params, opt_state, losses = scan_steps(loss_fn, optimizer, params, opt_state, idx, train,
                                            length)
-    return params, opt_state, losses, loss_fn(params, *test)
+    return params, opt_state, losses, loss_fn(params, *valid)
 
 
 def _batched_chunk(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...],
                    static: Any, length: int, stacked: bool, params: Any, opt_state: Any,
                    idx: Optional[jax.Array], train: tuple[jax.Array, ...],
-                   test: tuple[jax.Array, ...], lr: jax.Array, weight_decay: jax.Array
+                   valid: tuple[jax.Array, ...], lr: jax.Array, weight_decay: jax.Array
                    ) -> tuple[Any, Any, jax.Array, jax.Array]:
     """:func:`_chunk` for stacked seeds: ``vmap`` over params, optimizer state, indices
     and, when ``stacked``, each seed's own data (hyperparameters shared)."""
@@ -211,7 +211,7 @@ def _batched_chunk(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], 
 
     data = 0 if stacked else None
     return jax.vmap(one, in_axes=(0, 0, None if idx is None else 0, data, data))(
-        params, opt_state, idx, train, test)
+        params, opt_state, idx, train, valid)
 
 
 _CHUNKS = {False: jax.jit(_chunk, static_argnums=(0, 1, 2, 3, 4)),
@@ -264,7 +264,8 @@ class JaxTrainer:
         self.params, self.opt_state = backend.place(params), backend.place(opt_state)
         self.stacked = problem.stacked
         self.train = tuple(backend.array(a) for a in problem.train)
-        self.test = tuple(backend.array(a) for a in problem.test)
+        self.valid = tuple(backend.array(a) for a in problem.valid)
+        self.kept: Any = None  # the selected checkpoint (Trainer.keep)
         self.hyper = (backend.array(settings.lr), backend.array(settings.weight_decay))
         self.statics = (problem.kind, impl, problem.options, self.static)
 
@@ -273,17 +274,30 @@ class JaxTrainer:
         if indices is not None:
             block = indices[0] if self.seeds == 1 else indices
             idx = self.backend.place(jnp.asarray(block, dtype=jnp.int32))
-        args = (self.params, self.opt_state, idx, self.train, self.test, *self.hyper)
+        args = (self.params, self.opt_state, idx, self.train, self.valid, *self.hyper)
         batched = self.seeds > 1
         statics = (*self.statics, length, *((self.stacked,) if batched else ()))
         compiled, seconds = _compiled(batched, statics, args)
         timings = self.backend.timings
         timings["compile_s"] = timings.get("compile_s", 0.0) + seconds
-        self.params, self.opt_state, losses, test = compiled(*args)
-        return losses, test
+        self.params, self.opt_state, losses, valid = compiled(*args)
+        return losses, valid
+
+    def keep(self, seeds: np.ndarray) -> None:
+        # JAX arrays are immutable and the chunk donates no buffer: keeping a reference
+        # is a copy. A batch's first keep takes every seed (one not chosen now gets its
+        # own at its first improvement).
+        if self.kept is None or self.seeds == 1:
+            self.kept = self.params
+            return
+        mask = jnp.asarray(np.asarray(seeds, dtype=bool))
+        self.kept = jax.tree.map(
+            lambda new, old: jnp.where(mask.reshape((-1,) + (1,) * (new.ndim - 1)), new, old),
+            self.params, self.kept)
 
     def weights(self) -> list[Weights]:
-        nets = eqx.combine(self.params, self.static)
+        """Each seed's kept checkpoint (:meth:`keep`), else its current weights."""
+        nets = eqx.combine(self.kept if self.kept is not None else self.params, self.static)
         if self.seeds == 1:
             return [nets_to_weights(nets)]
         return [nets_to_weights(nets, s) for s in range(self.seeds)]

@@ -87,10 +87,11 @@ class TorchTrainer:
                            for k in initial[0]}
         self.stacked = problem.stacked
         self.train = tuple(tensor(a) for a in problem.train)
-        self.test = tuple(tensor(a) for a in problem.test)
+        self.valid = tuple(tensor(a) for a in problem.valid)
         self.opt = torch.optim.Adam(list(self.params.values()), lr=settings.lr,
                                     weight_decay=settings.weight_decay)
         self.device = dev
+        self.kept: Optional[Params] = None  # the selected checkpoint (Trainer.keep)
 
     def _losses(self, arrays: tuple[torch.Tensor, ...], per_seed_rows: bool) -> torch.Tensor:
         """Each seed's loss ``(S,)`` (a scalar when ``S == 1``)."""
@@ -123,12 +124,25 @@ class TorchTrainer:
             self.opt.step()
             losses.append(loss.detach())
         with torch.no_grad():
-            test = self._losses(self.test, self.stacked)
+            valid = self._losses(self.valid, self.stacked)
         out = torch.stack(losses).reshape(length, self.seeds).T
-        return out.cpu().numpy(), test.reshape(self.seeds).cpu().numpy()
+        return out.cpu().numpy(), valid.reshape(self.seeds).cpu().numpy()
+
+    def keep(self, seeds: np.ndarray) -> None:
+        with torch.no_grad():
+            if self.kept is None or self.seeds == 1:
+                # (a batch's first keep copies every seed: one not chosen now has no
+                # checkpoint yet, and gets its own at its first improvement)
+                self.kept = {k: v.detach().clone() for k, v in self.params.items()}
+                return
+            mask = torch.as_tensor(np.asarray(seeds, dtype=bool), device=self.device)
+            for k, v in self.params.items():
+                self.kept[k][mask] = v.detach()[mask]
 
     def weights(self) -> list[Weights]:
-        arrays = {k: v.detach().cpu().numpy().copy() for k, v in self.params.items()}
+        """Each seed's kept checkpoint (:meth:`keep`), else its current weights."""
+        source = self.kept if self.kept is not None else self.params
+        arrays = {k: v.detach().cpu().numpy().copy() for k, v in source.items()}
         if self.seeds == 1:
             return [arrays]
         return [{k: v[s].copy() for k, v in arrays.items()} for s in range(self.seeds)]
