@@ -74,21 +74,38 @@ def jax_fn(kind):
     raise KeyError(kind)
 
 
+def _without_prior(backend: str, family: str, fn):
+    """The network that makes the family's learned function equal ``fn``: for the LNN,
+    ``fn`` minus its declared kinetic term (``KINETIC_PRIOR · |q̇|²``)."""
+    if family != "lnn":
+        return fn
+    from hnnbench_plugins.models.lnn import KINETIC_PRIOR
+
+    if backend == "torch":
+        return lambda x: fn(x) - KINETIC_PRIOR * (x[:, x.shape[1] // 2:] ** 2).sum(-1)
+    return lambda x: fn(x) - KINETIC_PRIOR * jnp.sum(x[x.shape[0] // 2:] ** 2)
+
+
+def build(backend: str, family: str, nets: dict[str, str]) -> dict:
+    if backend == "torch":
+        return {k: TorchNet(_without_prior(backend, family, torch_fn(v)))
+                for k, v in nets.items()}
+    return {k: _without_prior(backend, family, jax_fn(v)) for k, v in nets.items()}
+
+
 def field(backend: str, family: str, nets: dict[str, str], z: np.ndarray) -> np.ndarray:
     impl = importlib.import_module(f"hnnbench_plugins.models.{family}.{backend}")
+    built = build(backend, family, nets)
     if backend == "torch":
-        built = {k: TorchNet(torch_fn(v)) for k, v in nets.items()}
         return impl.field(built, torch.tensor(z)).detach().numpy()
-    built = {k: jax_fn(v) for k, v in nets.items()}
     return np.asarray(impl.field(built, jnp.asarray(z)))
 
 
 def energy(backend: str, family: str, nets: dict[str, str], z: np.ndarray) -> np.ndarray:
     impl = importlib.import_module(f"hnnbench_plugins.models.{family}.{backend}")
+    built = build(backend, family, nets)
     if backend == "torch":
-        built = {k: TorchNet(torch_fn(v)) for k, v in nets.items()}
         return impl.energy(built, torch.tensor(z)).detach().numpy()
-    built = {k: jax_fn(v) for k, v in nets.items()}
     return np.asarray(impl.energy(built, jnp.asarray(z)))
 
 
@@ -160,10 +177,32 @@ def test_lnn_with_a_singular_velocity_hessian_gives_nan_not_an_error(backend):
     z = Z2[:3]
     impl = importlib.import_module(f"hnnbench_plugins.models.lnn.{backend}")
     if backend == "torch":
-        out = impl.field({"L": TorchNet(lambda x: x[:, 2] ** 2)}, torch.tensor(z)).numpy()
+        net = TorchNet(_without_prior(backend, "lnn", lambda x: x[:, 2] ** 2))
+        out = impl.field({"L": net}, torch.tensor(z)).numpy()
     else:
-        out = np.asarray(impl.field({"L": lambda x: (x[2] ** 2)[None]}, jnp.asarray(z)))
+        net = _without_prior(backend, "lnn", lambda x: (x[2] ** 2)[None])
+        out = np.asarray(impl.field({"L": net}, jnp.asarray(z)))
     assert not np.isfinite(out[:, 2:]).any()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_lnn_adds_its_declared_kinetic_term_to_the_network(backend):
+    """A network that outputs 0 is the free particle of L = KINETIC_PRIOR · |q̇|²: no
+    acceleration, energy KINETIC_PRIOR · |q̇|² (a definite velocity Hessian from the
+    start, whatever the network's initial one)."""
+    from hnnbench_plugins.models.lnn import KINETIC_PRIOR
+
+    impl = importlib.import_module(f"hnnbench_plugins.models.lnn.{backend}")
+    if backend == "torch":
+        nets = {"L": TorchNet(lambda x: 0.0 * x.sum(-1))}
+        out = impl.field(nets, torch.tensor(Z2)).numpy()
+        e = impl.energy(nets, torch.tensor(Z2)).numpy()
+    else:
+        nets = {"L": lambda x: (0.0 * jnp.sum(x))[None]}
+        out = np.asarray(impl.field(nets, jnp.asarray(Z2)))
+        e = np.asarray(impl.energy(nets, jnp.asarray(Z2)))
+    np.testing.assert_allclose(out, np.concatenate([Z2[:, 2:], 0 * Z2[:, 2:]], 1), atol=1e-12)
+    np.testing.assert_allclose(e, KINETIC_PRIOR * (Z2[:, 2:] ** 2).sum(1), atol=1e-12)
 
 
 def _node2_accel(backend):

@@ -1,4 +1,6 @@
-"""The LNN in JAX: Euler-Lagrange accelerations with ``jax`` derivatives, per state."""
+"""The LNN in JAX: Euler-Lagrange accelerations with ``jax`` derivatives of the learned
+Lagrangian (the network plus the family's declared kinetic term,
+:data:`~hnnbench_plugins.models.lnn.KINETIC_PRIOR`), per state."""
 
 from __future__ import annotations
 
@@ -8,16 +10,23 @@ import jax
 import jax.numpy as jnp
 
 from hnnbench.neural.jax import Nets
+from hnnbench_plugins.models.lnn import KINETIC_PRIOR
 
 Net = Callable[[jax.Array], jax.Array]
+#: A Lagrangian of one velocity state ``z = (q, q̇)`` ``(2n,)``: a scalar.
+Lagrangian = Callable[[jax.Array], jax.Array]
 
 
-def _lagrangian(net: Net) -> Callable[[jax.Array, jax.Array], jax.Array]:
-    """``L(q, q̇)`` of one state, a scalar."""
-    return lambda q, qdot: net(jnp.concatenate([q, qdot]))[0]
+def learned(net: Net) -> Lagrangian:
+    """``L(z) = net(z) + KINETIC_PRIOR · |q̇|²`` of one state."""
+    def lagrangian(z: jax.Array) -> jax.Array:
+        qdot = z[z.shape[0] // 2:]
+        return net(z)[0] + KINETIC_PRIOR * jnp.sum(qdot * qdot)
+
+    return lagrangian
 
 
-def acceleration(net: Net, z: jax.Array) -> jax.Array:
+def acceleration(lagrangian: Lagrangian, z: jax.Array) -> jax.Array:
     """``q̈`` ``(n,)`` of one velocity state ``z = (q, q̇)`` ``(2n,)``.
 
     One reverse pass gives ``∇_z L``; its forward-mode derivative along ``q̇`` alone
@@ -26,7 +35,7 @@ def acceleration(net: Net, z: jax.Array) -> jax.Array:
     """
     n = z.shape[0] // 2
     q, qdot = z[:n], z[n:]
-    grad_z = jax.grad(lambda zz: net(zz)[0])
+    grad_z = jax.grad(lagrangian)
 
     def along_qdot(v: jax.Array) -> tuple[jax.Array, jax.Array]:
         g = grad_z(jnp.concatenate([q, v]))
@@ -37,19 +46,23 @@ def acceleration(net: Net, z: jax.Array) -> jax.Array:
     return jnp.linalg.solve(hess, g[:n] - mixed @ qdot)
 
 
-def field(nets: Nets | dict[str, Net], z: jax.Array) -> jax.Array:
+def euler_lagrange(lagrangian: Lagrangian, z: jax.Array) -> jax.Array:
+    """``(q̇, q̈)`` ``(N, 2n)`` of velocity states ``z`` ``(N, 2n)`` under ``lagrangian``."""
     n = z.shape[-1] // 2
-    net = nets["L"]
-    return jnp.concatenate([z[:, n:], jax.vmap(lambda zi: acceleration(net, zi))(z)], axis=-1)
+    return jnp.concatenate([z[:, n:], jax.vmap(lambda zi: acceleration(lagrangian, zi))(z)],
+                           axis=-1)
+
+
+def field(nets: Nets | dict[str, Net], z: jax.Array) -> jax.Array:
+    return euler_lagrange(learned(nets["L"]), z)
 
 
 def energy(nets: Nets | dict[str, Net], z: jax.Array) -> jax.Array:
-    net = nets["L"]
+    """``E = q̇ · ∂L/∂q̇ − L`` ``(N,)``."""
+    lagrangian = learned(nets["L"])
 
     def one(zi: jax.Array) -> jax.Array:
         n = zi.shape[0] // 2
-        lag = _lagrangian(net)
-        q, qdot = zi[:n], zi[n:]
-        return jax.grad(lag, argnums=1)(q, qdot) @ qdot - lag(q, qdot)
+        return jax.grad(lagrangian)(zi)[n:] @ zi[n:] - lagrangian(zi)
 
     return jax.vmap(one)(z)

@@ -1,5 +1,6 @@
 """The LNN in torch: Euler-Lagrange accelerations with ``torch.func`` derivatives of
-the network, per state (``vmap``)."""
+the learned Lagrangian (the network plus the family's declared kinetic term,
+:data:`~hnnbench_plugins.models.lnn.KINETIC_PRIOR`), per state (``vmap``)."""
 
 from __future__ import annotations
 
@@ -8,15 +9,23 @@ from collections.abc import Callable
 import torch
 from torch.func import grad, jacfwd, vmap
 
+from hnnbench_plugins.models.lnn import KINETIC_PRIOR
+
 Net = Callable[[torch.Tensor], torch.Tensor]
+#: A Lagrangian of one velocity state ``z = (q, q̇)`` ``(2n,)``: a scalar.
+Lagrangian = Callable[[torch.Tensor], torch.Tensor]
 
 
-def _lagrangian(net: Net, n: int) -> Callable[[torch.Tensor, torch.Tensor], torch.Tensor]:
-    """``L(q, q̇)`` of one state, a scalar."""
-    return lambda q, qdot: net(torch.cat([q, qdot])[None])[0, 0]
+def learned(net: Net) -> Lagrangian:
+    """``L(z) = net(z) + KINETIC_PRIOR · |q̇|²`` of one state."""
+    def lagrangian(z: torch.Tensor) -> torch.Tensor:
+        qdot = z[z.shape[0] // 2:]
+        return net(z[None])[0, 0] + KINETIC_PRIOR * (qdot * qdot).sum()
+
+    return lagrangian
 
 
-def acceleration(net: Net, z: torch.Tensor) -> torch.Tensor:
+def acceleration(lagrangian: Lagrangian, z: torch.Tensor) -> torch.Tensor:
     """``q̈`` ``(n,)`` of one velocity state ``z = (q, q̇)`` ``(2n,)``.
 
     One reverse pass gives ``∇_z L``; its forward-mode derivative along ``q̇`` alone
@@ -25,7 +34,7 @@ def acceleration(net: Net, z: torch.Tensor) -> torch.Tensor:
     """
     n = z.shape[0] // 2
     q, qdot = z[:n], z[n:]
-    grad_z = grad(lambda zz: net(zz[None])[0, 0])
+    grad_z = grad(lagrangian)
 
     def along_qdot(v: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         g = grad_z(torch.cat([q, v]))
@@ -39,19 +48,22 @@ def acceleration(net: Net, z: torch.Tensor) -> torch.Tensor:
     return torch.where(info == 0, qddot, torch.full_like(qddot, torch.nan))
 
 
-def field(nets: dict[str, Net], z: torch.Tensor) -> torch.Tensor:
+def euler_lagrange(lagrangian: Lagrangian, z: torch.Tensor) -> torch.Tensor:
+    """``(q̇, q̈)`` ``(N, 2n)`` of velocity states ``z`` ``(N, 2n)`` under ``lagrangian``."""
     n = z.shape[-1] // 2
-    net = nets["L"]
-    return torch.cat([z[:, n:], vmap(lambda zi: acceleration(net, zi))(z)], dim=-1)
+    return torch.cat([z[:, n:], vmap(lambda zi: acceleration(lagrangian, zi))(z)], dim=-1)
+
+
+def field(nets: dict[str, Net], z: torch.Tensor) -> torch.Tensor:
+    return euler_lagrange(learned(nets["L"]), z)
 
 
 def energy(nets: dict[str, Net], z: torch.Tensor) -> torch.Tensor:
-    net = nets["L"]
+    """``E = q̇ · ∂L/∂q̇ − L`` ``(N,)``."""
+    lagrangian = learned(nets["L"])
 
     def one(zi: torch.Tensor) -> torch.Tensor:
         n = zi.shape[0] // 2
-        lag = _lagrangian(net, n)
-        q, qdot = zi[:n], zi[n:]
-        return grad(lag, argnums=1)(q, qdot) @ qdot - lag(q, qdot)
+        return grad(lagrangian)(zi)[n:] @ zi[n:] - lagrangian(zi)
 
     return vmap(one)(z)
