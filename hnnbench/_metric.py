@@ -118,6 +118,10 @@ class Metric:
         errors_fail_job: an exception while computing it fails the job (with the
             traceback); ``False`` (default): its message is recorded in the record's
             ``metric_errors``, the value is NaN and the job goes on.
+        ranked: whether the leaderboard marks its best value; ``False`` for a
+            diagnostic that a broken model can win (the reversibility of a flow says
+            nothing of its accuracy: the zero field is exactly reversible), shown but
+            never marked best.
         domain: ``(low, high)``, the values its mean can take (an error or a time is
             ``(0, inf)``). A strict load of records (``hnnbench check``, publishing)
             refuses a mean outside it; ``nan`` (not applicable) and :meth:`worst` (a
@@ -132,6 +136,7 @@ class Metric:
     check: CheckRule = field(default_factory=CheckRule)
     applies: Callable[[System], bool] = always
     required: bool = True
+    ranked: bool = True
     summary: bool = True
     order: int = 1000
     reference: str = "docs/METRICS.md"

@@ -178,6 +178,15 @@ def test_a_pair_with_a_diverged_seed_is_never_marked_best():
     assert report.tables.best_cells(board) == {(0, "energy_mse")}
 
 
+def test_an_unranked_metric_is_never_marked_best():
+    """reversibility_error is a diagnostic a broken model wins (Metric.ranked=False)."""
+    board = pd.DataFrame({
+        "profile": "paper", "system": "spring", "ranked": True, "n_seeds": 3, "n_ok": 3,
+        "model": ["lnn_jax", "hnn_jax"], "energy_mse_mean": [5.9, 1e-3],
+        "reversibility_error_mean": [9e-7, 1e-2]})
+    assert report.tables.best_cells(board) == {(1, "energy_mse")}
+
+
 def test_format_value():
     assert format_value(0.037, 0.0011) == "3.7e-02 ± 1.1e-03"
     assert format_value(0.037) == "3.7e-02"

@@ -41,12 +41,14 @@ def seed_line(board: pd.DataFrame) -> str:
 
 def best_cells(board: pd.DataFrame) -> set[tuple[int, str]]:
     """``{(row position, metric)}`` holding the best finite mean of its (profile, system,
-    variant) among ranked rows whose every seed is ``ok``, in the metric's declared
+    variant) among ranked rows whose every seed is ``ok``, for each ranked metric
+    (:attr:`hnnbench.Metric.ranked`), in the metric's declared
     direction and within its declared domain. A pair with a diverged or failed seed is
     averaged over its ``ok`` seeds only, so it would be ranked on its luckier seeds: it
     is never marked best."""
     declared = metric_declarations()
-    metrics = [c[:-5] for c in board.columns if c.endswith("_mean") and c[:-5] in declared]
+    metrics = [c[:-5] for c in board.columns if c.endswith("_mean") and c[:-5] in declared
+               and declared[c[:-5]].ranked]
     out: set[tuple[int, str]] = set()
     board = board.reset_index(drop=True)
     keys = ["profile", "system"] + (["variant"] if "variant" in board else [])
