@@ -35,6 +35,11 @@ class TorchNet:
     def input_gradient(self, x):
         return torch.func.vmap(torch.func.grad(lambda xi: self.fn(xi[None])[0]))(x)
 
+    def input_hessian(self, x, first_row=0):
+        one = lambda xi: self.fn(xi[None])[0]  # noqa: E731
+        hess = torch.func.vmap(torch.func.hessian(one))(x)
+        return self.fn(x), self.input_gradient(x), hess[:, first_row:, :]
+
 
 def torch_fn(kind):
     if kind == "quadratic":  # q^2 + p^2 (spring), or 1/2 qdot^2 - 1/2 q^2 as a Lagrangian

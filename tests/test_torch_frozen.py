@@ -51,3 +51,29 @@ def test_is_a_copy_that_later_training_does_not_change():
             p.add_(1.0)
     assert torch.equal(frozen(x), before)
     assert not torch.equal(net(x).detach(), before)
+
+
+@pytest.mark.parametrize("activation", ["tanh", "sigmoid", "softplus"])
+@pytest.mark.parametrize("layers", [2, 3, 4])
+def test_the_closed_form_input_hessian_is_autograds(activation, layers):
+    """``input_hessian`` (value, gradient, Hessian rows; the torch LNN's derivatives) of
+    the training view and of the frozen copy equal torch.func's, in float64."""
+    cfg = NeuralConfig(name="t", hidden=7, layers=layers, activation=activation)
+    params, net, frozen = make(4, 1, cfg)
+    x = torch.tensor(np.random.default_rng(1).normal(size=(5, 4)))
+
+    def scalar(xi: torch.Tensor) -> torch.Tensor:
+        return net(xi[None])[0, 0]
+
+    want_h = torch.func.vmap(torch.func.hessian(scalar))(x)
+    want_g = torch.func.vmap(torch.func.grad(scalar))(x)
+    for model in (net, frozen):
+        value, grad, rows = model.input_hessian(x, first_row=2)
+        np.testing.assert_allclose(value.detach(), net(x)[:, 0].detach(), rtol=1e-12)
+        np.testing.assert_allclose(grad.detach(), want_g.detach(), rtol=1e-10, atol=1e-14)
+        np.testing.assert_allclose(rows.detach(), want_h[:, 2:].detach(), rtol=1e-9,
+                                   atol=1e-13)
+    # training differentiates through it: a parameter gradient of the Hessian exists
+    _, _, rows = net.input_hessian(x)
+    rows.sum().backward()
+    assert all(p.grad is not None and torch.isfinite(p.grad).all() for p in params.values())

@@ -21,10 +21,17 @@ from hnnbench.neural._backend import Weights, rollout_min_step
 from hnnbench.neural._config import NeuralConfig
 from hnnbench.neural._family import Family
 from hnnbench.neural._views import Problem
-from hnnbench.neural.torch._nets import MLP, Autoencoder, FrozenMLP, pixel_objective, symplectic
+from hnnbench.neural.torch._nets import (
+    MLP,
+    Autoencoder,
+    FrozenMLP,
+    input_hessian,
+    pixel_objective,
+    symplectic,
+)
 from hnnbench.neural.torch._ode import SolverGaveUp, dopri5
 
-__all__ = ["MLP", "TorchBackend", "resolve_device", "symplectic"]
+__all__ = ["MLP", "TorchBackend", "input_hessian", "resolve_device", "symplectic"]
 
 Params = dict[str, torch.Tensor]
 

@@ -26,6 +26,8 @@ __all__ = [
     "FrozenMLP",
     "activate",
     "activation_grad",
+    "activation_second",
+    "input_hessian",
     "pixel_objective",
     "symplectic",
 ]
@@ -53,6 +55,54 @@ def activation_grad(name: str, a: torch.Tensor, h: torch.Tensor) -> torch.Tensor
     if name == "sigmoid":
         return h * (1.0 - h)
     return torch.sigmoid(a)
+
+
+def activation_second(name: str, a: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
+    """Second derivative of the activation ``name`` at pre-activation ``a`` (``h`` its
+    value)."""
+    if name == "tanh":
+        return -2.0 * h * (1.0 - h * h)
+    if name == "sigmoid":
+        return h * (1.0 - h) * (1.0 - 2.0 * h)
+    s = torch.sigmoid(a)
+    return s * (1.0 - s)
+
+
+def input_hessian(weights: Sequence[torch.Tensor], biases: Sequence[torch.Tensor],
+                  activation: str, x: torch.Tensor, first_row: int = 0
+                  ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Value ``(N,)``, input gradient ``(N, d)`` and the rows ``first_row:`` of the input
+    Hessian ``(N, d - first_row, d)`` of a scalar-output MLP (``(out, in)`` weights, an
+    activation between layers, no bias on the last), in closed form.
+
+    The Hessian of such a network is ``sum_k J_kᵀ diag(δ_k ⊙ σ''(a_k)) J_k`` over its
+    hidden layers (its linear maps have no curvature): ``a_k`` the layer's
+    pre-activation, ``J_k = ∂a_k/∂x`` carried forward with the values (``d`` tangents,
+    one batched product per layer), ``δ_k = ∂f/∂h_k`` carried backward with the
+    gradient. Plain tensor operations: autograd differentiates it for training (one
+    backward pass, no nested ``torch.func`` transforms), and rollouts run it without
+    autograd.
+    """
+    n, d = x.shape
+    pre, jac = [], []
+    h, tangent = x, None  # tangent: ∂h/∂x, (N, d, width)
+    for w, b in zip(weights[:-1], biases, strict=True):
+        a = F.linear(h, w, b)
+        ja = w.t().expand(n, d, -1) if tangent is None else F.linear(tangent, w)  # (N, d, out)
+        h = activate(activation, a)
+        tangent = ja * activation_grad(activation, a, h)[:, None, :]
+        pre.append((a, h))
+        jac.append(ja)
+    value = F.linear(h, weights[-1])[:, 0]
+    delta = weights[-1].expand(n, -1)  # ∂f/∂h of the last hidden layer, (N, width)
+    hess = x.new_zeros(n, d - first_row, d)
+    for k in range(len(weights) - 2, -1, -1):
+        a, hk = pre[k]
+        ja = jac[k]
+        curvature = delta * activation_second(activation, a, hk)  # (N, width)
+        hess = hess + (ja[:, first_row:, :] * curvature[:, None, :]) @ ja.transpose(1, 2)
+        delta = (delta * activation_grad(activation, a, hk)) @ weights[k]
+    return value, delta, hess
 
 
 class MLP:
@@ -92,6 +142,11 @@ class MLP:
         for i in range(len(self.weights) - 2, -1, -1):
             g = (g * activation_grad(self.activation, pre[i], post[i])) @ self.weights[i]
         return g
+
+    def input_hessian(self, x: torch.Tensor, first_row: int = 0
+                      ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """:func:`input_hessian` of this network (``d_out == 1``)."""
+        return input_hessian(self.weights, self.biases, self.activation, x, first_row)
 
 
 class FrozenMLP:
@@ -135,6 +190,11 @@ class FrozenMLP:
         for i in range(len(self.weights) - 2, -1, -1):
             g = (g * activation_grad(self.activation, pre[i], post[i])) @ self.weights[i]
         return g
+
+    def input_hessian(self, x: torch.Tensor, first_row: int = 0
+                      ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """As :meth:`MLP.input_hessian`."""
+        return input_hessian(self.weights, self.biases, self.activation, x, first_row)
 
 
 class Autoencoder:
