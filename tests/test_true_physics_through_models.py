@@ -5,10 +5,10 @@ ones), a Lagrangian and a Hamiltonian written here, independently of the system'
 numpy code, go through the LNN's Euler-Lagrange solve and the HNN's symplectic gradient,
 in both backends, in place of the trained networks (the LNN adds its declared kinetic
 term to its network's output, so the stand-in network is the true Lagrangian minus that
-term; the JAX LNN's ``euler_lagrange`` takes the true Lagrangian itself). The accelerations must match the
-system's ``vector_field`` seen through its ``kinematics`` (``velocity_rate``) to float64
-round-off: that checks the Euler-Lagrange code, the kinematics and the system's field
-against each other end to end (issue 30, item 7).
+term; the JAX LNN's ``euler_lagrange`` takes the true Lagrangian itself). The
+accelerations must match the system's ``vector_field`` seen through its ``kinematics``
+(``velocity_rate``) to float64 round-off: that checks the Euler-Lagrange code, the
+kinematics and the system's field against each other end to end (issue 30, item 7).
 
 Each function below takes one state (a 1-D array of the backend) and ``xp`` (``torch``
 or ``jax.numpy``) for ``cos``; everything else is operators, so one definition serves
