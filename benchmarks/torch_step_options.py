@@ -74,7 +74,7 @@ def torch_variants(n: int, hidden: int, out: int, hnn: bool) -> dict[str, Callab
             h = act(F.linear(act(F.linear(x, w1, b1)), w2, b2))
             return torch.mean((F.linear(h, w3) - y) ** 2)
 
-        def hnn(ps: list[torch.Tensor]) -> torch.Tensor:  # closed-form input gradient
+        def hnn_loss(ps: list[torch.Tensor]) -> torch.Tensor:  # closed-form input gradient
             w1, b1, w2, b2, w3 = ps
             h1 = act(F.linear(x, w1, b1))
             h2 = act(F.linear(h1, w2, b2))
@@ -83,7 +83,7 @@ def torch_variants(n: int, hidden: int, out: int, hnn: bool) -> dict[str, Callab
             field = torch.cat([g[:, 1:], -g[:, :1]], dim=1)
             return torch.mean((field - y) ** 2)
 
-        return hnn if hnn else mlp
+        return hnn_loss if hnn else mlp
 
     def step(act: Callable[[torch.Tensor], torch.Tensor], **adam: Any) -> Callable[[], None]:
         ps = params()
@@ -130,7 +130,7 @@ def jax_step(n: int, hidden: int, out: int, hnn: bool) -> Callable[[], None]:
         h = jnp.tanh(jnp.tanh(x @ w1.T + b1) @ w2.T + b2)
         return jnp.mean((h @ w3.T - y) ** 2)
 
-    def hnn(ps: list[Any]) -> Any:
+    def hnn_loss(ps: list[Any]) -> Any:
         w1, b1, w2, b2, w3 = ps
 
         def h_of(xi: Any) -> Any:
@@ -139,7 +139,7 @@ def jax_step(n: int, hidden: int, out: int, hnn: bool) -> Callable[[], None]:
         g = jax.vmap(jax.grad(h_of))(x)
         return jnp.mean((jnp.concatenate([g[:, 1:], -g[:, :1]], 1) - y) ** 2)
 
-    loss = hnn if hnn else mlp
+    loss = hnn_loss if hnn else mlp
     opt = optax.chain(optax.add_decayed_weights(1e-4), optax.adam(1e-3))
     state = [ps, opt.init(ps)]
 

@@ -35,6 +35,7 @@ __all__ = [
     "TRAIN_LOSS",
     "VAL_LOSS",
     "VALID_PREDICTION_TIME",
+    "VPT_CENSORED",
     "VPT_LYAPUNOV",
     "energy_drift_per_traj",
     "energy_error_per_traj",
@@ -132,6 +133,13 @@ def _vpt(ctx: EvalContext) -> np.ndarray:
                                  ctx.cfg.vpt_threshold)
 
 
+def _vpt_censored(ctx: EvalContext) -> Any:
+    """The share of evaluation trajectories whose valid prediction time is the whole
+    horizon (the rollout never left the threshold): there VPT is censored, a lower bound."""
+    horizon = float(ctx.traj.t[-1] - ctx.traj.t[0])
+    return {"mean": float(np.mean(_vpt(ctx) >= horizon)), "sem": math.nan}
+
+
 def _vpt_lyapunov(ctx: EvalContext) -> np.ndarray:
     lyapunov = ctx.system.lyapunov_time
     assert lyapunov is not None
@@ -210,6 +218,11 @@ VALID_PREDICTION_TIME = Metric(
     "evaluation.vpt_threshold", _vpt, better="higher", scale="linear",
     check=CheckRule(3, 0.0), order=60,
     errors_fail_job=True, domain=NONNEGATIVE)
+VPT_CENSORED = Metric(
+    "vpt_censored", "Share of evaluation trajectories whose valid prediction time reached "
+    "the horizon (there it is a lower bound; the horizon caps valid_prediction_time). A "
+    "diagnostic, never marked best", _vpt_censored, better="higher", scale="linear",
+    check=CheckRule(3, 0.0), order=65, ranked=False, domain=(0.0, 1.0))
 VPT_LYAPUNOV = Metric(
     "vpt_lyapunov", "Valid prediction time in Lyapunov times (chaotic systems)",
     _vpt_lyapunov, better="higher", scale="linear", check=CheckRule(3, 0.0),
@@ -227,4 +240,4 @@ PIXEL_MSE = Metric(
 
 #: hnnbench's own metrics, in table order (registered by entry points, not from here).
 BUILTIN = (TRAIN_LOSS, VAL_LOSS, TEST_LOSS, ENERGY_MSE, ROLLOUT_MSE, REVERSIBILITY_ERROR,
-           VALID_PREDICTION_TIME, VPT_LYAPUNOV, ENERGY_DRIFT_LONG, PIXEL_MSE)
+           VALID_PREDICTION_TIME, VPT_CENSORED, VPT_LYAPUNOV, ENERGY_DRIFT_LONG, PIXEL_MSE)

@@ -54,7 +54,10 @@ class NeuralModel(Model):
     weights_file: ClassVar[Optional[str]] = "weights.safetensors"
     #: The smoke profile caps rollouts: a model that needs more steps than this over a
     #: quick evaluation horizon has diverged in all but name.
-    profiles: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"rollout_max_steps": 5000}}
+    #: The smoke profile: a narrower network (64 units) and a bounded rollout, so a quick
+    #: job takes seconds (docs/MODELS.md).
+    profiles: ClassVar[dict[str, dict[str, Any]]] = {
+        "quick": {"rollout_max_steps": 5000, "hidden": 64}}
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)

@@ -95,8 +95,10 @@ class TorchTrainer:
         self.stacked = problem.stacked
         self.train = tuple(tensor(a) for a in problem.train)
         self.valid = tuple(tensor(a) for a in problem.valid)
+        # fused: one kernel per parameter for the whole update (torch's CPU default is
+        # a Python loop of element-wise ops per parameter); benchmarks/torch_step_options.py
         self.opt = torch.optim.Adam(list(self.params.values()), lr=settings.lr,
-                                    weight_decay=settings.weight_decay)
+                                    weight_decay=settings.weight_decay, fused=True)
         self.device = dev
         self.kept: Optional[Params] = None  # the selected checkpoint (Trainer.keep)
 
