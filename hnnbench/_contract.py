@@ -575,7 +575,7 @@ class Selection:
     def as_record(self) -> dict[str, Any]:
         """The record's ``selection`` field."""
         return {"rule": "lowest validation loss over the evaluations", "step": self.step,
-                "val_loss": self.val_loss, "evaluations": self.evaluations,
+                "validation_loss": self.val_loss, "evaluations": self.evaluations,
                 "first_step": self.first_step, "trained": self.trained,
                 "stopped": self.stopped}
 

@@ -187,10 +187,11 @@ FIELDS: tuple[Field, ...] = (
           "the validation split)"),
     Field("selection", {
               "type": "object",
-              "required": ["step", "val_loss", "evaluations", "first_step", "trained"],
+              "required": ["step", "validation_loss", "evaluations", "first_step",
+                           "trained"],
               "properties": {"rule": {"type": "string"},
                              "step": {"type": "integer", "minimum": 0},
-                             "val_loss": VALUE,
+                             "validation_loss": VALUE,
                              "evaluations": {"type": "integer", "minimum": 0},
                              "first_step": {"type": "integer", "minimum": 0},
                              "trained": {"type": "boolean"},
