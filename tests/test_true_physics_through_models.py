@@ -118,6 +118,13 @@ def _expected(system: Any, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     return x, kin.to_velocity(x), kin.velocity_rate(x, system.vector_field(x))
 
 
+def _jax() -> tuple[Any, Any]:
+    """``(jax, jax.numpy)`` with float64 enabled (as the JAX backend enables it)."""
+    jax = pytest.importorskip("jax")
+    jax.config.update("jax_enable_x64", True)
+    return jax, jax.numpy
+
+
 @pytest.mark.parametrize("name", sorted(TRUE))
 def test_the_true_lagrangian_through_the_torch_lnn(name):
     torch = pytest.importorskip("torch")
@@ -146,9 +153,7 @@ def test_the_true_lagrangian_through_the_torch_lnn(name):
 
 @pytest.mark.parametrize("name", sorted(TRUE))
 def test_the_true_lagrangian_through_the_jax_lnn(name):
-    jax = pytest.importorskip("jax")
-    jax.config.update("jax_enable_x64", True)
-    jnp = jax.numpy
+    jax, jnp = _jax()
     from hnnbench_plugins.models.lnn import jax as lnn
 
     lagrangian = TRUE[name][0]
@@ -185,9 +190,7 @@ def test_the_true_hamiltonian_through_the_torch_hnn(name):
 
 @pytest.mark.parametrize("name", sorted(TRUE))
 def test_the_true_hamiltonian_through_the_jax_hnn(name):
-    jax = pytest.importorskip("jax")
-    jax.config.update("jax_enable_x64", True)
-    jnp = jax.numpy
+    jax, jnp = _jax()
     from hnnbench_plugins.models.hnn import jax as hnn
 
     hamiltonian = TRUE[name][1]
