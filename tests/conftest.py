@@ -135,3 +135,18 @@ def _restore_logging():
         lg = logging.getLogger(name)
         if id(lg) not in saved:  # created during the test: no handlers of its streams
             lg.handlers[:] = []
+
+
+@pytest.fixture(autouse=True)
+def _absl_logging_writes_to_the_real_stderr():
+    """absl's logging handler (imported with JAX's dependencies) keeps the ``sys.stderr``
+    of the moment it was imported, pytest's capture stream of some earlier test; Hydra's
+    logging set-up (``logging.shutdown`` of every handler) then closes that stream unless
+    it is the current ``sys.stderr``, and pytest dies at its end. Point it at the real
+    stderr, which absl never closes."""
+    module = sys.modules.get("absl.logging")
+    if module is not None:
+        handler = module.get_absl_handler().python_handler
+        if handler.stream is not sys.__stderr__:
+            handler.stream = sys.__stderr__
+    yield

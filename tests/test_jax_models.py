@@ -73,7 +73,7 @@ def test_fit_history_progress_and_timings(cls, spring, data):
     assert set(result.history) == {"step", "train_loss", "val_loss"}
     assert all(len(v) == 3 for v in result.history.values())
     assert [step for step, _ in calls] == [5, 10, 12]
-    assert set(calls[0][1]) == {"train_loss", "test_loss"}
+    assert set(calls[0][1]) == {"train_loss", "val_loss"}
     assert np.all(np.isfinite(result.history["train_loss"]))
     assert model.timings["compile_s"] >= 0.0
     assert model.device == "cpu"

@@ -142,11 +142,12 @@ def test_a_trained_model_of_another_width_is_not_the_main_row(tmp_path, capsys):
     directory = tmp_path / "sweep" / "spring" / "mlp_torch" / "seed0"
     assert run_job(compose(job), directory, overrides=job)["status"] == "ok"
     reference = _reference(tmp_path / "sweep", tmp_path)
-    path = _edit(tmp_path / "sweep", lambda r: r["config"]["model"].update(hidden=64))
+    path = _edit(tmp_path / "sweep", lambda r: r["config"]["model"].update(hidden=32))
     capsys.readouterr()
     assert check.main([str(tmp_path / "sweep"), "--reference", str(reference)]) == 1
     (line,) = _lines(capsys.readouterr().out, "not the main row")
-    assert str(path) in line and "config.model.hidden is 64" in line and "default is 200" in line
+    # the quick profile's default width is 64 (NeuralModel.profiles)
+    assert str(path) in line and "config.model.hidden is 32" in line and "default is 64" in line
 
 
 # --------------------------------------------------------------------------- --rerun
