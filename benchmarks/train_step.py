@@ -197,8 +197,10 @@ def training_rows(job: Any, system: Any, data: Any) -> int:
     """Rows the model's training loop draws its minibatches from: the training points,
     or, for a family trained on trajectory windows (srnn), the windows. Raises
     :class:`~hnnbench._errors.UnsupportedPair` where the data has none."""
+    from hnnbench import with_validation
+
     model = job.model_cls(job.model_cfg, system, "cpu")
-    return model.view.problem(data, *model.training_options()).n
+    return model.view.problem(with_validation(data, 0), *model.training_options()).n
 
 
 def bench_system(system_name: str, models: Sequence[str], args: argparse.Namespace
