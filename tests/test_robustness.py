@@ -270,9 +270,10 @@ def test_torch_training_blowup_is_diverged(tmp_path):
     metrics = rec["metrics"]
     not_applicable = ("pixel_mse", "vpt_lyapunov")  # spring: no pixels, not chaotic
     assert all(math.isinf(m["mean"]) for k, m in metrics.items()
-               if k not in (*not_applicable, "valid_prediction_time"))
+               if k not in (*not_applicable, "valid_prediction_time", "vpt_censored"))
     assert all(math.isnan(metrics[k]["mean"]) for k in not_applicable)
     assert metrics["valid_prediction_time"]["mean"] == 0.0  # higher is better: worst is 0
+    assert metrics["vpt_censored"]["mean"] == 0.0
 
 
 def test_crash_is_failed_with_message_and_traceback(fake_plugins, tmp_path):
@@ -465,8 +466,9 @@ def test_torch_weights_are_safetensors_and_load_without_pickle(tmp_path, monkeyp
     assert rec["status"] == "ok", rec["error"]
     path = tmp_path / "job" / "weights.safetensors"
     raw = path.read_bytes()
-    assert not raw.startswith(b"\x80") and not raw.startswith(b"PK")  # not pickle / zip
-    header_len = int.from_bytes(raw[:8], "little")
+    assert not raw.startswith(b"PK")  # not a zip (torch.save)
+    header_len = int.from_bytes(raw[:8], "little")  # safetensors: its JSON header's length
+    assert raw[8:9] == b"{"  # a pickle would start with 0x80 0x02-0x05 and no JSON
     header = json.loads(raw[8:8 + header_len])
     assert all(v["dtype"] in ("F32", "F64") for k, v in header.items() if k != "__metadata__")
 
