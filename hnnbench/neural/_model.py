@@ -52,10 +52,9 @@ class NeuralModel(Model):
     cfg: NeuralConfig
     family: ClassVar[Family]
     weights_file: ClassVar[Optional[str]] = "weights.safetensors"
-    #: The smoke profile caps rollouts: a model that needs more steps than this over a
-    #: quick evaluation horizon has diverged in all but name.
-    #: The smoke profile: a narrower network (64 units) and a bounded rollout, so a quick
-    #: job takes seconds (docs/MODELS.md).
+    #: The smoke profile: a narrower network (64 units), so a quick job takes seconds
+    #: (docs/MODELS.md), and a rollout cap: a model that needs more steps than this over
+    #: a quick evaluation horizon has diverged in all but name.
     profiles: ClassVar[dict[str, dict[str, Any]]] = {
         "quick": {"rollout_max_steps": 5000, "hidden": 64}}
 
