@@ -7,7 +7,7 @@ and against this machine's fp32 matmul roofline, measured side by side.
     python benchmarks/train_step.py --skip-2019           # hnnbench and roofline only
     python benchmarks/train_step.py --systems spring --skip-2019 --models \
         mlp_torch mlp_jax hnn_torch hnn_jax dhnn_torch dhnn_jax lnn_torch lnn_jax \
-        node2_torch node2_jax srnn_torch srnn_jax       # ms/step of every family
+        so_mlp_torch so_mlp_jax srnn_torch srnn_jax       # ms/step of every family
 
 ``--models`` takes any neural model (``<family>_<backend>``: the families mlp, hnn,
 dhnn, lnn, node2, srnn, each as torch and jax; default: mlp and hnn on both backends);

@@ -21,6 +21,7 @@ Importing hnnbench imports neither torch nor JAX (nor pandas).
 
 from hnnbench._claims import Claim, ClaimSet, Published
 from hnnbench._contract import (
+    CLEAN_INPUTS,
     Dataset,
     FitResult,
     Model,
@@ -79,11 +80,12 @@ from hnnbench._metric import (
 from hnnbench._registry import register
 from hnnbench._user_api import leaderboard, load, run, sweep
 
-__version__ = "0.3.0"
+__version__ = "0.4.0"
 
 __all__ = [
     "BackendMissingError",
     "CheckRule",
+    "CLEAN_INPUTS",
     "Claim",
     "ClaimSet",
     "ConfigError",

@@ -28,6 +28,11 @@ T = TypeVar("T", Dataset, Trajectories)
 
 __all__ = ["cache_root", "cached", "entry_key", "file_sha256"]
 
+#: The layout of cached entries; part of every key, so a change of what a dataset holds
+#: (2: systems that add input noise keep the clean inputs, ``Split.extras["x_clean"]``)
+#: never serves an entry of the old layout.
+CACHE_FORMAT = 2
+
 #: Hex SHA-256 of a file (:func:`hnnbench._paths.sha256_file`).
 file_sha256 = paths.sha256_file
 
@@ -48,6 +53,7 @@ def entry_key(system: System, seed: int, kind: str) -> str:
         "data": system.cfg.data_fields(),
         "seed": int(seed),
         "kind": kind,
+        "format": CACHE_FORMAT,
     }
     blob = json.dumps(payload, sort_keys=True, default=str).encode()
     return hashlib.sha256(blob).hexdigest()[:20]

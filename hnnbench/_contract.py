@@ -33,6 +33,7 @@ from hnnbench._kinematics import Kinematics
 from hnnbench._outputs import checked
 
 __all__ = [
+    "CLEAN_INPUTS",
     "Dataset",
     "FitResult",
     "Selection",
@@ -191,7 +192,9 @@ class Split:
         traj: ``(N,)`` integer trajectory id of each point.
         t: ``(N,)`` time of each point within its trajectory.
         extras: further per-point arrays, each with leading dimension ``N`` (for pixel
-            systems, ``"state"``: the true ``(N, 2n)`` state, used by the linear probe).
+            systems, ``"state"``: the true ``(N, 2n)`` state, used by the linear probe;
+            for systems that add noise to their inputs, :data:`CLEAN_INPUTS`: the
+            inputs before the noise, on which the test loss is taken).
     """
 
     x: np.ndarray
@@ -202,6 +205,13 @@ class Split:
 
     def __len__(self) -> int:
         return int(self.x.shape[0])
+
+
+#: ``Split.extras`` key of the noise-free inputs ``(N, D)`` behind noisy ``x``: a system
+#: that adds noise to its inputs stores them, and ``test_loss`` compares the model's
+#: field at them with the (clean) targets, so the test loss has no noise floor
+#: (docs/METRICS.md). Training and validation losses stay on the noisy inputs.
+CLEAN_INPUTS = "x_clean"
 
 
 @dataclass(frozen=True)
@@ -329,8 +339,8 @@ class System(ABC):
 
     Optional methods and properties a subclass may override: :meth:`vector_field`
     (where the dynamics are known), :meth:`kinematics` (for second-order models),
-    :attr:`lyapunov_time` (for chaotic systems), :attr:`wrapped_angles` (where the
-    data wraps angles).
+    :attr:`lyapunov_time` (for chaotic systems), :attr:`angles` (positions that are
+    angles), :attr:`wrapped_angles` (where the data wraps angles).
     """
 
     Config: ClassVar[type[SystemConfig]] = SystemConfig
@@ -387,6 +397,15 @@ class System(ABC):
         in its time units, for the configured regime; ``None`` where it is not chaotic
         or not known. Enables the ``vpt_lyapunov`` metric."""
         return None
+
+    @property
+    def angles(self) -> tuple[int, ...]:
+        """Indices ``i < n`` of the positions ``q_i`` that are angles: the dynamics and
+        the energy are 2π-periodic in each of them. Every neural network reads them
+        through a periodic embedding (``model.angle_embedding``), and the state-error
+        metrics compare them modulo 2π (docs/METRICS.md). ``()`` (the default): none.
+        Independent of :attr:`wrapped_angles`, which says how the *data* gives them."""
+        return ()
 
     @property
     def wrapped_angles(self) -> tuple[int, ...]:

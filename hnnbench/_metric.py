@@ -22,7 +22,7 @@ from typing import Any, Literal, Optional
 
 import numpy as np
 
-from hnnbench._contract import Dataset, Model, System, Trajectories
+from hnnbench._contract import CLEAN_INPUTS, Dataset, Model, System, Trajectories
 from hnnbench._errors import RolloutDiverged
 from hnnbench._outputs import checked, checked_scalar
 
@@ -32,6 +32,7 @@ __all__ = [
     "EvaluationConfig",
     "LinearProbe",
     "Metric",
+    "STATE_BOUND",
     "always",
     "per_point_squared_error",
     "sem",
@@ -126,6 +127,11 @@ class Metric:
             ``(0, inf)``). A strict load of records (``hnnbench check``, publishing)
             refuses a mean outside it; ``nan`` (not applicable) and :meth:`worst` (a
             diverged model's ``inf``) are always allowed (:meth:`value_problem`).
+        best_requires: ``(metric, threshold)``: a row is eligible to be marked best on
+            this metric only where its mean of ``metric`` (a higher-is-better metric)
+            exceeds ``threshold``. For a metric a degenerate model would win, e.g. the
+            energy error of a model that does not move (0 on a conservative system),
+            eligible only where the rollout beats standing still.
     """
 
     name: str
@@ -144,6 +150,7 @@ class Metric:
     log: bool = False
     errors_fail_job: bool = False
     domain: tuple[float, float] = (-math.inf, math.inf)
+    best_requires: Optional[tuple[str, float]] = None
 
     def __post_init__(self) -> None:
         low, high = self.domain
@@ -156,9 +163,11 @@ class Metric:
                                                                   better=self.better))
 
     def worst(self) -> float:
-        """The value recorded when the model failed (diverged): ``inf`` for errors,
-        ``0`` where higher is better (a diverged model predicts nothing)."""
-        return 0.0 if self.better == "higher" else math.inf
+        """The value recorded when the model failed (diverged): the bad end of its
+        :attr:`domain` (``inf`` for errors; ``0`` for a time or a share, where higher is
+        better: a diverged model predicts nothing; ``-inf`` for an unbounded score)."""
+        low, high = self.domain
+        return low if self.better == "higher" else high
 
     def value_problem(self, mean: Any, sem: Any = math.nan) -> Optional[str]:
         """Why ``mean`` / ``sem`` (floats, decoded) cannot be this metric's summary, or
@@ -236,6 +245,12 @@ class LinearProbe:
         return latents @ self.weight + self.bias
 
 
+#: The state bound of every rollout (docs/METRICS.md, "Diverged"): a rollout whose
+#: state norm exceeds this multiple of the largest norm in the data has left the
+#: system's domain and is ``diverged``, the same for every model and backend.
+STATE_BOUND = 100.0
+
+
 class EvalContext:
     """What the metrics of one trained model share, computed on first use.
 
@@ -265,12 +280,16 @@ class EvalContext:
         return value
 
     # -- losses -----------------------------------------------------------------------
-    def loss_values(self, split: str) -> Any:
+    def loss_values(self, split: str, clean: bool = False) -> Any:
         """Per-point squared errors of ``time_derivative`` on a split (state systems);
-        the model's own objective on pixel systems (a mean, no standard error)."""
+        the model's own objective on pixel systems (a mean, no standard error).
+        ``clean``: where the system added noise to the inputs, take the field at the
+        clean inputs (``Split.extras[CLEAN_INPUTS]``), so the loss measures the model
+        against its (clean) targets and not the noise."""
         data = getattr(self.data, split)
         if self.system.observation == "state":
-            pred = checked(self.model, "time_derivative", self.model.time_derivative(data.x),
+            x = data.extras.get(CLEAN_INPUTS, data.x) if clean else data.x
+            pred = checked(self.model, "time_derivative", self.model.time_derivative(x),
                            np.shape(data.dxdt), "(N, D) like its targets")
             return per_point_squared_error(pred, data.dxdt)
         loss = checked_scalar(self.model, "loss", self.model.loss(data.x, data.dxdt))
@@ -300,14 +319,45 @@ class EvalContext:
         return self._once("probe", make)
 
     def roll(self, z0: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """A rollout of the model (``(M, T, d)``); non-finite states raise."""
+        """A rollout of the model (``(M, T, d)``); non-finite states, or states beyond
+        the bound (:meth:`state_bound`), raise :class:`RolloutDiverged`."""
         out = checked(self.model, "rollout",
                       self.model.rollout(z0, t, rtol=self.cfg.rtol, atol=self.cfg.atol),
                       (len(z0), len(t), np.shape(z0)[-1]),
                       "(M, T, d): M initial states, T times, d their width")
         if not np.all(np.isfinite(out)):
             raise RolloutDiverged("rollout produced non-finite states")
+        bound = self.state_bound()
+        if bound is not None:
+            norms = np.linalg.norm(self._bounded(out), axis=-1)
+            if float(norms.max()) > bound:
+                i, k = np.unravel_index(int(np.argmax(norms > bound)), norms.shape)
+                raise RolloutDiverged(
+                    f"the rollout left the state bound at t={float(t[k]):g}: |x| = "
+                    f"{float(norms[i, k]):.3g} > {bound:.3g} ({STATE_BOUND:g} x the largest "
+                    "|x| of the training inputs and the true evaluation states, angles "
+                    "left out)")
         return out
+
+    def _bounded(self, x: np.ndarray) -> np.ndarray:
+        """The columns of states ``(..., 2n)`` the bound applies to (angles left out)."""
+        angles = set(self.system.angles)
+        keep = [c for c in range(np.shape(x)[-1]) if c not in angles]
+        return np.asarray(x)[..., keep]
+
+    def state_bound(self) -> Optional[float]:
+        """The largest state norm a rollout may reach before it is ``diverged``:
+        :data:`STATE_BOUND` times the largest norm among the training inputs and the
+        true evaluation states (angle columns left out: a turning rod is no blow-up).
+        ``None`` for models rolled out in latents (pixels)."""
+        if self.pixels:
+            return None
+
+        def make() -> float:
+            scale = max(float(np.linalg.norm(self._bounded(self.data.train.x), axis=-1).max()),
+                        float(np.linalg.norm(self._bounded(self.traj.states), axis=-1).max()))
+            return STATE_BOUND * scale
+        return float(self._once("state_bound", make))
 
     def rollout(self) -> np.ndarray:
         """The main rollout, from :meth:`z0` over the evaluation grid."""

@@ -128,26 +128,26 @@ def test_train_step_benchmark_prints_2019_and_roofline_columns():
 
 @pytest.mark.slow
 def test_train_step_benchmark_times_other_families():
-    """train_step.py --models takes any family: rows for node2 (torch) and srnn (JAX,
+    """train_step.py --models takes any family: rows for so_mlp (torch) and srnn (JAX,
     trained on trajectory windows), no 2019 figure for them, a per-family table."""
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     proc = subprocess.run(
         [sys.executable, str(REPO / "benchmarks" / "train_step.py"), "--systems", "spring",
-         "--models", "node2_torch", "srnn_jax", "--steps", "20", "--repeats", "1",
+         "--models", "so_mlp_torch", "srnn_jax", "--steps", "20", "--repeats", "1",
          "--rate-budget", "0.05", "--no-pin"],
         capture_output=True, text=True, timeout=600, env=env, cwd=REPO,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     rows = {line.split("|")[2].strip(): [c.strip() for c in line.split("|")[1:-1]]
             for line in proc.stdout.splitlines() if line.startswith("| spring | ")}
-    assert {"node2_torch", "srnn_jax", "node2", "srnn"} <= set(rows), proc.stdout
-    assert rows["node2_torch"][6] == "— / —" and rows["srnn_jax"][6] == "— / —"
-    assert float(rows["node2_torch"][4].split("/")[0]) > 0
+    assert {"so_mlp_torch", "srnn_jax", "so_mlp", "srnn"} <= set(rows), proc.stdout
+    assert rows["so_mlp_torch"][6] == "— / —" and rows["srnn_jax"][6] == "— / —"
+    assert float(rows["so_mlp_torch"][4].split("/")[0]) > 0
     # batch: every training window (full batch): 23 trajectories x 26 windows, the other
     # 2 of the 25 held out for validation
     assert rows["srnn_jax"][2] == "598"
-    node2, srnn = rows["node2"], rows["srnn"]  # the family table
-    assert node2[3] == "—" and float(node2[2].split("/")[0]) > 0  # torch only
+    so_mlp, srnn = rows["so_mlp"], rows["srnn"]  # the family table
+    assert so_mlp[3] == "—" and float(so_mlp[2].split("/")[0]) > 0  # torch only
     assert srnn[2] == "—" and float(srnn[3].split("/")[0]) > 0  # JAX only
 
 

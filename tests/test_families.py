@@ -210,7 +210,7 @@ def test_the_lnn_adds_its_declared_kinetic_term_to_the_network(backend):
     np.testing.assert_allclose(e, KINETIC_PRIOR * (Z2[:, 2:] ** 2).sum(1), atol=1e-12)
 
 
-def _node2_accel(backend):
+def _so_mlp_accel(backend):
     if backend == "torch":
         class Accel:
             def __call__(self, x):
@@ -220,10 +220,10 @@ def _node2_accel(backend):
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_node2_with_a_known_acceleration_is_the_oscillator(backend):
-    impl = importlib.import_module(f"hnnbench_plugins.models.node2.{backend}")
+def test_so_mlp_with_a_known_acceleration_is_the_oscillator(backend):
+    impl = importlib.import_module(f"hnnbench_plugins.models.so_mlp.{backend}")
     z = torch.tensor(Z1) if backend == "torch" else jnp.asarray(Z1)
-    out = np.asarray(impl.field({"g": _node2_accel(backend)}, z))
+    out = np.asarray(impl.field({"g": _so_mlp_accel(backend)}, z))
     np.testing.assert_allclose(out, np.stack([Z1[:, 1], -Z1[:, 0]], 1), atol=1e-8)
 
 

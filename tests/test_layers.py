@@ -215,6 +215,6 @@ def test_without_torch_model_all_runs_every_jax_model_and_the_oracle(tmp_path):
 
     models = {r["model"]: r["status"] for r in load_records(tmp_path)}
     assert models and not any(m.endswith("_torch") for m in models), models
-    assert {"mlp_jax", "hnn_jax", "dhnn_jax", "lnn_jax", "node2_jax", "srnn_jax",
+    assert {"mlp_jax", "hnn_jax", "dhnn_jax", "lnn_jax", "so_mlp_jax", "srnn_jax",
             "oracle"} <= set(models), models
     assert all(s in ("ok", "diverged") for s in models.values()), models

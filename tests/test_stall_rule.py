@@ -83,3 +83,61 @@ def test_a_stalling_lnn_job_is_diverged_in_seconds(model, tmp_path):
     assert record is not None
     assert record["status"] == "diverged" and "stall limit" in record["error"], record["error"]
     assert record["timings"]["total_s"] < 120
+
+
+class _Exploding:
+    """A model whose rollout grows exponentially, e^{t}·x0 (finite all along)."""
+
+    class cfg:  # noqa: N801 - mirrors Model.cfg.name
+        name = "exploding"
+
+    def __init__(self, rate: float) -> None:
+        self.rate = rate
+
+    def rollout(self, x0, t, rtol=1e-9, atol=1e-9):
+        t = np.asarray(t, dtype=np.float64)
+        return np.asarray(x0)[:, None, :] * np.exp(self.rate * (t - t[0]))[None, :, None]
+
+    def energy(self, x):
+        return None
+
+
+@pytest.mark.parametrize("rate, diverged", [(0.0, False), (0.2, False), (1.0, True)])
+def test_the_state_bound_marks_a_blow_up_diverged_and_spares_a_drift(rate, diverged):
+    """The same rule for every model and backend (``EvalContext.roll``): over the
+    spring's horizon of 20, e^{0.2 t} (x55) stays inside 100x the data's largest norm,
+    e^{t} does not, and is diverged with the time it left the bound."""
+    from hnnbench._errors import RolloutDiverged
+    from hnnbench._metric import STATE_BOUND, EvalContext, EvaluationConfig
+    from hnnbench_plugins.systems.spring import Spring, SpringConfig
+
+    system = Spring(SpringConfig(name="spring", n_traj=10, eval_n_traj=3))
+    ctx = EvalContext(system, _Exploding(rate), system.dataset(0), system.evaluation(0),
+                      EvaluationConfig())
+    assert ctx.state_bound() == pytest.approx(STATE_BOUND * max(
+        np.linalg.norm(system.dataset(0).train.x, axis=-1).max(),
+        np.linalg.norm(system.evaluation(0).states, axis=-1).max()))
+    if diverged:
+        with pytest.raises(RolloutDiverged, match="left the state bound at t="):
+            ctx.rollout()
+    else:
+        assert ctx.rollout().shape == (3, 100, 2)
+
+
+def test_angles_are_left_out_of_the_state_bound():
+    """A double-pendulum angle that keeps turning (q1 = 50 t) is no blow-up."""
+    from hnnbench._metric import EvalContext, EvaluationConfig
+    from hnnbench_plugins.systems.double_pendulum import DoublePendulum, DoublePendulumConfig
+
+    system = DoublePendulum(DoublePendulumConfig(name="double_pendulum", n_traj=4,
+                                                 eval_n_traj=2))
+    traj = system.evaluation(0)
+
+    class Turning(_Exploding):
+        def rollout(self, x0, t, rtol=1e-9, atol=1e-9):
+            out = np.repeat(np.asarray(x0)[:, None, :], len(t), axis=1).copy()
+            out[:, :, 0] += 50.0 * np.asarray(t)[None, :]
+            return out
+
+    ctx = EvalContext(system, Turning(0.0), system.dataset(0), traj, EvaluationConfig())
+    assert ctx.rollout().shape[1] == len(traj.t)

@@ -27,12 +27,13 @@ import numpy as np
 from hnnbench._contract import TrainSettings
 from hnnbench._errors import BackendMissingError, HnnbenchError
 from hnnbench.neural._config import NeuralConfig
+from hnnbench.neural._embedding import Layout
 from hnnbench.neural._family import Family
 from hnnbench.neural._loop import Trainer
 from hnnbench.neural._views import Problem
 
 __all__ = ["BACKENDS", "MIN_STEP_FRACTION", "Backend", "Inference", "Weights", "load_backend",
-           "missing_backend", "rollout_min_step", "stall_text"]
+           "map_plan", "missing_backend", "rollout_min_step", "stall_text"]
 
 #: The stall rule of every neural rollout, in both backends (docs/METRICS.md,
 #: "Diverged"): when the adaptive solver's next step size falls below this fraction of
@@ -48,6 +49,20 @@ def rollout_min_step(t: np.ndarray) -> float:
     :data:`MIN_STEP_FRACTION` of its span), in ``t``'s units."""
     t = np.asarray(t, dtype=np.float64)
     return MIN_STEP_FRACTION * float(abs(t[-1] - t[0])) if t.size else 0.0
+
+
+def map_plan(t: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """How a rollout by a family's own discrete map (e.g. the SRNN's leapfrog) covers
+    the grid ``t`` ``(T,)`` with steps no longer than ``step`` (> 0): each interval
+    ``t[k] -> t[k+1]`` in ``m_k = ceil(|Δt_k| / step)`` equal steps of ``Δt_k / m_k``
+    (negative when ``t`` decreases), so every grid time is landed on exactly.
+
+    Returns:
+        ``(m (T - 1,) int64, h (T - 1,) float64)``.
+    """
+    dt = np.diff(np.asarray(t, dtype=np.float64))
+    m = np.maximum(1, np.ceil(np.abs(dt) / float(step) - 1e-9)).astype(np.int64)
+    return m, dt / m
 
 
 def stall_text(min_step: float) -> str:
@@ -86,6 +101,12 @@ class Inference(Protocol):
         stall rule, the same in every backend)."""
         ...
 
+    def map_rollout(self, z0: np.ndarray, t: np.ndarray, step: float) -> np.ndarray:
+        """The family's own discrete map (its implementation's ``step(nets, z, h)``)
+        from ``(M, d)`` over ``(T,)`` in steps of at most ``step`` (:func:`map_plan`),
+        float64; ``(M, T, d)``. Non-finite states are returned as they are."""
+        ...
+
     def encode(self, x: np.ndarray) -> np.ndarray:
         """Pixel models: observations ``(N, D)`` -> latents ``(N, d)``."""
         ...
@@ -110,9 +131,10 @@ class Backend(Protocol):
     timings: dict[str, float]
 
     def trainer(self, family: Family, impl: ModuleType, problem: Problem,
-                initial: Sequence[Weights], settings: TrainSettings, d: int) -> Trainer:
+                initial: Sequence[Weights], settings: TrainSettings, layout: Layout) -> Trainer:
         """A trainer of ``len(initial)`` seeds, from their float64 initial weights;
-        ``d`` is the dimension of the family's working coordinates."""
+        ``layout``: the family's networks on this system (what each reads, its angle
+        embedding)."""
         ...
 
     def weights(self, trainer: Trainer) -> list[Weights]:
@@ -120,7 +142,7 @@ class Backend(Protocol):
         ...
 
     def inference(self, family: Family, impl: ModuleType, weights: Weights,
-                  d: int) -> Inference:
+                  layout: Layout) -> Inference:
         """The float64 computations of one seed's trained weights."""
         ...
 

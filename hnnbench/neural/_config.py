@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 from hnnbench._contract import ModelConfig, check_int_at_least, check_positive
 from hnnbench._errors import ConfigError
+from hnnbench.neural._embedding import ANGLE_EMBEDDINGS
 
 __all__ = ["ACTIVATIONS", "DTYPES", "NeuralConfig"]
 
@@ -29,6 +30,9 @@ class NeuralConfig(ModelConfig):
             chunk of the JAX backend.
         rollout_max_steps: ODE solver step budget per rollout before it is declared
             diverged.
+        angle_embedding: how every network reads the system's angles
+            (:attr:`hnnbench.System.angles`): ``cos_sin``, ``wrap`` or ``none``
+            (:mod:`hnnbench.neural._embedding`; docs/MODELS.md, "Periodic coordinates").
     """
 
     hidden: int = 200
@@ -37,6 +41,7 @@ class NeuralConfig(ModelConfig):
     dtype: str = "float32"
     log_every: int = 0
     rollout_max_steps: int = 50_000
+    angle_embedding: str = "cos_sin"
 
     def validate(self) -> None:
         super().validate()
@@ -48,6 +53,11 @@ class NeuralConfig(ModelConfig):
             raise ConfigError(
                 f"model.activation='{self.activation}' is invalid: expected one of "
                 f"{', '.join(ACTIVATIONS)}."
+            )
+        if self.angle_embedding not in ANGLE_EMBEDDINGS:
+            raise ConfigError(
+                f"model.angle_embedding='{self.angle_embedding}' is invalid: expected one "
+                f"of {', '.join(ANGLE_EMBEDDINGS)}."
             )
         if self.dtype not in DTYPES:
             raise ConfigError(

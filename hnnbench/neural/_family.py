@@ -49,6 +49,11 @@ class Family:
         window: states per training window, first included (``data == "windows"``).
         observations: the system observations it runs on (``"state"``, ``"pixels"``).
         learned_energy: whether the implementation defines ``energy``.
+        network_inputs: which part of the working coordinates ``z = (q, v)`` each
+            network reads: ``"z"`` (the default for a network not named here), ``"q"``
+            (the positions) or ``"p"`` (the momenta or velocities). The angle embedding
+            (:mod:`hnnbench.neural._embedding`) applies to the angles among a
+            network's inputs.
         order: position of the family's models in listings and tables (each backend's
             model at ``order + 0.1 * k`` in :data:`BACKEND_ORDER`).
     """
@@ -64,6 +69,7 @@ class Family:
     observations: tuple[str, ...] = ("state",)
     learned_energy: bool = False
     order: Optional[float] = None
+    network_inputs: Mapping[str, Literal["z", "q", "p"]] = field(default_factory=dict)
 
 
 #: Backends in listing order within a family.

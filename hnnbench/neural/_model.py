@@ -30,6 +30,7 @@ from hnnbench._errors import RolloutDiverged
 from hnnbench.neural import _views as views
 from hnnbench.neural._backend import Inference, Weights, load_backend, missing_backend
 from hnnbench.neural._config import NeuralConfig
+from hnnbench.neural._embedding import Layout
 from hnnbench.neural._family import BACKEND_ORDER, Family
 from hnnbench.neural._init import autoencoder_init_arrays, network_init_arrays
 from hnnbench.neural._loop import train as run_training
@@ -90,15 +91,28 @@ class NeuralModel(Model):
         #: If set, :meth:`fit` starts every seed from these weights (flat names, e.g.
         #: another model's :meth:`get_weights`) instead of the seeded initial ones.
         self.warm_start: Optional[Weights] = None
+        #: The median interval of the training windows (families that train on
+        #: trajectory windows), in model time units; set by :meth:`fit`, saved.
+        self.data_step: Optional[float] = None
 
     @property
     def device(self) -> str:
         return self._backend.device_name
 
     # -- weights --------------------------------------------------------------------
+    def layout(self) -> Layout:
+        """The family's networks on this system: what each reads, its angles and their
+        embedding (``model.angle_embedding``)."""
+        d = self.view.dim
+        return Layout.build(d, self.family.networks(d), self.family.network_inputs,
+                            self.view.angles, self.cfg.angle_embedding)
+
     def network_shapes(self) -> dict[str, tuple[int, int]]:
-        """``{net: (d_in, d_out)}`` of the family's networks on this system."""
-        return self.family.networks(self.view.dim)
+        """``{net: (input features, d_out)}`` of the family's networks on this system
+        (input features: after the angle embedding)."""
+        layout = self.layout()
+        return {name: (layout[name].features, d_out)
+                for name, (_, d_out) in self.family.networks(self.view.dim).items()}
 
     def initial_weights(self, seed: int, d_obs: Optional[int] = None) -> Weights:
         """The seeded float64 initial weights (flat names), the same for every backend;
@@ -151,7 +165,7 @@ class NeuralModel(Model):
     def _infer(self) -> Inference:
         if self._inference is None:
             self._inference = self._backend.inference(self.family, self._impl,
-                                                      self.get_weights(), self.view.dim)
+                                                      self.get_weights(), self.layout())
         return self._inference
 
     # -- training -------------------------------------------------------------------
@@ -179,9 +193,11 @@ class NeuralModel(Model):
         else:
             initial = [self.initial_weights(seed, d_obs) for seed in seeds]
         trainer = self._backend.trainer(self.family, self._impl, problem, initial, settings,
-                                        self.view.dim)
+                                        self.layout())
         fits = run_training(trainer, problem.n, settings, seeds,
                             self.cfg.log_interval(settings.steps), progress)
+        if problems[0].kind == "windows":
+            self.data_step = float(np.median(problems[0].train[1]))
         return fits, self._backend.weights(trainer)
 
     def fit(self, data: Dataset, train: TrainSettings, seed: int,
@@ -203,9 +219,11 @@ class NeuralModel(Model):
             return super().fit_seeds(data, train, seeds, progress)
         fits, weights = self._train(problems, train, seeds, progress)
         out: list[tuple[Model, FitResult]] = []
-        for fit, w in zip(fits, weights, strict=True):
+        for fit, w, problem in zip(fits, weights, problems, strict=True):
             model = self.copy()
             model.set_weights(w)
+            if problem.kind == "windows":
+                model.data_step = float(np.median(problem.train[1]))
             out.append((model, FitResult(history=fit.history, steps=fit.steps,
                                          diverged=fit.diverged, selection=fit.selection)))
         return out
@@ -217,10 +235,19 @@ class NeuralModel(Model):
         model.view = self.view
         model._backend, model._impl = self._backend, self._impl
         model._weights, model._inference = None, None
+        model.warm_start, model.data_step = None, self.data_step
         model.timings = dict(self.timings)  # training timings so far; rollouts its own
         return model
 
     # -- inference ------------------------------------------------------------------
+    def map_step(self) -> Optional[float]:
+        """The step size (model time units) of the family's own discrete map when the
+        model rolls out with it instead of the adaptive Dormand-Prince solver (e.g. the
+        SRNN's leapfrog, ``model.integrator=leapfrog``); ``None`` (the default): the
+        solver. A family whose implementation defines ``step(nets, z, h)`` overrides
+        this."""
+        return None
+
     def time_derivative(self, x: np.ndarray) -> np.ndarray:
         z = self.view.to_model(x)
         return self.view.rate_out(z, self._infer().field(z))
@@ -230,8 +257,13 @@ class NeuralModel(Model):
         z0 = self.view.to_model(np.atleast_2d(x0))
         times = np.asarray(t, dtype=np.float64) / self.view.time_unit
         start = time.perf_counter()
+        step = self.map_step()
         try:
-            zs = self._infer().rollout(z0, times, rtol, atol, int(self.cfg.rollout_max_steps))
+            if step is not None:
+                zs = self._infer().map_rollout(z0, times, step)
+            else:
+                zs = self._infer().rollout(z0, times, rtol, atol,
+                                           int(self.cfg.rollout_max_steps))
         finally:
             self.timings["rollout_s"] = self.timings.get("rollout_s", 0.0) + (
                 time.perf_counter() - start)
@@ -273,7 +305,8 @@ class NeuralModel(Model):
         c = self.cfg
         return {"model": self.name, "family": self.family.name, "backend": self.backend,
                 "dtype": c.dtype, "activation": c.activation, "layers": c.layers,
-                "hidden": c.hidden, "time_unit": self.view.time_unit}
+                "hidden": c.hidden, "time_unit": self.view.time_unit,
+                "angle_embedding": c.angle_embedding, "data_step": self.data_step}
 
     def save(self, path: Path) -> None:
         """Write the trained weights to ``path`` (safetensors, via numpy; the same
@@ -283,10 +316,13 @@ class NeuralModel(Model):
     def load(self, path: Path) -> None:
         weights, meta = load_weights(path)
         mine = self._meta()
-        for key in ("family", "activation"):  # layers, hidden: the layout check says
+        for key in ("family", "activation", "angle_embedding"):  # layers, hidden: the
+            # layout check says
             if key in meta and meta[key] != mine[key]:
                 raise ValueError(f"{path} holds a model with {key}={meta[key]}, but this "
                                  f"model has {key}={mine[key]}")
         self.set_weights(weights)
+        if meta.get("data_step") is not None:
+            self.data_step = float(meta["data_step"])
         if isinstance(self.view, views.PixelView):
             self.view.time_unit = float(meta.get("time_unit", 1.0))

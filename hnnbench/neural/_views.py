@@ -174,6 +174,12 @@ class View:
         """Dimension ``d`` of the family's working coordinates."""
         return 2 * self.system.dof
 
+    @property
+    def angles(self) -> tuple[int, ...]:
+        """The working coordinates that are angles (:attr:`hnnbench.System.angles`:
+        positions, the same in ``(q, p)`` and ``(q, q̇)``), which the networks embed."""
+        return tuple(self.system.angles)
+
     def to_model(self, x: np.ndarray) -> np.ndarray:
         """Model-API inputs ``(..., D)`` -> working coordinates ``(..., d)``."""
         return np.asarray(x, dtype=np.float64)
@@ -264,6 +270,11 @@ class PixelView(View):
     def __init__(self, family: Family, system: System) -> None:
         super().__init__(family, system)
         self.time_unit = 1.0
+
+    @property
+    def angles(self) -> tuple[int, ...]:
+        """Latents are no angles."""
+        return ()
 
     def set_frame_dt(self, data: Dataset) -> None:
         if "dt" not in data.meta:

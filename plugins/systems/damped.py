@@ -88,7 +88,7 @@ class DampedSpring(Damped, Spring):
     order = 70
     Config = DampedSpringConfig
     cfg: DampedSpringConfig
-    version = "1"
+    version = "2"  # 2: the dataset keeps the clean inputs behind the noisy ones
     description = "Damped mass-spring, H = q^2 + p^2, dp/dt = -2q - gamma p (gamma = 0.07)"
     profiles = {"quick": {"steps": 300, "eval_n_traj": 5}}
 
@@ -100,7 +100,7 @@ class DampedPendulum(Damped, Pendulum):
     order = 80
     Config = DampedPendulumConfig
     cfg: DampedPendulumConfig
-    version = "1"
+    version = "2"  # 2: the dataset keeps the clean inputs behind the noisy ones
     description = (
         "Damped pendulum, H = 3(1 - cos q) + p^2, dp/dt = -3 sin q - gamma p (gamma = 0.07)"
     )

@@ -56,6 +56,7 @@ from typing import Any, ClassVar, Optional
 import numpy as np
 
 from hnnbench import (
+    CLEAN_INPUTS,
     DATA_STREAM,
     EVAL_STREAM,
     ConfigError,
@@ -415,6 +416,11 @@ class DoublePendulum(System):
         )
 
     @property
+    def angles(self) -> tuple[int, ...]:
+        """Both rods' angles."""
+        return (0, 1)
+
+    @property
     def wrapped_angles(self) -> tuple[int, ...]:
         """Both rods' angles, when ``wrap_angles`` is set."""
         return (0, 1) if self.cfg.wrap_angles else ()
@@ -448,6 +454,7 @@ class DoublePendulum(System):
         x = clean.copy()
         if c.wrap_angles:
             x[..., :2] = wrap_angle(x[..., :2])
+        exact = x
         if c.noise_std > 0:
             x = x + rng.normal(0.0, c.noise_std, size=clean.shape)
         split = c.trajectory_split()
@@ -456,6 +463,7 @@ class DoublePendulum(System):
         drift = np.max(np.abs(energy - energy[:, :1]))
         return trajectory_dataset(
             x, dxdt, t, split,
+            extras={CLEAN_INPUTS: exact} if c.noise_std > 0 else None,
             meta={
                 "dt": self.data_dt,
                 "n_train_traj": n_train,

@@ -69,6 +69,7 @@ import numpy as np
 import rebound
 
 from hnnbench import (
+    CLEAN_INPUTS,
     DATA_STREAM,
     EVAL_STREAM,
     ConfigError,
@@ -569,6 +570,7 @@ class NBody(System):
         n_train, n_test = split.sizes(c.n_orbits)
         return trajectory_dataset(
             x, dxdt, t, split,
+            extras={CLEAN_INPUTS: states} if c.noise_std > 0 else None,
             meta={
                 "dt": self.data_dt,
                 "n_bodies": self.n_bodies,

@@ -29,7 +29,8 @@ class Pendulum(ToySystem):
     Config = PendulumConfig
     order = 20
     # 2: evaluation initial states drawn as the 2019 notebooks did (eval_init="box").
-    version = "2"
+    # 3: the dataset keeps the clean inputs behind the noisy ones (the test loss's).
+    version = "3"
     description = "Ideal pendulum, H = 3(1 - cos q) + p^2 (HNN paper, task 2)"
     profiles = {"quick": {"steps": 300, "eval_n_traj": 5}}
 
@@ -38,3 +39,8 @@ class Pendulum(ToySystem):
 
     def grad_h(self, q: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return 3.0 * np.sin(q), 2.0 * p
+
+    @property
+    def angles(self) -> tuple[int, ...]:
+        """The pendulum's angle ``q``."""
+        return (0,)

@@ -215,6 +215,11 @@ class PixelPendulum(System):
         """The true dynamics of the underlying state (q, p) (not of the pixels)."""
         return self.pendulum.vector_field(x)
 
+    @property
+    def angles(self) -> tuple[int, ...]:
+        """The angle ``q`` of the underlying state (the probe's; models see latents)."""
+        return (0,)
+
     def render(self, q: np.ndarray) -> np.ndarray:
         """``(N, side, side)`` float32 frames for angles ``q`` ``(N,)``."""
         return render(q, self.cfg.side, self.cfg.supersample)

@@ -292,6 +292,11 @@ class RealDoublePendulum(MeasuredTableSystem):
         return identity_kinematics()
 
     @property
+    def angles(self) -> tuple[int, ...]:
+        """Both rods' angles."""
+        return (0, 1)
+
+    @property
     def wrapped_angles(self) -> tuple[int, ...]:
         """Both rods' angles, when ``wrap_angles`` is set."""
         return (0, 1) if self.cfg.wrap_angles else ()

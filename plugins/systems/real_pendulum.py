@@ -342,6 +342,11 @@ class RealPendulum(MeasuredTableSystem):
         """The state's "momentum" is the measured angular velocity: ``q̇ = p``."""
         return identity_kinematics()
 
+    @property
+    def angles(self) -> tuple[int, ...]:
+        """The pendulum's angle ``θ``."""
+        return (0,)
+
     # ------------------------------------------------------------------ data
 
     def dataset(self, seed: int) -> Dataset:

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hnnbench import (
+    CLEAN_INPUTS,
     DATA_STREAM,
     EVAL_STREAM,
     ConfigError,
@@ -166,6 +167,7 @@ class ToySystem(System):
         n_train, n_test = split.sizes(c.n_traj)
         return trajectory_dataset(
             noisy, dxdt, t, split,
+            extras={CLEAN_INPUTS: clean} if c.noise_std > 0 else None,
             meta={"dt": float(t[1] - t[0]), "n_train_traj": n_train, "n_test_traj": n_test},
         )
 

@@ -45,8 +45,14 @@ import optax  # noqa: E402
 from hnnbench import _paths as paths
 from hnnbench._contract import TrainSettings  # noqa: E402
 from hnnbench._errors import ConfigError, RolloutDiverged  # noqa: E402
-from hnnbench.neural._backend import Weights, rollout_min_step, stall_text  # noqa: E402
+from hnnbench.neural._backend import (  # noqa: E402
+    Weights,
+    map_plan,
+    rollout_min_step,
+    stall_text,
+)
 from hnnbench.neural._config import NeuralConfig  # noqa: E402
+from hnnbench.neural._embedding import Layout  # noqa: E402
 from hnnbench.neural._family import Family  # noqa: E402
 from hnnbench.neural._views import Problem  # noqa: E402
 from hnnbench.neural.jax._nets import (  # noqa: E402
@@ -249,12 +255,11 @@ class JaxTrainer:
 
     def __init__(self, backend: JaxBackend, family: Family, impl: ModuleType,
                  problem: Problem, initial: Sequence[Weights], settings: TrainSettings,
-                 d: int) -> None:
+                 layout: Layout) -> None:
         self.backend = backend
         self.seeds = len(initial)
         cfg, dtype = backend.cfg, backend.dtype
-        names = tuple(family.networks(d))
-        trees = [nets_from_weights(w, names, cfg.layers, cfg.activation, dtype)
+        trees = [nets_from_weights(w, layout, cfg.layers, cfg.activation, dtype)
                  for w in initial]
         tree = trees[0] if self.seeds == 1 else _stack(trees)
         params, self.static = eqx.partition(tree, eqx.is_inexact_array)
@@ -329,6 +334,20 @@ def _solve(field: Field, nets: Nets, y0: jax.Array, t: jax.Array, rtol: jax.Arra
     return jnp.swapaxes(sol.ys, 0, 1), sol.result._value
 
 
+@eqx.filter_jit
+def _map_solve(step: Callable[[Nets, jax.Array, jax.Array], jax.Array], nets: Nets,
+               y0: jax.Array, counts: jax.Array, sizes: jax.Array) -> jax.Array:
+    """``counts[k]`` steps of ``step`` of size ``sizes[k]`` per interval from the
+    ``(M, D)`` batch ``y0``; ``(M, T, D)`` with ``y0`` first."""
+    def interval(z: jax.Array, plan: tuple[jax.Array, jax.Array]) -> tuple[jax.Array, jax.Array]:
+        m, h = plan
+        z = jax.lax.fori_loop(0, m, lambda _, y: step(nets, y, h), z)
+        return z, z
+
+    _, zs = jax.lax.scan(interval, y0, (counts, sizes))
+    return jnp.concatenate([y0[:, None], jnp.swapaxes(zs, 0, 1)], axis=1)
+
+
 #: diffrax's result code of a step size below ``dtmin`` (the stall rule).
 _STALLED = int(diffrax.RESULTS.dt_min_reached._value)  # type: ignore[attr-defined]
 
@@ -362,14 +381,13 @@ class JaxInference:
     training dtype."""
 
     def __init__(self, backend: JaxBackend, family: Family, impl: ModuleType,
-                 weights: Weights, d: int) -> None:
+                 weights: Weights, layout: Layout) -> None:
         self.backend, self.impl = backend, impl
         cfg = backend.cfg
-        names = tuple(family.networks(d))
         self.nets64 = backend.place(
-            nets_from_weights(weights, names, cfg.layers, cfg.activation, jnp.float64))
+            nets_from_weights(weights, layout, cfg.layers, cfg.activation, jnp.float64))
         self.nets = backend.place(
-            nets_from_weights(weights, names, cfg.layers, cfg.activation, backend.dtype))
+            nets_from_weights(weights, layout, cfg.layers, cfg.activation, backend.dtype))
 
     def field(self, z: np.ndarray) -> np.ndarray:
         out = _apply(self.impl.field, self.nets64, self.backend.array(z, jnp.float64))
@@ -395,6 +413,15 @@ class JaxInference:
             raise RolloutDiverged(f"dopri5 gave up after t={reached:g} (of {float(t[0]):g}.."
                                   f"{float(t[-1]):g}): {why}")
         return out
+
+    def map_rollout(self, z0: np.ndarray, t: np.ndarray, step: float) -> np.ndarray:
+        counts, sizes = map_plan(t, step)
+        array = self.backend.array
+        out = _map_solve(self.impl.step, self.nets64, array(z0, jnp.float64),
+                         jax.device_put(jnp.asarray(counts, dtype=jnp.int32),
+                                        self.backend.device),
+                         array(sizes, jnp.float64))
+        return np.asarray(out, dtype=np.float64)
 
     def encode(self, x: np.ndarray) -> np.ndarray:
         return np.asarray(_encode(self.nets, self.backend.array(x)))
@@ -428,12 +455,13 @@ class JaxBackend:
                               self.device)
 
     def trainer(self, family: Family, impl: ModuleType, problem: Problem,
-                initial: Sequence[Weights], settings: TrainSettings, d: int) -> JaxTrainer:
-        return JaxTrainer(self, family, impl, problem, initial, settings, d)
+                initial: Sequence[Weights], settings: TrainSettings,
+                layout: Layout) -> JaxTrainer:
+        return JaxTrainer(self, family, impl, problem, initial, settings, layout)
 
     def weights(self, trainer: Any) -> list[Weights]:
         return trainer.weights()
 
     def inference(self, family: Family, impl: ModuleType, weights: Weights,
-                  d: int) -> JaxInference:
-        return JaxInference(self, family, impl, weights, d)
+                  layout: Layout) -> JaxInference:
+        return JaxInference(self, family, impl, weights, layout)

@@ -9,6 +9,7 @@ chunk can be compiled once per layout. Parameter names follow the torch backend'
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from typing import Any, Optional
 
@@ -17,6 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from hnnbench.neural._embedding import Layout, NetInput
 from hnnbench.neural._init import AE_LAYERS
 from hnnbench.neural._views import CC_WEIGHT, DYNAMICS_WEIGHT
 
@@ -55,16 +57,32 @@ class Dense(eqx.Module):
         return y if self.bias is None else y + self.bias
 
 
+def embed(x: jax.Array, angles: tuple[int, ...], embedding: str) -> jax.Array:
+    """The angle embedding (:mod:`hnnbench.neural._embedding`) of one input vector
+    ``(w,)`` -> ``(features,)``."""
+    if not angles or embedding == "none":
+        return x
+    cols = jnp.asarray(angles)
+    theta = x[cols]
+    if embedding == "wrap":
+        return x.at[cols].set(theta - 2.0 * math.pi * jnp.floor((theta + math.pi)
+                                                                / (2.0 * math.pi)))
+    return jnp.concatenate([x.at[cols].set(jnp.cos(theta)), jnp.sin(theta)])
+
+
 class MLPNet(eqx.Module):
     """``len(linears)`` linear layers with an activation between them; the last has no
-    bias. Maps one input vector ``(d_in,)`` to ``(d_out,)``."""
+    bias. Maps one input vector ``(d_in,)`` to ``(d_out,)``; its ``angles`` (input
+    columns) are embedded first (``embedding``: ``cos_sin``, ``wrap`` or ``none``)."""
 
     linears: tuple[Dense, ...]
     activation: str = eqx.field(static=True)
+    angles: tuple[int, ...] = eqx.field(static=True, default=())
+    embedding: str = eqx.field(static=True, default="none")
 
     def __call__(self, x: jax.Array) -> jax.Array:
         act = _ACTIVATIONS[self.activation]
-        h = x
+        h = embed(x, self.angles, self.embedding)
         for layer in self.linears[:-1]:
             h = act(layer(h))
         return self.linears[-1](h)
@@ -102,19 +120,24 @@ class Nets(eqx.Module):
         return self.nets[self.names.index(name)]
 
 
-def nets_from_weights(weights: Mapping[str, Any], names: tuple[str, ...], layers: int,
+def nets_from_weights(weights: Mapping[str, Any], layout: Layout, layers: int,
                       activation: str, dtype: Any) -> Nets:
-    """Build :class:`Nets` from flat weights (``"<net>.linears.<i>.weight"``, and
-    ``"autoencoder.<half>.<i>.<weight|bias>"`` if present), cast to ``dtype``."""
+    """Build :class:`Nets` of ``layout``'s networks from flat weights
+    (``"<net>.linears.<i>.weight"``, and ``"autoencoder.<half>.<i>.<weight|bias>"`` if
+    present), cast to ``dtype``."""
     def array(key: str) -> jax.Array:
         return jnp.asarray(np.asarray(weights[key]), dtype=dtype)
 
-    nets = tuple(
-        MLPNet(tuple(Dense(array(f"{name}.linears.{i}.weight"),
-                           None if i == layers - 1 else array(f"{name}.linears.{i}.bias"))
-                     for i in range(layers)), activation)
-        for name in names
-    )
+    def net(name: str, inputs: NetInput) -> MLPNet:
+        linears = tuple(Dense(array(f"{name}.linears.{i}.weight"),
+                              None if i == layers - 1 else array(f"{name}.linears.{i}.bias"))
+                        for i in range(layers))
+        if not inputs.active:
+            return MLPNet(linears, activation)
+        return MLPNet(linears, activation, tuple(inputs.angles), inputs.embedding)
+
+    names = layout.names
+    nets = tuple(net(name, inputs) for name, inputs in layout.nets)
     ae = None
     if "autoencoder.encoder.0.weight" in weights:
         def stack(half: str) -> tuple[Dense, ...]:

@@ -17,21 +17,23 @@ import torch
 
 from hnnbench._contract import TrainSettings
 from hnnbench._errors import ConfigError, RolloutDiverged
-from hnnbench.neural._backend import Weights, rollout_min_step
+from hnnbench.neural._backend import Weights, map_plan, rollout_min_step
 from hnnbench.neural._config import NeuralConfig
+from hnnbench.neural._embedding import Layout
 from hnnbench.neural._family import Family
 from hnnbench.neural._views import Problem
 from hnnbench.neural.torch._nets import (
     MLP,
     Autoencoder,
     FrozenMLP,
+    Periodic,
     input_hessian,
     pixel_objective,
     symplectic,
 )
 from hnnbench.neural.torch._ode import SolverGaveUp, dopri5
 
-__all__ = ["MLP", "TorchBackend", "input_hessian", "resolve_device", "symplectic"]
+__all__ = ["MLP", "Periodic", "TorchBackend", "input_hessian", "resolve_device", "symplectic"]
 
 Params = dict[str, torch.Tensor]
 
@@ -48,19 +50,20 @@ def resolve_device(requested: str) -> torch.device:
     return torch.device(requested)
 
 
-def networks(family: Family, params: Mapping[str, Any], d: int, cfg: NeuralConfig,
+def networks(params: Mapping[str, Any], layout: Layout, cfg: NeuralConfig,
              build: Callable[..., Any]) -> dict[str, Any]:
-    """``{net: network}`` of ``family`` (``build(params, net, layers, activation)``)."""
-    return {name: build(params, name, cfg.layers, cfg.activation)
-            for name in family.networks(d)}
+    """``{net: network}`` of a layout (``build(params, net, layers, activation,
+    inputs)``)."""
+    return {name: build(params, name, cfg.layers, cfg.activation, inputs)
+            for name, inputs in layout.nets}
 
 
-def make_loss(family: Family, impl: ModuleType, kind: str, d: int, cfg: NeuralConfig,
+def make_loss(impl: ModuleType, kind: str, layout: Layout, cfg: NeuralConfig,
               options: tuple[tuple[str, Any], ...] = ()) -> Callable[..., torch.Tensor]:
     """``loss(params, *arrays) -> scalar`` of one seed for a :class:`Problem` kind."""
 
     def nets_of(params: Params) -> dict[str, MLP]:
-        return networks(family, params, d, cfg, MLP.view)
+        return networks(params, layout, cfg, MLP.view)
 
     def derivatives(params: Params, z: torch.Tensor, zdot: torch.Tensor) -> torch.Tensor:
         return torch.mean((impl.field(nets_of(params), z) - zdot) ** 2)
@@ -79,10 +82,10 @@ class TorchTrainer:
 
     def __init__(self, backend: TorchBackend, family: Family, impl: ModuleType,
                  problem: Problem, initial: Sequence[Weights], settings: TrainSettings,
-                 d: int) -> None:
+                 layout: Layout) -> None:
         dev, dtype = backend.device, backend.dtype
         self.seeds = len(initial)
-        self.loss = make_loss(family, impl, problem.kind, d, backend.cfg, problem.options)
+        self.loss = make_loss(impl, problem.kind, layout, backend.cfg, problem.options)
 
         def tensor(a: np.ndarray) -> torch.Tensor:
             return torch.as_tensor(np.ascontiguousarray(a), device=dev).to(dtype)
@@ -162,19 +165,19 @@ class TorchInference:
     training dtype."""
 
     def __init__(self, backend: TorchBackend, family: Family, impl: ModuleType,
-                 weights: Weights, d: int) -> None:
+                 weights: Weights, layout: Layout) -> None:
         self.backend, self.impl = backend, impl
         cfg, dev = backend.cfg, backend.device
         self.nets64 = networks(
-            family, weights, d, cfg,
-            lambda w, name, layers, act: FrozenMLP.from_weights(w, name, layers, act,
-                                                                torch.float64, dev))
+            weights, layout, cfg,
+            lambda w, name, layers, act, inputs: FrozenMLP.from_weights(
+                w, name, layers, act, torch.float64, dev, inputs))
         self.pixels = "autoencoder.encoder.0.weight" in weights
         if self.pixels:  # training-dtype autoencoder and dynamics, for the objective
             params = {k: torch.as_tensor(v, device=dev).to(backend.dtype)
                       for k, v in weights.items()}
             self.ae = Autoencoder(params)
-            self.nets = networks(family, params, d, cfg, MLP.view)
+            self.nets = networks(params, layout, cfg, MLP.view)
 
     def _tensor(self, a: np.ndarray, dtype: torch.dtype) -> torch.Tensor:
         return torch.as_tensor(np.ascontiguousarray(a), device=self.backend.device).to(dtype)
@@ -202,6 +205,17 @@ class TorchInference:
         except torch.linalg.LinAlgError as err:  # e.g. a model's own singular solve
             raise RolloutDiverged(f"linear algebra failed: {err}".splitlines()[0]) from None
         return ys.permute(1, 0, 2).cpu().numpy()
+
+    def map_rollout(self, z0: np.ndarray, t: np.ndarray, step: float) -> np.ndarray:
+        steps, sizes = map_plan(t, step)
+        z = self._tensor(z0, torch.float64)
+        out = [z]
+        with torch.no_grad():
+            for m, h in zip(steps.tolist(), sizes.tolist(), strict=True):
+                for _ in range(m):
+                    z = self.impl.step(self.nets64, z, h)
+                out.append(z)
+        return torch.stack(out, dim=1).cpu().numpy()
 
     def encode(self, x: np.ndarray) -> np.ndarray:
         with torch.no_grad():
@@ -231,12 +245,13 @@ class TorchBackend:
         self.timings: dict[str, float] = {}
 
     def trainer(self, family: Family, impl: ModuleType, problem: Problem,
-                initial: Sequence[Weights], settings: TrainSettings, d: int) -> TorchTrainer:
-        return TorchTrainer(self, family, impl, problem, initial, settings, d)
+                initial: Sequence[Weights], settings: TrainSettings,
+                layout: Layout) -> TorchTrainer:
+        return TorchTrainer(self, family, impl, problem, initial, settings, layout)
 
     def weights(self, trainer: Any) -> list[Weights]:
         return trainer.weights()
 
     def inference(self, family: Family, impl: ModuleType, weights: Weights,
-                  d: int) -> TorchInference:
-        return TorchInference(self, family, impl, weights, d)
+                  layout: Layout) -> TorchInference:
+        return TorchInference(self, family, impl, weights, layout)

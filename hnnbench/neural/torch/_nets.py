@@ -10,13 +10,15 @@ overhead, not arithmetic, decides the cost.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import Any, Optional
 
 import numpy as np
 import torch
 import torch.nn.functional as F
 
+from hnnbench.neural._embedding import NetInput
 from hnnbench.neural._init import AE_LAYERS
 from hnnbench.neural._views import CC_WEIGHT, DYNAMICS_WEIGHT
 
@@ -24,6 +26,7 @@ __all__ = [
     "MLP",
     "Autoencoder",
     "FrozenMLP",
+    "Periodic",
     "activate",
     "activation_grad",
     "activation_second",
@@ -68,8 +71,83 @@ def activation_second(name: str, a: torch.Tensor, h: torch.Tensor) -> torch.Tens
     return s * (1.0 - s)
 
 
+class Periodic:
+    """The angle embedding of one network's inputs (:mod:`hnnbench.neural._embedding`)
+    in torch, with its first and second derivatives for the closed-form gradients and
+    Hessians. ``x`` is ``(N, w)``; the embedded inputs ``u`` are ``(N, features)``.
+    Built only for a network with angles and an embedding other than ``none``."""
+
+    def __init__(self, spec: NetInput, device: Optional[torch.device] = None) -> None:
+        self.kind = spec.embedding
+        self.width = spec.width
+        self.angles = spec.angles
+        self.cols = torch.tensor(spec.angles, dtype=torch.long, device=device)
+
+    @staticmethod
+    def of(spec: Optional[NetInput], device: Optional[torch.device] = None
+           ) -> Optional[Periodic]:
+        """The embedding of ``spec``, or ``None`` where it changes nothing."""
+        return Periodic(spec, device) if spec is not None and spec.active else None
+
+    def _cols(self, x: torch.Tensor) -> torch.Tensor:
+        return self.cols if self.cols.device == x.device else self.cols.to(x.device)
+
+    def embed(self, x: torch.Tensor) -> torch.Tensor:
+        """``u(x)`` ``(N, features)``."""
+        cols = self._cols(x)
+        theta = x.index_select(-1, cols)
+        if self.kind == "wrap":
+            wrapped = theta - 2.0 * math.pi * torch.floor((theta + math.pi) / (2.0 * math.pi))
+            return x.index_copy(-1, cols, wrapped)
+        return torch.cat([x.index_copy(-1, cols, torch.cos(theta)), torch.sin(theta)], dim=-1)
+
+    def pull(self, x: torch.Tensor, grad_u: torch.Tensor) -> torch.Tensor:
+        """The gradient with respect to ``x`` ``(N, w)`` of a function whose gradient
+        with respect to ``u`` is ``grad_u`` ``(N, features)``."""
+        if self.kind == "wrap":
+            return grad_u
+        cols = self._cols(x)
+        theta = x.index_select(-1, cols)
+        g_cos, g_sin = grad_u.index_select(-1, cols), grad_u[..., self.width:]
+        return grad_u[..., :self.width].index_copy(
+            -1, cols, g_sin * torch.cos(theta) - g_cos * torch.sin(theta))
+
+    def first_tangent(self, w: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+        """``∂(W u(x))/∂x`` transposed, ``(N, w, out)``, for a first-layer weight ``w``
+        ``(out, features)``."""
+        n = x.shape[0]
+        wt = w.t()  # (features, out)
+        base = wt[:self.width].expand(n, -1, -1)
+        if self.kind == "wrap":
+            return base
+        cols = self._cols(x)
+        theta = x.index_select(-1, cols)[:, :, None]  # (N, k, 1)
+        rows = (torch.cos(theta) * wt[self.width:][None]
+                - torch.sin(theta) * wt.index_select(0, cols)[None])  # (N, k, out)
+        return base.index_copy(1, cols, rows)
+
+    def curvature(self, x: torch.Tensor, grad_u: torch.Tensor, hess: torch.Tensor,
+                  first_row: int) -> torch.Tensor:
+        """``hess`` ``(N, w - first_row, w)`` plus the embedding's own second-derivative
+        term ``Σ_j ∂f/∂u_j ∂²u_j/∂x²`` (diagonal, in the angle columns)."""
+        if self.kind == "wrap":
+            return hess
+        cols = self._cols(x)
+        theta = x.index_select(-1, cols)
+        diag = -(grad_u.index_select(-1, cols) * torch.cos(theta)
+                 + grad_u[..., self.width:] * torch.sin(theta))  # (N, k)
+        keep = [j for j, c in enumerate(self.angles) if c >= first_row]
+        if not keep:  # e.g. the LNN's velocity rows: no angle among them
+            return hess
+        columns = [self.angles[j] for j in keep]
+        extra = torch.zeros_like(hess)
+        extra[:, [c - first_row for c in columns], columns] = diag[:, keep]
+        return hess + extra
+
+
 def input_hessian(weights: Sequence[torch.Tensor], biases: Sequence[torch.Tensor],
-                  activation: str, x: torch.Tensor, first_row: int = 0
+                  activation: str, x: torch.Tensor, first_row: int = 0,
+                  periodic: Optional[Periodic] = None
                   ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Value ``(N,)``, input gradient ``(N, d)`` and the rows ``first_row:`` of the input
     Hessian ``(N, d - first_row, d)`` of a scalar-output MLP (``(out, in)`` weights, an
@@ -81,14 +159,20 @@ def input_hessian(weights: Sequence[torch.Tensor], biases: Sequence[torch.Tensor
     one batched product per layer), ``δ_k = ∂f/∂h_k`` carried backward with the
     gradient. Plain tensor operations: autograd differentiates it for training (one
     backward pass, no nested ``torch.func`` transforms), and rollouts run it without
-    autograd.
+    autograd. ``periodic``: the network's angle embedding, applied before its first
+    layer (its Jacobian enters the first tangent, its curvature the angle diagonal).
     """
     n, d = x.shape
     pre, jac = [], []
-    h, tangent = x, None  # tangent: ∂h/∂x, (N, d, width)
+    h, tangent = (x if periodic is None else periodic.embed(x)), None  # tangent: ∂h/∂x
     for w, b in zip(weights[:-1], biases, strict=True):
         a = F.linear(h, w, b)
-        ja = w.t().expand(n, d, -1) if tangent is None else F.linear(tangent, w)  # (N, d, out)
+        if tangent is not None:
+            ja = F.linear(tangent, w)  # (N, d, out)
+        elif periodic is None:
+            ja = w.t().expand(n, d, -1)
+        else:
+            ja = periodic.first_tangent(w, x)
         h = activate(activation, a)
         tangent = ja * activation_grad(activation, a, h)[:, None, :]
         pre.append((a, h))
@@ -102,7 +186,9 @@ def input_hessian(weights: Sequence[torch.Tensor], biases: Sequence[torch.Tensor
         curvature = delta * activation_second(activation, a, hk)  # (N, width)
         hess = hess + (ja[:, first_row:, :] * curvature[:, None, :]) @ ja.transpose(1, 2)
         delta = (delta * activation_grad(activation, a, hk)) @ weights[k]
-    return value, delta, hess
+    if periodic is None:
+        return value, delta, hess
+    return value, periodic.pull(x, delta), periodic.curvature(x, delta, hess, first_row)
 
 
 class MLP:
@@ -110,19 +196,22 @@ class MLP:
     them; the last has no bias. Maps ``(N, d_in)`` to ``(N, d_out)``."""
 
     def __init__(self, weights: Sequence[torch.Tensor], biases: Sequence[torch.Tensor],
-                 activation: str) -> None:
+                 activation: str, periodic: Optional[Periodic] = None) -> None:
         self.weights, self.biases, self.activation = list(weights), list(biases), activation
+        #: The angle embedding before the first layer (``None``: the inputs as they are).
+        self.periodic = periodic
 
     @classmethod
     def view(cls, params: Mapping[str, torch.Tensor], net: str, layers: int,
-             activation: str) -> MLP:
-        """The network ``net`` of a flat parameter dict (``"<net>.linears.<i>.weight"``)."""
+             activation: str, inputs: Optional[NetInput] = None) -> MLP:
+        """The network ``net`` of a flat parameter dict (``"<net>.linears.<i>.weight"``);
+        ``inputs``: what it reads (its angle embedding)."""
         weights = [params[f"{net}.linears.{i}.weight"] for i in range(layers)]
         biases = [params[f"{net}.linears.{i}.bias"] for i in range(layers - 1)]
-        return cls(weights, biases, activation)
+        return cls(weights, biases, activation, Periodic.of(inputs))
 
     def __call__(self, x: torch.Tensor) -> torch.Tensor:
-        h = x
+        h = x if self.periodic is None else self.periodic.embed(x)
         for w, b in zip(self.weights[:-1], self.biases, strict=True):
             h = activate(self.activation, F.linear(h, w, b))
         return F.linear(h, self.weights[-1])
@@ -132,7 +221,7 @@ class MLP:
         form (a reverse sweep through the layers), so training on it needs one
         backward pass instead of a double backward. Requires ``d_out == 1``."""
         pre, post = [], []
-        h = x
+        h = x if self.periodic is None else self.periodic.embed(x)
         for w, b in zip(self.weights[:-1], self.biases, strict=True):
             a = F.linear(h, w, b)
             h = activate(self.activation, a)
@@ -141,12 +230,13 @@ class MLP:
         g = self.weights[-1].expand(x.shape[0], -1)  # (N, hidden)
         for i in range(len(self.weights) - 2, -1, -1):
             g = (g * activation_grad(self.activation, pre[i], post[i])) @ self.weights[i]
-        return g
+        return g if self.periodic is None else self.periodic.pull(x, g)
 
     def input_hessian(self, x: torch.Tensor, first_row: int = 0
                       ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """:func:`input_hessian` of this network (``d_out == 1``)."""
-        return input_hessian(self.weights, self.biases, self.activation, x, first_row)
+        return input_hessian(self.weights, self.biases, self.activation, x, first_row,
+                             self.periodic)
 
 
 class FrozenMLP:
@@ -155,7 +245,8 @@ class FrozenMLP:
     pre-transposed weights with one ``addmm`` per layer and no autograd."""
 
     def __init__(self, weights: Sequence[np.ndarray], biases: Sequence[np.ndarray],
-                 activation: str, dtype: torch.dtype, device: torch.device) -> None:
+                 activation: str, dtype: torch.dtype, device: torch.device,
+                 inputs: Optional[NetInput] = None) -> None:
         def tensor(a: np.ndarray) -> torch.Tensor:  # a copy, never a view of ``a``
             return torch.from_numpy(np.array(a, copy=True)).to(device=device, dtype=dtype)
 
@@ -163,16 +254,18 @@ class FrozenMLP:
         self.weights_t = [w.t().contiguous() for w in self.weights]  # (in, out)
         self.biases = [tensor(b) for b in biases]
         self.activation = activation
+        self.periodic = Periodic.of(inputs, device)
 
     @classmethod
     def from_weights(cls, weights: Mapping[str, np.ndarray], net: str, layers: int,
-                     activation: str, dtype: torch.dtype, device: torch.device) -> FrozenMLP:
+                     activation: str, dtype: torch.dtype, device: torch.device,
+                     inputs: Optional[NetInput] = None) -> FrozenMLP:
         return cls([weights[f"{net}.linears.{i}.weight"] for i in range(layers)],
                    [weights[f"{net}.linears.{i}.bias"] for i in range(layers - 1)],
-                   activation, dtype, device)
+                   activation, dtype, device, inputs)
 
     def __call__(self, x: torch.Tensor) -> torch.Tensor:
-        h = x
+        h = x if self.periodic is None else self.periodic.embed(x)
         for w_t, b in zip(self.weights_t[:-1], self.biases, strict=True):
             h = activate(self.activation, torch.addmm(b, h, w_t))
         return h @ self.weights_t[-1]
@@ -180,7 +273,7 @@ class FrozenMLP:
     def input_gradient(self, x: torch.Tensor) -> torch.Tensor:
         """As :meth:`MLP.input_gradient` ``(N, d_in)``; requires ``d_out == 1``."""
         pre, post = [], []
-        h = x
+        h = x if self.periodic is None else self.periodic.embed(x)
         for w_t, b in zip(self.weights_t[:-1], self.biases, strict=True):
             a = torch.addmm(b, h, w_t)
             h = activate(self.activation, a)
@@ -189,12 +282,13 @@ class FrozenMLP:
         g = self.weights[-1]  # (1, hidden), broadcast over the batch
         for i in range(len(self.weights) - 2, -1, -1):
             g = (g * activation_grad(self.activation, pre[i], post[i])) @ self.weights[i]
-        return g
+        return g if self.periodic is None else self.periodic.pull(x, g)
 
     def input_hessian(self, x: torch.Tensor, first_row: int = 0
                       ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """As :meth:`MLP.input_hessian`."""
-        return input_hessian(self.weights, self.biases, self.activation, x, first_row)
+        return input_hessian(self.weights, self.biases, self.activation, x, first_row,
+                             self.periodic)
 
 
 class Autoencoder:

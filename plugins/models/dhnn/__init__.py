@@ -28,7 +28,7 @@ class DHNNTorch(NeuralModel):
 
     family = DHNN
     backend = "torch"
-    version = "1"
+    version = "2"  # 2: angles embedded (model.angle_embedding)
 
 
 class DHNNJax(NeuralModel):
@@ -36,4 +36,4 @@ class DHNNJax(NeuralModel):
 
     family = DHNN
     backend = "jax"
-    version = "1"
+    version = "2"  # 2: angles embedded (model.angle_embedding)

@@ -28,7 +28,7 @@ class HNNTorch(NeuralModel):
 
     family = HNN
     backend = "torch"
-    version = "1"
+    version = "2"  # 2: angles embedded (model.angle_embedding)
 
 
 class HNNJax(NeuralModel):
@@ -36,4 +36,4 @@ class HNNJax(NeuralModel):
 
     family = HNN
     backend = "jax"
-    version = "1"
+    version = "2"  # 2: angles embedded (model.angle_embedding)

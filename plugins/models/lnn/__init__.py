@@ -66,7 +66,7 @@ class LNNTorch(NeuralModel):
     Config = LNNConfig
     family = LNN
     backend = "torch"
-    version = "2"
+    version = "3"  # 3: angles embedded (model.angle_embedding)
     profiles = QUICK
 
 
@@ -76,5 +76,5 @@ class LNNJax(NeuralModel):
     Config = LNNConfig
     family = LNN
     backend = "jax"
-    version = "2"
+    version = "3"  # 3: angles embedded (model.angle_embedding)
     profiles = QUICK

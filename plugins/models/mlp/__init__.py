@@ -25,7 +25,7 @@ class MLPTorch(NeuralModel):
 
     family = MLP
     backend = "torch"
-    version = "1"
+    version = "2"  # 2: angles embedded (model.angle_embedding)
 
 
 class MLPJax(NeuralModel):
@@ -33,4 +33,4 @@ class MLPJax(NeuralModel):
 
     family = MLP
     backend = "jax"
-    version = "1"
+    version = "2"  # 2: angles embedded (model.angle_embedding)

@@ -18,8 +18,10 @@ def energy(nets: dict[str, MLP], z: torch.Tensor) -> torch.Tensor:
     return nets["T"](z[:, n:])[:, 0] + nets["V"](z[:, :n])[:, 0]
 
 
-def leapfrog(nets: dict[str, MLP], z: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
-    """One leapfrog step of size ``h`` ``(W, 1)`` from states ``z`` ``(W, 2n)``."""
+def step(nets: dict[str, MLP], z: torch.Tensor, h: torch.Tensor | float) -> torch.Tensor:
+    """One leapfrog step of size ``h`` (a number, or ``(W, 1)``) from states ``z``
+    ``(W, 2n)`` (the map the SRNN trains through, and rolls out with under
+    ``model.integrator=leapfrog``)."""
     n = z.shape[-1] // 2
     q, p = z[:, :n], z[:, n:]
     p = p - 0.5 * h * nets["V"].input_gradient(q)
@@ -37,6 +39,6 @@ def window_loss(nets: dict[str, MLP], windows: torch.Tensor, dts: torch.Tensor,
     for k in range(windows.shape[1] - 1):
         h = (dts[:, k] / substeps)[:, None]
         for _ in range(substeps):
-            state = leapfrog(nets, state, h)
+            state = step(nets, state, h)
         predictions.append(state)
     return torch.mean((torch.stack(predictions, dim=1) - windows[:, 1:]) ** 2)

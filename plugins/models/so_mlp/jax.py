@@ -1,4 +1,4 @@
-"""The second-order NODE in JAX: ``(q, q̇)' = (q̇, g(q, q̇))``."""
+"""The second-order MLP in JAX: ``(q, q̇)' = (q̇, g(q, q̇))``."""
 
 from __future__ import annotations
 
