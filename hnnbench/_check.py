@@ -279,13 +279,14 @@ def _status_text(row: Any) -> str:
 
 
 def _claims_by_key(board: pd.DataFrame) -> dict[tuple[str, str, str], C.ClaimResult]:
-    from hnnbench._report.published import board_lookup
+    from hnnbench._report.published import board_lookup, board_untrained
 
     out = {}
     claims = registry.all_claims()
     for profile in dict.fromkeys(board["profile"].astype(str)):
         for res in C.evaluate_claims(board_lookup(board, profile), claims,
-                                     registry.family_models()):
+                                     registry.family_models(),
+                                     board_untrained(board, profile)):
             out[(profile, res.claim.id, res.backend)] = res
     return out
 

@@ -13,7 +13,11 @@ names a :class:`ClaimSet`). This module names no model or family: hnnbench's own
 (the 2019 paper, the model zoo) are declared in ``hnnbench_plugins.claims``.
 
 Outcomes: ``reproduced``, ``not reproduced``, ``not run`` (no record of that pair, or
-no finite value because every run failed).
+no finite value because every run failed), ``did not train`` (most seeds of one of the
+two models never improved on their first validation: the claim is about a trained
+model, so it is not tested). A claim whose source trained a family by its own recipe
+says so (``recipe``), and its result carries that note: the protocol track tests the
+family under the shared protocol, not the paper's recipe.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from typing import Literal, Optional
 __all__ = [
     "NOT_REPRODUCED",
     "NOT_RUN",
+    "NOT_TRAINED",
     "REPRODUCED",
     "Claim",
     "ClaimResult",
@@ -39,6 +44,7 @@ __all__ = [
 REPRODUCED = "reproduced"
 NOT_REPRODUCED = "not reproduced"
 NOT_RUN = "not run"
+NOT_TRAINED = "did not train"
 
 
 @dataclass(frozen=True)
@@ -48,7 +54,9 @@ class Claim:
     ``relation="lower"``: the family ``lower`` has a value at least ``factor`` times
     below the other's (strictly below when ``factor`` is 1). ``relation="similar"``: the
     two values are within a factor ``factor`` of each other. ``labels`` name the two
-    families in sentences (e.g. ``("baseline", "HNN")``).
+    families in sentences (e.g. ``("baseline", "HNN")``). ``recipe``: where the source
+    trained a family by a recipe of its own (architecture, loss, schedule), what it was;
+    a leaderboard under the shared protocol does not run it, and results say so.
     """
 
     id: str
@@ -61,6 +69,7 @@ class Claim:
     lower: Optional[str] = None
     factor: float = 1.0
     labels: Optional[tuple[str, str]] = None
+    recipe: Optional[str] = None
 
     def label(self, family: str) -> str:
         labels = self.labels or self.families
@@ -137,7 +146,7 @@ class ClaimResult:
 
     def numbers(self) -> str:
         """``baseline 4.5e-03 / HNN 2.1e-05 = 214x (need >= 100x)``."""
-        if self.outcome == NOT_RUN:
+        if self.outcome in (NOT_RUN, NOT_TRAINED):
             return self.note or "no run"
         c = self.claim
         fa, fb = c.families
@@ -174,13 +183,18 @@ def fmt_ratio(r: float) -> str:
 Lookup = Callable[[str, str, str], Optional[float]]
 #: backend -> {family -> model name}
 Pairs = Mapping[str, Mapping[str, str]]
+#: untrained(system, model) -> why the pair counts as "did not train", else None.
+Untrained = Callable[[str, str], Optional[str]]
 
 
 def evaluate_claims(lookup: Lookup, claims: Iterable[Claim],
-                    pairs: Pairs) -> list[ClaimResult]:
+                    pairs: Pairs, untrained: Optional[Untrained] = None
+                    ) -> list[ClaimResult]:
     """Evaluate each claim per backend that has both families' models (``pairs``:
     ``{backend: {family: model}}``, e.g. :func:`hnnbench._registry.family_models`); a
-    claim with no run anywhere gives one ``not run`` result with backend ``"-"``."""
+    claim with no run anywhere gives one ``not run`` result with backend ``"-"``. Where
+    ``untrained`` says one of the two models did not train, the result is ``did not
+    train`` (not tested), with the reason."""
     out: list[ClaimResult] = []
     for claim in claims:
         found = False
@@ -193,7 +207,15 @@ def evaluate_claims(lookup: Lookup, claims: Iterable[Claim],
             if a is None or b is None:
                 continue
             found = True
-            outcome, ratio, note = claim.judge(a, b)
+            why = next((w for w in (untrained(claim.system, str(n)) if untrained else None
+                                    for n in names) if w), None)
+            if why is not None:
+                outcome, ratio, note = NOT_TRAINED, math.nan, why
+            else:
+                outcome, ratio, note = claim.judge(a, b)
+            if claim.recipe:
+                note = "; ".join(x for x in (note, f"protocol track: {claim.recipe} not run")
+                                 if x)
             out.append(ClaimResult(claim, backend, outcome, a, b, ratio, note))
         if not found:
             out.append(ClaimResult(claim, "-", NOT_RUN, math.nan, math.nan, math.nan,

@@ -233,7 +233,8 @@ JOB_FIELDS = ("system", "model", "seed", "profile")
 TIMINGS = ("fit_s", "eval_s", "total_s")
 #: Identity and status columns of a leaderboard, in order.
 ID_COLUMNS = ("profile", "system", "model", "backend", "family", "ranked")
-STATUS_COLUMNS = ("n_seeds", "seeds", *(f"n_{s}" for s in STATUSES), "status")
+STATUS_COLUMNS = ("n_seeds", "seeds", *(f"n_{s}" for s in STATUSES), "n_untrained",
+                  "status")
 #: What a leaderboard row is of (and its ``variant``, where runs differ in settings).
 BOARD_KEY = ("profile", "system", "model")
 #: Provenance columns of a leaderboard: distinct values over the pair's records.
@@ -244,12 +245,13 @@ DERIVED_COLUMNS = {
     "variant": "the settings this run differs in from the others (from overrides)",
     "git_commit": "environment.git_commit",
     "machine": "environment.host, else environment.platform",
+    "trained": "selection.trained (false: the run did not train; None: no selection)",
 }
 #: The columns of a records frame that are not metrics or timings, in order: record
 #: fields, loader fields and :data:`DERIVED_COLUMNS`.
 FRAME_COLUMNS = ("system", "model", "variant", "backend", "family", "ranked", "seed",
                  "profile", "status", "error", "steps", "device", *LOADER_FIELDS,
-                 "git_commit", "machine", "created_at")
+                 "git_commit", "machine", "trained", "created_at")
 #: Columns of a records frame that are not metrics.
 RESERVED = frozenset(FRAME_COLUMNS)
 #: Provenance a submitted record must carry (``a.b``: key ``b`` of field ``a``).

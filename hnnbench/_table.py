@@ -131,6 +131,7 @@ def records_frame(records: Iterable[dict[str, Any]],
             "ranked": _ranked(rec),
             "git_commit": env.get("git_commit"),
             "machine": env.get("host") or env.get("platform"),
+            "trained": _trained(rec),
         }
         row: dict[str, Any] = {name: derived[name] if name in derived else rec.get(name)
                                for name in FRAME_COLUMNS}
@@ -141,6 +142,13 @@ def records_frame(records: Iterable[dict[str, Any]],
             row[name] = value
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def _trained(rec: dict[str, Any]) -> Any:
+    """``selection.trained`` of a record: ``False`` for a run that did not train (its
+    kept checkpoint is its first evaluation), ``None`` where there is no selection."""
+    selection = rec.get("selection")
+    return selection.get("trained") if isinstance(selection, dict) else None
 
 
 def _ranked(rec: dict[str, Any]) -> bool:
@@ -278,6 +286,8 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
             "family": families[0] if families else "", "ranked": ranked,
             "n_seeds": len(group), "seeds": ";".join(str(s) for s in seeds),
             **{f"n_{s}": counts[s] for s in STATUSES},
+            "n_untrained": int((group["trained"] == False).sum())  # noqa: E712
+            if "trained" in group else 0,
             "status": status_text(counts),
         }
         use = group[group["status"] == "ok"]

@@ -339,3 +339,31 @@ def test_report_bad_input_is_one_line(case, tmp_path):
               "bad-flag": "--bogus", "corrupt": str(corrupt / records.RECORD_NAME),
               "twice": "seed 0 (quick profile) is recorded twice"}[case]
     assert_one_line_error(hnnbench("report", *args), needle)
+
+
+def test_a_claim_on_a_model_that_did_not_train_is_not_tested_and_a_recipe_is_named():
+    """A claim is about a trained model: where most seeds of one side kept their first
+    evaluation's weights, the result is "did not train" (not "not reproduced"); a claim
+    whose source used its own recipe says the protocol track did not run it."""
+    import pandas as pd
+
+    from hnnbench._report.published import board_untrained
+
+    claim = C.Claim(id="c", system="spring", metric="energy_mse", relation="lower",
+                    families=("mlp", "hnn"), lower="hnn", factor=10, text="t", source="s",
+                    recipe="the paper's recipe")
+    values = {("spring", "mlp_jax", "energy_mse"): 1e-1, ("spring", "hnn_jax", "energy_mse"): 1.0}
+    board = pd.DataFrame([
+        {"profile": "paper", "system": "spring", "model": "hnn_jax", "n_seeds": 5,
+         "n_untrained": 3},
+        {"profile": "paper", "system": "spring", "model": "mlp_jax", "n_seeds": 5,
+         "n_untrained": 2},
+    ])
+    pairs = {"jax": {"mlp": "mlp_jax", "hnn": "hnn_jax"}}
+    (res,) = C.evaluate_claims(_lookup(values), [claim], pairs, board_untrained(board))
+    assert res.outcome == C.NOT_TRAINED
+    assert "hnn_jax did not train on 3 of 5 seeds" in res.numbers()
+    assert "the paper's recipe not run" in res.note
+    board.loc[0, "n_untrained"] = 2  # 2 of 5: trained; judged on the values
+    (res,) = C.evaluate_claims(_lookup(values), [claim], pairs, board_untrained(board))
+    assert res.outcome == C.NOT_REPRODUCED and "recipe not run" in res.note

@@ -61,11 +61,32 @@ def board_lookup(board: pd.DataFrame, profile: Optional[str] = None) -> C.Lookup
     return lookup
 
 
+def board_untrained(board: pd.DataFrame, profile: Optional[str] = None) -> C.Untrained:
+    """A :data:`hnnbench._claims.Untrained` on a leaderboard: a pair "did not train" when
+    more than half of its seeds kept their first evaluation's weights
+    (``n_untrained``, from the records' ``selection.trained``)."""
+    if profile is not None and "profile" in board:
+        board = board[board["profile"].astype(str) == str(profile)]
+    index = {(r["system"], r["model"]): r for _, r in plain_rows(board).iterrows()}
+
+    def untrained(system: str, model: str) -> Optional[str]:
+        row = index.get((system, model))
+        if row is None or "n_untrained" not in row:
+            return None
+        bad, seeds = int(row.get("n_untrained") or 0), int(row.get("n_seeds") or 0)
+        if seeds and 2 * bad > seeds:
+            return (f"{model} did not train on {bad} of {seeds} seeds (its best validation "
+                    "loss was its first evaluation): not tested")
+        return None
+
+    return untrained
+
+
 def claim_results(board: pd.DataFrame, profile: Optional[str] = None) -> list[C.ClaimResult]:
     """Every registered claim evaluated on a leaderboard, per backend."""
     profile = profile if profile is not None else main_profile(board)
     return C.evaluate_claims(board_lookup(board, profile), registry.all_claims(),
-                             registry.family_models())
+                             registry.family_models(), board_untrained(board, profile))
 
 
 def paper_claim_ratios() -> dict[str, C.ClaimResult]:
