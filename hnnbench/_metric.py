@@ -126,6 +126,10 @@ class Metric:
             ``(0, inf)``). A strict load of records (``hnnbench check``, publishing)
             refuses a mean outside it; ``nan`` (not applicable) and :meth:`worst` (a
             diverged model's ``inf``) are always allowed (:meth:`value_problem`).
+        headline: a headline verdict (ranked metrics only): the aggregate across systems
+            on the README and the report page, its performance profile, and the ranks
+            ``hnnbench check`` prints for a new model lead with it
+            (docs/STATISTICS.md).
     """
 
     name: str
@@ -144,6 +148,7 @@ class Metric:
     log: bool = False
     errors_fail_job: bool = False
     domain: tuple[float, float] = (-math.inf, math.inf)
+    headline: bool = False
 
     def __post_init__(self) -> None:
         low, high = self.domain
@@ -151,6 +156,9 @@ class Metric:
                 and low <= high):
             raise ValueError(f"metric {self.name!r}: domain must be (low, high) numbers "
                              f"with low <= high, not {self.domain!r}")
+        if self.headline and not self.ranked:
+            raise ValueError(f"metric {self.name!r}: a headline metric must be ranked "
+                             "(ranked=True); a diagnostic is never a verdict")
         if self.check.better != self.better:  # the metric's direction is the rule's
             object.__setattr__(self, "check", dataclasses.replace(self.check,
                                                                   better=self.better))

@@ -196,17 +196,17 @@ VAL_LOSS = Metric(
 TEST_LOSS = Metric(
     "test_loss", "MSE of predicted vs target dx/dt on the test set (pixels: the training "
     "objective)", _loss("test"), check=CheckRule(2, 1e-12), order=20,
-    figures=("data_efficiency",), log=True,
+    figures=("data_efficiency",), log=True, headline=True,
     errors_fail_job=True, domain=NONNEGATIVE)
 ENERGY_MSE = Metric(
     "energy_mse", "Mean squared error of the true energy along the model's rollout vs "
     "along the true trajectory", _energy_mse, check=CheckRule(10, 1e-10), order=30,
-    figures=("heatmap", "data_efficiency"), log=True,
+    figures=("heatmap", "data_efficiency"), log=True, headline=True,
     errors_fail_job=True, domain=NONNEGATIVE)
 ROLLOUT_MSE = Metric(
     "rollout_mse", "Mean squared state error along the rollout", _rollout_mse,
     check=CheckRule(3, 1e-8), order=40, figures=("heatmap", "data_efficiency"),
-    errors_fail_job=True, domain=NONNEGATIVE)
+    errors_fail_job=True, domain=NONNEGATIVE, headline=True)
 REVERSIBILITY_ERROR = Metric(
     "reversibility_error", "Time-reversal test of the learned flow: mean |R Phi_T R Phi_T "
     "x0 - x0|^2 (R flips momenta; pixels: latent momenta). A diagnostic, never marked "

@@ -51,6 +51,9 @@ class Family:
         learned_energy: whether the implementation defines ``energy``.
         order: position of the family's models in listings and tables (each backend's
             model at ``order + 0.1 * k`` in :data:`BACKEND_ORDER`).
+        baseline: the family every other is measured against: the aggregate across
+            systems scores each run between this family's mean (0) and the floor (1)
+            (docs/STATISTICS.md). One installed family declares it.
     """
 
     name: str
@@ -64,6 +67,7 @@ class Family:
     observations: tuple[str, ...] = ("state",)
     learned_energy: bool = False
     order: Optional[float] = None
+    baseline: bool = False
 
 
 #: Backends in listing order within a family.
