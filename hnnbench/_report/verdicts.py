@@ -1,0 +1,173 @@
+"""The verdicts of a report: the family view (:mod:`hnnbench._families`) and the
+aggregate across systems (:mod:`hnnbench._aggregate`), built once and rendered as
+Markdown: the aggregate table, and which verdicts its intervals support."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional
+
+import pandas as pd
+
+from hnnbench import _stats as stats
+from hnnbench._aggregate import Aggregate, aggregate, headline_metrics
+from hnnbench._families import Families, families
+from hnnbench._report.markdown import md_code, md_text
+from hnnbench._report.tables import md_table
+from hnnbench._table import records_frame
+
+__all__ = ["Verdicts", "aggregate_frame", "aggregate_markdown", "build_verdicts",
+           "marks_line", "supported_lines"]
+
+
+@dataclass
+class Verdicts:
+    """A report's family view and aggregate."""
+
+    families: Families
+    aggregate: Aggregate = field(default_factory=Aggregate)
+
+
+def build_verdicts(records: list[dict], board: pd.DataFrame, with_aggregate: bool = True,
+                   variants: Optional[list[str]] = None) -> Verdicts:
+    """The family view of ``records`` (whose leaderboard is ``board``) and, unless
+    ``with_aggregate`` is false, its aggregate across systems."""
+    frame = records_frame(records, variants)
+    fams = families(frame, board)
+    return Verdicts(fams, aggregate(fams) if with_aggregate else Aggregate(note="not built"))
+
+
+def _fmt(x: float) -> str:
+    if x is None or pd.isna(x):
+        return "—"
+    return "inf" if math.isinf(x) and x > 0 else "-inf" if math.isinf(x) else f"{x:.2f}"
+
+
+def _interval(point: float, low: float, high: float) -> str:
+    if pd.isna(point):
+        return "—"
+    if pd.isna(low) or pd.isna(high):
+        return _fmt(point)
+    return f"{_fmt(point)} [{_fmt(low)}, {_fmt(high)}]"
+
+
+def aggregate_frame(agg: Aggregate, metrics: Optional[list[str]] = None,
+                    profile: Optional[str] = None) -> pd.DataFrame:
+    """One row per family: the IQM [interval] of each of ``metrics`` (default: the
+    headline metrics that have an aggregate) and the systems each covers."""
+    iqm = agg.iqm
+    if iqm.empty:
+        return pd.DataFrame()
+    if profile is None:
+        profile = "paper" if (iqm["profile"] == "paper").any() else str(iqm["profile"].iloc[0])
+    iqm = iqm[iqm["profile"] == profile]
+    if metrics is None:
+        metrics = [m for m in headline_metrics() if (iqm["metric"] == m).any()]
+    rows = []
+    for family in dict.fromkeys(iqm["family"]):
+        row: dict[str, str] = {"family": str(family)}
+        for metric in metrics:
+            sel = iqm[(iqm["family"] == family) & (iqm["metric"] == metric)]
+            if sel.empty:
+                row[f"{metric} IQM"] = "—"
+                continue
+            r = sel.iloc[0]
+            row[f"{metric} IQM"] = (f"{_interval(r['iqm'], r['iqm_low'], r['iqm_high'])} "
+                                    f"({int(r['n_systems'])} sys)")
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def supported_lines(agg: Aggregate, metrics: Optional[list[str]] = None,
+                    profile: Optional[str] = None) -> list[str]:
+    """Markdown bullets: per metric, which family beats which with the interval of P(A > B)
+    above one half, and which pairs no interval separates."""
+    poi = agg.improvement
+    if poi.empty:
+        return []
+    if profile is None:
+        profile = "paper" if (poi["profile"] == "paper").any() else str(poi["profile"].iloc[0])
+    poi = poi[poi["profile"] == profile]
+    order = list(dict.fromkeys(agg.iqm.sort_values("iqm", ascending=False)["family"]))
+    if metrics is None:
+        metrics = [m for m in headline_metrics() if (poi["metric"] == m).any()]
+    lines = []
+    for metric in metrics:
+        sel = poi[poi["metric"] == metric]
+        iqm = agg.iqm[(agg.iqm["profile"] == profile) & (agg.iqm["metric"] == metric)]
+        ranked = list(iqm.sort_values("iqm", ascending=False)["family"]) or order
+        beats = []
+        for family in ranked:
+            wins = sel[(sel["family"] == family) & (sel["p_low"] > 0.5)]
+            if not wins.empty:
+                others = [o for o in ranked if o in set(wins["other"])]
+                beats.append(f"{md_text(family)} beats {', '.join(map(md_text, others))}")
+        open_pairs = sel[(sel["p_low"] <= 0.5) & (sel["p_high"] >= 0.5)]
+        seen, ties = set(), []
+        for _, r in open_pairs.iterrows():
+            pair = frozenset((str(r["family"]), str(r["other"])))
+            if pair not in seen:
+                seen.add(pair)
+                ties.append(f"{md_text(r['family'])}–{md_text(r['other'])}")
+        text = "; ".join(beats) if beats else "no family beats another"
+        tail = f". Not separated: {', '.join(ties)}" if ties else ""
+        lines.append(f"- {md_code(metric)}: {text} (95% interval of P(A > B) above "
+                     f"0.5){tail}.")
+    return lines
+
+
+def marks_line(fams: Families, metrics: Optional[list[str]] = None) -> str:
+    """How many (system, metric) cells have a separated best, of those with a leader."""
+    board = fams.board
+    if metrics is None:
+        metrics = [m for m in headline_metrics() if f"{m}_mark" in board]
+    if "variant" in board:
+        board = board[board["variant"].fillna("").astype(str) == ""]
+    best = tied = 0
+    for metric in metrics:
+        if f"{metric}_mark" not in board:
+            continue
+        for _, group in board.groupby(["profile", "system"], sort=False):
+            marks = set(group[f"{metric}_mark"].fillna("").astype(str))
+            best += "best" in marks
+            tied += "tied" in marks and "best" not in marks
+    n = best + tied
+    seeds = int(pd.to_numeric(board["n_seeds"], errors="coerce").min()) if len(board) else 0
+    tail = ""
+    if seeds < stats.MIN_SEPARABLE_SEEDS:
+        tail = (f" Rows rest on as few as {seeds} seed(s): the sign test needs "
+                f"{stats.MIN_SEPARABLE_SEEDS} shared seeds to separate anything "
+                f"(its smallest p with {seeds} is {0.5 ** seeds:.3g}).")
+    names = ", ".join(md_code(m) for m in metrics)
+    return (f"Per system ({names}): {best} of {n} cells with a leader have a separated "
+            f"best (bold); in {tied} the leaders are tied (italics).{tail}")
+
+
+def aggregate_markdown(verdicts: Verdicts, figure: Optional[str] = None,
+                       heading: str = "# Across systems") -> str:
+    """The aggregate across systems (aggregate.md; the README's aggregate block): the
+    method, the IQM table, the verdicts its intervals support, the per-system marks,
+    and ``figure`` (a path to the performance-profile figure) if given."""
+    agg = verdicts.aggregate
+    lines = [heading, ""] if heading else []
+    if agg.empty:
+        lines += [f"No aggregate: {md_text(agg.note or 'nothing to aggregate')}.", ""]
+        lines += [marks_line(verdicts.families), ""]
+        return "\n".join(lines)
+    lines += [stats.aggregate_rule(md_text(agg.baseline or "the baseline")), ""]
+    lines += [md_table(aggregate_frame(agg)), ""]
+    lines += ["What the intervals support:", "", *supported_lines(agg),
+              f"- {marks_line(verdicts.families)}", ""]
+    unused = agg.scales[~agg.scales["used"].astype(bool)] if not agg.scales.empty else \
+        agg.scales
+    headline = set(headline_metrics())
+    unused = unused[unused["metric"].isin(headline)] if not unused.empty else unused
+    if not unused.empty:
+        for (metric, why), group in unused.groupby(["metric", "why_not"], sort=False):
+            systems = ", ".join(map(md_text, group["system"]))
+            lines.append(f"Left out of {md_code(metric)}: {systems} ({md_text(why)}).")
+        lines.append("")
+    if figure:
+        lines += [f"![Performance profiles]({figure})", ""]
+    return "\n".join(lines)
