@@ -87,7 +87,8 @@ def _marks(values: dict[str, list[float]], n_ok: dict[str, int] | None = None,
                      "n_ok": (n_ok or {}).get(family, len(vals)),
                      f"{better_metric}_mean": float(np.mean(vals))})
         runs += [{"profile": "paper", "system": "spring", "family": family, "variant": "",
-                  "seed": s, "status": "ok", better_metric: v} for s, v in zip(seeds, vals)]
+                  "seed": s, "status": "ok", better_metric: v}
+                 for s, v in zip(seeds, vals, strict=True)]
     return mark_best(pd.DataFrame(rows), pd.DataFrame(runs)).set_index("family")
 
 

@@ -41,7 +41,10 @@ def build_verdicts(records: list[dict], board: pd.DataFrame, with_aggregate: boo
 def _fmt(x: float) -> str:
     if x is None or pd.isna(x):
         return "—"
-    return "inf" if math.isinf(x) and x > 0 else "-inf" if math.isinf(x) else f"{x:.2f}"
+    if math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    text = f"{x:.2f}"
+    return "0.00" if text == "-0.00" else text
 
 
 def _interval(point: float, low: float, high: float) -> str:
