@@ -212,6 +212,24 @@ def normalised_scores(values: Any, base: float, floor: float, rule: CheckRule
     return np.clip(out, *SCORE_RANGE)
 
 
+def _bootstrap_strata(arrays: Sequence[np.ndarray], statistic: Callable[..., Any],
+                      n_resamples: Optional[int] = None) -> tuple[np.ndarray, np.ndarray]:
+    """:data:`AGGREGATE_METHOD` interval of ``statistic(*arrays, axis=-1)``, each array
+    resampled independently; an array of one value (nothing to resample: scipy needs
+    two) stays as it is in every resample."""
+    varying = [i for i, a in enumerate(arrays) if a.size >= 2]
+
+    def wrapped(*samples: np.ndarray, axis: int = -1) -> Any:
+        batch = samples[0].shape[:-1]
+        given = iter(samples)
+        full = [next(given) if i in varying else
+                np.broadcast_to(a, (*batch, a.size)) for i, a in enumerate(arrays)]
+        return statistic(*full, axis=axis)
+
+    return _bootstrap(tuple(arrays[i] for i in varying), wrapped, AGGREGATE_METHOD,
+                      n_resamples)
+
+
 def _pooled_iqm(*strata: np.ndarray, axis: int = -1) -> np.ndarray:
     """The IQM of every run of every stratum pooled (``(..., n_i)`` each)."""
     return iqm(np.concatenate(strata, axis=axis), axis=axis)
@@ -231,7 +249,7 @@ def stratified_interval(strata: Sequence[Sequence[float] | np.ndarray],
     point = float(statistic(*[a[None, :] for a in arrays], axis=-1)[0])
     if all(a.size < 2 for a in arrays):
         return point, point, point
-    low, high = _bootstrap(tuple(arrays), statistic, AGGREGATE_METHOD)
+    low, high = _bootstrap_strata(arrays, statistic)
     return point, float(low), float(high)
 
 
@@ -281,7 +299,7 @@ def performance_profile(strata: Sequence[np.ndarray], taus: np.ndarray
     point = profile(*[a[None, :] for a in arrays])[:, 0]
     if all(a.size < 2 for a in arrays):
         return point, point, point
-    low, high = _bootstrap(tuple(arrays), profile, AGGREGATE_METHOD, n_resamples=2000)
+    low, high = _bootstrap_strata(arrays, profile, n_resamples=2000)
     return point, low, high
 
 

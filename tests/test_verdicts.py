@@ -65,6 +65,9 @@ def test_stratified_intervals_iqm_and_probability_of_improvement():
     point, low, high = S.stratified_interval(strata)
     assert low <= point <= high and point == pytest.approx(S.iqm(np.r_[strata[0], strata[1]]))
     assert S.stratified_interval([np.array([0.4]), np.array([0.6])]) == (0.5, 0.5, 0.5)
+    # A system with one run stays as it is in every resample (scipy resamples two or more).
+    assert S.stratified_interval([np.array([0.1, 0.2, 0.3]), np.array([0.9])]) == \
+        pytest.approx((0.25, 0.1, 0.3))
     better = [s + 1.0 for s in strata]
     assert S.probability_of_improvement(better, strata) == (1.0, 1.0, 1.0)
     assert S.probability_of_improvement(strata, strata)[0] == pytest.approx(0.5)
