@@ -32,7 +32,7 @@ import pandas as pd
 
 from hnnbench import _registry as registry
 from hnnbench import _stats as stats
-from hnnbench._families import Families, family_order
+from hnnbench._families import SCOPE_KEY, Families, family_order, key_of, select
 from hnnbench._metric import CheckRule
 from hnnbench._table import metric_declarations
 
@@ -52,11 +52,11 @@ def profile_taus(scores: np.ndarray) -> np.ndarray:
     high = min(1.0, math.ceil(float(np.max(finite)) * 10) / 10)
     return np.linspace(low, max(high, low + 0.1), N_TAUS)
 
-SCALE_COLUMNS = ["profile", "metric", "system", "baseline", "floor", "floor_from", "used",
+SCALE_COLUMNS = [*SCOPE_KEY, "metric", "system", "baseline", "floor", "floor_from", "used",
                  "why_not"]
-IQM_COLUMNS = ["profile", "metric", "family", "iqm", "iqm_low", "iqm_high", "n_systems",
+IQM_COLUMNS = [*SCOPE_KEY, "metric", "family", "iqm", "iqm_low", "iqm_high", "n_systems",
                "n_runs", "systems"]
-IMPROVEMENT_COLUMNS = ["profile", "metric", "family", "other", "p", "p_low", "p_high",
+IMPROVEMENT_COLUMNS = [*SCOPE_KEY, "metric", "family", "other", "p", "p_low", "p_high",
                        "n_systems"]
 
 
@@ -68,18 +68,20 @@ def headline_metrics() -> list[str]:
 
 @dataclass
 class Aggregate:
-    """The aggregate of a family view.
+    """The aggregate of a family view, per scope (:data:`hnnbench._families.SCOPE_KEY`:
+    the profile; one aggregate never mixes two).
 
     Attributes:
-        iqm: per (profile, metric, family): ``iqm`` and its interval ``iqm_low``,
+        iqm: per (scope, metric, family): ``iqm`` and its interval ``iqm_low``,
             ``iqm_high``, ``n_systems``, ``n_runs``, ``systems`` (``;``-joined).
-        improvement: per (profile, metric, family, other), both orders: ``p`` =
+        improvement: per (scope, metric, family, other), both orders: ``p`` =
             P(a run of ``family`` scores higher than one of ``other`` on the same
             system), its interval ``p_low``, ``p_high``, ``n_systems`` (both ran).
-        scales: per (profile, metric, system): ``baseline``, ``floor``, ``floor_from``,
+        scales: per (scope, metric, system): ``baseline``, ``floor``, ``floor_from``,
             ``used`` and, where not used, ``why_not``.
-        scores: per (profile, metric, system, family, seed): ``score``.
-        profiles: ``{(profile, metric): (taus, {family: (fraction, low, high)})}``
+        scores: per (scope, metric, system, family, seed): ``score``.
+        profiles: ``{(scope, metric): (taus, {family: (fraction, low, high)})}`` (the
+            scope's values joined by ``/``)
             (:func:`profile_taus`; :func:`hnnbench._stats.performance_profile`).
         baseline: the baseline family, or ``None``.
         note: why there is no aggregate, if there is none.
@@ -118,20 +120,17 @@ def _floor(rows: pd.DataFrame, metric: str, rule: CheckRule) -> tuple[float, str
     return math.nan, "no reference model ran, and the metric declares no noise floor"
 
 
-def _runs(fams: Families, profile: str, system: str, family: str, metric: str
-          ) -> Optional[np.ndarray]:
-    """A family's per-seed values on a system (``None``: skipped, or no run)."""
-    runs = fams.runs
-    sel = runs[(runs["profile"] == profile) & (runs["system"] == system)
-               & (runs["family"] == family)]
+def _runs(fams: Families, scope: tuple[str, ...], system: str, family: str, metric: str
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """A family's seeds and per-seed values on a system (skipped runs left out)."""
+    sel = select(fams.runs, SCOPE_KEY, scope)
+    sel = sel[(sel["system"] == system) & (sel["family"] == family)]
     if "variant" in sel:
         sel = sel[sel["variant"].fillna("").astype(str) == ""]
     sel = sel[sel["status"] != "skipped"]
-    if sel.empty:
-        return None
     values = pd.to_numeric(sel[metric], errors="coerce") if metric in sel else \
         pd.Series(math.nan, index=sel.index)
-    return values.to_numpy(dtype=float)
+    return sel["seed"].to_numpy(), values.to_numpy(dtype=float)
 
 
 def aggregate(fams: Families, metrics: Optional[Sequence[str]] = None,
@@ -161,8 +160,9 @@ def aggregate(fams: Families, metrics: Optional[Sequence[str]] = None,
     baseline = baselines[0]
     order = family_order(board)
     scales, scores = [], []
-    for profile in dict.fromkeys(board["profile"].astype(str)):
-        mine = board[board["profile"].astype(str) == profile]
+    for _, mine in board.groupby(list(SCOPE_KEY), sort=False, dropna=False):
+        scope = key_of(mine.iloc[0], SCOPE_KEY)
+        where = dict(zip(SCOPE_KEY, scope, strict=True))
         for metric in metrics:
             rule = declared[metric].check
             for system in registry.ordered("system", mine["system"].astype(str)):
@@ -181,25 +181,21 @@ def aggregate(fams: Families, metrics: Optional[Sequence[str]] = None,
                     source if math.isnan(floor) else
                     f"{baseline} (baseline) is within the metric's tolerance "
                     f"({rule.factor:g}x) of the floor")
-                scales.append({"profile": profile, "metric": metric, "system": system,
-                               "baseline": base, "floor": floor, "floor_from": source,
+                scales.append({**where, "metric": metric, "system": system, "baseline": base,
+                               "floor": floor, "floor_from": source,
                                "used": scale is not None, "why_not": why})
                 if scale is None:
                     continue
                 for family in rows[rows["ranked"].fillna(True).astype(bool)]["family"]:
-                    runs = _runs(fams, profile, system, str(family), metric)
-                    if runs is None or not len(runs):
+                    seeds, runs = _runs(fams, scope, system, str(family), metric)
+                    if not len(runs):
                         continue
-                    seeds = fams.runs[(fams.runs["profile"] == profile)
-                                      & (fams.runs["system"] == system)
-                                      & (fams.runs["family"] == family)
-                                      & (fams.runs["status"] != "skipped")]["seed"]
                     normalised = stats.normalised_scores(runs, base, floor, rule)
                     assert normalised is not None
-                    scores += [{"profile": profile, "metric": metric, "system": system,
+                    scores += [{**where, "metric": metric, "system": system,
                                 "family": str(family), "seed": int(seed), "score": float(v)}
                                for seed, v in zip(seeds, normalised, strict=True)]
-    scores_frame = pd.DataFrame(scores, columns=["profile", "metric", "system", "family",
+    scores_frame = pd.DataFrame(scores, columns=[*SCOPE_KEY, "metric", "system", "family",
                                                  "seed", "score"])
     out = Aggregate(scales=pd.DataFrame(scales, columns=SCALE_COLUMNS), scores=scores_frame,
                     baseline=baseline)
@@ -207,14 +203,16 @@ def aggregate(fams: Families, metrics: Optional[Sequence[str]] = None,
         out.note = "no (system, metric) with a scale: every one lacks a baseline or a floor"
         return out
     iqm_rows, poi_rows = [], []
-    for (profile, metric), group in scores_frame.groupby(["profile", "metric"], sort=False):
+    for key, group in scores_frame.groupby([*SCOPE_KEY, "metric"], sort=False):
+        *names, metric = (str(k) for k in key)
+        where = dict(zip(SCOPE_KEY, names, strict=True))
         strata: dict[str, dict[str, np.ndarray]] = {}
         for (family, system), g in group.groupby(["family", "system"], sort=False):
             strata.setdefault(str(family), {})[str(system)] = g["score"].to_numpy(float)
         families = [f for f in order if f in strata]
         for family in families:
             point, low, high = stats.stratified_interval(list(strata[family].values()))
-            iqm_rows.append({"profile": profile, "metric": metric, "family": family,
+            iqm_rows.append({**where, "metric": metric, "family": family,
                              "iqm": point, "iqm_low": low, "iqm_high": high,
                              "n_systems": len(strata[family]),
                              "n_runs": int(sum(v.size for v in strata[family].values())),
@@ -227,13 +225,13 @@ def aggregate(fams: Families, metrics: Optional[Sequence[str]] = None,
                 continue
             p, low, high = stats.probability_of_improvement(
                 [strata[a][s] for s in common], [strata[b][s] for s in common])
-            poi_rows.append({"profile": profile, "metric": metric, "family": a, "other": b,
+            poi_rows.append({**where, "metric": metric, "family": a, "other": b,
                              "p": p, "p_low": low, "p_high": high, "n_systems": len(common)})
-            poi_rows.append({"profile": profile, "metric": metric, "family": b, "other": a,
+            poi_rows.append({**where, "metric": metric, "family": b, "other": a,
                              "p": 1.0 - p, "p_low": 1.0 - high, "p_high": 1.0 - low,
                              "n_systems": len(common)})
         taus = profile_taus(group["score"].to_numpy(float))
-        out.profiles[(str(profile), str(metric))] = (taus, {
+        out.profiles[("/".join(names), metric)] = (taus, {
             family: stats.performance_profile(list(strata[family].values()), taus)
             for family in families})
     out.iqm = pd.DataFrame(iqm_rows, columns=IQM_COLUMNS)

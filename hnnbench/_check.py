@@ -58,7 +58,7 @@ from hnnbench import _registry as registry
 from hnnbench import _stats as stats
 from hnnbench._aggregate import headline_metrics
 from hnnbench._errors import HnnbenchError, OneLineArgumentParser
-from hnnbench._families import primary_rows
+from hnnbench._families import RANKING_KEY, ROW_KEY, key_of, primary_rows, select
 from hnnbench._metric import CheckRule
 from hnnbench._record_schema import (
     BOARD_KEY,
@@ -515,18 +515,15 @@ def rank_lines(reference: pd.DataFrame, current: pd.DataFrame,
         return primary_rows(frame)
 
     ref, cur = ranked(reference), ranked(current)
-    keys = {(str(r["profile"]), str(r["system"]), str(r["family"]), str(r["variant"]))
-            for _, r in ref.iterrows()}
+    keys = {key_of(r, ROW_KEY) for _, r in ref.iterrows()}
+    ranking = [k for k in RANKING_KEY if k != "variant"]
     lines: list[str] = []
     by_name: dict[str, list[Rank]] = {}
     for _, row in cur.iterrows():
-        key = (str(row["profile"]), str(row["system"]), str(row["family"]),
-               str(row["variant"]))
-        if key in keys:
+        if key_of(row, ROW_KEY) in keys:
             continue
         name = str(row["seeds_from"]) + (f" [{row['variant']}]" if row["variant"] else "")
-        others = ref[(ref["profile"].astype(str) == key[0])
-                     & (ref["system"].astype(str) == key[1]) & (ref["variant"] == "")]
+        others = select(ref, [*ranking, "variant"], (*key_of(row, ranking), ""))
         by_name.setdefault(name, [])
         if others.empty:
             continue

@@ -47,19 +47,46 @@ from hnnbench._table import (
 
 __all__ = [
     "MARKS",
+    "RANKING_KEY",
+    "ROW_KEY",
+    "SCOPE_KEY",
     "Families",
     "competitor",
     "families",
     "family_order",
+    "key_of",
     "mark_best",
     "primary_rows",
+    "select",
     "twin_agreement",
 ]
 
 #: A cell's mark: separated from every other family, or not separated from the leader.
 MARKS = ("best", "tied")
-#: The grouping of family rows into one ranking (a family row's key without ``family``).
-RANKING_KEY = (*(k for k in FAMILY_KEY if k != "family"), "variant")
+#: The keys, all from :data:`~hnnbench._record_schema.FAMILY_KEY` (so that a field added
+#: there, e.g. a track, separates every ranking and aggregate): a family row; one
+#: ranking of families (one system); one aggregate across systems.
+ROW_KEY = (*FAMILY_KEY, "variant")
+RANKING_KEY = tuple(k for k in ROW_KEY if k != "family")
+SCOPE_KEY = tuple(k for k in FAMILY_KEY if k not in ("system", "family"))
+
+
+def key_of(row: Any, keys: Sequence[str]) -> tuple[str, ...]:
+    """``row``'s values of ``keys`` as strings (a missing or NaN variant is ``""``)."""
+    out = []
+    for k in keys:
+        v = row.get(k, "") if hasattr(row, "get") else row[k]
+        out.append("" if v is None or (isinstance(v, float) and math.isnan(v)) else str(v))
+    return tuple(out)
+
+
+def select(frame: pd.DataFrame, keys: Sequence[str], values: Sequence[str]) -> pd.DataFrame:
+    """The rows of ``frame`` whose ``keys`` hold ``values`` (compared as strings)."""
+    mask = pd.Series(True, index=frame.index)
+    for k, v in zip(keys, values, strict=True):
+        column = frame[k] if k in frame else pd.Series("", index=frame.index)
+        mask &= column.fillna("").astype(str) == v
+    return frame[mask]
 
 
 @dataclass
@@ -117,7 +144,7 @@ def primary_rows(board: pd.DataFrame) -> pd.DataFrame:
     board["family"] = competitor(board)
     board["variant"] = _variant(board)
     rows = []
-    for _, group in board.groupby([*FAMILY_KEY, "variant"], sort=False, dropna=False):
+    for _, group in board.groupby(list(ROW_KEY), sort=False, dropna=False):
         records = [r for _, r in group.iterrows()]
         primary = min(records, key=_primary_key).copy()
         order = registry.ordered("model", [str(r["model"]) for r in records])
@@ -206,19 +233,17 @@ def twin_agreement(frame: pd.DataFrame, primaries: pd.DataFrame,
         models = [m for m in str(fam["models"]).split(";") if m]
         if len(models) < 2:
             continue
-        mine = frame[(frame["profile"] == fam["profile"]) & (frame["system"] == fam["system"])
-                     & (frame["variant"] == fam["variant"])]
+        mine = select(frame, RANKING_KEY, key_of(fam, RANKING_KEY))
         base = mine[mine["model"] == fam["seeds_from"]]
         for twin in models:
             if twin == fam["seeds_from"]:
                 continue
-            row = {"profile": fam["profile"], "system": fam["system"],
-                   "family": fam["family"], "variant": fam["variant"],
+            row = {**dict(zip(ROW_KEY, key_of(fam, ROW_KEY), strict=True)),
                    "model": fam["seeds_from"], "twin": twin}
             row.update(_compare(base, mine[mine["model"] == twin], metrics, rules))
             rows.append(row)
-    columns = ["profile", "system", "family", "variant", "model", "twin", "shared_seeds",
-               "agree", "disagree", "difference", *(f"{m}_apart" for m in metrics)]
+    columns = [*ROW_KEY, "model", "twin", "shared_seeds", "agree", "disagree", "difference",
+               *(f"{m}_apart" for m in metrics)]
     return pd.DataFrame(rows, columns=columns)
 
 
@@ -274,12 +299,9 @@ def mark_best(board: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
     full = (board["n_ok"] == board["n_seeds"]) if {"n_ok", "n_seeds"} <= set(board) else \
         pd.Series(True, index=board.index)
     runs = runs.assign(variant=_variant(runs))
-    keys = [k for k in RANKING_KEY if k in board]
-    for _, group in board[ranked].groupby(keys, dropna=False, sort=False):
-        first = group.iloc[0]
-        mine = runs
-        for k in keys:
-            mine = mine[mine[k].astype(str) == str(first[k])]
+    board["variant"] = _variant(board)
+    for _, group in board[ranked].groupby(list(RANKING_KEY), dropna=False, sort=False):
+        mine = select(runs, RANKING_KEY, key_of(group.iloc[0], RANKING_KEY))
         for metric in metrics:
             decl = declared[metric]
             means = pd.to_numeric(group[f"{metric}_mean"], errors="coerce")
@@ -328,29 +350,24 @@ def families(frame: pd.DataFrame, board: Optional[pd.DataFrame] = None) -> Famil
     twins = twin_agreement(frame, primaries, metrics)
     words, disagree = [], []
     for _, fam in primaries.iterrows():
-        rows = twins[(twins["profile"] == fam["profile"]) & (twins["system"] == fam["system"])
-                     & (twins["family"] == fam["family"]) & (twins["variant"] == fam["variant"])]
-        w, d = _twin_summary(rows)
+        w, d = _twin_summary(select(twins, ROW_KEY, key_of(fam, ROW_KEY)))
         words.append(w)
         disagree.append(d)
     primaries["twins"], primaries["twins_disagree"] = words, disagree
-    keep = set(zip(primaries["profile"], primaries["system"], primaries["seeds_from"],
-                   primaries["variant"], strict=True))
-    runs = frame[[(p, s, m, v) in keep for p, s, m, v in
-                  zip(frame["profile"], frame["system"], frame["model"], frame["variant"],
-                      strict=True)]]
+    keep = {(*key_of(r, RANKING_KEY), str(r["seeds_from"])) for _, r in primaries.iterrows()}
+    runs = frame[[(*key_of(r, RANKING_KEY), str(r["model"])) in keep
+                  for _, r in frame.iterrows()]]
     board_out = mark_best(primaries, runs)
     order = family_order(board_out)
     systems = registry.ordered("system", board_out["system"].astype(str))
 
     def key(i: int) -> tuple[Any, ...]:
         r = board_out.iloc[i]
-        return (str(r["profile"]), systems.index(str(r["system"])),
+        return (key_of(r, SCOPE_KEY), systems.index(str(r["system"])),
                 order.index(str(r["family"])), variant_sort_key(r["variant"]))
 
     board_out = board_out.iloc[sorted(range(len(board_out)), key=key)].reset_index(drop=True)
-    head = [c for c in ("profile", "system", "family", "variant", "seeds_from", "models",
-                        "backends") if c in board_out]
+    head = [c for c in (*ROW_KEY, "seeds_from", "models", "backends") if c in board_out]
     rest = [c for c in board_out.columns if c not in head and c not in ("model", "backend")]
     if not _variant(board_out).ne("").any():
         head.remove("variant")

@@ -12,7 +12,7 @@ import pandas as pd
 
 from hnnbench import _stats as stats
 from hnnbench._aggregate import Aggregate, aggregate, headline_metrics
-from hnnbench._families import Families, families
+from hnnbench._families import RANKING_KEY, SCOPE_KEY, Families, families, key_of, select
 from hnnbench._report.markdown import md_code, md_text
 from hnnbench._report.tables import md_table
 from hnnbench._table import records_frame
@@ -55,16 +55,23 @@ def _interval(point: float, low: float, high: float) -> str:
     return f"{_fmt(point)} [{_fmt(low)}, {_fmt(high)}]"
 
 
-def aggregate_frame(agg: Aggregate, metrics: Optional[list[str]] = None,
-                    profile: Optional[str] = None) -> pd.DataFrame:
+def main_scope(frame: pd.DataFrame) -> pd.DataFrame:
+    """The rows of one scope (:data:`hnnbench._families.SCOPE_KEY`) of an aggregate
+    frame: the paper profile's where there is one, else the first scope's."""
+    if frame.empty:
+        return frame
+    if "profile" in frame and (frame["profile"].astype(str) == "paper").any():
+        frame = frame[frame["profile"].astype(str) == "paper"]
+    return select(frame, SCOPE_KEY, key_of(frame.iloc[0], SCOPE_KEY))
+
+
+def aggregate_frame(agg: Aggregate, metrics: Optional[list[str]] = None) -> pd.DataFrame:
     """One row per family: the IQM [interval] of each of ``metrics`` (default: the
-    headline metrics that have an aggregate) and the systems each covers."""
-    iqm = agg.iqm
+    headline metrics that have an aggregate) and the systems each covers, in the main
+    scope (:func:`main_scope`)."""
+    iqm = main_scope(agg.iqm)
     if iqm.empty:
         return pd.DataFrame()
-    if profile is None:
-        profile = "paper" if (iqm["profile"] == "paper").any() else str(iqm["profile"].iloc[0])
-    iqm = iqm[iqm["profile"] == profile]
     if metrics is None:
         metrics = [m for m in headline_metrics() if (iqm["metric"] == m).any()]
     rows = []
@@ -82,23 +89,21 @@ def aggregate_frame(agg: Aggregate, metrics: Optional[list[str]] = None,
     return pd.DataFrame(rows)
 
 
-def supported_lines(agg: Aggregate, metrics: Optional[list[str]] = None,
-                    profile: Optional[str] = None) -> list[str]:
+def supported_lines(agg: Aggregate, metrics: Optional[list[str]] = None) -> list[str]:
     """Markdown bullets: per metric, which family beats which with the interval of P(A > B)
-    above one half, and which pairs no interval separates."""
-    poi = agg.improvement
+    above one half, and which pairs no interval separates (the main scope)."""
+    poi = main_scope(agg.improvement)
     if poi.empty:
         return []
-    if profile is None:
-        profile = "paper" if (poi["profile"] == "paper").any() else str(poi["profile"].iloc[0])
-    poi = poi[poi["profile"] == profile]
-    order = list(dict.fromkeys(agg.iqm.sort_values("iqm", ascending=False)["family"]))
+    scope = key_of(poi.iloc[0], SCOPE_KEY)
+    iqm_all = select(agg.iqm, SCOPE_KEY, scope)
+    order = list(dict.fromkeys(iqm_all.sort_values("iqm", ascending=False)["family"]))
     if metrics is None:
         metrics = [m for m in headline_metrics() if (poi["metric"] == m).any()]
     lines = []
     for metric in metrics:
         sel = poi[poi["metric"] == metric]
-        iqm = agg.iqm[(agg.iqm["profile"] == profile) & (agg.iqm["metric"] == metric)]
+        iqm = iqm_all[iqm_all["metric"] == metric]
         ranked = list(iqm.sort_values("iqm", ascending=False)["family"]) or order
         beats = []
         for family in ranked:
@@ -131,7 +136,7 @@ def marks_line(fams: Families, metrics: Optional[list[str]] = None) -> str:
     for metric in metrics:
         if f"{metric}_mark" not in board:
             continue
-        for _, group in board.groupby(["profile", "system"], sort=False):
+        for _, group in board.groupby([k for k in RANKING_KEY if k != "variant"], sort=False):
             marks = set(group[f"{metric}_mark"].fillna("").astype(str))
             best += "best" in marks
             tied += "tied" in marks and "best" not in marks
