@@ -21,6 +21,7 @@ from hnnbench._report.tables import family_display, seed_line, twins_display, tw
 from hnnbench._report.verdicts import (
     Verdicts,
     aggregate_frame,
+    left_out_lines,
     marks_line,
     supported_lines,
 )
@@ -168,6 +169,7 @@ def _aggregate_section(verdicts: Verdicts, figures: list[Made]) -> list[str]:
               '<p class="note">What the intervals support:</p><ul>']
     parts += [f"<li>{_inline_code(line[2:])}</li>" for line in supported_lines(agg)]
     parts.append(f"<li>{_inline_code(marks_line(verdicts.families))}</li></ul>")
+    parts += [f'<p class="note">{_inline_code(line)}</p>' for line in left_out_lines(agg)]
     parts += [_img(m.path, m.path.stem) for m in figures if m.kind == "profile"]
     return parts
 

@@ -49,7 +49,8 @@ def seed_line(board: pd.DataFrame) -> str:
             f"{stats.cell_rule()}, over the `ok` runs of a pair (its `diverged` runs if "
             "none is ok; `inf` = rollout diverged; `—` = no value or not applicable; "
             "`reason` says why a run was skipped, failed, timed out or diverged). "
-            "`cpu_s`: CPU seconds per job (mean).")
+            "`cpu_s`: CPU seconds per job, mean over seeds (`—` for records made before "
+            "hnnbench recorded it; wall times are in the CSV).")
 
 
 def family_display(fams: Families) -> tuple[pd.DataFrame, dict[tuple[int, str], str]]:

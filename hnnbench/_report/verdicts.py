@@ -18,7 +18,7 @@ from hnnbench._report.tables import md_table
 from hnnbench._table import records_frame
 
 __all__ = ["Verdicts", "aggregate_frame", "aggregate_markdown", "build_verdicts",
-           "marks_line", "supported_lines"]
+           "left_out_lines", "main_scope", "marks_line", "supported_lines"]
 
 
 @dataclass
@@ -152,6 +152,19 @@ def marks_line(fams: Families, metrics: Optional[list[str]] = None) -> str:
             f"best (bold); in {tied} the leaders are tied (italics).{tail}")
 
 
+def left_out_lines(agg: Aggregate) -> list[str]:
+    """One line per (headline metric, reason): the systems its aggregate leaves out."""
+    scales = agg.scales
+    if scales.empty:
+        return []
+    unused = scales[~scales["used"].astype(bool) & scales["metric"].isin(headline_metrics())]
+    lines = []
+    for (metric, why), group in unused.groupby(["metric", "why_not"], sort=False):
+        systems = ", ".join(map(md_text, group["system"]))
+        lines.append(f"Left out of {md_code(metric)}: {systems} ({md_text(why)}).")
+    return lines
+
+
 def aggregate_markdown(verdicts: Verdicts, figure: Optional[str] = None,
                        heading: str = "# Across systems") -> str:
     """The aggregate across systems (aggregate.md; the README's aggregate block): the
@@ -167,15 +180,9 @@ def aggregate_markdown(verdicts: Verdicts, figure: Optional[str] = None,
     lines += [md_table(aggregate_frame(agg)), ""]
     lines += ["What the intervals support:", "", *supported_lines(agg),
               f"- {marks_line(verdicts.families)}", ""]
-    unused = agg.scales[~agg.scales["used"].astype(bool)] if not agg.scales.empty else \
-        agg.scales
-    headline = set(headline_metrics())
-    unused = unused[unused["metric"].isin(headline)] if not unused.empty else unused
-    if not unused.empty:
-        for (metric, why), group in unused.groupby(["metric", "why_not"], sort=False):
-            systems = ", ".join(map(md_text, group["system"]))
-            lines.append(f"Left out of {md_code(metric)}: {systems} ({md_text(why)}).")
-        lines.append("")
+    left = left_out_lines(agg)
+    if left:
+        lines += [*left, ""]
     if figure:
         lines += [f"![Performance profiles]({figure})", ""]
     return "\n".join(lines)
