@@ -445,27 +445,34 @@ def _rank_one(name: str, row: Any, others: pd.DataFrame, metric: str, better: st
     rank = 1 + int((sign * means < sign * value).sum())
     of = len(others) + 1
     mine = _interval_of(row, metric)
-    theirs = [_interval_of(r, metric) for _, r in others.iterrows()]
+    if mine is None and math.isinf(value):
+        mine = (value, value)  # a diverged mean: certainly there
+    theirs = []
+    for _, r in others.iterrows():
+        interval, mean = _interval_of(r, metric), float(r[f"{metric}_mean"])
+        theirs.append(interval if interval is not None else
+                      (mean, mean) if math.isinf(mean) else None)
     n_seeds = int(row.get("n_seeds", 0) or 0)
-    shown = format_interval(value, *(mine or (math.nan, math.nan)), linear=linear)
+    shown = format_interval(value, *(_interval_of(row, metric) or (math.nan, math.nan)),
+                            linear=linear)
     low = high = None
     if mine is None:
-        why = (f"{n_seeds} seed: no interval" if n_seeds < 2 else
-               "no interval (a diverged seed's inf)")
-        text = f"({why})"
-    elif any(t is None for t in theirs):
+        text = (f"({n_seeds} seed: no interval)" if n_seeds < 2 else
+                "(fewer than 2 seeds with a value: no interval)")
+    elif all(t is None for t in theirs):
         n_ref = int(pd.to_numeric(others["n_seeds"], errors="coerce").min())
         text = (f"(the reference has {n_ref} seed{'s' if n_ref != 1 else ''} and no "
                 "interval: no rank interval)")
     else:
-        lo_m, hi_m = (sign * mine[0], sign * mine[1]) if sign > 0 else (sign * mine[1],
-                                                                        sign * mine[0])
+        # a reference family without an interval is separated from no one
+        lo_m, hi_m = sorted((sign * mine[0], sign * mine[1]))
         ahead = behind = 0
         for t in theirs:
-            assert t is not None
-            lo_t, hi_t = (sign * t[0], sign * t[1]) if sign > 0 else (sign * t[1], sign * t[0])
-            ahead += hi_t < lo_m  # entirely better than ours
-            behind += lo_t > hi_m  # entirely worse
+            if t is None:
+                continue
+            lo_t, hi_t = sorted((sign * t[0], sign * t[1]))
+            ahead += hi_t < lo_m  # wholly better than ours
+            behind += lo_t > hi_m  # wholly worse
         low, high = 1 + ahead, of - behind
         text = _ordinal_text(low, high)
     line = (f"{system} {metric}: {name} ranks {rank} of {of} families {text}: {shown} over "

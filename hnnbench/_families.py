@@ -117,8 +117,7 @@ class Families:
 def competitor(frame: pd.DataFrame) -> pd.Series:
     """Each row's family: its ``family``, or its ``model`` where it has none."""
     family = frame["family"] if "family" in frame else pd.Series(None, index=frame.index)
-    named = family.notna() & family.astype(str).str.strip().ne("") & \
-        family.astype(str).ne("nan")
+    named = family.notna() & family.astype(str).str.strip().ne("")
     return family.where(named, frame["model"]).astype(str)
 
 

@@ -382,3 +382,19 @@ def test_a_reference_interval_column_must_hold_numbers(family_reference, tmp_pat
     frame.to_csv(bad, index=False)
     with pytest.raises(check.CheckError, match="energy_mse_ci_low holds a non-number"):
         check.read_reference(bad)
+
+
+def test_rank_intervals_count_a_diverged_family_behind_and_an_unknown_one_as_either():
+    def row(model, mean, low, high, n=5):
+        return {"profile": "paper", "system": "spring", "model": model, "family": model,
+                "backend": "jax", "ranked": True, "n_seeds": n, "n_ok": n,
+                "energy_mse_mean": mean, "energy_mse_ci_low": low, "energy_mse_ci_high": high}
+
+    nan, inf = float("nan"), float("inf")
+    reference = pd.DataFrame([row("a", 1e-3, 5e-4, 2e-3), row("b", 1e-1, 5e-2, 2e-1),
+                              row("c", inf, nan, nan), row("d", 2e-2, nan, nan, n=1)])
+    current = pd.DataFrame([row("new", 3e-2, 1e-2, 6e-2)])
+    (line, verdict) = check.rank_lines(reference, current, ["energy_mse"])
+    # a is wholly better, c (diverged) wholly worse, b overlaps, d has no interval
+    assert line.startswith("spring energy_mse: new ranks 3 of 5 families [2, 4]: ")
+    assert verdict.startswith("verdict: new ranks first on 0 ")
