@@ -241,9 +241,9 @@ STATUS_COLUMNS = ("n_seeds", "seeds", *(f"n_{s}" for s in STATUSES), "status", "
 #: What a leaderboard row is of (and its ``variant``, where runs differ in settings).
 BOARD_KEY = ("profile", "system", "model")
 #: What a family row is of (one competitor per family: its backends are twins; and its
-#: ``variant``). A record of another kind of ranking (e.g. a track) adds its field here
-#: and to :data:`BOARD_KEY`, and every table groups by it.
-FAMILY_KEY = ("profile", "system", "family")
+#: ``variant``): :data:`BOARD_KEY` with the family in place of the model, so that a field
+#: added there (e.g. a track) separates family rows, rankings and aggregates too.
+FAMILY_KEY = tuple("family" if k == "model" else k for k in BOARD_KEY)
 #: Provenance columns of a leaderboard: distinct values over the pair's records.
 PROVENANCE_COLUMNS = ("git_commits", "machines", "dates")
 #: Columns of a records frame made from a record rather than copied from its field of
