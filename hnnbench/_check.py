@@ -55,7 +55,10 @@ from hnnbench import _claims as C
 from hnnbench import _provenance as P
 from hnnbench import _records as R
 from hnnbench import _registry as registry
+from hnnbench import _stats as stats
+from hnnbench._aggregate import headline_metrics
 from hnnbench._errors import HnnbenchError, OneLineArgumentParser
+from hnnbench._families import RANKING_KEY, ROW_KEY, key_of, primary_rows, select
 from hnnbench._metric import CheckRule
 from hnnbench._record_schema import (
     BOARD_KEY,
@@ -64,7 +67,7 @@ from hnnbench._record_schema import (
     TIMINGS,
     variant_problem,
 )
-from hnnbench._table import leaderboard, variant_labels
+from hnnbench._table import INTERVAL_SUFFIXES, format_interval, leaderboard, variant_labels
 
 __all__ = [
     "REQUIRED_COLUMNS",
@@ -74,6 +77,7 @@ __all__ = [
     "compare",
     "load_rules",
     "main",
+    "rank_lines",
     "read_reference",
 ]
 
@@ -231,7 +235,7 @@ def read_reference(path: Path | str) -> pd.DataFrame:
             raise CheckError(f"Reference {path}: column {col} must hold integers")
         frame[col] = values.astype(int)
     for col in frame.columns:
-        if col.endswith("_mean") or col.endswith("_std"):
+        if col.endswith(("_mean", "_std", *INTERVAL_SUFFIXES)):
             values = pd.to_numeric(frame[col], errors="coerce")
             bad = values.isna() & frame[col].notna()
             if bad.any():
@@ -398,6 +402,147 @@ def compare(reference: pd.DataFrame, current: pd.DataFrame,
         elif not (rc.outcome == C.NOT_RUN and now == C.NOT_RUN):
             result.info.append(finding)
     return result
+
+
+# --------------------------------------------------------------------------- ranks
+
+
+def _interval_of(row: Any, metric: str) -> Optional[tuple[float, float]]:
+    low, high = row.get(f"{metric}_ci_low"), row.get(f"{metric}_ci_high")
+    if low is None or high is None or pd.isna(low) or pd.isna(high):
+        return None
+    return float(low), float(high)
+
+
+def _ordinal_text(low: int, high: int) -> str:
+    return f"[{low}, {high}]" if low != high else f"[{low}]"
+
+
+@dataclass
+class Rank:
+    """One new family's rank on one (system, metric) among the reference's families."""
+
+    name: str
+    system: str
+    metric: str
+    rank: int
+    of: int
+    low: Optional[int]  # the rank interval (None: no interval)
+    high: Optional[int]
+    line: str
+
+
+def _rank_one(name: str, row: Any, others: pd.DataFrame, metric: str, better: str,
+              linear: bool) -> Optional[Rank]:
+    value = pd.to_numeric(row.get(f"{metric}_mean"), errors="coerce")
+    system = str(row["system"])
+    if pd.isna(value):
+        return None
+    value = float(value)
+    means = pd.to_numeric(others[f"{metric}_mean"], errors="coerce")
+    others = others[means.notna()]
+    means = means[means.notna()].astype(float)
+    sign = -1.0 if better == "higher" else 1.0
+    rank = 1 + int((sign * means < sign * value).sum())
+    of = len(others) + 1
+    mine = _interval_of(row, metric)
+    if mine is None and math.isinf(value):
+        mine = (value, value)  # a diverged mean: certainly there
+    theirs = []
+    for _, r in others.iterrows():
+        interval, mean = _interval_of(r, metric), float(r[f"{metric}_mean"])
+        theirs.append(interval if interval is not None else
+                      (mean, mean) if math.isinf(mean) else None)
+    n_seeds = int(row.get("n_seeds", 0) or 0)
+    shown = format_interval(value, *(_interval_of(row, metric) or (math.nan, math.nan)),
+                            linear=linear)
+    low = high = None
+    if mine is None:
+        text = (f"({n_seeds} seed: no interval)" if n_seeds < 2 else
+                "(fewer than 2 seeds with a value: no interval)")
+    elif all(t is None for t in theirs):
+        n_ref = int(pd.to_numeric(others["n_seeds"], errors="coerce").min())
+        text = (f"(the reference has {n_ref} seed{'s' if n_ref != 1 else ''} and no "
+                "interval: no rank interval)")
+    else:
+        # a reference family without an interval is separated from no one
+        lo_m, hi_m = sorted((sign * mine[0], sign * mine[1]))
+        ahead = behind = 0
+        for t in theirs:
+            if t is None:
+                continue
+            lo_t, hi_t = sorted((sign * t[0], sign * t[1]))
+            ahead += hi_t < lo_m  # wholly better than ours
+            behind += lo_t > hi_m  # wholly worse
+        low, high = 1 + ahead, of - behind
+        text = _ordinal_text(low, high)
+    line = (f"{system} {metric}: {name} ranks {rank} of {of} families {text}: {shown} over "
+            f"{n_seeds} seed{'s' if n_seeds != 1 else ''}")
+    return Rank(name, system, metric, rank, of, low, high, line)
+
+
+def _verdict(name: str, ranks: list[Rank]) -> str:
+    if not ranks:
+        return f"verdict: {name} has no value on a headline metric here"
+    first = sum(r.rank == 1 for r in ranks)
+    top = sum(r.rank <= (r.of + 1) // 2 for r in ranks)
+    median = sorted(r.rank for r in ranks)[(len(ranks) - 1) // 2]
+    of = max(r.of for r in ranks)
+    text = (f"verdict: {name} ranks first on {first} and in the top half on {top} of "
+            f"{len(ranks)} (system, metric) cell(s), median rank {median} of {of}")
+    with_interval = [r for r in ranks if r.low is not None]
+    if not with_interval:
+        return (text + "; no rank is backed by an interval (an interval needs 2 seeds on "
+                f"both sides; a separated best, {stats.MIN_SEPARABLE_SEEDS} paired seeds)")
+    sure = sum(r.high == 1 for r in with_interval)
+    maybe = sum(r.low == 1 for r in with_interval)
+    return (text + f"; the intervals put it first on {sure} and possibly first on {maybe} "
+            f"of the {len(with_interval)} with an interval")
+
+
+def rank_lines(reference: pd.DataFrame, current: pd.DataFrame,
+               metrics: Optional[Sequence[str]] = None) -> list[str]:
+    """For every family of ``current`` that the reference does not hold (a new model,
+    or a variant), per system and headline metric (default:
+    :func:`hnnbench._aggregate.headline_metrics`): its rank among the reference's ranked
+    families on that system (by mean), the rank interval their intervals allow (each
+    family's 95% interval over seeds, ``<metric>_ci_low``/``_ci_high``: ranked ahead of
+    it are the families whose interval lies wholly on the better side), and then one
+    verdict line per new family."""
+    from hnnbench._table import linear_metrics, metric_declarations
+
+    declared = metric_declarations()
+    metrics = [m for m in (headline_metrics() if metrics is None else metrics)
+               if m in declared and f"{m}_mean" in current and f"{m}_mean" in reference]
+    if current.empty:
+        return []
+    linear = linear_metrics()
+
+    def ranked(frame: pd.DataFrame) -> pd.DataFrame:
+        frame = frame[frame["ranked"].fillna(True).astype(str).str.lower() != "false"]
+        return primary_rows(frame)
+
+    ref, cur = ranked(reference), ranked(current)
+    keys = {key_of(r, ROW_KEY) for _, r in ref.iterrows()}
+    ranking = [k for k in RANKING_KEY if k != "variant"]
+    lines: list[str] = []
+    by_name: dict[str, list[Rank]] = {}
+    for _, row in cur.iterrows():
+        if key_of(row, ROW_KEY) in keys:
+            continue
+        name = str(row["seeds_from"]) + (f" [{row['variant']}]" if row["variant"] else "")
+        others = select(ref, [*ranking, "variant"], (*key_of(row, ranking), ""))
+        by_name.setdefault(name, [])
+        if others.empty:
+            continue
+        for metric in metrics:
+            done = _rank_one(name, row, others, metric, declared[metric].better,
+                             metric in linear)
+            if done is not None:
+                lines.append(done.line)
+                by_name[name].append(done)
+    lines += [_verdict(name, ranks) for name, ranks in by_name.items()]
+    return lines
 
 
 # --------------------------------------------------------------------------- cli
@@ -641,12 +786,21 @@ def main(args: Sequence[str]) -> int:
                              "them before writing a reference")
         if reference.is_dir():
             raise CheckError(f"Reference {reference} is a directory; give a CSV file path")
+        dropped = 0
+        if reference.is_file():
+            try:
+                old = read_reference(reference)
+                have = {_row_key(r) for _, r in board.iterrows()}
+                dropped = sum(_row_key(r) not in have for _, r in old.iterrows())
+            except CheckError:
+                dropped = 0
         try:
             R.atomic_write_text(reference, board.to_csv(index=False))
         except OSError as err:
             raise CheckError(f"Cannot write reference {reference}: {err.strerror}") from None
         print(f"hnnbench check: wrote reference {reference} from {where} "
-              f"({len(board)} system x model pairs)")
+              f"({len(board)} system x model pairs)"
+              + (f"; {dropped} pair(s) of the old reference are not in it" if dropped else ""))
         return 0
     assert ref_board is not None
     result = compare(ref_board, board, rules, allow_missing=ns.allow_missing,
@@ -669,24 +823,87 @@ def main(args: Sequence[str]) -> int:
               "record vs re-run")
         print(tabulate(done.rows, headers=RERUN_HEADERS, tablefmt="simple",
                        disable_numparse=True))
-    if result.info:
+    ranks = rank_lines(ref_board, board)
+    if ranks:
+        print()
+        print("ranks among the reference's families (headline metrics; 95% intervals over "
+              "seeds):")
+        for line in ranks:
+            print(f"  {line}")
+    missing = [f for f in result.info + result.regressions if f.check == "missing"]
+    unrun = [f for f in result.info if f.check == "claim" and f.current.startswith(C.NOT_RUN)]
+    new = [f for f in result.info if f.check == "new"]
+    shown = [f for f in result.info if f not in missing and f not in unrun and f not in new]
+    if missing or unrun or new:
+        print()
+    if new:
+        models = list(dict.fromkeys(f.model for f in new))
+        print(f"new: {len(new)} pair(s) not in the reference ({', '.join(models[:4])}"
+              + (f" and {len(models) - 4} more" if len(models) > 4 else "") + ")")
+    if missing or unrun:
+        print(missing_line(missing, unrun, failing=not ns.allow_missing))
+    if shown:
         print()
         print("information (not failing):")
-        print(tabulate([f.row() for f in result.info], headers=HEADERS, tablefmt="simple",
+        print(tabulate([f.row() for f in shown], headers=HEADERS, tablefmt="simple",
                        disable_numparse=True))
     if result.regressions:
+        listed = [f for f in result.regressions if f.check != "missing"]
         print()
-        print(f"REGRESSIONS ({len(result.regressions)}):")
-        print(tabulate([f.row() for f in result.regressions], headers=HEADERS,
-                       tablefmt="simple", disable_numparse=True))
+        print(f"REGRESSIONS ({len(result.regressions)}"
+              + (f", {len(result.regressions) - len(listed)} of them missing pairs, above"
+                 if len(listed) < len(result.regressions) else "") + "):")
+        if listed:
+            print(tabulate([f.row() for f in listed], headers=HEADERS,
+                           tablefmt="simple", disable_numparse=True))
         print()
-        missing_only = all(f.check == "missing" for f in result.regressions)
-        hint = (" Every regression is a reference pair this sweep did not run: for a sweep "
-                "of only some systems or models, pass --allow-missing (or make a reference "
-                "of your own with --update)." if missing_only else
-                " If a change is intended, rewrite the reference with --update.")
-        print(f"hnnbench check: FAILED, {len(result.regressions)} regression(s).{hint}")
+        print(f"hnnbench check: FAILED, {len(result.regressions)} regression(s)."
+              f"{update_hint(result, reference)}")
         return 1
     print()
     print("hnnbench check: OK, no regressions")
     return 0
+
+
+def missing_line(missing: Sequence[Finding], unrun: Sequence[Finding] = (),
+                 failing: bool = False) -> str:
+    """One line for the reference pairs a sweep did not run (``failing``: they are
+    regressions, without ``--allow-missing``), and the reference's claims left
+    unevaluated because of them."""
+    parts = []
+    if missing:
+        systems = list(dict.fromkeys(f.system for f in missing))
+        models = list(dict.fromkeys(f.model for f in missing))
+        example = ", ".join(f"{f.system} x {f.model}" for f in missing[:2])
+        parts.append(f"{len(missing)} reference pair(s) not in this sweep ({len(systems)} "
+                     f"system(s) x {len(models)} model(s), e.g. {example})")
+    if unrun:
+        parts.append(f"{len(unrun)} claim(s) of the reference not evaluated (their pairs "
+                     "were not run)")
+    tail = " (regressions: pass --allow-missing for a sweep of only some pairs)" if failing \
+        else " (information: --allow-missing)"
+    return "missing: " + "; ".join(parts) + tail
+
+
+def update_hint(result: CheckResult, reference: Path) -> str:
+    """What to do about the regressions: ``--allow-missing`` where every one is a pair
+    the sweep did not run; ``--update`` only where it is safe, i.e. the sweep covers
+    every pair of the reference and its records are valid (it would otherwise drop
+    rows, or write bad ones); never for a published leaderboard (a ``leaderboard.csv``
+    next to a ``records/`` directory: scripts/publish_results.py rebuilds that)."""
+    kinds = {f.check for f in result.regressions}
+    if kinds == {"missing"}:
+        return (" Every regression is a reference pair this sweep did not run: pass "
+                "--allow-missing to compare the pairs it ran.")
+    published = reference.name == "leaderboard.csv" and (reference.parent / "records").is_dir()
+    if published:
+        return (" The reference is a published leaderboard: it is rebuilt from records by "
+                "scripts/publish_results.py (docs/LEADERBOARD.md), never by --update.")
+    missing = sum(f.check == "missing" for f in result.regressions)
+    if missing:
+        return (f" Rewriting the reference from this sweep would not be safe: it would drop "
+                f"the {missing} reference pair(s) the sweep did not run.")
+    if kinds & {"invalid", "unreadable", "provenance", "version", "variant", "rerun"}:
+        return (" Rewriting the reference from these records would not be safe: fix the "
+                "records that fail validation first.")
+    return " If the change is intended, rewrite the reference with --update."

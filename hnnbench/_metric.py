@@ -132,6 +132,10 @@ class Metric:
             exceeds ``threshold``. For a metric a degenerate model would win, e.g. the
             energy error of a model that does not move (0 on a conservative system),
             eligible only where the rollout beats standing still.
+        headline: a headline verdict (ranked metrics only): the aggregate across systems
+            on the README and the report page, its performance profile, and the ranks
+            ``hnnbench check`` prints for a new model lead with it
+            (docs/STATISTICS.md).
     """
 
     name: str
@@ -151,6 +155,7 @@ class Metric:
     errors_fail_job: bool = False
     domain: tuple[float, float] = (-math.inf, math.inf)
     best_requires: Optional[tuple[str, float]] = None
+    headline: bool = False
 
     def __post_init__(self) -> None:
         low, high = self.domain
@@ -158,6 +163,9 @@ class Metric:
                 and low <= high):
             raise ValueError(f"metric {self.name!r}: domain must be (low, high) numbers "
                              f"with low <= high, not {self.domain!r}")
+        if self.headline and not self.ranked:
+            raise ValueError(f"metric {self.name!r}: a headline metric must be ranked "
+                             "(ranked=True); a diagnostic is never a verdict")
         if self.check.better != self.better:  # the metric's direction is the rule's
             object.__setattr__(self, "check", dataclasses.replace(self.check,
                                                                   better=self.better))

@@ -41,6 +41,7 @@ from typing import Any, Literal, Optional
 
 __all__ = [
     "BOARD_KEY",
+    "FAMILY_KEY",
     "MAX_DEPTH",
     "MAX_RECORD_BYTES",
     "NAME_PATTERN",
@@ -229,14 +230,21 @@ LOADER_FIELDS = ("path", "source")
 #: The fields that say which job a record is of (with the variant, from its overrides:
 #: ``hnnbench._table.variant_labels``); no override of them defines a variant.
 JOB_FIELDS = ("system", "model", "seed", "profile")
-#: Timings averaged into the leaderboard (``<name>_mean``).
-TIMINGS = ("fit_s", "eval_s", "total_s")
-#: Identity and status columns of a leaderboard, in order.
+#: Timings averaged into the leaderboard (``<name>_mean``); tables show ``cpu_s`` (the
+#: CPU time of the job's process, which a crowded machine does not inflate) where wall
+#: time (``total_s``) is not the point.
+TIMINGS = ("fit_s", "eval_s", "total_s", "cpu_s")
+#: Identity and status columns of a leaderboard, in order (``reason``: why runs of the
+#: pair were not ``ok``, from their records' ``error``).
 ID_COLUMNS = ("profile", "system", "model", "backend", "family", "ranked")
 STATUS_COLUMNS = ("n_seeds", "seeds", *(f"n_{s}" for s in STATUSES), "n_untrained",
-                  "status")
+                  "status", "reason")
 #: What a leaderboard row is of (and its ``variant``, where runs differ in settings).
 BOARD_KEY = ("profile", "system", "model")
+#: What a family row is of (one competitor per family: its backends are twins; and its
+#: ``variant``): :data:`BOARD_KEY` with the family in place of the model, so that a field
+#: added there (e.g. a track) separates family rows, rankings and aggregates too.
+FAMILY_KEY = tuple("family" if k == "model" else k for k in BOARD_KEY)
 #: Provenance columns of a leaderboard: distinct values over the pair's records.
 PROVENANCE_COLUMNS = ("git_commits", "machines", "dates")
 #: Columns of a records frame made from a record rather than copied from its field of
@@ -263,7 +271,7 @@ VERSION_FIELDS: tuple[tuple[Literal["system", "model"], str], ...] = (
 
 
 def _check_names() -> None:
-    unknown = [n for n in (*JOB_FIELDS, *FRAME_COLUMNS, *ID_COLUMNS, *BOARD_KEY,
+    unknown = [n for n in (*JOB_FIELDS, *FRAME_COLUMNS, *ID_COLUMNS, *BOARD_KEY, *FAMILY_KEY,
                            *(p.split(".")[0] for p in PROVENANCE_FIELDS),
                            *(n for pair in VERSION_FIELDS for n in pair))
                if n not in _BY_NAME and n not in LOADER_FIELDS and n not in DERIVED_COLUMNS]

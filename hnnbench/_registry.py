@@ -54,6 +54,7 @@ __all__ = [
     "all_claims",
     "claim_sets",
     "family_models",
+    "baseline_families",
     "PROFILES",
     "PluginInfo",
     "available",
@@ -108,6 +109,13 @@ class PluginInfo(Generic[T]):
         """A neural model's family name (``hnn``), else ``-``."""
         family = getattr(self.cls, "family", None) if self.kind == "model" else None
         return str(getattr(family, "name", "-")) if family is not None else "-"
+
+    @property
+    def baseline(self) -> bool:
+        """Whether the model's family declares itself the baseline
+        (:attr:`hnnbench.neural.Family.baseline`)."""
+        family = getattr(self.cls, "family", None) if self.kind == "model" else None
+        return bool(getattr(family, "baseline", False))
 
 
 @dataclass
@@ -488,6 +496,16 @@ def family_models() -> dict[str, dict[str, str]]:
         if info.ok and family != "-":
             out.setdefault(info.backend, {})[family] = name
     return out
+
+
+def baseline_families() -> list[str]:
+    """The families of the installed models that declare themselves the baseline
+    (:attr:`hnnbench.neural.Family.baseline`: the family the aggregate across systems
+    normalises against), in listing order."""
+    models = MODELS.discover()
+    return list(dict.fromkeys(models[name].family for name in MODELS.ordered(models)
+                              if models[name].ok and models[name].baseline
+                              and models[name].family != "-"))
 
 
 def claim_sets() -> list[ClaimSet]:

@@ -480,7 +480,7 @@ def _partial_report(directory: Path) -> None:
     rewritten while the sweep runs; the end of the sweep writes the whole report."""
     from hnnbench import _report as report
 
-    report.write_report(directory, figures=False)
+    report.write_report(directory, figures=False, aggregate=False)
 
 
 def _collect(job: Any, overrides: Sequence[str]) -> None:

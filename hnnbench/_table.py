@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from hnnbench import _registry as registry
+from hnnbench import _stats as stats
 from hnnbench._errors import HnnbenchError
 from hnnbench._metric import Metric
 from hnnbench._provenance import reserved_key_problem
@@ -33,8 +34,10 @@ from hnnbench._record_schema import (
 from hnnbench._records import RUN_ONLY_KEYS
 
 __all__ = [
+    "INTERVAL_SUFFIXES",
     "display_frame",
     "summary_metrics",
+    "format_interval",
     "format_value",
     "leaderboard",
     "leaderboard_frame",
@@ -170,8 +173,11 @@ def summary_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None) -> 
     cols = [*ids, "status"]
     names = metric_names(frame) if metrics is None else list(metrics)
     cols += [m for m in names if m in frame.columns]
-    cols += [c for c in ("total_s",) if c in frame.columns]
+    cols += [c for c in (COST_COLUMN,) if c in frame.columns]
     out = frame[cols].reset_index(drop=True)
+    if "error" in frame and (frame["status"] != "ok").any():
+        out.insert(out.columns.get_loc("status") + 1, "reason",
+                   frame["error"].where(frame["status"] != "ok").reset_index(drop=True))
     systems = registry.ordered("system", out["system"].astype(str))
     models = registry.ordered("model", out["model"].astype(str))
 
@@ -187,6 +193,14 @@ def summary_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None) -> 
 
 # --------------------------------------------------------------------------- leaderboard
 
+#: The timing tables show: CPU seconds of the job's process (wall time, ``total_s``, is
+#: in the CSV; on a shared machine it measures the crowd as much as the job).
+COST_COLUMN = "cpu_s"
+#: The interval columns of each metric: ``<metric>_ci_low``, ``<metric>_ci_high``
+#: (:func:`hnnbench._stats.mean_intervals`).
+INTERVAL_SUFFIXES = ("_ci_low", "_ci_high")
+
+
 def linear_metrics() -> frozenset[str]:
     """Metrics shown on a linear scale (the others span decades: log scale)."""
     return frozenset(m.name for m in registry.metrics() if m.scale == "linear")
@@ -201,17 +215,45 @@ def metric_names(frame: pd.DataFrame) -> list[str]:
     return [m for m in declared if m in found] + sorted(m for m in found if m not in declared)
 
 
+def seed_values(values: pd.Series) -> np.ndarray:
+    """The values of a metric over seeds, as floats, NaN (not applicable) left out."""
+    arr = pd.to_numeric(values, errors="coerce").to_numpy(dtype=float)
+    return arr[~np.isnan(arr)]
+
+
 def _agg(values: pd.Series) -> tuple[float, float]:
     """Mean and sample std over seeds; ``inf`` mean if any value is infinite (a
     diverged rollout), NaN values (metric not applicable) ignored."""
-    arr = pd.to_numeric(values, errors="coerce").to_numpy(dtype=float)
-    arr = arr[~np.isnan(arr)]
+    arr = seed_values(values)
     if arr.size == 0:
         return math.nan, math.nan
     if np.any(np.isinf(arr)):
         return float(np.mean(arr)), math.nan
     std = float(np.std(arr, ddof=1)) if arr.size >= 2 else math.nan
     return float(np.mean(arr)), std
+
+
+def reason_text(group: pd.DataFrame) -> str:
+    """Why runs of one pair were not ``ok``: each status with its seeds and its
+    records' ``error`` (``skipped (seeds 0, 1, 2): <why>``), ``; ``-joined; ``""`` when
+    every run is ``ok``."""
+    parts = []
+    for status in STATUSES:
+        if status == "ok":
+            continue
+        sel = group[group["status"] == status]
+        if sel.empty:
+            continue
+        errors = sel["error"] if "error" in sel else pd.Series([None] * len(sel))
+        by_error: dict[str, list[str]] = {}
+        for seed, error in zip(sel["seed"], errors, strict=True):
+            text = " ".join(str(error).split()) if error is not None and not pd.isna(error) \
+                else "no reason recorded"
+            by_error.setdefault(text, []).append("?" if pd.isna(seed) else str(int(seed)))
+        for text, seeds in by_error.items():
+            label = "seed" if len(seeds) == 1 else "seeds"
+            parts.append(f"{status} ({label} {', '.join(seeds)}): {text}")
+    return "; ".join(parts)
 
 
 def status_text(counts: dict[str, int]) -> str:
@@ -249,11 +291,14 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
     """One row per (profile, system, model, variant) of a :func:`records_frame`.
 
     Columns: :data:`ID_COLUMNS` (with ``variant`` after ``model`` when some run has a
-    variant, so a sweep without one keeps the plain schema), :data:`STATUS_COLUMNS`,
-    ``<metric>_mean`` and ``<metric>_std`` (over seeds) for every metric, ``<timing>_mean`` for
-    :data:`TIMINGS`. Metrics are aggregated over the ``ok`` runs; a pair with no ``ok``
-    run is aggregated over its ``diverged`` runs, so it shows ``inf`` where its rollouts
-    diverged (and its finite losses). Failed or skipped runs only: NaN, status says why.
+    variant, so a sweep without one keeps the plain schema), :data:`STATUS_COLUMNS`
+    (``reason``: :func:`reason_text`), ``<metric>_mean``, ``<metric>_std`` and the
+    interval ``<metric>_ci_low``, ``<metric>_ci_high`` (over seeds:
+    :func:`hnnbench._stats.mean_intervals`, NaN for one seed or an infinite value) for
+    every metric, ``<timing>_mean`` for :data:`TIMINGS`. Metrics are aggregated over the
+    ``ok`` runs; a pair with no ``ok`` run is aggregated over its ``diverged`` runs, so
+    it shows ``inf`` where its rollouts diverged (and its finite losses). Failed or
+    skipped runs only: NaN, status and reason say why.
     """
     if metrics is None:
         metrics = metric_names(frame) if not frame.empty else []
@@ -263,7 +308,7 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
         ids.insert(ids.index("model") + 1, "variant")
     columns = [*ids, *STATUS_COLUMNS]
     for m in metrics:
-        columns += [f"{m}_mean", f"{m}_std"]
+        columns += [f"{m}_mean", f"{m}_std", *(f"{m}{x}" for x in INTERVAL_SUFFIXES)]
     columns += [f"{t}_mean" for t in TIMINGS]
     columns += list(PROVENANCE_COLUMNS)
     if frame.empty:
@@ -272,6 +317,7 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
     frame["profile"] = frame["profile"].fillna("?")
     frame["variant"] = frame["variant"].fillna("") if "variant" in frame else ""
     rows = []
+    samples: list[np.ndarray] = []  # every cell's values over seeds, in (row, metric) order
     for (profile, system, model, variant), group in frame.groupby(
             [*BOARD_KEY, "variant"], dropna=False, sort=False):
         _refuse_repeated_seeds(group)
@@ -288,7 +334,7 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
             **{f"n_{s}": counts[s] for s in STATUSES},
             "n_untrained": int((group["trained"] == False).sum())  # noqa: E712
             if "trained" in group else 0,
-            "status": status_text(counts),
+            "status": status_text(counts), "reason": reason_text(group),
         }
         use = group[group["status"] == "ok"]
         if use.empty:
@@ -296,6 +342,7 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
         for m in metrics:
             mean, std = _agg(use[m]) if (m in use and not use.empty) else (math.nan, math.nan)
             row[f"{m}_mean"], row[f"{m}_std"] = mean, std
+            samples.append(seed_values(use[m]) if m in use else np.array([]))
         timed = use if not use.empty else group
         for t in TIMINGS:
             vals = pd.to_numeric(timed[t], errors="coerce") if t in timed else pd.Series([])
@@ -305,6 +352,10 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
         row["dates"] = _distinct(None if "created_at" not in group else
                                  group["created_at"].astype(str).str[:10])
         rows.append(row)
+    intervals = iter(stats.mean_intervals(samples))
+    for row in rows:
+        for m in metrics:
+            row[f"{m}_ci_low"], row[f"{m}_ci_high"] = next(intervals)
     out = pd.DataFrame(rows, columns=columns)
     systems = registry.ordered("system", out["system"].astype(str))
     models = registry.ordered("model", out["model"].astype(str))
@@ -337,22 +388,58 @@ def format_value(mean: float, std: float = math.nan, linear: bool = False) -> st
     return text
 
 
-def display_frame(board: pd.DataFrame, timings: bool = True) -> pd.DataFrame:
-    """The leaderboard with ``mean ± std`` strings, for Markdown and HTML."""
-    metrics = [c[: -len("_mean")] for c in board.columns
-               if c.endswith("_mean") and c[: -len("_mean")] not in TIMINGS]
+def format_interval(mean: float, low: float = math.nan, high: float = math.nan,
+                    linear: bool = False) -> str:
+    """``3.7e-02 [3.5e-02, 3.9e-02]`` (the mean over seeds and its interval); the mean
+    alone where there is no interval (one seed; ``inf``: a diverged rollout); ``—`` for
+    no value."""
+    text = format_value(mean, linear=linear)
+    if text == "—" or math.isinf(float(mean)) or low is None or high is None \
+            or pd.isna(low) or pd.isna(high):
+        return text
+    return f"{text} [{format_value(low, linear=linear)}, {format_value(high, linear=linear)}]"
+
+
+def short_reason(text: Any, width: int = 72) -> str:
+    """A table's reason cell: the text cut to ``width`` characters (``…``); ``""`` for
+    none. The CSV keeps the whole text."""
+    if text is None or (isinstance(text, float) and math.isnan(text)):
+        return ""
+    text = " ".join(str(text).split())
+    return text if len(text) <= width else text[: width - 1].rstrip() + "…"
+
+
+def board_metrics(board: pd.DataFrame) -> list[str]:
+    """The metrics of a leaderboard (its ``<metric>_mean`` columns, timings apart), in
+    column order."""
+    return [c[: -len("_mean")] for c in board.columns
+            if c.endswith("_mean") and c[: -len("_mean")] not in TIMINGS]
+
+
+def display_frame(board: pd.DataFrame, timings: bool = True,
+                  ids: Sequence[str] = ("system", "model")) -> pd.DataFrame:
+    """The leaderboard with ``mean [low, high]`` strings (:func:`format_interval`), for
+    Markdown and HTML: the ``ids`` columns, ``variant`` where the board has one,
+    ``n_seeds``, ``status``, ``reason`` (cut short: :func:`short_reason`; only when some
+    row has one), every metric that has a value somewhere, and ``cpu_s``."""
+    metrics = board_metrics(board)
     linear = linear_metrics()
+    reasons = "reason" in board and board["reason"].fillna("").astype(str).ne("").any()
     rows = []
     for _, r in board.iterrows():
-        row: dict[str, Any] = {"system": r["system"], "model": r["model"]}
+        row: dict[str, Any] = {c: r[c] for c in ids}
         if "variant" in board:
             row["variant"] = r["variant"] if isinstance(r["variant"], str) else ""
         row.update(n_seeds=int(r["n_seeds"]), status=r["status"])
+        if reasons:
+            row["reason"] = short_reason(r["reason"])
         for m in metrics:
             if board[f"{m}_mean"].isna().all():  # not applicable anywhere
                 continue
-            row[m] = format_value(r[f"{m}_mean"], r[f"{m}_std"], linear=m in linear)
+            row[m] = format_interval(r[f"{m}_mean"], r.get(f"{m}_ci_low", math.nan),
+                                     r.get(f"{m}_ci_high", math.nan), linear=m in linear)
         if timings:
-            row["total_s"] = format_value(r.get("total_s_mean", math.nan), linear=True)
+            row[COST_COLUMN] = format_value(r.get(f"{COST_COLUMN}_mean", math.nan),
+                                            linear=True)
         rows.append(row)
     return pd.DataFrame(rows)

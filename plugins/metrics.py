@@ -248,7 +248,7 @@ TEST_LOSS = Metric(
     "where the system adds noise to them (so the true field scores 0, not the noise "
     "floor; pixels: the training objective). The zero field scores the mean squared "
     "target", _loss("test", clean=True), check=CheckRule(2, 1e-12), order=20,
-    figures=("data_efficiency",), log=True,
+    figures=("data_efficiency",), log=True, headline=True,
     errors_fail_job=True, domain=NONNEGATIVE)
 ENERGY_MSE = Metric(
     "energy_mse", "Mean squared error of the true energy along the model's rollout vs "
@@ -256,14 +256,14 @@ ENERGY_MSE = Metric(
     "true trajectory's own energy change: 0 on conservative systems, so it is marked "
     "best only among rollouts that beat standing still (rollout_skill > 0)", _energy_mse,
     check=CheckRule(10, 1e-10), order=30,
-    figures=("heatmap", "data_efficiency"), log=True,
+    figures=("heatmap", "data_efficiency"), log=True, headline=True,
     errors_fail_job=True, domain=NONNEGATIVE, best_requires=("rollout_skill", 0.0))
 ROLLOUT_MSE = Metric(
     "rollout_mse", "Mean squared state error along the rollout (angles modulo 2 pi). The "
     "zero field scores the mean squared displacement of the true trajectory from its "
     "start", _rollout_mse,
     check=CheckRule(3, 1e-8), order=40, figures=("heatmap", "data_efficiency"),
-    errors_fail_job=True, domain=NONNEGATIVE)
+    errors_fail_job=True, domain=NONNEGATIVE, headline=True)
 ROLLOUT_SKILL = Metric(
     "rollout_skill", "Skill of the rollout over standing still: 1 - rollout error / the "
     "error of holding the initial state, per trajectory (angles modulo 2 pi). 1: exact; "

@@ -3,16 +3,26 @@
     python scripts/publish_results.py SWEEP_DIR [SWEEP_DIR ...] [--figure two_body_energy]
 
 1. Copies every ``result.json`` of the sweeps into ``results/records/<system>/<model>/
-   seed<k>/result.json`` (records only: they are small; rollouts and weights stay in the
-   sweeps). Sweeps of different systems, run at different times or on different
-   machines, merge there; a record already present for the same job is replaced.
-2. ``hnnbench report`` over the sweeps (their rollouts draw the figures) into
-   ``results/``: leaderboard.{csv,md,html}, paper_comparison.md, figures/. The
-   leaderboard is the one of ``results/records`` (tests/test_published.py rebuilds it
-   from the committed records and compares).
-3. Replaces the block between ``<!-- leaderboard:begin -->`` and
-   ``<!-- leaderboard:end -->`` in README.md with the Markdown table, its provenance and
-   the heatmap, and the block between ``<!-- provenance:begin -->`` and
+   seed<k>/result.json``, and beside the lowest seed of each pair that has a rollout a
+   small *figure rollout* (``rollout.npz``: what the per-system figures draw, 3
+   trajectories, at most 200 time points, float32; ``hnnbench._report.figures.
+   figure_arrays``), so that a report merging a new sweep with ``results/records`` draws
+   every model. Weights and full rollouts stay in the sweeps. Sweeps of different
+   systems, run at different times or on different machines, merge there; a record
+   already present for the same job is replaced. ``results/records`` itself may be one
+   of the directories (a new model's sweep is published with it: docs/LEADERBOARD.md).
+2. ``hnnbench report`` over ``results/records`` (its records and figure rollouts) into
+   ``results/``: leaderboard.{csv,md,html},
+   families.csv, twins.csv, aggregate.{csv,md}, improvement.csv, aggregate_scales.csv,
+   paper_comparison.md, figures/; a PNG in figures/ that this report did not draw is
+   removed (the page embeds every figure there). The leaderboard is the one of
+   ``results/records`` (tests/test_published.py rebuilds it from the committed records
+   and compares).
+3. Replaces the block between ``<!-- aggregate:begin -->`` and ``<!-- aggregate:end -->``
+   in README.md with the aggregate across systems (the verdicts its intervals support
+   and the performance profiles), the block between ``<!-- leaderboard:begin -->`` and
+   ``<!-- leaderboard:end -->`` with the family table, its provenance, the heatmap and
+   the twins' agreement, and the block between ``<!-- provenance:begin -->`` and
    ``<!-- provenance:end -->`` in results/README.md with the provenance and the list of
    systems published so far.
 
@@ -61,11 +71,22 @@ def replace_block(text: str, name: str, body: str) -> str:
 
 
 def table_and_provenance(markdown: str) -> tuple[str, str]:
-    """Split leaderboard.md into (table lines, provenance bullet lines)."""
+    """Split leaderboard.md into (its first table: the family table, provenance bullet
+    lines)."""
     lines = markdown.splitlines()
-    table = "\n".join(line for line in lines if line.startswith("|"))
+    start = next((i for i, line in enumerate(lines) if line.startswith("|")), len(lines))
+    stop = next((i for i in range(start, len(lines)) if not lines[i].startswith("|")),
+                len(lines))
+    table = "\n".join(lines[start:stop])
     prov = "\n".join(line for line in lines if line.startswith("- "))
     return table, prov
+
+
+def sentence_after(markdown: str, heading: str) -> str:
+    """The first non-empty line after ``heading`` in ``markdown``."""
+    lines = markdown.splitlines()
+    at = lines.index(heading) if heading in lines else len(lines)
+    return next((line for line in lines[at + 1:] if line.strip()), "")
 
 
 def record_dir(rec: dict) -> Path:
@@ -92,14 +113,62 @@ def record_dir(rec: dict) -> Path:
         raise SystemExit(f"publish: {where}: {err}") from None
 
 
-def copy_records(sweeps: list[Path]) -> int:
-    """Copy each sweep's records into results/records; returns how many."""
+def copy_figure_rollouts(sweeps: list[Path]) -> tuple[int, int]:
+    """For each published (system, model), the figure rollout of its lowest seed that has
+    a ``rollout.npz`` in the sweeps, next to its record in results/records; any other
+    ``rollout.npz`` there is removed. Returns (files, bytes)."""
+    import io
+
+    import numpy as np
+
     from hnnbench import _records as R
     from hnnbench._paths import safe_join
-    from hnnbench._provenance import config_variant
-    from hnnbench._record_schema import MAX_RECORD_BYTES
+    from hnnbench._report.figures import figure_arrays
 
-    count = 0
+    chosen: dict[tuple[str, str], tuple[int, Path]] = {}
+    for sweep in sweeps:
+        for rec in R.load(sweep, strict=True).records:
+            source = Path(rec["path"]) / R.ROLLOUT_NAME
+            if rec.get("status") not in ("ok", "diverged") or not source.is_file():
+                continue
+            key, seed = (str(rec["system"]), str(rec["model"])), int(rec["seed"])
+            if key not in chosen or seed < chosen[key][0]:
+                chosen[key] = (seed, source)
+    written = {}
+    for (system, model), (seed, source) in sorted(chosen.items()):
+        rec = {"system": system, "model": model, "seed": seed, "path": str(source.parent)}
+        target = safe_join(record_dir(rec), R.ROLLOUT_NAME)
+        buffer = io.BytesIO()
+        np.savez_compressed(buffer, **figure_arrays(R.load_arrays(source)))
+        target.parent.mkdir(parents=True, exist_ok=True)
+        tmp = target.with_name(f".{target.name}.tmp")
+        tmp.write_bytes(buffer.getvalue())
+        tmp.replace(target)
+        written[target.resolve()] = len(buffer.getvalue())
+    for stale in RECORDS.rglob(R.ROLLOUT_NAME):
+        if stale.resolve() not in written:
+            stale.unlink()
+    return len(written), sum(written.values())
+
+
+def remove_stale_figures(made: list[Path]) -> list[Path]:
+    """Remove every PNG in results/figures that is not one of ``made`` (the page embeds
+    every figure there); returns the removed files."""
+    keep = {Path(p).resolve() for p in made}
+    stale = [p for p in sorted((RESULTS / "figures").glob("*.png")) if p.resolve() not in keep]
+    for path in stale:
+        path.unlink()
+    return stale
+
+
+def given_records(sweeps: list[Path]) -> list[dict]:
+    """The records of the directories given, each checked: valid against the schema (a
+    strict load), the paper profile, the paper settings (its variant derived from its
+    stored config), and no job twice (``SystemExit`` naming the record otherwise)."""
+    from hnnbench import _records as R
+    from hnnbench._provenance import config_variant
+
+    out: list[dict] = []
     seen: dict[tuple[str, str, int], str] = {}
     for sweep in sweeps:
         recs, bad = R.load(sweep, strict=True)
@@ -124,15 +193,33 @@ def copy_records(sweeps: list[Path]) -> int:
                                  "the report would count it twice; move the superseded "
                                  "run out of its sweep")
             seen[job] = str(rec["path"])
-            source = Path(rec["path"]) / R.RECORD_NAME
-            target = record_dir(rec)
-            text = source.read_text()
-            if len(text.encode()) > MAX_RECORD_BYTES:
-                raise SystemExit(f"publish: {source} grew over {MAX_RECORD_BYTES} bytes")
-            target.mkdir(parents=True, exist_ok=True)
-            R.atomic_write_text(safe_join(target, R.RECORD_NAME), text)
-            count += 1
-    return count
+            out.append(rec)
+    return out
+
+
+def copy_records(sweeps: list[Path], recs: list[dict] | None = None) -> int:
+    """Copy each sweep's records (:func:`given_records`, unless already given as
+    ``recs``) into results/records; returns how many."""
+    from hnnbench import _records as R
+    from hnnbench._paths import safe_join
+    from hnnbench._record_schema import MAX_RECORD_BYTES
+
+    recs = given_records(sweeps) if recs is None else recs
+    for rec in recs:
+        source = Path(rec["path"]) / R.RECORD_NAME
+        target = record_dir(rec)
+        text = source.read_text()
+        if len(text.encode()) > MAX_RECORD_BYTES:
+            raise SystemExit(f"publish: {source} grew over {MAX_RECORD_BYTES} bytes")
+        target.mkdir(parents=True, exist_ok=True)
+        R.atomic_write_text(safe_join(target, R.RECORD_NAME), text)
+    return len(recs)
+
+
+def published_jobs() -> set[tuple[str, str, int]]:
+    """The (system, model, seed) of every record under results/records."""
+    return {(p.parts[-4], p.parts[-3], int(p.parts[-2].removeprefix("seed")))
+            for p in RECORDS.glob("*/*/seed*/result.json")}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -146,38 +233,50 @@ def main(argv: list[str] | None = None) -> int:
     from hnnbench._errors import HnnbenchError
     from hnnbench._report import write_report
     from hnnbench._report.markdown import md_code
+    from hnnbench._report.verdicts import aggregate_markdown
 
-    copied = copy_records(args.sweeps)
-    # Figures need the rollouts, which only the sweeps keep; every published record
-    # must be in one of them so that the page and the records agree.
+    recs = given_records(args.sweeps)
+    # Every record already published must be among those given (results/records itself
+    # may be given), so that the page and the records agree.
+    stale = published_jobs() - {(str(r["system"]), str(r["model"]), int(r["seed"]))
+                                for r in recs}
+    if stale:
+        print(f"publish: results/records holds jobs the directories given here do not "
+              f"({sorted(stale)[:5]} ...): pass every sweep that was published, or "
+              "results/records itself", file=sys.stderr)
+        return 2
+    copied = copy_records(args.sweeps, recs)
+    rollouts, rollout_bytes = copy_figure_rollouts(args.sweeps)
     published = sorted(p.parent.relative_to(RECORDS) for p in RECORDS.rglob("result.json"))
     try:
-        report = write_report(args.sweeps, RESULTS)
+        report = write_report([RECORDS], RESULTS)
     except HnnbenchError as err:
         print(f"publish: {err}", file=sys.stderr)
         return 2
-    in_sweeps = {(r["system"], r["model"], int(r["seed"])) for r in report.records}
-    on_record = {(p.parts[0], p.parts[1], int(p.parts[2].removeprefix("seed")))
-                 for p in published}
-    if in_sweeps != on_record:
-        print(f"publish: results/records holds jobs the sweeps given here do not "
-              f"({sorted(on_record - in_sweeps)[:5]} ...): pass every sweep that was "
-              "published", file=sys.stderr)
-        return 2
+    removed = remove_stale_figures([m.path for m in report.figures])
     figure = RESULTS / "figures" / f"{args.figure}.png"
     if not figure.exists():
         names = sorted(p.stem for p in (RESULTS / "figures").glob("*.png"))
         print(f"publish: no figure {figure.name}; available: {', '.join(names)}",
               file=sys.stderr)
         return 2
-    table, prov = table_and_provenance(report.files["md"].read_text())
+    markdown = report.files["md"].read_text()
+    table, prov = table_and_provenance(markdown)
     systems = sorted({p.parts[0] for p in published})
     readme = ROOT / "README.md"
     body = "\n\n".join([
         prov, table,
-        f"![Which model wins where: rank by energy MSE]({figure.relative_to(ROOT).as_posix()})",
+        f"![Which family wins where: rank by energy MSE]({figure.relative_to(ROOT).as_posix()})",
+        sentence_after(markdown, "## Twin agreement") + " The twin table, every model's "
+        "row and the per-system figures: [results/leaderboard.html](results/leaderboard.html).",
     ])
-    readme.write_text(replace_block(readme.read_text(), "leaderboard", body))
+    text = replace_block(readme.read_text(), "leaderboard", body)
+    assert report.verdicts is not None
+    profile = next((m.path for m in report.figures if m.kind == "profile"), None)
+    text = replace_block(text, "aggregate", aggregate_markdown(
+        report.verdicts, profile.relative_to(ROOT).as_posix() if profile else None,
+        heading=""))
+    readme.write_text(text)
     results_readme = RESULTS / "README.md"
     listing = f"- Systems published: {', '.join(md_code(s) for s in systems)}"
     for line in partial_lines(published):
@@ -188,7 +287,9 @@ def main(argv: list[str] | None = None) -> int:
 
     job_costs.main([])
     print(json.dumps({"copied_records": copied, "published_records": len(published),
-                      "systems": systems, "figures": len(report.figures)}))
+                      "figure_rollouts": rollouts, "figure_rollout_bytes": rollout_bytes,
+                      "systems": systems, "figures": len(report.figures),
+                      "stale_figures_removed": [p.name for p in removed]}))
     return 0
 
 

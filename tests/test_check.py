@@ -307,3 +307,94 @@ def test_real_quick_sweep_passes_its_own_reference_and_catches_short_training(tm
     # never compared as the reference's: the reference's rows went missing.
     assert "REGRESSIONS" in proc.stdout and "missing" in proc.stdout
     assert "[model.steps=5 system.eval_n_traj=3 system.steps=50]" in proc.stdout
+
+
+# --------------------------------------------------------------------------- a new model
+
+
+@pytest.fixture()
+def family_reference(tmp_path):
+    """A reference of the baseline's twins and the oracle, seeds 0-2."""
+    sweep = make_sweep(tmp_path / "ref", pairs=(("spring", "mlp_torch"), ("spring", "mlp_jax"),
+                                                ("spring", "oracle"), ("pendulum", "mlp_jax")),
+                       seeds=(0, 1, 2), rollout=False)
+    reference = tmp_path / "ref.csv"
+    assert check.main([str(sweep), "--reference", str(reference), "--update"]) == 0
+    return reference
+
+
+def test_a_new_model_gets_its_rank_among_the_reference_families(family_reference, tmp_path,
+                                                                capsys):
+    new = make_sweep(tmp_path / "new", pairs=(("spring", "hnn_torch"), ("pendulum", "hnn_torch")),
+                     seeds=(0, 1, 2, 3, 4), rollout=False)
+    capsys.readouterr()
+    assert check.main([str(new), "--reference", str(family_reference), "--allow-missing"]) == 0
+    out = capsys.readouterr().out
+    lines = [ln.strip() for ln in out.splitlines()]
+    # The twins mlp_torch and mlp_jax are one family, the oracle is not ranked: 2 families.
+    energy = next(ln for ln in lines if ln.startswith("spring energy_mse: hnn_torch"))
+    assert energy.startswith("spring energy_mse: hnn_torch ranks 1 of 2 families [1]: ")
+    assert energy.endswith("over 5 seeds")
+    test_loss = next(ln for ln in lines if ln.startswith("spring test_loss: hnn_torch"))
+    assert "ranks 2 of 2 families [1, 2]" in test_loss  # intervals overlap: either rank
+    assert any(ln.startswith("verdict: hnn_torch ranks first on") for ln in lines)
+    missing = [ln for ln in lines if ln.startswith("missing:")]
+    assert len(missing) == 1 and "4 reference pair(s) not in this sweep" in missing[0]
+    assert not any(ln.startswith("missing ") for ln in lines)  # no line per pair
+
+
+def test_one_seed_has_no_interval_and_says_so(family_reference, tmp_path, capsys):
+    new = make_sweep(tmp_path / "new", pairs=(("spring", "hnn_torch"),), seeds=(0,),
+                     rollout=False)
+    capsys.readouterr()
+    check.main([str(new), "--reference", str(family_reference), "--allow-missing"])
+    out = capsys.readouterr().out
+    assert "spring energy_mse: hnn_torch ranks 1 of 2 families (1 seed: no interval)" in out
+    assert "no rank is backed by an interval" in out
+
+
+def test_update_is_suggested_only_where_it_is_safe(family_reference, tmp_path, capsys):
+    ref_sweep = tmp_path / "ref"
+    partial = _copy(ref_sweep, tmp_path, "partial")
+    shutil.rmtree(partial / "pendulum")
+    scale_metric(partial, "spring", "mlp_jax", "rollout_mse", 100.0)
+    capsys.readouterr()
+    assert check.main([str(partial), "--reference", str(family_reference)]) == 1
+    out = capsys.readouterr().out
+    assert "--update" not in out and "would drop the 1 reference pair(s)" in out
+    whole = _copy(ref_sweep, tmp_path, "whole")
+    scale_metric(whole, "spring", "mlp_jax", "rollout_mse", 100.0)
+    assert check.main([str(whole), "--reference", str(family_reference)]) == 1
+    assert "rewrite the reference with --update" in capsys.readouterr().out
+    published = tmp_path / "results"
+    (published / "records").mkdir(parents=True)
+    shutil.copy(family_reference, published / "leaderboard.csv")
+    assert check.main([str(whole), "--reference", str(published / "leaderboard.csv")]) == 1
+    out = capsys.readouterr().out
+    assert "scripts/publish_results.py" in out and "rewrite the reference" not in out
+
+
+def test_a_reference_interval_column_must_hold_numbers(family_reference, tmp_path):
+    frame = pd.read_csv(family_reference)
+    frame["energy_mse_ci_low"] = frame["energy_mse_ci_low"].astype(object)
+    frame.loc[0, "energy_mse_ci_low"] = "low"
+    bad = tmp_path / "bad.csv"
+    frame.to_csv(bad, index=False)
+    with pytest.raises(check.CheckError, match="energy_mse_ci_low holds a non-number"):
+        check.read_reference(bad)
+
+
+def test_rank_intervals_count_a_diverged_family_behind_and_an_unknown_one_as_either():
+    def row(model, mean, low, high, n=5):
+        return {"profile": "paper", "system": "spring", "model": model, "family": model,
+                "backend": "jax", "ranked": True, "n_seeds": n, "n_ok": n,
+                "energy_mse_mean": mean, "energy_mse_ci_low": low, "energy_mse_ci_high": high}
+
+    nan, inf = float("nan"), float("inf")
+    reference = pd.DataFrame([row("a", 1e-3, 5e-4, 2e-3), row("b", 1e-1, 5e-2, 2e-1),
+                              row("c", inf, nan, nan), row("d", 2e-2, nan, nan, n=1)])
+    current = pd.DataFrame([row("new", 3e-2, 1e-2, 6e-2)])
+    (line, verdict) = check.rank_lines(reference, current, ["energy_mse"])
+    # a is wholly better, c (diverged) wholly worse, b overlaps, d has no interval
+    assert line.startswith("spring energy_mse: new ranks 3 of 5 families [2, 4]: ")
+    assert verdict.startswith("verdict: new ranks first on 0 ")

@@ -8,8 +8,9 @@ import os
 import subprocess
 import sys
 
+import pandas as pd
 import pytest
-from conftest import hnnbench, install_test_package
+from conftest import REPO, hnnbench, install_test_package
 
 
 @pytest.fixture(scope="module")
@@ -58,3 +59,25 @@ def test_plugin_runs_in_a_sweep(plugin_env, tmp_path):
     quartic = next(r for r in recs if r["system"] == "quartic" and r["model"] == "oracle")
     assert quartic["system_version"] == "2"
     assert quartic["config"]["system"]["n_traj"] == 10  # the plugin's own quick profile
+
+
+@pytest.mark.slow
+def test_a_held_out_plugin_gets_its_rank_from_check(plugin_env, tmp_path):
+    """A new user's path: the plugin's quick sweep, checked against the CI reference with
+    --allow-missing, gets a line naming its model and its rank among the reference's
+    families, a verdict, and one line for the pairs it did not run."""
+    sweep = tmp_path / "sweep"
+    proc = hnnbench("-m", "system=spring", "model=linear_lstsq", "profile=quick", "seed=0",
+                    f"hydra.sweep.dir={sweep}", cwd=tmp_path, env=plugin_env)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    reference = REPO / "results" / "reference" / "quick.csv"
+    check = hnnbench("check", str(sweep), "--reference", str(reference), "--allow-missing",
+                     env=plugin_env)
+    assert check.returncode == 0, check.stdout[-3000:] + check.stderr[-2000:]
+    lines = [line.strip() for line in check.stdout.splitlines()]
+    families = len({f for f in pd.read_csv(reference).query(
+        "system == 'spring' and ranked")["family"]}) + 1
+    rank = next(ln for ln in lines if ln.startswith("spring energy_mse: linear_lstsq ranks "))
+    assert f" of {families} families (1 seed: no interval): " in rank
+    assert any(ln.startswith("verdict: linear_lstsq ranks first on ") for ln in lines)
+    assert len([ln for ln in lines if ln.startswith("missing:")]) == 1

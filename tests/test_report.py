@@ -51,16 +51,22 @@ def test_leaderboard_csv_has_one_row_per_pair_with_mean_std_status_and_timings(b
     board = _board(built)
     assert len(board) == 5
     expected = {"profile", "system", "model", "backend", "n_seeds", "seeds", "n_ok",
-                "n_diverged", "n_failed", "n_skipped", "status",
-                "fit_s_mean", "eval_s_mean", "total_s_mean"}
-    expected |= {f"{m}_{s}" for m in METRICS for s in ("mean", "std")}
+                "n_diverged", "n_failed", "n_skipped", "status", "reason",
+                "fit_s_mean", "eval_s_mean", "total_s_mean", "cpu_s_mean"}
+    expected |= {f"{m}_{s}" for m in METRICS for s in ("mean", "std", "ci_low", "ci_high")}
     assert expected <= set(board.columns), expected - set(board.columns)
     row = _row(board, "spring", "hnn_torch")
     assert row["n_seeds"] == 2 and row["n_ok"] == 2 and row["status"] == "ok"
     values = [seed_metrics("spring", "hnn_torch", s)["energy_mse"] for s in (0, 1)]
     assert row["energy_mse_mean"] == pytest.approx(np.mean(values))
     assert row["energy_mse_std"] == pytest.approx(np.std(values, ddof=1))
+    # Two seeds: every bootstrap resample's mean lies between them, and the 95% interval
+    # reaches both (a quarter of the resamples are each value twice).
+    assert (row["energy_mse_ci_low"], row["energy_mse_ci_high"]) == pytest.approx(
+        (min(values), max(values)))
     assert row["fit_s_mean"] == pytest.approx(2.5)
+    assert row["cpu_s_mean"] == pytest.approx(2.6)  # the fixture's cpu_s: 2.1 + seed
+    assert board["reason"].isna().all()  # every run ok: no reason
     # Canonical order: spring before pendulum, baseline before HNN before oracle.
     assert list(zip(board["system"], board["model"], strict=True))[:3] == [
         ("spring", "mlp_torch"), ("spring", "hnn_torch"), ("spring", "oracle")]
@@ -71,12 +77,14 @@ def test_default_out_is_the_sweep_dir_and_markdown_is_compact(sweep):
     assert not (sweep / "figures").exists()
     md = (sweep / "leaderboard.md").read_text()
     assert "Profile `quick`" in md and "2 seed(s)" in md
-    mean = np.mean([seed_metrics("spring", "mlp_torch", s)["energy_mse"] for s in (0, 1)])
-    std = np.std([seed_metrics("spring", "mlp_torch", s)["energy_mse"] for s in (0, 1)], ddof=1)
-    assert f"{mean:.1e} ± {std:.1e}" in md
+    values = [seed_metrics("spring", "mlp_torch", s)["energy_mse"] for s in (0, 1)]
+    assert f"{np.mean(values):.1e} [{min(values):.1e}, {max(values):.1e}]" in md
+    assert "BCa bootstrap interval" in md and "sign test" in md  # the rules, stated
     header = next(line for line in md.splitlines() if line.startswith("| system"))
-    for column in ("model", "status", "energy_mse", "test_loss", "valid_prediction_time"):
+    for column in ("family", "seeds_from", "status", "energy_mse", "test_loss",
+                   "valid_prediction_time", "cpu_s"):
         assert column in header
+    assert "total_s" not in header  # CPU time, not wall time on a shared machine
 
 
 def test_markdown_and_html_name_the_commands_commit_and_device(sweep):
@@ -100,8 +108,10 @@ def test_figures_per_system_and_html_embeds_every_one(built):
     for name in pngs:
         assert (out / "figures" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     page = (out / "leaderboard.html").read_text()
-    assert {"heatmap_energy_mse.png", "heatmap_rollout_mse.png"} <= set(pngs)
-    assert page.count("<img") == len(pngs) == 8 + 2  # 4 kinds x 2 systems, 2 heatmaps
+    assert {"heatmap_energy_mse.png", "heatmap_rollout_mse.png",
+            "performance_profile.png"} <= set(pngs)
+    # 4 kinds x 2 systems, 2 heatmaps, the performance profiles
+    assert page.count("<img") == len(pngs) == 8 + 2 + 1
     assert page.count('src="data:image/png;base64,') == len(pngs)
     assert "src=\"figures/" not in page and "<link" not in page  # self-contained
     assert "<table" in page and "hnn_torch" in page and "Qualitative claims" in page
@@ -133,7 +143,8 @@ def test_diverged_pair_is_shown_as_diverged_with_inf_never_dropped(tmp_path):
     failed = _row(board, "spring", "mlp_jax")
     assert failed["status"] == "failed" and math.isnan(failed["energy_mse_mean"])
     md = (sweep / "leaderboard.md").read_text()
-    line = next(ln for ln in md.splitlines() if "| spring" in ln and "mlp_torch" in ln)
+    every_model = md.split("## Every model", 1)[1]
+    line = next(ln for ln in every_model.splitlines() if "| spring" in ln and "mlp_torch" in ln)
     assert "diverged" in line and re.search(r"\|\s*inf\s*\|", line)
     # Figures still build: the diverged model has no rollout, others do.
     assert (sweep / "figures" / "spring_energy.png").exists()
@@ -166,25 +177,41 @@ def test_a_training_set_size_sweep_draws_the_data_efficiency_figure(tmp_path):
         assert xs == [10.0, 25.0, 50.0]
 
 
-def test_a_pair_with_a_diverged_seed_is_never_marked_best():
-    """Its mean is over the surviving seeds only; the best of the fully ok rows is bold."""
-    board = pd.DataFrame({
-        "profile": "paper", "system": "pendulum", "ranked": True, "n_seeds": 3,
-        "model": ["lnn_torch", "hnn_torch", "mlp_torch", "oracle"],
-        "n_ok": [2, 3, 3, 3], "energy_mse_mean": [1e-6, 1e-3, 1e-2, 1e-12]})
-    board.loc[3, "ranked"] = False
-    assert report.tables.best_cells(board) == {(1, "energy_mse")}
-    board["n_ok"] = 3
-    assert report.tables.best_cells(board) == {(0, "energy_mse")}
+def test_the_family_table_marks_best_only_when_separated(tmp_path):
+    """Five paired seeds, each better: bold; two: the leaders are tied (italics). The
+    oracle is shown, never marked."""
+    pairs = (("spring", "mlp_torch"), ("spring", "hnn_torch"), ("spring", "oracle"))
+    for seeds, wrap in (((0, 1, 2, 3, 4), "**"), ((0, 1), "*")):
+        sweep = make_sweep(tmp_path / str(len(seeds)), pairs=pairs, seeds=seeds,
+                           rollout=False)
+        assert report.main([str(sweep), "--no-figures"]) == 0
+        md = (sweep / "leaderboard.md").read_text()
+        hnn = next(ln for ln in md.splitlines() if ln.startswith("| spring") and "| hnn " in ln)
+        values = [seed_metrics("spring", "hnn_torch", s)["energy_mse"] for s in seeds]
+        assert f"| {wrap}{np.mean(values):.1e} [" in hnn, hnn
+        oracle = next(ln for ln in md.splitlines() if "| oracle " in ln)
+        assert "*" not in oracle
+        families = pd.read_csv(sweep / "families.csv").set_index("family")
+        assert families.loc["hnn", "energy_mse_mark"] == ("best" if wrap == "**" else "tied")
 
 
-def test_an_unranked_metric_is_never_marked_best():
-    """reversibility_error is a diagnostic a broken model wins (Metric.ranked=False)."""
-    board = pd.DataFrame({
-        "profile": "paper", "system": "spring", "ranked": True, "n_seeds": 3, "n_ok": 3,
-        "model": ["lnn_jax", "hnn_jax"], "energy_mse_mean": [5.9, 1e-3],
-        "reversibility_error_mean": [9e-7, 1e-2]})
-    assert report.tables.best_cells(board) == {(1, "energy_mse")}
+def test_reasons_and_cpu_seconds_are_in_every_table(tmp_path):
+    sweep = make_sweep(tmp_path / "s", pairs=(("spring", "hnn_torch"),), seeds=(0, 1),
+                       rollout=False)
+    write_run(sweep, "spring", "mlp_torch", 0, status="skipped", rollout=False)
+    set_status(sweep, "spring", "hnn_torch", 1, "diverged")
+    assert report.main([str(sweep), "--no-figures"]) == 0
+    board = _board(sweep)
+    assert _row(board, "spring", "mlp_torch")["reason"] == "skipped (seed 0): synthetic skipped"
+    assert _row(board, "spring", "hnn_torch")["reason"] == \
+        "diverged (seed 1): synthetic diverged"
+    md = (sweep / "leaderboard.md").read_text()
+    for table in md.split("\n\n"):
+        if table.startswith("| system") and "twin" not in table.splitlines()[0]:
+            assert "| reason" in table.splitlines()[0] and "cpu_s" in table.splitlines()[0]
+            assert "synthetic skipped" in table and "synthetic diverged" in table
+    page = (sweep / "leaderboard.html").read_text()
+    assert page.count("synthetic skipped") >= 2  # the family table and every model's
 
 
 def test_format_value():

@@ -448,14 +448,13 @@ def test_fuzz_the_loader_never_raises_and_names_every_file_left_out(real, tmp_pa
 
 
 def test_a_value_outside_its_domain_is_never_marked_best(tmp_path):
-    """The report (not strict) shows such a record, but never as the best value."""
-    from hnnbench._report.tables import best_cells
-    from hnnbench._table import leaderboard
+    """The report (not strict) shows such a record, but never marks it best or tied."""
+    from hnnbench._families import families
+    from hnnbench._table import records_frame
 
     for model, value in (("mlp_torch", -5.0), ("hnn_torch", 2e-3), ("dhnn_torch", 1e-2)):
-        write_run(tmp_path, "spring", model, 0, metrics={"energy_mse": value})
-    recs = R.load(tmp_path).records
-    board = leaderboard(recs).reset_index(drop=True)
-    best = {board.loc[row, "model"] for row, metric in best_cells(board)
-            if metric == "energy_mse"}
-    assert best == {"hnn_torch"}
+        for seed in range(5):
+            write_run(tmp_path, "spring", model, seed, metrics={"energy_mse": value},
+                      rollout=False)
+    board = families(records_frame(R.load(tmp_path).records)).board.set_index("family")
+    assert board["energy_mse_mark"].to_dict() == {"mlp": "", "hnn": "best", "dhnn": ""}

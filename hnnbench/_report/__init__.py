@@ -1,9 +1,13 @@
-"""Reports from run records: the leaderboard as CSV, Markdown and HTML, comparisons
-with published results and claims, and figures.
+"""Reports from run records: the leaderboard as CSV, Markdown and HTML with its
+verdicts (intervals, one competitor per family, best and tied, the aggregate across
+systems: docs/STATISTICS.md), comparisons with published results and claims, and
+figures.
 
 ``hnnbench report DIR [DIR ...]`` and :func:`write_report` build everything; the
 pieces are importable: :mod:`~hnnbench._report.inputs` (records, provenance),
-:mod:`~hnnbench._report.tables`, :mod:`~hnnbench._report.published`,
+:mod:`~hnnbench._report.tables` (the family table, the twin table, every model's row),
+:mod:`~hnnbench._report.verdicts` (the family view and the aggregate across systems),
+:mod:`~hnnbench._report.published`,
 :mod:`~hnnbench._report.figures` (the figure registry), :mod:`~hnnbench._report.html`.
 """
 

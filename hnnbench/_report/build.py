@@ -2,11 +2,19 @@
 
 Writes into ``out`` (default: the only sweep directory):
 
-- ``leaderboard.csv``: one row per (profile, system, model, variant): status counts,
-  mean and std over seeds of every metric (``<metric>_mean``, ``<metric>_std``), mean
-  wall times, provenance (commits, machines, dates). Also the reference format of
-  ``hnnbench check``.
-- ``leaderboard.md``: the same table, ``mean ± std``, best values in bold.
+- ``leaderboard.csv``: one row per (profile, system, model, variant): status counts and
+  the reason of every run that was not ``ok``, mean, std and 95% interval over seeds of
+  every metric (``<metric>_mean``, ``<metric>_std``, ``<metric>_ci_low``,
+  ``<metric>_ci_high``), mean times (``cpu_s_mean`` among them), provenance (commits,
+  machines, dates). Also the reference format of ``hnnbench check``.
+- ``families.csv``: one row per family (:mod:`hnnbench._families`): its primary twin's
+  row, the twins, and per ranked metric its mark (``best``, ``tied``) and p-value.
+- ``twins.csv``: the agreement of every family's twins.
+- ``aggregate.csv``, ``improvement.csv``, ``aggregate_scales.csv``: the aggregate across
+  systems (:mod:`hnnbench._aggregate`): each family's IQM with its interval, P(A > B),
+  and the normalisation of every (system, metric).
+- ``leaderboard.md``: the family table (marks), the twin agreement, every model's row;
+  ``aggregate.md``: the aggregate and the verdicts its intervals support.
 - ``paper_comparison.md``: published values next to ours, and every claim.
 - ``figures/``: the registered figures (:mod:`hnnbench._report.figures`).
 - ``leaderboard.html``: one self-contained page with all of the above.
@@ -28,6 +36,7 @@ from hnnbench._report.html import page
 from hnnbench._report.inputs import ReportError, load_sweeps, provenance
 from hnnbench._report.published import comparison_markdown
 from hnnbench._report.tables import leaderboard_markdown
+from hnnbench._report.verdicts import Verdicts, aggregate_markdown, build_verdicts
 from hnnbench._table import leaderboard
 
 log = logging.getLogger("hnnbench")
@@ -43,12 +52,15 @@ class Report:
     figures: list[Made] = field(default_factory=list)
     records: list[dict[str, Any]] = field(default_factory=list)
     unreadable: list[R.Unreadable] = field(default_factory=list)
+    verdicts: Verdicts | None = None
 
 
 def write_report(sweep_dir: Path | str | Sequence[Path | str], out: Path | str | None = None,
-                 figures: bool = True, strict: bool = False) -> Report:
+                 figures: bool = True, strict: bool = False, aggregate: bool = True
+                 ) -> Report:
     """Build every table and figure of the sweep directories into ``out`` (default: the
-    sweep, when there is one); ``figures=False`` skips the figures; ``strict``: every
+    sweep, when there is one); ``figures=False`` skips the figures, ``aggregate=False``
+    the aggregate across systems (a sweep's rewrite while it runs); ``strict``: every
     record is checked in full (:func:`hnnbench._records.load`, strict), and an
     unreadable or invalid record is an error instead of a warning."""
     dirs = [Path(sweep_dir)] if isinstance(sweep_dir, (str, Path)) else [Path(d) for d in
@@ -66,18 +78,35 @@ def write_report(sweep_dir: Path | str | Sequence[Path | str], out: Path | str |
     except OSError as err:
         raise ReportError(f"Cannot create output directory {out}: {err.strerror}") from None
     board = leaderboard(recs)
-    report = Report(out=out, board=board, records=recs, unreadable=bad)
-    report.files["csv"] = out / "leaderboard.csv"
-    R.atomic_write_text(report.files["csv"], board.to_csv(index=False))
-    report.figures = make_figures(recs, board, out / "figures") if figures else []
+    verdicts = build_verdicts(recs, board, with_aggregate=aggregate)
+    report = Report(out=out, board=board, records=recs, unreadable=bad, verdicts=verdicts)
+    agg = verdicts.aggregate
+    tables = {"csv": ("leaderboard.csv", board),
+              "families": ("families.csv", verdicts.families.board),
+              "twins": ("twins.csv", verdicts.families.twins)}
+    if aggregate:
+        tables.update(aggregate=("aggregate.csv", agg.iqm),
+                      improvement=("improvement.csv", agg.improvement),
+                      scales=("aggregate_scales.csv", agg.scales))
+    for key, (name, frame) in tables.items():
+        report.files[key] = out / name
+        R.atomic_write_text(report.files[key], frame.to_csv(index=False))
+    report.figures = make_figures(recs, board, out / "figures", verdicts) if figures else []
     prov = provenance(recs)
     heatmaps = tuple(m.path.stem for m in report.figures if m.kind == "heatmap")
     report.files["md"] = out / "leaderboard.md"
-    R.atomic_write_text(report.files["md"], leaderboard_markdown(board, prov, heatmaps))
+    R.atomic_write_text(report.files["md"], leaderboard_markdown(board, verdicts.families,
+                                                                 prov, heatmaps))
+    if aggregate:
+        profile = next((m.path for m in report.figures if m.kind == "profile"), None)
+        report.files["aggregate_md"] = out / "aggregate.md"
+        R.atomic_write_text(report.files["aggregate_md"], aggregate_markdown(
+            verdicts, f"figures/{profile.name}" if profile is not None else None))
     report.files["paper"] = out / "paper_comparison.md"
     R.atomic_write_text(report.files["paper"], comparison_markdown(board))
     report.files["html"] = out / "leaderboard.html"
-    R.atomic_write_text(report.files["html"], page(board, report.figures, prov, recs, bad))
+    R.atomic_write_text(report.files["html"], page(board, report.figures, prov, recs, bad,
+                                                   verdicts))
     return report
 
 

@@ -7,8 +7,7 @@ from pathlib import Path
 
 from hnnbench._errors import OneLineArgumentParser
 from hnnbench._report.build import write_report
-from hnnbench._report.tables import md_table
-from hnnbench._table import display_frame
+from hnnbench._report.tables import families_markdown
 
 __all__ = ["main"]
 
@@ -32,12 +31,14 @@ def main(args: Sequence[str]) -> int:
     ns = _parser().parse_args(list(args))
     report = write_report([Path(d) for d in ns.dirs], ns.out, figures=not ns.no_figures,
                           strict=ns.strict)
-    print(md_table(display_frame(report.board)))
+    assert report.verdicts is not None
+    print(families_markdown(report.verdicts.families))
     print()
     for item in report.unreadable:
         print(f"warning: record left out: {item}")
-    print(f"wrote {report.files['csv']}, {report.files['md'].name}, "
-          f"{report.files['paper'].name}, {report.files['html'].name} and "
+    others = ", ".join(path.name for key, path in report.files.items()
+                       if key not in ("csv", "html"))
+    print(f"wrote {report.files['csv']}, {others}, {report.files['html'].name} and "
           f"{len(report.figures)} figure(s) in {report.out / 'figures'} from "
           f"{len(report.records)} record(s)")
     return 0

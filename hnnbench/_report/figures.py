@@ -6,8 +6,10 @@ Two scopes:
   (``rollout.npz``) of the lowest seed: phase portraits, the true energy along each
   rollout, the learned conserved quantity, loss curves;
 - ``"board"``: figures of the whole leaderboard, or of records across variants: rank
-  heatmaps (models x systems) and the metric against a swept numeric setting (e.g. the
-  training-set size, ``system.n_traj=10,25,50,100``).
+  heatmaps (families x systems, with a distinct mark for a pair not run, skipped,
+  failed, timed out, diverged or not applicable), the performance profiles of the
+  aggregate, and the metric against a swept numeric setting (e.g. the training-set
+  size, ``system.n_traj=10,25,50,100``).
 
 Styles come from record fields (family, backend; :mod:`hnnbench._report.style`) and
 order from the registry; nothing here names a model or system.
@@ -34,6 +36,7 @@ from hnnbench import _records as R
 from hnnbench import _registry as registry
 from hnnbench._contract import HISTORY_TRAIN, HISTORY_VALID
 from hnnbench._errors import UnsafePathError
+from hnnbench._families import family_order
 from hnnbench._paths import safe_join
 from hnnbench._record_schema import name_problem
 from hnnbench._report import style
@@ -41,11 +44,18 @@ from hnnbench._table import format_value, metric_declarations, variant_labels
 
 log = logging.getLogger("hnnbench")
 
-__all__ = ["FIGURES", "FigureKind", "Made", "Run", "SystemRuns", "figure", "make_figures",
-           "rank_table", "runs_for_figures", "slug"]
+__all__ = ["CELL_STATES", "FIGURES", "FigureKind", "Made", "Run", "SystemRuns", "cell_states",
+           "figure", "figure_arrays", "make_figures", "rank_table", "runs_for_figures",
+           "slug"]
 
 #: How many evaluation trajectories the rollout figures show.
 N_TRAJ_SHOWN = 3
+#: The most time points per trajectory a published figure rollout keeps
+#: (:func:`figure_arrays`).
+FIGURE_POINTS = 200
+#: The arrays of a rollout file that the system figures draw.
+FIGURE_ARRAYS = ("t", "states_true", "states_hat", "energy_true", "energy_hat",
+                 "learned_energy")
 _TRAJ_COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c")
 
 
@@ -71,6 +81,12 @@ class SystemRuns:
     label: str
     seed: int
     runs: list[Run]
+    #: Models that ran on the system but have no rollout file to draw.
+    missing: list[str] = field(default_factory=list)
+
+    def note(self) -> str:
+        """``"; no rollout: a, b"`` for a figure's title, or ``""``."""
+        return f"; no rollout: {', '.join(self.missing)}" if self.missing else ""
 
     @property
     def models(self) -> list[str]:
@@ -104,7 +120,8 @@ FIGURES: dict[str, FigureKind] = {}
 def figure(name: str, title: str, scope: Literal["system", "board"] = "system"
            ) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     """Register a figure kind. A ``"system"`` figure is ``make(SystemRuns) -> Figure |
-    None``; a ``"board"`` figure is ``make(board, records) -> {file stem: Figure}``."""
+    None``; a ``"board"`` figure is ``make(board, records, verdicts) -> {file stem:
+    Figure}`` (``verdicts``: :class:`hnnbench._report.verdicts.Verdicts`, or ``None``)."""
     def register(make: Callable[..., Any]) -> Callable[..., Any]:
         FIGURES[name] = FigureKind(name, title, scope, make)
         return make
@@ -126,9 +143,33 @@ def _load_npz(path: Path) -> dict[str, np.ndarray]:
         return {}
 
 
+def figure_arrays(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """What the system figures draw of a rollout file, made small enough to publish with
+    the records: the first :data:`N_TRAJ_SHOWN` trajectories of :data:`FIGURE_ARRAYS`,
+    at most :data:`FIGURE_POINTS` time points each (evenly spaced, the first and last
+    kept), and the training history, all as float32. The figures drawn from it are
+    those of the full file up to the thinning of the time grid."""
+    out: dict[str, np.ndarray] = {}
+    t = np.asarray(arrays.get("t", np.zeros(0)))
+    keep = np.unique(np.linspace(0, t.size - 1, min(t.size, FIGURE_POINTS)).round()
+                     .astype(int)) if t.size else np.zeros(0, dtype=int)
+    for key, value in arrays.items():
+        value = np.asarray(value)
+        if key == "t":
+            value = value[keep]
+        elif key in FIGURE_ARRAYS and value.ndim >= 2 and value.shape[1] == t.size:
+            value = value[:N_TRAJ_SHOWN][:, keep]
+        elif not key.startswith("history."):
+            continue
+        out[key] = value.astype(np.float32) if value.dtype.kind == "f" else value
+    return out
+
+
 def runs_for_figures(recs: list[dict[str, Any]]) -> tuple[Optional[int], list[Run]]:
-    """The lowest seed with a rollout file, and each model's run of that seed, in
-    registry order."""
+    """The lowest seed with a rollout file, and each model's run of that seed that has
+    one, in registry order (a record without one, e.g. a published record whose figure
+    rollout was not kept, is left out without a warning; the figures name such models:
+    :attr:`SystemRuns.missing`)."""
     seeds = sorted({int(r["seed"]) for r in recs if r.get("seed") is not None
                     and r.get("path") and (Path(r["path"]) / R.ROLLOUT_NAME).exists()})
     if not seeds:
@@ -137,6 +178,8 @@ def runs_for_figures(recs: list[dict[str, Any]]) -> tuple[Optional[int], list[Ru
     runs = []
     for rec in recs:
         if rec.get("seed") != seed or rec.get("status") not in ("ok", "diverged"):
+            continue
+        if not rec.get("path") or not (Path(rec["path"]) / R.ROLLOUT_NAME).exists():
             continue
         arrays = _load_npz(Path(rec["path"]) / R.ROLLOUT_NAME)
         if arrays:
@@ -190,7 +233,7 @@ def phase_figure(ctx: SystemRuns) -> Any:
     handles.append(Line2D([], [], color="w", marker="o", mec="k", mfc="0.6", label="start"))
     fig.legend(handles=handles, loc="outside right upper", fontsize=8)
     fig.suptitle(f"{ctx.label}: phase portraits (q1, p1) of evaluation trajectories 1–{n_traj}, "
-                 f"true vs model rollout (seed {ctx.seed})")
+                 f"true vs model rollout (seed {ctx.seed}){ctx.note()}")
     return fig
 
 
@@ -214,7 +257,7 @@ def energy_figure(ctx: SystemRuns) -> Any:
         ax.grid(alpha=0.3)
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside right upper", fontsize=8)
-    missing = [r.model for r in ctx.runs if r not in shown]
+    missing = [*(r.model for r in ctx.runs if r not in shown), *ctx.missing]
     note = f"; no rollout: {', '.join(missing)}" if missing else ""
     fig.suptitle(f"{ctx.label}: true energy along each model's rollout (seed {ctx.seed}){note}")
     return fig
@@ -239,7 +282,7 @@ def learned_energy_figure(ctx: SystemRuns) -> Any:
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside right upper", fontsize=8)
     fig.suptitle(f"{ctx.label}: learned conserved quantity along its own rollout, shifted to "
-                 f"start at 0 (seed {ctx.seed})")
+                 f"start at 0 (seed {ctx.seed}){ctx.note()}")
     return fig
 
 
@@ -264,72 +307,191 @@ def loss_figure(ctx: SystemRuns) -> Any:
     ax.set_ylabel("loss")
     ax.grid(alpha=0.3, which="both")
     ax.legend(loc="best", fontsize=7, ncol=2)
-    ax.set_title(f"{ctx.label}: training and validation loss (seed {ctx.seed})")
+    ax.set_title(f"{ctx.label}: training and validation loss (seed {ctx.seed}){ctx.note()}")
     return fig
 
 
 # --------------------------------------------------------------------------- board scope
 
+#: How a heatmap cell that holds no rank looks: ``(face colour, text, text colour)``.
+CELL_STATES: dict[str, tuple[str, str, str]] = {
+    "not run": ("#ffffff", "not run", "0.55"),
+    "skipped": ("#d9d9d9", "skipped", "0.25"),
+    "failed": ("#f4a6a6", "failed", "k"),
+    "timeout": ("#f9d29d", "timeout", "k"),
+    "n/a": ("#f2f2f2", "n/a", "0.45"),
+}
+#: A diverged pair (its mean is ``inf``) keeps its rank, on this colour.
+DIVERGED_COLOR = "#3b0a45"
+#: A cell's mark after its rank: best (separated by the sign test) and tied (not
+#: separated from the leader), as in the family table.
+RANK_MARKS = {"best": " \u2605", "tied": " ="}
 
-def rank_table(board: pd.DataFrame, metric: str) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """``(ranks, values)``: models x systems; rank 1 is the best ranked model of the
-    system (ties share a rank; ``inf``, a diverged rollout, ranks last), NaN where the
-    pair has no value."""
-    declared = metric_declarations()
-    higher = declared[metric].better == "higher" if metric in declared else False
+
+def _family_rows(board: pd.DataFrame) -> pd.DataFrame:
     rows = board[board["ranked"].fillna(True).astype(bool)] if "ranked" in board else board
     if "variant" in rows:
         rows = rows[rows["variant"].fillna("").astype(str) == ""]
+    return rows
+
+
+def rank_table(board: pd.DataFrame, metric: str) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """``(ranks, values)``: families x systems of a family board
+    (:attr:`hnnbench._families.Families.board`; a leaderboard's rows are ranked by
+    model); rank 1 is the best ranked family of the system (ties share a rank; ``inf``,
+    a diverged rollout, ranks last), NaN where the pair has no value."""
+    declared = metric_declarations()
+    higher = declared[metric].better == "higher" if metric in declared else False
+    rows = _family_rows(board)
+    key = "family" if "family" in rows and "seeds_from" in rows else "model"
     systems = registry.ordered("system", rows["system"].astype(str))
-    models = registry.ordered("model", rows["model"].astype(str))
-    values = rows.pivot_table(index="model", columns="system", values=f"{metric}_mean",
-                              aggfunc="first", dropna=False).reindex(index=models,
+    names = family_order(rows) if key == "family" else \
+        registry.ordered("model", rows["model"].astype(str))
+    values = rows.pivot_table(index=key, columns="system", values=f"{metric}_mean",
+                              aggfunc="first", dropna=False).reindex(index=names,
                                                                      columns=systems)
     ranks = values.rank(axis=0, ascending=not higher, method="min")
     return ranks, values
 
 
-@figure("heatmap", "Which model wins where: rank by metric", scope="board")
-def heatmap_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    out = {}
-    for metric in _plotted("heatmap"):
-        if f"{metric}_mean" not in board or board[f"{metric}_mean"].isna().all():
+def cell_states(board: pd.DataFrame, metric: str, index: Sequence[str],
+                columns: Sequence[str]) -> pd.DataFrame:
+    """families x systems: why a heatmap cell holds no rank (a key of
+    :data:`CELL_STATES`), ``"diverged"`` for an ``inf`` mean, ``""`` for a value."""
+    rows = _family_rows(board)
+    out = pd.DataFrame("not run", index=list(index), columns=list(columns))
+    for _, r in rows.iterrows():
+        family, system = str(r["family"]), str(r["system"])
+        if family not in out.index or system not in out.columns:
             continue
-        ranks, values = rank_table(board, metric)
-        if ranks.shape[0] < 2 or values.isna().all().all():
-            continue  # a ranking needs two models
-        out[f"heatmap_{metric}"] = _heatmap(ranks, values, metric)
+        n = int(r.get("n_seeds", 0) or 0)
+        value = pd.to_numeric(r.get(f"{metric}_mean"), errors="coerce")
+        if n and int(r.get("n_skipped", 0) or 0) == n:
+            state = "skipped"
+        elif pd.isna(value) and int(r.get("n_timeout", 0) or 0):
+            state = "timeout"
+        elif pd.isna(value) and int(r.get("n_failed", 0) or 0):
+            state = "failed"
+        elif pd.isna(value):
+            state = "n/a"
+        elif math.isinf(float(value)):
+            state = "diverged"
+        else:
+            state = ""
+        out.at[family, system] = state
     return out
 
 
-def _heatmap(ranks: pd.DataFrame, values: pd.DataFrame, metric: str) -> Any:
-    import matplotlib as mpl
+@figure("heatmap", "Which family wins where: rank by metric", scope="board")
+def heatmap_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
+                    verdicts: Any = None) -> dict[str, Any]:
+    fams = getattr(getattr(verdicts, "families", None), "board", None)
+    if fams is None or fams.empty:
+        return {}
+    out = {}
+    for metric in _plotted("heatmap"):
+        if f"{metric}_mean" not in fams or fams[f"{metric}_mean"].isna().all():
+            continue
+        ranks, values = rank_table(fams, metric)
+        if ranks.shape[0] < 2 or values.isna().all().all():
+            continue  # a ranking needs two families
+        states = cell_states(fams, metric, list(values.index), list(values.columns))
+        marks = _marks(fams, metric)
+        out[f"heatmap_{metric}"] = _heatmap(ranks, values, states, marks, metric)
+    return out
 
-    n_models, n_systems = ranks.shape
+
+def _marks(board: pd.DataFrame, metric: str) -> dict[tuple[str, str], str]:
+    if f"{metric}_mark" not in board:
+        return {}
+    rows = _family_rows(board)
+    return {(str(r["family"]), str(r["system"])): str(r[f"{metric}_mark"])
+            for _, r in rows.iterrows() if str(r[f"{metric}_mark"] or "") in ("best", "tied")}
+
+
+def _heatmap(ranks: pd.DataFrame, values: pd.DataFrame, states: pd.DataFrame,
+             marks: dict[tuple[str, str], str], metric: str) -> Any:
+    import matplotlib as mpl
+    from matplotlib.patches import Patch
+
+    n_rows, n_systems = ranks.shape
     fig, (ax,) = _new_figure(1, width=max(6.0, 1.05 * n_systems + 2.5),
-                             height=max(3.0, 0.42 * n_models + 1.6))
+                             height=max(3.0, 0.42 * n_rows + 2.0))
     worst = max(float(np.nanmax(ranks.to_numpy())), 2.0) if ranks.notna().any().any() else 2.0
-    shade = (ranks - 1) / (worst - 1)
-    cmap = mpl.colormaps["RdYlGn_r"].with_extremes(bad="#eeeeee")
-    ax.imshow(np.ma.masked_invalid(shade.to_numpy(dtype=float)), cmap=cmap, vmin=0, vmax=1,
-              aspect="auto")
+    shade = ((ranks - 1) / (worst - 1)).to_numpy(dtype=float)
+    rgba = mpl.colormaps["RdYlGn_r"](np.nan_to_num(shade))
+    for i in range(n_rows):
+        for j in range(n_systems):
+            state = str(states.iat[i, j])
+            if state in CELL_STATES:
+                rgba[i, j] = mpl.colors.to_rgba(CELL_STATES[state][0])
+            elif state == "diverged":
+                rgba[i, j] = mpl.colors.to_rgba(DIVERGED_COLOR)
+    ax.imshow(rgba, aspect="auto")
     linear = metric_declarations().get(metric)
     lin = linear is not None and linear.scale == "linear"
-    for i in range(n_models):
-        for j in range(n_systems):
-            v, r = float(cast(float, values.iat[i, j])), float(cast(float, ranks.iat[i, j]))
-            if math.isnan(v):
-                ax.text(j, i, "—", ha="center", va="center", fontsize=7, color="0.5")
+    for i, family in enumerate(values.index):
+        for j, system in enumerate(values.columns):
+            state = str(states.iat[i, j])
+            if state in CELL_STATES:
+                ax.text(j, i, CELL_STATES[state][1], ha="center", va="center", fontsize=6.5,
+                        color=CELL_STATES[state][2])
                 continue
-            text = format_value(v, linear=lin)
-            ax.text(j, i, f"{int(r)}\n{text}", ha="center", va="center", fontsize=6.5,
-                    color="k")
+            v, r = float(cast(float, values.iat[i, j])), float(cast(float, ranks.iat[i, j]))
+            mark = marks.get((str(family), str(system)), "")
+            text = "diverged" if state == "diverged" else format_value(v, linear=lin)
+            dark = state == "diverged" or not 0.15 < float(shade[i, j]) < 0.85
+            ax.text(j, i, f"{int(r)}{RANK_MARKS.get(mark, '')}\n{text}", ha="center",
+                    va="center", fontsize=6.5, color="w" if dark else "k",
+                    fontweight="bold" if mark == "best" else "normal")
     ax.set_xticks(range(n_systems), [str(s) for s in values.columns], rotation=35,
                   ha="right", fontsize=8)
-    ax.set_yticks(range(n_models), [str(m) for m in values.index], fontsize=8)
-    ax.set_title(f"Rank by {metric} within each system (1 = best; value below the rank; "
-                 "grey: no value)", fontsize=9)
+    ax.set_yticks(range(n_rows), [str(m) for m in values.index], fontsize=8)
+    ax.set_title(f"Rank of each family by {metric} within each system (1 = best, the mean "
+                 "below; \u2605 best: separated from every other family by the sign test; "
+                 "= tied: not separated from the leader)", fontsize=9)
+    handles = [Patch(facecolor=DIVERGED_COLOR, label="diverged (inf)")]
+    handles += [Patch(facecolor=c, edgecolor="0.6", label=t) for c, t, _ in CELL_STATES.values()]
+    fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=7,
+               frameon=False)
     return fig
+
+
+@figure("profile", "Performance profiles: the share of runs above each normalised score",
+        scope="board")
+def profile_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
+                    verdicts: Any = None) -> dict[str, Any]:
+    """One panel per headline metric: per family, the share of its (system, seed) runs
+    whose normalised score exceeds tau, with the stratified bootstrap's 95% band
+    (:mod:`hnnbench._aggregate`)."""
+    agg = getattr(verdicts, "aggregate", None)
+    if agg is None or not agg.profiles or \
+            max(len(curves) for _, curves in agg.profiles.values()) < 2:
+        return {}  # a profile compares two families at least
+    profiles = list(dict.fromkeys(p for p, _ in agg.profiles))
+    out = {}
+    for profile in profiles:
+        metrics = [m for p, m in agg.profiles if p == profile]
+        fig, axes = _new_figure(len(metrics), width=4.4, height=3.6)
+        for ax, metric in zip(axes, metrics, strict=True):
+            taus, curves = agg.profiles[(profile, metric)]
+            for family, (point, low, high) in curves.items():
+                color = style.family_color(family)
+                ax.plot(taus, point, color=color, lw=1.6, label=family)
+                ax.fill_between(taus, low, high, color=color, alpha=0.15, lw=0)
+            ax.axvline(0.0, color="0.5", lw=0.8, ls=":")
+            ax.set_xlabel(f"normalised score tau ({agg.baseline} = 0, floor = 1)")
+            ax.set_ylabel("share of runs with score > tau")
+            ax.set_title(metric, fontsize=9)
+            ax.set_ylim(0, 1.02)
+            ax.grid(alpha=0.3)
+        handles, labels = axes[0].get_legend_handles_labels()
+        fig.legend(handles, labels, loc="outside right upper", fontsize=8)
+        fig.suptitle("Performance profiles over every (system, seed) run, 95% stratified "
+                     "bootstrap bands", fontsize=9)
+        out["performance_profile" if len(profiles) == 1 else
+            f"performance_profile_{profile}"] = fig
+    return out
 
 
 def _swept_key(recs: Sequence[dict[str, Any]]) -> Optional[str]:
@@ -353,7 +515,8 @@ def _swept_key(recs: Sequence[dict[str, Any]]) -> Optional[str]:
 
 @figure("sweep", "Metric against a swept setting (e.g. the training-set size)",
         scope="board")
-def sweep_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]]) -> dict[str, Any]:
+def sweep_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
+                  verdicts: Any = None) -> dict[str, Any]:
     """Per system, each metric of interest against the value of the one numeric setting
     the sweep varied, one line per model (mean ± std over seeds)."""
     key = _swept_key(recs)
@@ -419,16 +582,18 @@ class Made:
         return iter((self.label, self.kind, self.path))
 
 
-def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Path
-                 ) -> list[Made]:
-    """Every registered figure into ``directory``."""
+def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Path,
+                 verdicts: Any = None) -> list[Made]:
+    """Every registered figure into ``directory`` (board figures get ``verdicts``, a
+    :class:`hnnbench._report.verdicts.Verdicts`, for the family heatmaps and the
+    performance profiles)."""
     directory = Path(directory)
     made: list[Made] = []
     for kind in FIGURES.values():
         if kind.scope != "board":
             continue
         try:
-            figures = kind.make(board, recs)
+            figures = kind.make(board, recs, verdicts)
         except Exception as err:  # one broken figure must not stop the report
             log.warning("figure %s failed: %s", kind.name, err)
             continue
@@ -462,7 +627,11 @@ def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Pat
         stem = system if len(profiles) == 1 else f"{profile}_{system}"
         if variant:
             stem += "__" + slug(variant)
-        ctx = SystemRuns(f"{system} [{variant}]" if variant else system, seed, runs)
+        drawn = {r.model for r in runs}
+        missing = registry.ordered("model", {
+            str(r.get("model")) for r in groups[(profile, system, variant)]
+            if r.get("status") in ("ok", "diverged") and str(r.get("model")) not in drawn})
+        ctx = SystemRuns(f"{system} [{variant}]" if variant else system, seed, runs, missing)
         for kind in FIGURES.values():
             if kind.scope != "system":
                 continue

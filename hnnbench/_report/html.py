@@ -13,10 +13,18 @@ from typing import Any, Optional
 import pandas as pd
 
 from hnnbench import _records as R
+from hnnbench import _stats as stats
 from hnnbench._report.figures import FIGURES, Made
 from hnnbench._report.inputs import provenance_lines
 from hnnbench._report.published import claims_frame, comparison_frame
-from hnnbench._report.tables import best_cells, seed_line
+from hnnbench._report.tables import family_display, seed_line, twins_display, twins_line
+from hnnbench._report.verdicts import (
+    Verdicts,
+    aggregate_frame,
+    left_out_lines,
+    marks_line,
+    supported_lines,
+)
 from hnnbench._table import display_frame
 
 __all__ = ["page"]
@@ -32,6 +40,7 @@ table.sortable th{cursor:pointer}table.sortable th:hover{background:#e4e4e4}
 th[data-dir=asc]::after{content:" ▲"}th[data-dir=desc]::after{content:" ▼"}
 tr:nth-child(even) td{background:#fafafa}
 td.best,tr:nth-child(even) td.best{background:#d9f2d9;font-weight:bold}
+td.tied,tr:nth-child(even) td.tied{background:#eef8ee;font-style:italic}
 .wrap{overflow-x:auto}
 td.diverged,td.inf{color:#b00}td.reproduced{color:#070}td.notrep{color:#b00}
 td.notrun{color:#888}
@@ -67,7 +76,9 @@ document.querySelectorAll("table.sortable th").forEach(function (th, col) {
 """
 
 _TEXT_COLUMNS = {"system", "model", "variant", "status", "task", "metric", "source", "claim",
-                 "backend", "result", "our numbers", "path", "reason"}
+                 "backend", "result", "our numbers", "path", "reason", "family",
+                 "seeds_from", "twins", "twin", "seeds from", "shared seeds", "agree",
+                 "difference"}
 
 
 def _sort_value(value: Any) -> str:
@@ -80,9 +91,10 @@ def _sort_value(value: Any) -> str:
 
 def _table(frame: pd.DataFrame, cls: str = "", status_col: Optional[str] = None,
            numbers: Optional[pd.DataFrame] = None,
-           best: Optional[set[tuple[int, str]]] = None) -> str:
+           marks: Optional[dict[tuple[int, str], str]] = None) -> str:
     """An HTML table of ``frame`` (display strings); ``numbers`` holds the numeric sort
-    keys of its metric columns (same rows), ``best`` the cells to highlight."""
+    keys of its metric columns (same rows), ``marks`` the cells to highlight
+    (``"best"`` or ``"tied"``)."""
     txt = ' class="txt"'
     head = "".join(f"<th{txt if c in _TEXT_COLUMNS else ''}>{html.escape(str(c))}</th>"
                    for c in frame.columns)
@@ -101,8 +113,8 @@ def _table(frame: pd.DataFrame, cls: str = "", status_col: Optional[str] = None,
                     classes.append("diverged")
             elif value == "inf":
                 classes.append("inf")
-            if best and (i, col) in best:
-                classes.append("best")
+            if marks and (i, col) in marks:
+                classes.append(marks[(i, col)])
             attrs = f' class="{" ".join(classes)}"' if classes else ""
             if numbers is not None and f"{col}_mean" in numbers.columns:
                 attrs += f' data-v="{_sort_value(numbers.iloc[i][f"{col}_mean"])}"'
@@ -145,29 +157,68 @@ def _provenance_table(recs: Sequence[dict[str, Any]]) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
+def _aggregate_section(verdicts: Verdicts, figures: list[Made]) -> list[str]:
+    agg = verdicts.aggregate
+    parts = ["<h2>Across systems</h2>"]
+    if agg.empty:
+        parts.append(f'<p class="note">No aggregate: {html.escape(agg.note)}.</p>')
+        return parts
+    rule = stats.aggregate_rule(agg.baseline or "the baseline")
+    parts += [f'<p class="note">{_inline_code(rule)}</p>',
+              _table(aggregate_frame(agg), "aggregate"),
+              '<p class="note">What the intervals support:</p><ul>']
+    parts += [f"<li>{_inline_code(line[2:])}</li>" for line in supported_lines(agg)]
+    parts.append(f"<li>{_inline_code(marks_line(verdicts.families))}</li></ul>")
+    parts += [f'<p class="note">{_inline_code(line)}</p>' for line in left_out_lines(agg)]
+    parts += [_img(m.path, m.path.stem) for m in figures if m.kind == "profile"]
+    return parts
+
+
 def page(board: pd.DataFrame, figures: list[Made], prov: dict[str, list[str]],
-         recs: Sequence[dict[str, Any]], unreadable: Sequence[R.Unreadable] = ()) -> str:
+         recs: Sequence[dict[str, Any]], unreadable: Sequence[R.Unreadable] = (),
+         verdicts: Optional[Verdicts] = None) -> str:
     """The whole page."""
-    shown = display_frame(board)
+    if verdicts is None:
+        from hnnbench._report.verdicts import build_verdicts
+
+        verdicts = build_verdicts(list(recs), board)
+    fams = verdicts.families
+    shown_board = fams.board if not fams.board.empty else board
     parts = [
         "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
         "<title>hnnbench leaderboard</title>", f"<style>{CSS}</style></head><body>",
         "<h1>hnnbench leaderboard</h1>",
-        f'<p class="note">{_inline_code(seed_line(board))}</p>',
+        f'<p class="note">{_inline_code(seed_line(shown_board))}</p>',
         *[f'<p class="note">{_inline_code(line[2:])}</p>' for line in provenance_lines(prov)],
+    ]
+    parts += _aggregate_section(verdicts, figures)
+    shown, marks = family_display(fams)
+    parts += [
+        "<h2>Families</h2>",
+        '<p class="note">One row per family: its primary twin\'s seeds (<code>seeds_from</code>); '
+        "click a column header to sort. "
+        f"{_inline_code(stats.best_rule().replace('**', '').replace('*', ''))} "
+        "Highlighted: best (bold) and tied (italics).</p>",
+        _table(shown, "board sortable", status_col="status",
+               numbers=fams.board.reset_index(drop=True), marks=marks),
     ]
     heatmaps = [m for m in figures if m.kind == "heatmap"]
     if heatmaps:
-        parts.append("<h2>Which model wins where</h2>")
-        parts.append('<p class="note">Rank of each trained model within each system '
-                     "(1 = best, value below it); rows without a variant only.</p>")
+        parts.append("<h2>Which family wins where</h2>")
+        parts.append('<p class="note">Rank of each ranked family within each system '
+                     "(1 = best, mean below it; best and tied as in the table); rows "
+                     "without a variant only.</p>")
         parts += [_img(m.path, m.path.stem) for m in heatmaps]
+    parts += ["<h2>Twin agreement</h2>", f'<p class="note">{_inline_code(twins_line(fams))}</p>']
+    twins = twins_display(fams)
+    if not twins.empty:
+        parts.append(_table(twins, "twins sortable"))
     parts += [
-        "<h2>Leaderboard</h2>",
-        '<p class="note">Click a column header to sort. Highlighted: the best value of '
-        "each system among the trained models.</p>",
-        _table(shown, "board sortable", status_col="status", numbers=board.reset_index(drop=True),
-               best=best_cells(board)),
+        "<h2>Every model</h2>",
+        '<p class="note">Both twins of every family, unmarked: the verdicts are the '
+        "families'.</p>",
+        _table(display_frame(board), "models sortable", status_col="status",
+               numbers=board.reset_index(drop=True)),
     ]
     comparison = comparison_frame(board)
     if not comparison.empty:
@@ -179,7 +230,7 @@ def page(board: pd.DataFrame, figures: list[Made], prov: dict[str, list[str]],
     titles = {kind.name: kind.title for kind in FIGURES.values()}
     sections: dict[str, list[Made]] = {}
     for made in figures:
-        if made.kind != "heatmap":
+        if made.kind not in ("heatmap", "profile"):
             sections.setdefault(made.label, []).append(made)
     for label, made_list in sections.items():
         parts.append(f'<h2 id="{html.escape(label)}">{html.escape(label)}</h2>')

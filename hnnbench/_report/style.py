@@ -8,7 +8,7 @@ from typing import Any
 
 from hnnbench import _registry as registry
 
-__all__ = ["color", "line", "model_keys"]
+__all__ = ["color", "family_color", "line", "model_keys"]
 
 PALETTE = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2",
            "#17becf", "#bcbd22", "#7f7f7f")
@@ -45,3 +45,15 @@ def line(model: str, backend: str, families: dict[str, str], models: Sequence[st
     if rank == 0:
         return {**style, "lw": 2.4, "alpha": 0.85, "zorder": 2}
     return {**style, "lw": 1.3, "zorder": 3}
+
+
+def family_color(family: str) -> str:
+    """The colour of a family (a model without one: its name), as :func:`color` gives
+    its models."""
+    infos = registry.MODELS.discover()
+    keys = [infos[m].family if infos[m].family != "-" else m
+            for m in registry.available("model") if m in infos]
+    keys = list(dict.fromkeys(keys))
+    if family not in keys:
+        keys.append(family)
+    return PALETTE[keys.index(family) % len(PALETTE)]

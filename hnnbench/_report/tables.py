@@ -1,18 +1,26 @@
-"""The leaderboard as text: Markdown and the display frame shared with the HTML page,
-with the best value of each system marked."""
+"""The leaderboard as text: the family table (one competitor per family, with its best
+and tied marks), the twin-agreement table and every model's row, in Markdown, and the
+display frames shared with the HTML page."""
 
 from __future__ import annotations
 
-import math
-from typing import Optional, cast
+from typing import Optional
 
 import pandas as pd
 
+from hnnbench import _stats as stats
+from hnnbench._families import Families
 from hnnbench._report.inputs import provenance_lines
 from hnnbench._report.markdown import md_cell, md_code
-from hnnbench._table import display_frame, metric_declarations
+from hnnbench._table import display_frame, short_reason
 
-__all__ = ["best_cells", "leaderboard_markdown", "md_table", "seed_line"]
+__all__ = ["TWIN_FLAG", "families_markdown", "family_display", "leaderboard_markdown",
+           "md_table", "seed_line", "twins_display", "twins_line"]
+
+#: Appended to a family's cell where its twins disagree on that metric.
+TWIN_FLAG = "≠"
+#: The display columns of a family row before its metrics.
+FAMILY_IDS = ("system", "family", "seeds_from")
 
 
 def md_table(frame: pd.DataFrame) -> str:
@@ -25,75 +33,121 @@ def md_table(frame: pd.DataFrame) -> str:
                     disable_numparse=True)
 
 
-def seed_line(board: pd.DataFrame) -> str:
-    profiles = ", ".join(md_code(p) for p in dict.fromkeys(board["profile"].astype(str))) or "?"
-    seeds = sorted({s for v in board["seeds"].astype(str) for s in v.split(";") if s != ""},
-                   key=lambda s: (len(s), s))
+def _seed_counts(board: pd.DataFrame) -> tuple[str, str]:
+    seeds = sorted({s for v in board["seeds"].astype(str) for s in v.split(";")
+                    if s not in ("", "nan")}, key=lambda s: (len(s), s))
     n = board["n_seeds"].astype(int)
     counts = f"{n.min()}" if n.min() == n.max() else f"{n.min()}–{n.max()}"
-    return (f"Profile {profiles}; {counts} seed(s) per pair (seeds {', '.join(seeds)}). "
-            "Cells are mean ± std over seeds (std omitted for one seed), over the `ok` runs "
-            "of a pair (its `diverged` runs if none is ok; `inf` = rollout diverged; "
-            "`—` = no value or not applicable). Bold: the best value of the system among "
-            "the trained models whose every seed is `ok` (the oracle is shown, not "
-            "ranked; a mean over the surviving seeds of a pair that diverged is not).")
+    return counts, ", ".join(seeds)
 
 
-def best_cells(board: pd.DataFrame) -> set[tuple[int, str]]:
-    """``{(row position, metric)}`` holding the best finite mean of its (profile, system,
-    variant) among ranked rows whose every seed is ``ok``, for each ranked metric
-    (:attr:`hnnbench.Metric.ranked`), in the metric's declared
-    direction and within its declared domain. A pair with a diverged or failed seed is
-    averaged over its ``ok`` seeds only, so it would be ranked on its luckier seeds: it
-    is never marked best."""
-    declared = metric_declarations()
-    metrics = [c[:-5] for c in board.columns if c.endswith("_mean") and c[:-5] in declared
-               and declared[c[:-5]].ranked]
-    out: set[tuple[int, str]] = set()
-    board = board.reset_index(drop=True)
-    keys = ["profile", "system"] + (["variant"] if "variant" in board else [])
-    ranked = board["ranked"].fillna(True).astype(bool) if "ranked" in board else \
-        pd.Series(True, index=board.index)
-    if {"n_ok", "n_seeds"} <= set(board.columns):
-        ranked &= board["n_ok"] == board["n_seeds"]
-    for _, group in board[ranked].groupby(keys, dropna=False, sort=False):
-        for metric in metrics:
-            low, high = declared[metric].domain
-            values = pd.to_numeric(group[f"{metric}_mean"], errors="coerce")
-            # a value outside the metric's declared domain (a negative error, from a
-            # record that a strict load refuses) is shown, never marked best
-            values = values[values.apply(lambda v, lo=low, hi=high: math.isfinite(v)
-                                         and lo <= v <= hi)]
-            if len(values) < 2:
-                continue
-            pick = values.idxmax() if declared[metric].better == "higher" else values.idxmin()
-            out.add((int(cast(int, pick)), metric))
+def seed_line(board: pd.DataFrame) -> str:
+    """What the rows and cells of ``board`` (a leaderboard or a family board) are."""
+    profiles = ", ".join(md_code(p) for p in dict.fromkeys(board["profile"].astype(str))) or "?"
+    counts, seeds = _seed_counts(board) if not board.empty else ("0", "")
+    return (f"Profile {profiles}; {counts} seed(s) per row (seeds {seeds}). Cells: "
+            f"{stats.cell_rule()}, over the `ok` runs of a pair (its `diverged` runs if "
+            "none is ok; `inf` = rollout diverged; `—` = no value or not applicable; "
+            "`reason` says why a run was skipped, failed, timed out or diverged). "
+            "`cpu_s`: CPU seconds per job, mean over seeds (`—` for records made before "
+            "hnnbench recorded it; wall times are in the CSV).")
+
+
+def family_display(fams: Families) -> tuple[pd.DataFrame, dict[tuple[int, str], str]]:
+    """The family table's display frame (twin flags applied) and its marks
+    ``{(row, metric): "best" | "tied"}``."""
+    board = fams.board.reset_index(drop=True)
+    shown = display_frame(board, ids=FAMILY_IDS)
+    marks: dict[tuple[int, str], str] = {}
+    for metric in [c[: -len("_mark")] for c in board.columns if c.endswith("_mark")]:
+        if metric not in shown.columns:
+            continue
+        for i, mark in enumerate(board[f"{metric}_mark"].fillna("").astype(str)):
+            if mark:
+                marks[(i, metric)] = mark
+    if "twins_disagree" in board:
+        for i, flagged in enumerate(board["twins_disagree"].fillna("").astype(str)):
+            for metric in flagged.split(";"):
+                if metric in shown.columns:
+                    shown.at[i, metric] = f"{shown.at[i, metric]} {TWIN_FLAG}"
+    if "twins" in board:
+        shown["twins"] = [short_reason(t, 90) or "—" for t in board["twins"].fillna("")]
+    return shown, marks
+
+
+def twins_display(fams: Families) -> pd.DataFrame:
+    """The twin-agreement table for display: one row per (family row, other twin)."""
+    twins = fams.twins
+    if twins.empty:
+        return pd.DataFrame()
+    rows = []
+    for _, r in twins.iterrows():
+        agree = r["agree"]
+        rows.append({
+            "system": r["system"], "family": r["family"],
+            **({"variant": r["variant"]} if twins["variant"].fillna("").ne("").any() else {}),
+            "seeds from": r["model"], "twin": r["twin"],
+            "shared seeds": str(r["shared_seeds"]).replace(";", ", ") or "—",
+            "agree": "—" if agree is None or pd.isna(agree) else ("yes" if agree else "no"),
+            "difference": short_reason(r["difference"], 120) or "—",
+        })
+    return pd.DataFrame(rows)
+
+
+def _bold(shown: pd.DataFrame, marks: dict[tuple[int, str], str]) -> pd.DataFrame:
+    out = shown.copy()
+    for (row, metric), mark in marks.items():
+        text = str(out.at[row, metric])
+        flag = ""
+        if text.endswith(f" {TWIN_FLAG}"):
+            text, flag = text[: -len(TWIN_FLAG) - 1], f" {TWIN_FLAG}"
+        wrap = "**" if mark == "best" else "*"
+        out.at[row, metric] = f"{wrap}{text}{wrap}{flag}"
     return out
 
 
-def _marked(board: pd.DataFrame, bold: str = "**") -> pd.DataFrame:
-    shown = display_frame(board)
-    for row, metric in best_cells(board):
-        if metric in shown.columns:
-            shown.at[row, metric] = f"{bold}{str(shown.at[row, metric])}{bold}"
-    return shown
+def twins_line(fams: Families) -> str:
+    """One line: how many twin pairs agree."""
+    twins = fams.twins
+    if twins.empty:
+        return "No family has twins here."
+    known = twins[twins["agree"].notna()]
+    agree = int(known["agree"].astype(bool).sum())
+    return (f"Twins agree on {agree} of {len(known)} (system, family) pairs: the same status "
+            "and every metric within its declared tolerance (the factor `hnnbench check "
+            f"--rerun` allows, both directions) on every shared seed; `{TWIN_FLAG}` marks a "
+            "cell whose metric the twins disagree on.")
 
 
-def leaderboard_markdown(board: pd.DataFrame, prov: Optional[dict[str, list[str]]] = None,
+def families_markdown(fams: Families) -> str:
+    """The family table with its marks (Markdown)."""
+    shown, marks = family_display(fams)
+    return md_table(_bold(shown, marks))
+
+
+def leaderboard_markdown(board: pd.DataFrame, fams: Families,
+                         prov: Optional[dict[str, list[str]]] = None,
                          figures: tuple[str, ...] = ()) -> str:
-    lines = ["# Leaderboard", "", seed_line(board), ""]
+    """leaderboard.md: the family table (first: the README embeds it), the heatmaps,
+    the twin agreement, and every model's row."""
+    lines = ["# Leaderboard", "", seed_line(fams.board if not fams.board.empty else board), ""]
     if prov is not None:
         lines += [*provenance_lines(prov), ""]
-    lines.append(md_table(_marked(board)))
+    lines += ["## Families", "",
+              "One row per family: its primary twin's seeds (`seeds_from`: the twin with "
+              "the most seeds); the other twins are a parity check. " + stats.best_rule(),
+              "", families_markdown(fams)]
     for figure in figures:
         lines += ["", f"![{md_cell(figure)}](figures/{md_cell(figure)}.png)"]
-    lines += ["", "Machine-readable: `leaderboard.csv`. Built by `hnnbench report` from the "
-              "run records; do not edit by hand.", ""]
+    lines += ["", "## Twin agreement", "", twins_line(fams), ""]
+    twins = twins_display(fams)
+    if not twins.empty:
+        lines.append(md_table(twins))
+        lines.append("")
+    lines += ["## Every model", "",
+              "Both twins of every family, unmarked: the verdicts are the families'.", "",
+              md_table(display_frame(board)), "",
+              "Machine-readable: `leaderboard.csv` (every model), `families.csv` (marks "
+              "and p-values), `twins.csv`, `aggregate.csv`, `improvement.csv`. Built by "
+              "`hnnbench report` from the run records; do not edit by hand.", ""]
     return "\n".join(lines)
-
-
-def marked_display(board: pd.DataFrame) -> tuple[pd.DataFrame, set[tuple[int, str]]]:
-    """The display frame and its best cells (for the HTML page)."""
-    return display_frame(board), best_cells(board)
-
-

@@ -56,6 +56,9 @@ class Family:
             network's inputs.
         order: position of the family's models in listings and tables (each backend's
             model at ``order + 0.1 * k`` in :data:`BACKEND_ORDER`).
+        baseline: the family every other is measured against: the aggregate across
+            systems scores each run between this family's mean (0) and the floor (1)
+            (docs/STATISTICS.md). One installed family declares it.
     """
 
     name: str
@@ -70,6 +73,7 @@ class Family:
     learned_energy: bool = False
     order: Optional[float] = None
     network_inputs: Mapping[str, Literal["z", "q", "p"]] = field(default_factory=dict)
+    baseline: bool = False
 
 
 #: Backends in listing order within a family.

@@ -17,6 +17,7 @@ MLP = Family(
                      "jax": "hnnbench_plugins.models.mlp.jax"},
     order=10,
     observations=("state", "pixels"),
+    baseline=True,
 )
 
 

@@ -1,0 +1,188 @@
+"""The verdicts of a report: the family view (:mod:`hnnbench._families`) and the
+aggregate across systems (:mod:`hnnbench._aggregate`), built once and rendered as
+Markdown: the aggregate table, and which verdicts its intervals support."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional
+
+import pandas as pd
+
+from hnnbench import _stats as stats
+from hnnbench._aggregate import Aggregate, aggregate, headline_metrics
+from hnnbench._families import RANKING_KEY, SCOPE_KEY, Families, families, key_of, select
+from hnnbench._report.markdown import md_code, md_text
+from hnnbench._report.tables import md_table
+from hnnbench._table import records_frame
+
+__all__ = ["Verdicts", "aggregate_frame", "aggregate_markdown", "build_verdicts",
+           "left_out_lines", "main_scope", "marks_line", "supported_lines"]
+
+
+@dataclass
+class Verdicts:
+    """A report's family view and aggregate."""
+
+    families: Families
+    aggregate: Aggregate = field(default_factory=Aggregate)
+
+
+def build_verdicts(records: list[dict], board: pd.DataFrame, with_aggregate: bool = True,
+                   variants: Optional[list[str]] = None) -> Verdicts:
+    """The family view of ``records`` (whose leaderboard is ``board``) and, unless
+    ``with_aggregate`` is false, its aggregate across systems."""
+    frame = records_frame(records, variants)
+    fams = families(frame, board)
+    return Verdicts(fams, aggregate(fams) if with_aggregate else Aggregate(note="not built"))
+
+
+def _fmt(x: float) -> str:
+    if x is None or pd.isna(x):
+        return "—"
+    if math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    text = f"{x:.2f}"
+    return "0.00" if text == "-0.00" else text
+
+
+def _interval(point: float, low: float, high: float) -> str:
+    if pd.isna(point):
+        return "—"
+    if pd.isna(low) or pd.isna(high):
+        return _fmt(point)
+    return f"{_fmt(point)} [{_fmt(low)}, {_fmt(high)}]"
+
+
+def main_scope(frame: pd.DataFrame) -> pd.DataFrame:
+    """The rows of one scope (:data:`hnnbench._families.SCOPE_KEY`) of an aggregate
+    frame: the paper profile's where there is one, else the first scope's."""
+    if frame.empty:
+        return frame
+    if "profile" in frame and (frame["profile"].astype(str) == "paper").any():
+        frame = frame[frame["profile"].astype(str) == "paper"]
+    return select(frame, SCOPE_KEY, key_of(frame.iloc[0], SCOPE_KEY))
+
+
+def aggregate_frame(agg: Aggregate, metrics: Optional[list[str]] = None) -> pd.DataFrame:
+    """One row per family: the IQM [interval] of each of ``metrics`` (default: the
+    headline metrics that have an aggregate) and the systems each covers, in the main
+    scope (:func:`main_scope`)."""
+    iqm = main_scope(agg.iqm)
+    if iqm.empty:
+        return pd.DataFrame()
+    if metrics is None:
+        metrics = [m for m in headline_metrics() if (iqm["metric"] == m).any()]
+    rows = []
+    for family in dict.fromkeys(iqm["family"]):
+        row: dict[str, str] = {"family": str(family)}
+        for metric in metrics:
+            sel = iqm[(iqm["family"] == family) & (iqm["metric"] == metric)]
+            if sel.empty:
+                row[f"{metric} IQM"] = "—"
+                continue
+            r = sel.iloc[0]
+            row[f"{metric} IQM"] = (f"{_interval(r['iqm'], r['iqm_low'], r['iqm_high'])} "
+                                    f"({int(r['n_systems'])} sys)")
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def supported_lines(agg: Aggregate, metrics: Optional[list[str]] = None) -> list[str]:
+    """Markdown bullets: per metric, which family beats which with the interval of P(A > B)
+    above one half, and which pairs no interval separates (the main scope)."""
+    poi = main_scope(agg.improvement)
+    if poi.empty:
+        return []
+    scope = key_of(poi.iloc[0], SCOPE_KEY)
+    iqm_all = select(agg.iqm, SCOPE_KEY, scope)
+    order = list(dict.fromkeys(iqm_all.sort_values("iqm", ascending=False)["family"]))
+    if metrics is None:
+        metrics = [m for m in headline_metrics() if (poi["metric"] == m).any()]
+    lines = []
+    for metric in metrics:
+        sel = poi[poi["metric"] == metric]
+        iqm = iqm_all[iqm_all["metric"] == metric]
+        ranked = list(iqm.sort_values("iqm", ascending=False)["family"]) or order
+        beats = []
+        for family in ranked:
+            wins = sel[(sel["family"] == family) & (sel["p_low"] > 0.5)]
+            if not wins.empty:
+                others = [o for o in ranked if o in set(wins["other"])]
+                beats.append(f"{md_text(family)} beats {', '.join(map(md_text, others))}")
+        open_pairs = sel[(sel["p_low"] <= 0.5) & (sel["p_high"] >= 0.5)]
+        seen, ties = set(), []
+        for _, r in open_pairs.iterrows():
+            pair = frozenset((str(r["family"]), str(r["other"])))
+            if pair not in seen:
+                seen.add(pair)
+                ties.append(f"{md_text(r['family'])}–{md_text(r['other'])}")
+        text = "; ".join(beats) if beats else "no family beats another"
+        tail = f". Not separated: {', '.join(ties)}" if ties else ""
+        lines.append(f"- {md_code(metric)}: {text} (95% interval of P(A > B) above "
+                     f"0.5){tail}.")
+    return lines
+
+
+def marks_line(fams: Families, metrics: Optional[list[str]] = None) -> str:
+    """How many (system, metric) cells have a separated best, of those with a leader."""
+    board = fams.board
+    if metrics is None:
+        metrics = [m for m in headline_metrics() if f"{m}_mark" in board]
+    if "variant" in board:
+        board = board[board["variant"].fillna("").astype(str) == ""]
+    best = tied = 0
+    for metric in metrics:
+        if f"{metric}_mark" not in board:
+            continue
+        for _, group in board.groupby([k for k in RANKING_KEY if k != "variant"], sort=False):
+            marks = set(group[f"{metric}_mark"].fillna("").astype(str))
+            best += "best" in marks
+            tied += "tied" in marks and "best" not in marks
+    n = best + tied
+    seeds = int(pd.to_numeric(board["n_seeds"], errors="coerce").min()) if len(board) else 0
+    tail = ""
+    if seeds < stats.MIN_SEPARABLE_SEEDS:
+        tail = (f" Rows rest on as few as {seeds} seed(s): the sign test needs "
+                f"{stats.MIN_SEPARABLE_SEEDS} shared seeds to separate anything "
+                f"(its smallest p with {seeds} is {0.5 ** seeds:.3g}).")
+    names = ", ".join(md_code(m) for m in metrics)
+    return (f"Per system ({names}): {best} of {n} cells with a leader have a separated "
+            f"best (bold); in {tied} the leaders are tied (italics).{tail}")
+
+
+def left_out_lines(agg: Aggregate) -> list[str]:
+    """One line per (headline metric, reason): the systems its aggregate leaves out."""
+    scales = agg.scales
+    if scales.empty:
+        return []
+    unused = scales[~scales["used"].astype(bool) & scales["metric"].isin(headline_metrics())]
+    lines = []
+    for (metric, why), group in unused.groupby(["metric", "why_not"], sort=False):
+        systems = ", ".join(map(md_text, group["system"]))
+        lines.append(f"Left out of {md_code(metric)}: {systems} ({md_text(why)}).")
+    return lines
+
+
+def aggregate_markdown(verdicts: Verdicts, figure: Optional[str] = None,
+                       heading: str = "# Across systems") -> str:
+    """The aggregate across systems (aggregate.md; the README's aggregate block): the
+    method, the IQM table, the verdicts its intervals support, the per-system marks,
+    and ``figure`` (a path to the performance-profile figure) if given."""
+    agg = verdicts.aggregate
+    lines = [heading, ""] if heading else []
+    if agg.empty:
+        lines += [f"No aggregate: {md_text(agg.note or 'nothing to aggregate')}.", ""]
+        lines += [marks_line(verdicts.families), ""]
+        return "\n".join(lines)
+    lines += [stats.aggregate_rule(md_text(agg.baseline or "the baseline")), ""]
+    lines += [md_table(aggregate_frame(agg)), ""]
+    lines += ["What the intervals support:", "", *supported_lines(agg),
+              f"- {marks_line(verdicts.families)}", ""]
+    left = left_out_lines(agg)
+    if left:
+        lines += [*left, ""]
+    if figure:
+        lines += [f"![Performance profiles]({figure})", ""]
+    return "\n".join(lines)
