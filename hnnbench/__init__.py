@@ -13,8 +13,9 @@ declarations and the :class:`EvalContext` their ``compute`` reads, claim sets
 (:class:`ClaimSet`), the dataset helpers (:func:`seed_stream`, :class:`TrajectorySplit`,
 :func:`trajectory_dataset`), the reference integrator (:func:`solve_batch`), measured-data
 lookup (:func:`locate`), the validation helpers, the errors and :func:`require_backend`
-(a plugin module's guard for an optional dependency). Neural model families build on
-:mod:`hnnbench.neural`.
+(a plugin module's guard for an optional dependency), and a model's search space
+(:class:`LogUniform`, :class:`Uniform`, :class:`IntRange`, :class:`Categorical`). Neural
+model families build on :mod:`hnnbench.neural`.
 
 Importing hnnbench imports neither torch nor JAX (nor pandas).
 """
@@ -77,12 +78,14 @@ from hnnbench._metric import (
     summarize,
 )
 from hnnbench._registry import register
+from hnnbench._space import Categorical, IntRange, LogUniform, SearchSpace, Uniform
 from hnnbench._user_api import leaderboard, load, run, sweep
 
 __version__ = "0.3.0"
 
 __all__ = [
     "BackendMissingError",
+    "Categorical",
     "CheckRule",
     "Claim",
     "ClaimSet",
@@ -96,8 +99,10 @@ __all__ = [
     "FitResult",
     "Selection",
     "HnnbenchError",
+    "IntRange",
     "Kinematics",
     "LinearKinematics",
+    "LogUniform",
     "MassMatrixKinematics",
     "Metric",
     "Model",
@@ -107,6 +112,7 @@ __all__ = [
     "Published",
     "RolloutDiverged",
     "SPLIT_STREAM",
+    "SearchSpace",
     "VALID_STREAM",
     "Split",
     "System",
@@ -116,6 +122,7 @@ __all__ = [
     "TrajectoryIndices",
     "TrajectorySplit",
     "URL_SCHEMES",
+    "Uniform",
     "UnknownNameError",
     "UnsupportedPair",
     "VectorField",

@@ -100,6 +100,8 @@ def cmd_list(args: list[str]) -> int:
 
     from tabulate import tabulate
 
+    from hnnbench._space import describe, space_json
+
     if any(a not in ("--json",) for a in args):
         raise ConfigError(f"hnnbench list: unknown argument {args}; expected: [--json]")
     out: dict[str, list[dict[str, Any]]] = {}
@@ -109,7 +111,9 @@ def cmd_list(args: list[str]) -> int:
              "family": i.family,
              "package": f"{i.distribution} {i.dist_version}" if i.distribution else "?",
              "status": "ok" if i.ok else "error", "description": i.description,
-             "error": i.error}
+             "error": i.error,
+             **({"search_space": space_json(i.search_space) if i.search_space else None}
+                if kind == "model" else {})}
             for i in registry.discover(kind).values()
         ]
     if "--json" in args:
@@ -126,6 +130,14 @@ def cmd_list(args: list[str]) -> int:
                  for h in headers] for r in out[kind]]
         print(f"{title} (entry points: {registry.GROUPS[kind]})")
         print(tabulate(rows, headers=headers, tablefmt="simple"))
+        print()
+    spaces = [(i.family if i.family != "-" else i.name, describe(i.search_space))
+              for i in registry.discover("model").values() if i.search_space]
+    if spaces:
+        # A family's backends declare one space: shown once per family.
+        print("Search spaces (hnnbench tune; docs/TUNING.md)")
+        print(tabulate(list(dict.fromkeys(spaces)), headers=["family or model", "space"],
+                       tablefmt="simple"))
         print()
     print("Profiles: " + ", ".join(registry.PROFILES))
     return 0

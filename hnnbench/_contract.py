@@ -31,6 +31,7 @@ import numpy as np
 from hnnbench._errors import ConfigError
 from hnnbench._kinematics import Kinematics
 from hnnbench._outputs import checked
+from hnnbench._space import SearchSpace
 
 __all__ = [
     "Dataset",
@@ -417,6 +418,10 @@ class Model(ABC):
         order: position in listings and tables, as for :class:`System`.
         ranked: ``False`` for a reference that is not a competitor (the oracle): its
             rows are shown but never ranked or highlighted as best.
+        search_space: what ``hnnbench tune`` may vary, ``{setting: distribution}``
+            over fields of ``Config`` (:mod:`hnnbench._space`: ``LogUniform``,
+            ``Uniform``, ``IntRange``, ``Categorical``); ``None`` (the default): the
+            model is not tuned. Checked when the registry discovers the model.
     """
 
     Config: ClassVar[type[ModelConfig]] = ModelConfig
@@ -428,6 +433,7 @@ class Model(ABC):
     weights_file: ClassVar[Optional[str]] = None
     order: ClassVar[Optional[float]] = None
     ranked: ClassVar[bool] = True
+    search_space: ClassVar[Optional[SearchSpace]] = None
 
     def __init__(self, cfg: ModelConfig, system: System, device: str = "auto") -> None:
         self.cfg = cfg

@@ -10,7 +10,7 @@ advantage. No learned energy.
 
 from __future__ import annotations
 
-from hnnbench.neural import Family, NeuralModel
+from hnnbench.neural import SHARED_SPACE, Family, NeuralModel
 
 NODE2 = Family(
     name="node2",
@@ -21,6 +21,7 @@ NODE2 = Family(
     implementations={"torch": "hnnbench_plugins.models.node2.torch",
                      "jax": "hnnbench_plugins.models.node2.jax"},
     order=50,
+    search_space=SHARED_SPACE,
     coordinates="velocity",
 )
 
