@@ -41,7 +41,7 @@ def seed_line(board: pd.DataFrame) -> str:
 
 def best_cells(board: pd.DataFrame) -> set[tuple[int, str]]:
     """``{(row position, metric)}`` holding the best finite mean of its (profile, system,
-    variant) among ranked rows whose every seed is ``ok``, for each ranked metric
+    variant, track) among ranked rows whose every seed is ``ok``, for each ranked metric
     (:attr:`hnnbench.Metric.ranked`), in the metric's declared
     direction and within its declared domain. A pair with a diverged or failed seed is
     averaged over its ``ok`` seeds only, so it would be ranked on its luckier seeds: it
@@ -51,7 +51,8 @@ def best_cells(board: pd.DataFrame) -> set[tuple[int, str]]:
                and declared[c[:-5]].ranked]
     out: set[tuple[int, str]] = set()
     board = board.reset_index(drop=True)
-    keys = ["profile", "system"] + (["variant"] if "variant" in board else [])
+    keys = ["profile", "system"] + (["variant"] if "variant" in board else []) \
+        + (["track"] if "track" in board else [])  # tracks are never ranked together
     ranked = board["ranked"].fillna(True).astype(bool) if "ranked" in board else \
         pd.Series(True, index=board.index)
     if {"n_ok", "n_seeds"} <= set(board.columns):
