@@ -225,6 +225,12 @@ def validate_run(cfg: Any) -> None:
             raise ConfigError(
                 f"evaluation.{key}={value} is invalid: expected a finite number > 0."
             )
+    chosen = ev.get("metrics")
+    if chosen is not None:
+        names = registry.available("metric")
+        for name in list(chosen):
+            if name not in names:
+                raise UnknownNameError("metric", str(name), names)
     track = cfg.get("track")
     if track not in TRACKS:
         raise ConfigError(f"track={track} is invalid: expected one of {', '.join(TRACKS)} "

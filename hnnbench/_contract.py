@@ -40,6 +40,7 @@ __all__ = [
     "Model",
     "ModelConfig",
     "Progress",
+    "STOPPED_BY_CALLER",
     "Split",
     "System",
     "SystemConfig",
@@ -52,7 +53,12 @@ __all__ = [
 ]
 
 #: Called by ``Model.fit`` as training goes: ``progress(step, {"train_loss": ...})``.
-Progress = Callable[[int, Mapping[str, float]], None]
+#: It may return ``True`` to ask the model to stop training there (a tuner's pruner,
+#: docs/TUNING.md); a model that cannot stop early ignores it.
+Progress = Callable[[int, Mapping[str, float]], Optional[bool]]
+#: The start of ``Selection.stopped`` for a run stopped because its progress callback
+#: returned ``True`` (the rest names the step).
+STOPPED_BY_CALLER = "stopped by the progress callback"
 
 
 def check_positive(owner: str, **values: float | int | None) -> None:

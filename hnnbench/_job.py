@@ -560,7 +560,10 @@ def _finish(record: dict[str, Any], system: Any, model: Any, fit: FitResult, dat
 
     t0 = time.perf_counter()
     ev = EvaluationConfig(**OmegaConf.to_container(cfg.evaluation, resolve=True))  # type: ignore[arg-type]
-    result = evaluate(system, model, data, traj, ev)
+    # evaluation.metrics: only those (a tuner's trial: the metric it selects on alone).
+    chosen = None if ev.metrics is None else [
+        m for m in registry.metrics() if m.name in set(ev.metrics)]
+    result = evaluate(system, model, data, traj, ev, chosen)
     timings["eval_s"] = time.perf_counter() - t0
     timings.update({k: v for k, v in model.timings.items() if k not in timings})
     record["metrics"] = result.metrics

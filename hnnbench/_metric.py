@@ -126,6 +126,9 @@ class Metric:
             ``(0, inf)``). A strict load of records (``hnnbench check``, publishing)
             refuses a mean outside it; ``nan`` (not applicable) and :meth:`worst` (a
             diverged model's ``inf``) are always allowed (:meth:`value_problem`).
+        selects: the metric ``hnnbench tune`` selects on (in its direction), computed
+            on the validation split only, never on test: one registered metric at most
+            declares it (docs/TUNING.md). A trial of the tuner computes it alone.
     """
 
     name: str
@@ -144,6 +147,7 @@ class Metric:
     log: bool = False
     errors_fail_job: bool = False
     domain: tuple[float, float] = (-math.inf, math.inf)
+    selects: bool = False
 
     def __post_init__(self) -> None:
         low, high = self.domain
@@ -212,11 +216,16 @@ class EvaluationConfig:
     Attributes:
         rtol, atol: tolerances of the adaptive Dormand-Prince rollouts of every model.
         vpt_threshold: relative state error that ends the valid prediction time.
+        metrics: the names of the metrics to compute (``None``: every registered
+            metric). A tuner's trial computes only the metric it selects on, so it
+            never computes a test metric (docs/TUNING.md); the record then holds only
+            those.
     """
 
     rtol: float = 1e-9
     atol: float = 1e-9
     vpt_threshold: float = 0.1
+    metrics: Optional[list[str]] = None
 
 
 @dataclass

@@ -192,7 +192,7 @@ VAL_LOSS = Metric(
     "val_loss", "MSE of predicted vs target dx/dt on the validation set, carved from the "
     "training data (pixels: the training objective); the checkpoint is selected on it",
     _valid_loss, check=CheckRule(2, 1e-12), order=15,
-    errors_fail_job=True, domain=NONNEGATIVE)
+    errors_fail_job=True, domain=NONNEGATIVE, selects=True)
 TEST_LOSS = Metric(
     "test_loss", "MSE of predicted vs target dx/dt on the test set (pixels: the training "
     "objective)", _loss("test"), check=CheckRule(2, 1e-12), order=20,
