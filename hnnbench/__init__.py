@@ -4,8 +4,8 @@ This module is hnnbench's public surface; every implementation module is private
 (``hnnbench._name``) and may change without notice.
 
 Running things (the ``hnnbench`` command's twins): :func:`run`, :func:`sweep`,
-:func:`load`, :func:`leaderboard`; :func:`register` adds a plugin to this process (a
-notebook's own model or system).
+:func:`tune` (the tuned track), :func:`load`, :func:`leaderboard`; :func:`register` adds
+a plugin to this process (a notebook's own model or system).
 
 Writing plugins (docs/PLUGINS.md): :class:`System` and :class:`Model` with their config
 dataclasses, the data containers, kinematics for second-order models, :class:`Metric`
@@ -79,7 +79,7 @@ from hnnbench._metric import (
 )
 from hnnbench._registry import register
 from hnnbench._space import Categorical, IntRange, LogUniform, SearchSpace, Uniform
-from hnnbench._user_api import leaderboard, load, run, sweep
+from hnnbench._user_api import leaderboard, load, run, sweep, tune
 
 __version__ = "0.3.0"
 
@@ -145,5 +145,6 @@ __all__ = [
     "summarize",
     "sweep",
     "trajectory_dataset",
+    "tune",
     "with_validation",
 ]

@@ -1,6 +1,6 @@
 """The ``hnnbench`` command.
 
-``hnnbench list | report | check ...`` are subcommands; anything else is a Hydra
+``hnnbench list | report | check | tune ...`` are subcommands; anything else is a Hydra
 command line (``hnnbench -m system=all model=all seed=0,1,2``). Before Hydra starts,
 the command line is checked here: names are validated (with a did-you-mean), ``all``
 expands to every registered plugin, and each swept value is composed and validated,
@@ -25,6 +25,9 @@ usage: hnnbench [-m] [KEY=VALUE ...]        run one job, or a sweep with -m (Hyd
        hnnbench list [--json]               registered systems and models
        hnnbench report DIR [--out OUT]      tables and figures from a sweep's records
        hnnbench check DIR --reference CSV   leaderboard regression gate
+       hnnbench tune system=S model=A,B trials=N [seeds=0,1,2] [steps=K] [out=DIR]
+                                            the tuned track: the same tuning budget
+                                            for every model, selected on validation
 
 examples:
   hnnbench -m system=all model=all                  every model on every system (paper)
@@ -56,7 +59,7 @@ def run(argv: list[str]) -> int:
     try:
         if argv and argv[0] == "list":
             return cmd_list(argv[1:])
-        if argv and argv[0] in ("report", "check"):
+        if argv and argv[0] in ("report", "check", "tune"):
             return _subcommand(argv[0], argv[1:])
         if argv and argv[0] in ("-h", "--help", "help"):
             print(USAGE)
