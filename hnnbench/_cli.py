@@ -75,8 +75,10 @@ def run(argv: list[str]) -> int:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
     except KeyboardInterrupt:
-        print("hnnbench: interrupted; finished jobs keep their records. Re-run the same "
-              "command with hydra.sweep.dir=<dir> to resume.", file=sys.stderr)
+        how = ("the same command (same out=)" if argv and argv[0] == "tune" else
+               "the same command with hydra.sweep.dir=<dir>")
+        print(f"hnnbench: interrupted; finished jobs keep their records. Re-run {how} to "
+              "resume.", file=sys.stderr)
         return 130
     except Exception as err:  # a bug, not a user error: still one line, then the way on
         if _full_error():

@@ -37,7 +37,6 @@ docs/TUNING.md describes the track, the budget, the selection rule and the cost.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import logging
 import math
@@ -179,7 +178,8 @@ class Study:
             "space": space_json(self.space),
             "selected": dict(self.selected["settings"]),
             "selected_trial": self.selected["number"],
-            "selected_value": self.selected["value"],
+            # "inf" where every trial diverged (strict JSON, as the record stores it)
+            "selected_value": records.encode(self.selected["value"]),
             "completed": states.count("complete"),
             "pruned": states.count("pruned"),
             "pruner": self.pruner,
@@ -482,7 +482,7 @@ class Tuner:
         trial = study.ask(distributions)
         settings = _settings(space, trial.params)
         pruning = not isinstance(study.pruner, optuna.pruners.NopPruner)
-        best = [math.inf if self.objective.better == "lower" else -math.inf]
+        best = [math.inf]  # the training loop's validation loss: lower is better
         asked = [False]
 
         def observe(step: int, losses: Mapping[str, float]) -> Optional[bool]:
@@ -674,11 +674,3 @@ def main(args: Sequence[str]) -> int:
         return 1
     return 0
 
-
-def as_dict(study: Study) -> dict[str, Any]:
-    """A study as plain data (for the Python API)."""
-    out = dataclasses.asdict(study)
-    out["space"] = space_json(study.space)
-    out["objective"] = study.objective.name
-    out["cpu_s"] = study.cpu_s
-    return out
