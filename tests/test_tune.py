@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -401,6 +403,18 @@ def test_tune_gives_every_model_the_same_budget_and_selects_on_validation(tmp_pa
     proc = hnnbench_cli("check", str(out / "final"), "--reference", str(ref))
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "tuned" in ref.read_text().splitlines()[1]
+
+    # the cost estimate and the tracks table read the same directory
+    scripts = Path(__file__).resolve().parents[1] / "scripts"
+    costs = subprocess.run([sys.executable, str(scripts / "tuning_costs.py"), str(out),
+                            "--trials", "5", "--steps", "100"],
+                           capture_output=True, text=True, timeout=600)
+    assert costs.returncode == 0, costs.stderr
+    assert "| spring | hnn_jax | 3 |" in costs.stdout and "spring: about" in costs.stdout
+    table = subprocess.run([sys.executable, str(scripts / "tracks_table.py"), str(out / "final")],
+                           capture_output=True, text=True, timeout=600)
+    assert table.returncode == 0, table.stderr
+    assert "| spring | mlp | " in table.stdout and "the same on every track" in table.stdout
 
 
 @pytest.mark.slow
