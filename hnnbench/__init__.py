@@ -4,8 +4,8 @@ This module is hnnbench's public surface; every implementation module is private
 (``hnnbench._name``) and may change without notice.
 
 Running things (the ``hnnbench`` command's twins): :func:`run`, :func:`sweep`,
-:func:`load`, :func:`leaderboard`; :func:`register` adds a plugin to this process (a
-notebook's own model or system).
+:func:`tune` (the tuned track), :func:`load`, :func:`leaderboard`; :func:`register` adds
+a plugin to this process (a notebook's own model or system).
 
 Writing plugins (docs/PLUGINS.md): :class:`System` and :class:`Model` with their config
 dataclasses, the data containers, kinematics for second-order models, :class:`Metric`
@@ -13,8 +13,9 @@ declarations and the :class:`EvalContext` their ``compute`` reads, claim sets
 (:class:`ClaimSet`), the dataset helpers (:func:`seed_stream`, :class:`TrajectorySplit`,
 :func:`trajectory_dataset`), the reference integrator (:func:`solve_batch`), measured-data
 lookup (:func:`locate`), the validation helpers, the errors and :func:`require_backend`
-(a plugin module's guard for an optional dependency). Neural model families build on
-:mod:`hnnbench.neural`.
+(a plugin module's guard for an optional dependency), and a model's search space
+(:class:`LogUniform`, :class:`Uniform`, :class:`IntRange`, :class:`Categorical`). Neural
+model families build on :mod:`hnnbench.neural`.
 
 Importing hnnbench imports neither torch nor JAX (nor pandas).
 """
@@ -78,12 +79,14 @@ from hnnbench._metric import (
     summarize,
 )
 from hnnbench._registry import register
-from hnnbench._user_api import leaderboard, load, run, sweep
+from hnnbench._space import Categorical, IntRange, LogUniform, SearchSpace, Uniform
+from hnnbench._user_api import leaderboard, load, run, sweep, tune
 
 __version__ = "0.4.0"
 
 __all__ = [
     "BackendMissingError",
+    "Categorical",
     "CheckRule",
     "CLEAN_INPUTS",
     "Claim",
@@ -98,8 +101,10 @@ __all__ = [
     "FitResult",
     "Selection",
     "HnnbenchError",
+    "IntRange",
     "Kinematics",
     "LinearKinematics",
+    "LogUniform",
     "MassMatrixKinematics",
     "Metric",
     "Model",
@@ -109,6 +114,7 @@ __all__ = [
     "Published",
     "RolloutDiverged",
     "SPLIT_STREAM",
+    "SearchSpace",
     "VALID_STREAM",
     "Split",
     "System",
@@ -118,6 +124,7 @@ __all__ = [
     "TrajectoryIndices",
     "TrajectorySplit",
     "URL_SCHEMES",
+    "Uniform",
     "UnknownNameError",
     "UnsupportedPair",
     "VectorField",
@@ -140,5 +147,6 @@ __all__ = [
     "summarize",
     "sweep",
     "trajectory_dataset",
+    "tune",
     "with_validation",
 ]

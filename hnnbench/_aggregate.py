@@ -34,6 +34,7 @@ from hnnbench import _registry as registry
 from hnnbench import _stats as stats
 from hnnbench._families import SCOPE_KEY, Families, family_order, key_of, select
 from hnnbench._metric import CheckRule
+from hnnbench._record_schema import DEFAULT_TRACK
 from hnnbench._table import metric_declarations
 
 __all__ = ["Aggregate", "aggregate", "headline_metrics", "profile_taus"]
@@ -231,7 +232,9 @@ def aggregate(fams: Families, metrics: Optional[Sequence[str]] = None,
                              "p": 1.0 - p, "p_low": 1.0 - high, "p_high": 1.0 - low,
                              "n_systems": len(common)})
         taus = profile_taus(group["score"].to_numpy(float))
-        out.profiles[("/".join(names), metric)] = (taus, {
+        label = "/".join(n for k, n in zip(SCOPE_KEY, names, strict=True)
+                         if not (k == "track" and n == DEFAULT_TRACK))  # the default track
+        out.profiles[(label, metric)] = (taus, {
             family: stats.performance_profile(list(strata[family].values()), taus)
             for family in families})
     out.iqm = pd.DataFrame(iqm_rows, columns=IQM_COLUMNS)

@@ -3,8 +3,10 @@ and the validation of submitted records.
 
 The records of the directories are validated, then their leaderboard
 (:func:`hnnbench._table.leaderboard`) is compared with a reference in the same format (a
-``leaderboard.csv``), row by row on (profile, system, model, variant) (the variant is
-empty where the runs vary in nothing but seeds; :func:`hnnbench._table.variant_labels`):
+``leaderboard.csv``), row by row on (profile, system, model, variant, track) (the variant is
+empty where the runs vary in nothing but seeds, :func:`hnnbench._table.variant_labels`; the
+track is ``protocol`` where a record or reference row has none, so a tuned or recipe row is
+never compared with a protocol one):
 
 - records: every ``result.json`` must be readable and valid against the record schema
   (a strict :func:`hnnbench._records.load`: bounded size and nesting, names that are
@@ -62,12 +64,21 @@ from hnnbench._families import RANKING_KEY, ROW_KEY, key_of, primary_rows, selec
 from hnnbench._metric import CheckRule
 from hnnbench._record_schema import (
     BOARD_KEY,
+    DEFAULT_TRACK,
     PROVENANCE_FIELDS,
     STATUSES,
     TIMINGS,
+    track_of,
+    track_problem,
     variant_problem,
 )
-from hnnbench._table import INTERVAL_SUFFIXES, format_interval, leaderboard, variant_labels
+from hnnbench._table import (
+    INTERVAL_SUFFIXES,
+    format_interval,
+    leaderboard,
+    variant_labels,
+    variant_overrides,
+)
 
 __all__ = [
     "REQUIRED_COLUMNS",
@@ -296,19 +307,25 @@ def _claims_by_key(board: pd.DataFrame) -> dict[tuple[str, str, str], C.ClaimRes
 
 
 def _keys(frame: pd.DataFrame) -> tuple[str, ...]:
-    """The columns that identify a row: :data:`KEY`, plus ``variant`` where present."""
-    return (*KEY, "variant") if "variant" in frame.columns else KEY
+    """The columns that identify a row: :data:`KEY`, plus ``variant`` and ``track``
+    where present."""
+    return (*KEY, *(c for c in ("variant", "track") if c in frame.columns))
 
 
-def _row_key(row: Any) -> tuple[str, str, str, str]:
-    """``(profile, system, model, variant)`` of a leaderboard row (variant ``""`` if none)."""
+def _row_key(row: Any) -> tuple[str, str, str, str, str]:
+    """``(profile, system, model, variant, track)`` of a leaderboard row (variant ``""``
+    if none; track ``protocol`` if none: a tuned or recipe row is never compared with
+    a protocol one)."""
     variant = row.get("variant", "")
     variant = "" if variant is None or pd.isna(variant) else str(variant)
-    return (str(row["profile"]), str(row["system"]), str(row["model"]), variant)
+    track = row.get("track", DEFAULT_TRACK)
+    track = DEFAULT_TRACK if track is None or pd.isna(track) or track == "" else str(track)
+    return (str(row["profile"]), str(row["system"]), str(row["model"]), variant, track)
 
 
-def _model_text(model: str, variant: str) -> str:
-    return f"{model} [{variant}]" if variant else model
+def _model_text(model: str, variant: str, track: str = DEFAULT_TRACK) -> str:
+    text = f"{model} [{variant}]" if variant else model
+    return text if track == DEFAULT_TRACK else f"{text} ({track} track)"
 
 
 def compare(reference: pd.DataFrame, current: pd.DataFrame,
@@ -330,7 +347,7 @@ def compare(reference: pd.DataFrame, current: pd.DataFrame,
     metrics = [c[: -len("_mean")] for c in ref.columns if c.endswith("_mean")]
 
     for key, r in ref_keys.items():
-        system, model = key[1], _model_text(key[2], key[3])
+        system, model = key[1], _model_text(key[2], key[3], key[4])
         c = cur_keys.get(key)
         if c is None:
             finding = Finding("missing", "-", system, model, _status_text(r), "no runs")
@@ -379,7 +396,7 @@ def compare(reference: pd.DataFrame, current: pd.DataFrame,
                 (result.regressions if rule.gate else result.info).append(finding)
     for key, c in cur_keys.items():
         if key not in ref_keys:
-            result.info.append(Finding("new", "-", key[1], _model_text(key[2], key[3]),
+            result.info.append(Finding("new", "-", key[1], _model_text(key[2], key[3], key[4]),
                                        "not in reference",
                                        _status_text(c)))
 
@@ -581,7 +598,7 @@ def record_variants(recs: Sequence[dict[str, Any]]) -> list[P.Variant]:
     """Each record's variant, derived from its stored config and the defaults of its
     profile (:func:`hnnbench._provenance.config_variant`); where that cannot be done,
     the label its overrides claim (:func:`hnnbench._table.variant_labels`)."""
-    claimed = variant_labels([rec.get("overrides") for rec in recs])
+    claimed = variant_labels([variant_overrides(rec) for rec in recs])
     return [P.config_variant(rec, label) for rec, label in zip(recs, claimed, strict=True)]
 
 
@@ -645,6 +662,31 @@ def validate_records(recs: Sequence[dict[str, Any]], bad: Sequence[R.Unreadable]
             if gate:
                 out.append(Finding("version", key, system, model, f"record {mine}",
                                    f"installed {have}", "", f"same plugin ({where})"))
+        problem = track_problem(rec)
+        if problem is not None:
+            out.append(Finding("track", "-", system, model, where, problem))
+    return out + budget_findings(recs)
+
+
+def budget_findings(recs: Sequence[dict[str, Any]]) -> list[Finding]:
+    """The tuned track's promise, checked: on each (profile, system), every tuned model
+    had the same number of trials, each of the same step budget (docs/TUNING.md)."""
+    budgets: dict[tuple[str, str], dict[tuple[Any, Any], set[str]]] = {}
+    for rec in recs:
+        tuning = rec.get("tuning")
+        if track_of(rec) != "tuned" or not isinstance(tuning, dict):
+            continue
+        pair = (str(rec.get("profile")), str(rec.get("system")))
+        budget = (tuning.get("trials"), tuning.get("steps"))
+        budgets.setdefault(pair, {}).setdefault(budget, set()).add(str(rec.get("model")))
+    out = []
+    for (profile, system), found in budgets.items():
+        if len(found) > 1:
+            shown = "; ".join(f"{t} trials x {s} steps: {', '.join(sorted(models))}"
+                              for (t, s), models in found.items())
+            out.append(Finding("budget", "-", system, "tuned track", f"{profile} profile",
+                               f"unequal tuning budgets ({shown})", "",
+                               "the same trials and steps for every model"))
     return out
 
 

@@ -1,6 +1,6 @@
 """The ``hnnbench`` command.
 
-``hnnbench list | report | check ...`` are subcommands; anything else is a Hydra
+``hnnbench list | report | check | tune ...`` are subcommands; anything else is a Hydra
 command line (``hnnbench -m system=all model=all seed=0,1,2``). Before Hydra starts,
 the command line is checked here: names are validated (with a did-you-mean), ``all``
 expands to every registered plugin, and each swept value is composed and validated,
@@ -25,6 +25,9 @@ usage: hnnbench [-m] [KEY=VALUE ...]        run one job, or a sweep with -m (Hyd
        hnnbench list [--json]               registered systems and models
        hnnbench report DIR [--out OUT]      tables and figures from a sweep's records
        hnnbench check DIR --reference CSV   leaderboard regression gate
+       hnnbench tune system=S model=A,B trials=N [seeds=0,1,2] [steps=K] [out=DIR]
+                                            the tuned track: the same tuning budget
+                                            for every model, selected on validation
 
 examples:
   hnnbench -m system=all model=all                  every model on every system (paper)
@@ -56,7 +59,7 @@ def run(argv: list[str]) -> int:
     try:
         if argv and argv[0] == "list":
             return cmd_list(argv[1:])
-        if argv and argv[0] in ("report", "check"):
+        if argv and argv[0] in ("report", "check", "tune"):
             return _subcommand(argv[0], argv[1:])
         if argv and argv[0] in ("-h", "--help", "help"):
             print(USAGE)
@@ -72,8 +75,10 @@ def run(argv: list[str]) -> int:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
     except KeyboardInterrupt:
-        print("hnnbench: interrupted; finished jobs keep their records. Re-run the same "
-              "command with hydra.sweep.dir=<dir> to resume.", file=sys.stderr)
+        how = ("the same command (same out=)" if argv and argv[0] == "tune" else
+               "the same command with hydra.sweep.dir=<dir>")
+        print(f"hnnbench: interrupted; finished jobs keep their records. Re-run {how} to "
+              "resume.", file=sys.stderr)
         return 130
     except Exception as err:  # a bug, not a user error: still one line, then the way on
         if _full_error():
@@ -100,6 +105,8 @@ def cmd_list(args: list[str]) -> int:
 
     from tabulate import tabulate
 
+    from hnnbench._space import describe, space_json
+
     if any(a not in ("--json",) for a in args):
         raise ConfigError(f"hnnbench list: unknown argument {args}; expected: [--json]")
     out: dict[str, list[dict[str, Any]]] = {}
@@ -109,7 +116,9 @@ def cmd_list(args: list[str]) -> int:
              "family": i.family,
              "package": f"{i.distribution} {i.dist_version}" if i.distribution else "?",
              "status": "ok" if i.ok else "error", "description": i.description,
-             "error": i.error}
+             "error": i.error,
+             **({"search_space": space_json(i.search_space) if i.search_space else None}
+                if kind == "model" else {})}
             for i in registry.discover(kind).values()
         ]
     if "--json" in args:
@@ -126,6 +135,14 @@ def cmd_list(args: list[str]) -> int:
                  for h in headers] for r in out[kind]]
         print(f"{title} (entry points: {registry.GROUPS[kind]})")
         print(tabulate(rows, headers=headers, tablefmt="simple"))
+        print()
+    spaces = [(i.family if i.family != "-" else i.name, describe(i.search_space))
+              for i in registry.discover("model").values() if i.search_space]
+    if spaces:
+        # A family's backends declare one space: shown once per family.
+        print("Search spaces (hnnbench tune; docs/TUNING.md)")
+        print(tabulate(list(dict.fromkeys(spaces)), headers=["family or model", "space"],
+                       tablefmt="simple"))
         print()
     print("Profiles: " + ", ".join(registry.PROFILES))
     return 0

@@ -20,6 +20,7 @@ from hnnbench import _registry as registry
 from hnnbench._contract import Model, ModelConfig, System, SystemConfig
 from hnnbench._errors import ConfigError, HnnbenchError, UnknownNameError
 from hnnbench._metric import EvaluationConfig
+from hnnbench._record_schema import DEFAULT_TRACK, TRACKS
 
 __all__ = [
     "EvaluationConfig",
@@ -88,6 +89,14 @@ class RunConfig:
             gets N times it); past it the job stops and is recorded ``timeout``
             (:func:`hnnbench._job.time_limit`). Set per profile (paper: 6 h, quick:
             20 min); ``0`` or ``null``: no limit.
+        track: the benchmark track the job belongs to (:data:`TRACKS`): ``protocol``
+            (each system's shared protocol, the default), ``tuned`` (the settings an
+            equal-budget tuning selected on validation: ``hnnbench tune``) or ``recipe``
+            (a family paper's own recipe, another budget). Tracks are never ranked
+            together (docs/TUNING.md).
+        tuning: how a ``tuned`` job's settings were chosen (trials, step budget,
+            space, selected settings, CPU seconds; set by ``hnnbench tune``), copied into
+            the record; ``null`` for every other track.
     """
 
     system: Any = MISSING
@@ -105,6 +114,8 @@ class RunConfig:
     seed_batch: Optional[list[int]] = None
     timeout_s: Optional[float] = 21600.0
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
+    track: str = DEFAULT_TRACK
+    tuning: Optional[Any] = None
 
 
 @dataclass
@@ -214,6 +225,20 @@ def validate_run(cfg: Any) -> None:
             raise ConfigError(
                 f"evaluation.{key}={value} is invalid: expected a finite number > 0."
             )
+    chosen = ev.get("metrics")
+    if chosen is not None:
+        names = registry.available("metric")
+        for name in list(chosen):
+            if name not in names:
+                raise UnknownNameError("metric", str(name), names)
+    track = cfg.get("track")
+    if track not in TRACKS:
+        raise ConfigError(f"track={track} is invalid: expected one of {', '.join(TRACKS)} "
+                          "(protocol: the shared protocol, the default).")
+    tuning = cfg.get("tuning")
+    if tuning is not None and (track != "tuned" or not isinstance(tuning, DictConfig)):
+        raise ConfigError("tuning is set by hnnbench tune for track=tuned only (a mapping); "
+                          "remove it from the command line.")
 
 
 def _instantiate_config(kind: str, node: Any) -> Any:

@@ -31,6 +31,7 @@ import numpy as np
 from hnnbench._errors import ConfigError
 from hnnbench._kinematics import Kinematics
 from hnnbench._outputs import checked
+from hnnbench._space import SearchSpace
 
 __all__ = [
     "CLEAN_INPUTS",
@@ -40,6 +41,7 @@ __all__ = [
     "Model",
     "ModelConfig",
     "Progress",
+    "STOPPED_BY_CALLER",
     "Split",
     "System",
     "SystemConfig",
@@ -52,7 +54,12 @@ __all__ = [
 ]
 
 #: Called by ``Model.fit`` as training goes: ``progress(step, {"train_loss": ...})``.
-Progress = Callable[[int, Mapping[str, float]], None]
+#: It may return ``True`` to ask the model to stop training there (a tuner's pruner,
+#: docs/TUNING.md); a model that cannot stop early ignores it.
+Progress = Callable[[int, Mapping[str, float]], Optional[bool]]
+#: The start of ``Selection.stopped`` for a run stopped because its progress callback
+#: returned ``True`` (the rest names the step).
+STOPPED_BY_CALLER = "stopped by the progress callback"
 
 
 def check_positive(owner: str, **values: float | int | None) -> None:
@@ -436,6 +443,10 @@ class Model(ABC):
         order: position in listings and tables, as for :class:`System`.
         ranked: ``False`` for a reference that is not a competitor (the oracle): its
             rows are shown but never ranked or highlighted as best.
+        search_space: what ``hnnbench tune`` may vary, ``{setting: distribution}``
+            over fields of ``Config`` (:mod:`hnnbench._space`: ``LogUniform``,
+            ``Uniform``, ``IntRange``, ``Categorical``); ``None`` (the default): the
+            model is not tuned. Checked when the registry discovers the model.
     """
 
     Config: ClassVar[type[ModelConfig]] = ModelConfig
@@ -447,6 +458,7 @@ class Model(ABC):
     weights_file: ClassVar[Optional[str]] = None
     order: ClassVar[Optional[float]] = None
     ranked: ClassVar[bool] = True
+    search_space: ClassVar[Optional[SearchSpace]] = None
 
     def __init__(self, cfg: ModelConfig, system: System, device: str = "auto") -> None:
         self.cfg = cfg

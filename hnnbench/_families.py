@@ -39,7 +39,7 @@ import pandas as pd
 from hnnbench import _registry as registry
 from hnnbench import _stats as stats
 from hnnbench._metric import CheckRule
-from hnnbench._record_schema import FAMILY_KEY
+from hnnbench._record_schema import DEFAULT_TRACK, FAMILY_KEY
 from hnnbench._table import (
     board_metrics,
     leaderboard_frame,
@@ -68,9 +68,18 @@ MARKS = ("best", "tied")
 #: The keys, all from :data:`~hnnbench._record_schema.FAMILY_KEY` (so that a field added
 #: there, e.g. a track, separates every ranking and aggregate): a family row; one
 #: ranking of families (one system); one aggregate across systems.
-ROW_KEY = (*FAMILY_KEY, "variant")
+#: The track (docs/TUNING.md) is part of each: tracks are never ranked or aggregated
+#: together (a frame without the column is of the protocol track).
+ROW_KEY = (*FAMILY_KEY, "variant", "track")
 RANKING_KEY = tuple(k for k in ROW_KEY if k != "family")
-SCOPE_KEY = tuple(k for k in FAMILY_KEY if k not in ("system", "family"))
+SCOPE_KEY = (*(k for k in FAMILY_KEY if k not in ("system", "family")), "track")
+
+
+def _with_track(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` with a ``track`` column (:data:`DEFAULT_TRACK` where it has none)."""
+    if "track" not in frame:
+        return frame.assign(track=DEFAULT_TRACK)
+    return frame.assign(track=frame["track"].fillna(DEFAULT_TRACK).astype(str))
 
 
 def key_of(row: Any, keys: Sequence[str]) -> tuple[str, ...]:
@@ -141,7 +150,7 @@ def primary_rows(board: pd.DataFrame) -> pd.DataFrame:
     ``models`` and ``backends`` (the family's twins in registry order) set."""
     if board.empty:
         return board.assign(seeds_from=[], models=[], backends=[])
-    board = board.copy()
+    board = _with_track(board.copy())
     board["family"] = competitor(board)
     board["variant"] = _variant(board)
     rows = []
@@ -308,7 +317,8 @@ def mark_best(board: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
     strict load refuses) takes no part."""
     declared = metric_declarations()
     metrics = [m for m in board_metrics(board) if m in declared and declared[m].ranked]
-    board = board.copy().reset_index(drop=True)
+    board = _with_track(board).reset_index(drop=True)
+    runs = _with_track(runs)
     for m in metrics:
         board[f"{m}_mark"] = ""
         board[f"{m}_p"] = math.nan
@@ -363,6 +373,7 @@ def families(frame: pd.DataFrame, board: Optional[pd.DataFrame] = None) -> Famil
     (:func:`family_order`) and variant."""
     if board is None:
         board = leaderboard_frame(frame)
+    board, frame = _with_track(board), _with_track(frame)
     if board.empty:
         return Families(board.assign(family=[], seeds_from=[], models=[], backends=[]))
     primaries = primary_rows(board)

@@ -49,7 +49,7 @@ from hnnbench._contract import (
 from hnnbench._errors import HnnbenchError, JobTimeout, RolloutDiverged, UnsupportedPair
 from hnnbench._evaluate import evaluate, failed_metrics
 from hnnbench._progress import TrainingProgress
-from hnnbench._record_schema import new_record
+from hnnbench._record_schema import DEFAULT_TRACK, TRACKS, new_record
 
 log = logging.getLogger("hnnbench")
 
@@ -154,7 +154,8 @@ def _base_record(cfg: DictConfig, overrides: list[str] | None) -> dict[str, Any]
     context = launch.current()
     command = context.command if context is not None else None
     job_overrides = [o for o in overrides or [] if not o.startswith(("hydra.", "hydra/"))]
-    return new_record(
+    track = _select(cfg, "track")
+    record = new_record(
         system=_select(cfg, "system.name"),
         model=_select(cfg, "model.name"),
         seed=_select(cfg, "seed"),
@@ -168,7 +169,13 @@ def _base_record(cfg: DictConfig, overrides: list[str] | None) -> dict[str, Any]
         if overrides is not None else None,
         environment=records.environment(),
         created_at=records.now_iso(),
+        # A bad value fails the job (prepare_job); its record stays valid meanwhile.
+        track=track if track in TRACKS else DEFAULT_TRACK,
     )
+    tuning = _select(cfg, "tuning")
+    if isinstance(tuning, DictConfig):  # how a tuned job's settings were chosen
+        record["tuning"] = OmegaConf.to_container(tuning, resolve=True)
+    return record
 
 
 def _save_arrays(directory: Path, arrays: dict[str, np.ndarray], history: dict) -> None:
@@ -553,7 +560,10 @@ def _finish(record: dict[str, Any], system: Any, model: Any, fit: FitResult, dat
 
     t0 = time.perf_counter()
     ev = EvaluationConfig(**OmegaConf.to_container(cfg.evaluation, resolve=True))  # type: ignore[arg-type]
-    result = evaluate(system, model, data, traj, ev)
+    # evaluation.metrics: only those (a tuner's trial: the metric it selects on alone).
+    chosen = None if ev.metrics is None else [
+        m for m in registry.metrics() if m.name in set(ev.metrics)]
+    result = evaluate(system, model, data, traj, ev, chosen)
     timings["eval_s"] = time.perf_counter() - t0
     timings.update({k: v for k, v in model.timings.items() if k not in timings})
     record["metrics"] = result.metrics

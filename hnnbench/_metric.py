@@ -136,6 +136,9 @@ class Metric:
             on the README and the report page, its performance profile, and the ranks
             ``hnnbench check`` prints for a new model lead with it
             (docs/STATISTICS.md).
+        selects: the metric ``hnnbench tune`` selects on (in its direction), computed
+            on the validation split only, never on test: one registered metric at most
+            declares it (docs/TUNING.md). A trial of the tuner computes it alone.
     """
 
     name: str
@@ -156,6 +159,7 @@ class Metric:
     domain: tuple[float, float] = (-math.inf, math.inf)
     best_requires: Optional[tuple[str, float]] = None
     headline: bool = False
+    selects: bool = False
 
     def __post_init__(self) -> None:
         low, high = self.domain
@@ -229,11 +233,16 @@ class EvaluationConfig:
     Attributes:
         rtol, atol: tolerances of the adaptive Dormand-Prince rollouts of every model.
         vpt_threshold: relative state error that ends the valid prediction time.
+        metrics: the names of the metrics to compute (``None``: every registered
+            metric). A tuner's trial computes only the metric it selects on, so it
+            never computes a test metric (docs/TUNING.md); the record then holds only
+            those.
     """
 
     rtol: float = 1e-9
     atol: float = 1e-9
     vpt_threshold: float = 0.1
+    metrics: Optional[list[str]] = None
 
 
 @dataclass
@@ -349,7 +358,7 @@ class EvalContext:
 
     def _bounded(self, x: np.ndarray) -> np.ndarray:
         """The columns of states ``(..., 2n)`` the bound applies to (angles left out)."""
-        angles = set(self.system.angles)
+        angles = set(getattr(self.system, "angles", ()))
         keep = [c for c in range(np.shape(x)[-1]) if c not in angles]
         return np.asarray(x)[..., keep]
 

@@ -4,16 +4,22 @@ On a terminal: a tqdm bar per run with the current losses. Elsewhere (CI logs, S
 output files): a log line at every quarter of the run. ``HNNBENCH_PROGRESS=bar|log|off``
 forces a mode. Every few seconds an update also checks that the ``hnnbench`` command
 which started the job still exists (:func:`hnnbench._launch.abandoned`).
+
+An observer (:func:`observing`, this process's jobs only) sees every update and may ask
+training to stop: ``hnnbench tune`` reports each validation loss to its pruner this way
+(:mod:`hnnbench._tune`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import sys
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from types import TracebackType
+from typing import Optional
 
 from hnnbench import _launch as launch
 
@@ -21,7 +27,24 @@ log = logging.getLogger("hnnbench")
 #: Seconds between two checks for an abandoned job.
 CHECK_EVERY_S = 5.0
 
-__all__ = ["TrainingProgress"]
+__all__ = ["Observer", "TrainingProgress", "observing"]
+
+#: ``observer(step, losses) -> stop``: sees every training update of this process's
+#: jobs; ``True`` asks the model to stop training (:data:`hnnbench.Progress`).
+Observer = Callable[[int, Mapping[str, float]], Optional[bool]]
+_observer: Optional[Observer] = None
+
+
+@contextlib.contextmanager
+def observing(observer: Observer) -> Iterator[None]:
+    """Hand every training update of the jobs run in this process (in this block) to
+    ``observer``, whose answer is the progress callback's (``True``: stop)."""
+    global _observer
+    previous, _observer = _observer, observer
+    try:
+        yield
+    finally:
+        _observer = previous
 
 
 class TrainingProgress:
@@ -47,7 +70,8 @@ class TrainingProgress:
                              unit="step")
         return self
 
-    def update(self, step: int, losses: Mapping[str, float]) -> None:
+    def update(self, step: int, losses: Mapping[str, float]) -> Optional[bool]:
+        """Show the update; return the observer's answer (``True``: stop training)."""
         if time.monotonic() >= self._next_check:
             self._next_check = time.monotonic() + CHECK_EVERY_S
             if launch.abandoned():
@@ -65,6 +89,7 @@ class TrainingProgress:
             log.info("  %s step %d/%d  %s", self.label, step, self.total, text)
             self._next_log += max(self.total // 4, 1)
         self._last = step
+        return None if _observer is None else _observer(step, losses)
 
     def __exit__(
         self, exc_type: type[BaseException] | None, exc: BaseException | None,

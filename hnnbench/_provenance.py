@@ -12,8 +12,9 @@
 - **Reserved names** (:func:`reserved_key_problem`): a metric or timing key named like a
   column of the records frame or the leaderboard would replace that column.
 
-Run-only settings (:data:`hnnbench._records.RUN_ONLY_KEYS`) and the identity (seed,
-profile, the system's and model's names) define no variant.
+Run-only settings (:data:`hnnbench._records.RUN_ONLY_KEYS`), the identity (seed,
+profile, the system's and model's names), the track, and a tuned record's selected
+settings (:func:`hnnbench._record_schema.tuned_settings`) define no variant.
 """
 
 from __future__ import annotations
@@ -31,7 +32,9 @@ from hnnbench._record_schema import (
     PROVENANCE_COLUMNS,
     RESERVED,
     STATUS_COLUMNS,
+    TRACK_KEYS,
     metric_name_problem,
+    tuned_settings,
 )
 from hnnbench._records import RUN_ONLY_KEYS, encode
 
@@ -44,8 +47,9 @@ __all__ = [
     "value_text",
 ]
 
-#: Top-level config keys that identify a job rather than configure it.
-IDENTITY_KEYS = frozenset({"seed", "profile"})
+#: Top-level config keys that identify a job rather than configure it (its track too:
+#: a row's identity, never a variant).
+IDENTITY_KEYS = frozenset({"seed", "profile", *TRACK_KEYS})
 #: Config paths that repeat the identity (the group choices).
 IDENTITY_PATHS = frozenset({"system.name", "model.name"})
 #: Override keys that choose a config group: they set no setting below it.
@@ -179,6 +183,9 @@ def config_variant(record: dict[str, Any], fallback: str = "") -> Variant:
                        installed=installed, mismatch="; ".join(wrong) or None)
     settings: dict[str, tuple[Any, Any]] = {}
     _diff(config, default, "", settings)
+    # A tuned record's selected settings and step budget define its track, not a variant.
+    tuned = tuned_settings(record)
+    settings = {path: pair for path, pair in settings.items() if path not in tuned}
     label = " ".join(f"{path}={value_text(mine)}" for path, (mine, _) in sorted(
         settings.items()))
     declared = _declared(record.get("overrides"))

@@ -42,6 +42,7 @@ from typing import Any, Literal, Optional
 __all__ = [
     "BOARD_KEY",
     "FAMILY_KEY",
+    "DEFAULT_TRACK",
     "MAX_DEPTH",
     "MAX_RECORD_BYTES",
     "NAME_PATTERN",
@@ -58,8 +59,12 @@ __all__ = [
     "SCHEMA_VERSION",
     "SCHEMA_VERSIONS",
     "STATUSES",
+    "SELECTED_ON",
     "STATUS_COLUMNS",
+    "STEPS_SETTING",
     "TIMINGS",
+    "TRACKS",
+    "TRACK_KEYS",
     "VERSION_FIELDS",
     "Field",
     "created_at_problem",
@@ -71,6 +76,9 @@ __all__ = [
     "new_record",
     "pattern_matches",
     "shape_problems",
+    "track_of",
+    "track_problem",
+    "tuned_settings",
     "variant_problem",
 ]
 
@@ -79,6 +87,13 @@ SCHEMA_VERSION = 2
 SCHEMA_VERSIONS = (1, 2)
 #: A job's outcome.
 STATUSES = ("ok", "diverged", "failed", "skipped", "timeout")
+#: The benchmark's tracks (docs/TUNING.md): each system's shared protocol, an
+#: equal-budget tuning selected on validation, and a family paper's own recipe. A record
+#: without ``track`` (every record before 0.3's tracks) is of the protocol track.
+TRACKS = ("protocol", "tuned", "recipe")
+DEFAULT_TRACK = "protocol"
+#: What a tuned record's ``tuning`` says selection was made on (never test).
+SELECTED_ON = "validation"
 
 #: The one pattern of a system, model, metric, claim-set or profile name: a plain file-name
 #: component (no separator, no dot, nothing a Markdown table or a shell reads specially),
@@ -219,6 +234,30 @@ FIELDS: tuple[Field, ...] = (
           "metrics whose computation raised, and the message"),
     Field("seed_batch", {"type": "array", "items": {"type": "integer"}},
           "the seeds trained together with this one"),
+    Field("track", {"enum": list(TRACKS)},
+          "the benchmark track: protocol (each system's shared protocol), tuned (settings "
+          "an equal-budget tuning selected on validation), recipe (a family paper's own "
+          "recipe); absent in older records, which are protocol", WRITTEN, DEFAULT_TRACK),
+    Field("tuning", {
+              "type": "object",
+              "required": ["selected_on"],
+              "properties": {
+                  "selected_on": {"enum": [SELECTED_ON]},
+                  "objective": {"type": "string"},
+                  "trials": {"type": "integer", "minimum": 1},
+                  "steps": {"type": "integer", "minimum": 1},
+                  "space": {"type": "object"},
+                  "selected": {"type": "object"},
+                  "selected_trial": {"type": ["integer", "null"], "minimum": 0},
+                  "selected_value": VALUE,
+                  "cpu_s": {"type": "number", "minimum": 0},
+                  "trial": {"type": "integer", "minimum": 0},
+                  "study": {"type": "string"}}},
+          "how a tuned run's settings were chosen (hnnbench tune): the objective and "
+          "that it was read on the validation split, the trials per model and the step "
+          "budget of each, the search space, the selected settings, the CPU seconds of "
+          "all trials; a trial's own record has its trial number instead of the "
+          "selection"),
     Field("traceback", {"type": "string"}, "for a failed job whose error was not a user error"),
 )
 _BY_NAME = {f.name: f for f in FIELDS}
@@ -251,15 +290,18 @@ PROVENANCE_COLUMNS = ("git_commits", "machines", "dates")
 #: that name.
 DERIVED_COLUMNS = {
     "variant": "the settings this run differs in from the others (from overrides)",
+    "track": "the record's track (protocol where the record has none)",
+    "tuning_cpu_s": "tuning.cpu_s: the CPU seconds of the tuning that chose a tuned "
+                    "run's settings",
     "git_commit": "environment.git_commit",
     "machine": "environment.host, else environment.platform",
     "trained": "selection.trained (false: the run did not train; None: no selection)",
 }
 #: The columns of a records frame that are not metrics or timings, in order: record
 #: fields, loader fields and :data:`DERIVED_COLUMNS`.
-FRAME_COLUMNS = ("system", "model", "variant", "backend", "family", "ranked", "seed",
+FRAME_COLUMNS = ("system", "model", "variant", "track", "backend", "family", "ranked", "seed",
                  "profile", "status", "error", "steps", "device", *LOADER_FIELDS,
-                 "git_commit", "machine", "trained", "created_at")
+                 "git_commit", "machine", "trained", "created_at", "tuning_cpu_s")
 #: Columns of a records frame that are not metrics.
 RESERVED = frozenset(FRAME_COLUMNS)
 #: Provenance a submitted record must carry (``a.b``: key ``b`` of field ``a``).
@@ -268,6 +310,73 @@ PROVENANCE_FIELDS = ("environment.hnnbench", "environment.python", "environment.
 #: The field holding the plugin version of a record's system and of its model.
 VERSION_FIELDS: tuple[tuple[Literal["system", "model"], str], ...] = (
     ("system", "system_version"), ("model", "model_version"))
+
+
+#: Config keys that say a run's track (never a variant of its row).
+TRACK_KEYS = ("track", "tuning")
+
+
+def track_of(record: Mapping[str, Any]) -> str:
+    """The track of a record (:data:`TRACKS`): its ``track``, :data:`DEFAULT_TRACK`
+    where it has none (or a value that is not a string, which the schema refuses)."""
+    value = record.get("track")
+    return value if isinstance(value, str) and value else DEFAULT_TRACK
+
+
+#: The setting that holds a tuned run's step budget (``tuning.steps``).
+STEPS_SETTING = "model.steps"
+
+
+def tuned_settings(record: Mapping[str, Any]) -> frozenset[str]:
+    """The settings (``model.lr``, ...) a tuned record's tuning selected, and its step
+    budget (:data:`STEPS_SETTING`): its track's definition, not a variant of its row.
+    Empty for any other record."""
+    tuning = record.get("tuning")
+    if track_of(record) != "tuned" or not isinstance(tuning, Mapping):
+        return frozenset()
+    selected = tuning.get("selected")
+    keys = {str(k) for k in selected} if isinstance(selected, Mapping) else set()
+    return frozenset(keys | {STEPS_SETTING})
+
+
+def track_problem(record: Mapping[str, Any]) -> Optional[str]:
+    """Why a record's track and tuning do not hold together, or ``None``: ``tuning``
+    belongs to a tuned record only; a tuned record says how it was tuned (selected on
+    validation, its trials, step budget and selected settings: a tuner's trial is not a
+    result) and holds those settings in its config; the config's track is the
+    record's."""
+    track = track_of(record)
+    tuning = record.get("tuning")
+    config = record.get("config")
+    config = config if isinstance(config, Mapping) else {}
+    stored = config.get("track")
+    if stored is not None and stored != track:
+        return f"track: the record says {track}, its config {stored}"
+    if tuning is not None and track != "tuned":
+        return f"tuning: a {track} record holds a tuning; only tuned records do"
+    if track != "tuned":
+        return None
+    if not isinstance(tuning, Mapping):
+        return "tuning: a tuned record must say how it was tuned (hnnbench tune writes it)"
+    if tuning.get("selected_on") != SELECTED_ON:
+        return (f"tuning.selected_on: {_shown(tuning.get('selected_on'))}, but the tuned "
+                f"track selects on {SELECTED_ON} only")
+    selected = tuning.get("selected")
+    for key in ("trials", "steps"):
+        value = tuning.get(key)
+        if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
+            return (f"tuning.{key}: {_shown(value)}; a tuned result states its budget "
+                    "(a tuner's trial record is not a result)")
+    if not isinstance(selected, Mapping) or not selected:
+        return "tuning.selected: missing; a tuned result states the settings it selected"
+    for key, value in {**selected, STEPS_SETTING: tuning["steps"]}.items():
+        node: Any = config
+        for part in str(key).split("."):
+            node = node.get(part) if isinstance(node, Mapping) else None
+        if node != value or type(node) is bool and type(value) is not bool:
+            return (f"tuning.selected: {key}={_shown(value)}, but the record's config has "
+                    f"{_shown(node)}")
+    return None
 
 
 def _check_names() -> None:

@@ -36,6 +36,7 @@ from hnnbench._contract import Model, ModelConfig, System, SystemConfig
 from hnnbench._errors import ConfigError, HnnbenchError, UnknownNameError
 from hnnbench._metric import Metric
 from hnnbench._record_schema import metric_name_problem, name_problem
+from hnnbench._space import SearchSpace, space_problem
 
 log = logging.getLogger("hnnbench")
 
@@ -116,6 +117,14 @@ class PluginInfo(Generic[T]):
         (:attr:`hnnbench.neural.Family.baseline`)."""
         family = getattr(self.cls, "family", None) if self.kind == "model" else None
         return bool(getattr(family, "baseline", False))
+
+    @property
+    def search_space(self) -> Optional[SearchSpace]:
+        """A usable model's declared search space (``hnnbench tune``), else ``None``."""
+        if self.kind != "model" or self.cls is None:
+            return None
+        space = getattr(self.cls, "search_space", None)
+        return space if space else None
 
 
 @dataclass
@@ -282,6 +291,11 @@ class PluginGroup(Generic[T]):
         if unknown_profiles:
             return (f"{target}.profiles declares {unknown_profiles}, but hnnbench's "
                     f"profiles are {', '.join(PROFILES)}; rename or remove them")
+        space = getattr(obj, "search_space", None)
+        if space is not None and isinstance(config_cls, type):
+            problem = space_problem(space, config_cls)
+            if problem is not None:
+                return f"{target}.{problem}"
         missing, error = _guarded(f"the {self.kind} '{name}' ({target})",
                                   "requirements_missing() raised",
                                   getattr(obj, "requirements_missing", lambda: None))

@@ -1,5 +1,5 @@
 """Flatten run records into pandas tables: one row per record, per seed, or per
-(profile, system, model, variant) for the leaderboard.
+(profile, system, model, variant, track) for the leaderboard.
 
 Systems, models and metrics are ordered as the registry orders them
 (:func:`hnnbench._registry.ordered`); what a metric is (direction, scale) comes from its
@@ -22,6 +22,7 @@ from hnnbench._metric import Metric
 from hnnbench._provenance import reserved_key_problem
 from hnnbench._record_schema import (
     BOARD_KEY,
+    DEFAULT_TRACK,
     FRAME_COLUMNS,
     ID_COLUMNS,
     JOB_FIELDS,
@@ -30,12 +31,17 @@ from hnnbench._record_schema import (
     STATUS_COLUMNS,
     STATUSES,
     TIMINGS,
+    TRACK_KEYS,
+    TRACKS,
+    track_of,
+    tuned_settings,
 )
 from hnnbench._records import RUN_ONLY_KEYS
 
 __all__ = [
     "INTERVAL_SUFFIXES",
     "display_frame",
+    "variant_overrides",
     "summary_metrics",
     "format_interval",
     "format_value",
@@ -58,7 +64,15 @@ def metric_declarations() -> dict[str, Metric]:
 
 #: Override keys that do not define a variant: the identity columns, and settings that
 #: say where and how a job runs rather than what it computes.
-NON_VARIANT_KEYS = frozenset(JOB_FIELDS) | RUN_ONLY_KEYS
+NON_VARIANT_KEYS = frozenset(JOB_FIELDS) | RUN_ONLY_KEYS | frozenset(TRACK_KEYS)
+
+
+def variant_overrides(record: dict[str, Any]) -> list[str]:
+    """The record's overrides that may define its variant: a tuned record's selected
+    settings are its track's definition (``tuning.selected``), not a variant."""
+    tuned = tuned_settings(record)
+    return [o for o in record.get("overrides") or ()
+            if str(o).lstrip("+~").split("=", 1)[0] not in tuned]
 
 
 def _variant_items(overrides: Iterable[str] | None) -> dict[str, str]:
@@ -107,6 +121,13 @@ def _has_variants(frame: pd.DataFrame) -> bool:
     return "variant" in frame and bool((frame["variant"].fillna("") != "").any())
 
 
+def _has_tracks(frame: pd.DataFrame) -> bool:
+    """Whether some run is of another track than the protocol (the leaderboard then
+    shows a ``track`` column and the tuning's CPU seconds)."""
+    return "track" in frame and bool(
+        (frame["track"].fillna(DEFAULT_TRACK) != DEFAULT_TRACK).any())
+
+
 def records_frame(records: Iterable[dict[str, Any]],
                   variants: Sequence[str] | None = None) -> pd.DataFrame:
     """One row per record: the identity and status columns of
@@ -121,7 +142,7 @@ def records_frame(records: Iterable[dict[str, Any]],
     """
     records = list(records)
     if variants is None:
-        variants = variant_labels([rec.get("overrides") for rec in records])
+        variants = variant_labels([variant_overrides(rec) for rec in records])
     rows = []
     for rec, variant in zip(records, variants, strict=True):
         problem = reserved_key_problem(rec)
@@ -129,8 +150,11 @@ def records_frame(records: Iterable[dict[str, Any]],
             where = f"{rec['path']}/result.json" if rec.get("path") else "a record"
             raise HnnbenchError(f"{where}: {problem}; the record is refused")
         env = rec.get("environment") or {}
+        tuning = rec.get("tuning")
         derived = {
             "variant": variant,
+            "track": track_of(rec),
+            "tuning_cpu_s": tuning.get("cpu_s") if isinstance(tuning, dict) else None,
             "ranked": _ranked(rec),
             "git_commit": env.get("git_commit"),
             "machine": env.get("host") or env.get("platform"),
@@ -169,7 +193,8 @@ def summary_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None) -> 
     ``variant`` column only when some run has one."""
     if frame.empty:
         return frame
-    ids = ["system", "model", *(["variant"] if _has_variants(frame) else []), "seed"]
+    ids = ["system", "model", *(["variant"] if _has_variants(frame) else []),
+           *(["track"] if _has_tracks(frame) else []), "seed"]
     cols = [*ids, "status"]
     names = metric_names(frame) if metrics is None else list(metrics)
     cols += [m for m in names if m in frame.columns]
@@ -186,6 +211,7 @@ def summary_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None) -> 
         seed = pd.to_numeric(r["seed"], errors="coerce")
         return (systems.index(str(r["system"])), models.index(str(r["model"])),
                 variant_sort_key(r["variant"]) if "variant" in out else (),
+                _track_rank(str(r["track"])) if "track" in out else (),
                 math.inf if pd.isna(seed) else float(seed))
 
     return out.iloc[sorted(range(len(out)), key=key)].reset_index(drop=True)
@@ -288,10 +314,12 @@ def _refuse_repeated_seeds(group: pd.DataFrame) -> None:
 
 
 def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None) -> pd.DataFrame:
-    """One row per (profile, system, model, variant) of a :func:`records_frame`.
+    """One row per (profile, system, model, variant, track) of a :func:`records_frame`.
 
     Columns: :data:`ID_COLUMNS` (with ``variant`` after ``model`` when some run has a
-    variant, so a sweep without one keeps the plain schema), :data:`STATUS_COLUMNS`
+    variant, and ``track`` after it when some run is not of the protocol track, so a
+    sweep of the protocol without variants keeps the plain schema; tracks are never
+    ranked together), :data:`STATUS_COLUMNS`
     (``reason``: :func:`reason_text`), ``<metric>_mean``, ``<metric>_std`` and the
     interval ``<metric>_ci_low``, ``<metric>_ci_high`` (over seeds:
     :func:`hnnbench._stats.mean_intervals`, NaN for one seed or an infinite value) for
@@ -303,23 +331,30 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
     if metrics is None:
         metrics = metric_names(frame) if not frame.empty else []
     variants = _has_variants(frame)
+    tracks = _has_tracks(frame)
     ids = list(ID_COLUMNS)
     if variants:
         ids.insert(ids.index("model") + 1, "variant")
+    if tracks:
+        ids.insert(ids.index("model") + 1 + variants, "track")
     columns = [*ids, *STATUS_COLUMNS]
     for m in metrics:
         columns += [f"{m}_mean", f"{m}_std", *(f"{m}{x}" for x in INTERVAL_SUFFIXES)]
     columns += [f"{t}_mean" for t in TIMINGS]
+    if tracks:
+        columns.append("tuning_cpu_s")
     columns += list(PROVENANCE_COLUMNS)
     if frame.empty:
         return pd.DataFrame(columns=columns)
     frame = frame.copy()
     frame["profile"] = frame["profile"].fillna("?")
     frame["variant"] = frame["variant"].fillna("") if "variant" in frame else ""
+    frame["track"] = frame["track"].fillna(DEFAULT_TRACK) if "track" in frame \
+        else DEFAULT_TRACK
     rows = []
     samples: list[np.ndarray] = []  # every cell's values over seeds, in (row, metric) order
-    for (profile, system, model, variant), group in frame.groupby(
-            [*BOARD_KEY, "variant"], dropna=False, sort=False):
+    for (profile, system, model, variant, track), group in frame.groupby(
+            [*BOARD_KEY, "variant", "track"], dropna=False, sort=False):
         _refuse_repeated_seeds(group)
         counts = {s: int((group["status"] == s).sum()) for s in STATUSES}
         seeds = sorted({int(s) for s in group["seed"].dropna()})
@@ -328,6 +363,7 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
         ranked = bool(group["ranked"].fillna(True).all()) if "ranked" in group else True
         row: dict[str, Any] = {
             "profile": profile, "system": system, "model": model, "variant": variant,
+            "track": track,
             "backend": backends[0] if backends else "",
             "family": families[0] if families else "", "ranked": ranked,
             "n_seeds": len(group), "seeds": ";".join(str(s) for s in seeds),
@@ -347,6 +383,10 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
         for t in TIMINGS:
             vals = pd.to_numeric(timed[t], errors="coerce") if t in timed else pd.Series([])
             row[f"{t}_mean"] = float(vals.mean()) if vals.notna().any() else math.nan
+        if tracks:  # the tuning's CPU seconds: one study per pair, in each of its records
+            cpu = pd.to_numeric(group["tuning_cpu_s"], errors="coerce") \
+                if "tuning_cpu_s" in group else pd.Series([], dtype=float)
+            row["tuning_cpu_s"] = float(cpu.max()) if cpu.notna().any() else math.nan
         row["git_commits"] = _distinct(group.get("git_commit"))
         row["machines"] = _distinct(group.get("machine"))
         row["dates"] = _distinct(None if "created_at" not in group else
@@ -359,10 +399,17 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
     out = pd.DataFrame(rows, columns=columns)
     systems = registry.ordered("system", out["system"].astype(str))
     models = registry.ordered("model", out["model"].astype(str))
-    keys = out.apply(lambda r: (str(r["profile"]), systems.index(str(r["system"])),
+    keys = out.apply(lambda r: (str(r["profile"]),
+                                _track_rank(str(r["track"])) if tracks else (),
+                                systems.index(str(r["system"])),
                                 models.index(str(r["model"])),
                                 variant_sort_key(r["variant"]) if variants else ()), axis=1)
     return out.iloc[sorted(range(len(out)), key=lambda i: keys.iloc[i])].reset_index(drop=True)
+
+
+def _track_rank(track: str) -> tuple[int, str]:
+    """Tracks in :data:`TRACKS` order (protocol first), unknown ones after."""
+    return (TRACKS.index(track), "") if track in TRACKS else (len(TRACKS), track)
 
 
 def _distinct(values: Any) -> str:
@@ -430,6 +477,8 @@ def display_frame(board: pd.DataFrame, timings: bool = True,
         row: dict[str, Any] = {c: r[c] for c in ids}
         if "variant" in board:
             row["variant"] = r["variant"] if isinstance(r["variant"], str) else ""
+        if "track" in board:
+            row["track"] = r["track"] if isinstance(r["track"], str) else DEFAULT_TRACK
         row.update(n_seeds=int(r["n_seeds"]), status=r["status"])
         if reasons:
             row["reason"] = short_reason(r["reason"])
@@ -441,5 +490,7 @@ def display_frame(board: pd.DataFrame, timings: bool = True,
         if timings:
             row[COST_COLUMN] = format_value(r.get(f"{COST_COLUMN}_mean", math.nan),
                                             linear=True)
+        if timings and "tuning_cpu_s" in board:
+            row["tuning_cpu_s"] = format_value(r.get("tuning_cpu_s", math.nan), linear=True)
         rows.append(row)
     return pd.DataFrame(rows)

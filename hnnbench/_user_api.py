@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Optional, Union
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["leaderboard", "load", "run", "sweep"]
+__all__ = ["leaderboard", "load", "run", "sweep", "tune"]
 
 Names = Union[str, Sequence[str]]
 
@@ -133,6 +133,60 @@ def sweep(systems: Names, models: Names, seeds: Iterable[int] = (0,),
     result = _sweep.launch_plan(checked, command)
     board = leaderboard(result.records)
     board.attrs["sweep_dir"] = str(out)
+    return board
+
+
+def tune(system: str, models: Names, trials: int, seeds: Iterable[int] = (0, 1, 2),
+         profile: str = "paper", out: Optional[Union[str, Path]] = None,
+         steps: Optional[int] = None, pruner: str = "successive_halving",
+         trial_seed: int = 0, sampler_seed: int = 0, **overrides: Any) -> pd.DataFrame:
+    """The tuned track of one system, as ``hnnbench tune system=... model=...
+    trials=...``: every model gets ``trials`` trials of ``steps`` steps over its
+    declared search space, selected on validation, and the selected settings train on
+    each of ``seeds``; return the leaderboard of those final runs (``track`` tuned,
+    with the tuning's CPU seconds). Re-running with the same ``out`` resumes.
+
+    Args:
+        system: one registered system.
+        models: models that declare a search space (``"all"``: every one).
+        trials: trials per model, the same for every model.
+        seeds: the seeds the selected settings train on.
+        profile: ``paper`` or ``quick``.
+        out: the tuned track's directory (default ``results/runs/tuned_<profile>``).
+        steps: steps of every trial and final run (default: the system's protocol).
+        pruner: ``successive_halving`` or ``none``.
+        trial_seed, sampler_seed: the trials' seed, the samplers' seed.
+        **overrides: ``system__n_traj=10`` and the like (``__`` for a dot), passed to
+            every job; model settings are what is tuned and are refused.
+
+    The frame's ``attrs["tuning_dir"]`` is the tuned track's directory (records under
+    ``final/``, trials under ``trials/``, studies under ``tuning/``). Needs optuna
+    (``pip install 'hnnbench[tune]'``).
+    """
+    from hnnbench import _tune
+    from hnnbench._errors import ConfigError
+    from hnnbench._sweep import hydra_value
+
+    typed, raw = _settings(overrides)
+    passed = [f"{k}={hydra_value(v)}" for k, v in typed.items()] + [
+        f"{k}={v}" for k, v in raw.items()]
+    for text in passed:
+        key = text.split("=", 1)[0]
+        if not (key.startswith(_tune.PASSED_PREFIXES) or key in _tune.PASSED_KEYS):
+            raise ConfigError(f"tune(): {key} cannot be set here (model settings are what "
+                              "is tuned; the step budget is steps=)")
+    request = _tune.TuneRequest(
+        system=system, models=_names(models), trials=int(trials),
+        seeds=[int(s) for s in seeds], profile=profile,
+        out=Path(_out_dir(out)) if out is not None else None, steps=steps, pruner=pruner,
+        trial_seed=int(trial_seed), sampler_seed=int(sampler_seed), overrides=passed,
+        command=f"hnnbench.tune({system!r}, {_names(models)!r}, trials={trials})")
+    if request.trials < 1 or pruner not in _tune.PRUNERS:
+        raise ConfigError(f"tune(): trials must be >= 1 and pruner one of "
+                          f"{', '.join(_tune.PRUNERS)}")
+    studies = _tune.run_tuning(request)
+    board = leaderboard([r for s in studies for r in s.finals])
+    board.attrs["tuning_dir"] = str(request.directory.resolve())
     return board
 
 

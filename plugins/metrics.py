@@ -242,7 +242,7 @@ VAL_LOSS = Metric(
     "training data (noisy inputs as in training; pixels: the training objective); the "
     "checkpoint is selected on it. The zero field scores the mean squared target",
     _valid_loss, check=CheckRule(2, 1e-12), order=15,
-    errors_fail_job=True, domain=NONNEGATIVE)
+    errors_fail_job=True, domain=NONNEGATIVE, selects=True)
 TEST_LOSS = Metric(
     "test_loss", "MSE of predicted vs target dx/dt on the test set, at the clean inputs "
     "where the system adds noise to them (so the true field scores 0, not the noise "

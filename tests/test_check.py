@@ -201,7 +201,7 @@ def test_builtin_rules_cover_every_summary_metric():
     assert set(summary_metrics()) | set(TIMINGS) <= set(metrics)
     assert all(r.factor >= 1 for r in metrics.values())
     assert {m for m, r in metrics.items() if r.better == "higher"} == {
-        "valid_prediction_time", "vpt_censored", "vpt_lyapunov"}
+        "rollout_skill", "valid_prediction_time", "vpt_censored", "vpt_lyapunov"}
 
 
 def test_timings_never_gate(ref_sweep, tmp_path):

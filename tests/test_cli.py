@@ -17,7 +17,7 @@ def test_list_names_builtins():
         assert name in proc.stdout
     data = json.loads(hnnbench("list", "--json").stdout)
     spring = next(s for s in data["system"] if s["name"] == "spring")
-    assert spring["version"] == "2" and spring["status"] == "ok"
+    assert spring["version"] == "3" and spring["status"] == "ok"
     assert next(m for m in data["model"] if m["name"] == "hnn_torch")["backend"] == "torch"
 
 

@@ -118,7 +118,7 @@ def test_contract_flags_kinematics_and_profiles(cls, cfg_cls):
     names = {f.name for f in dataclasses.fields(cfg_cls)}
     quick = cls.profiles["quick"]
     assert set(quick) <= names and quick["steps"] <= 300 and quick["eval_n_traj"] == 5
-    assert cls.version == "1" and "\n" not in cls.description
+    assert cls.version == "2" and "\n" not in cls.description
     name = "damped_spring" if cls is DampedSpring else "damped_pendulum"
     (ep,) = [e for e in entry_points(group="hnnbench.systems") if e.name == name]
     assert ep.load() is cls

@@ -250,10 +250,13 @@ def test_a_metric_outside_its_declared_domain_is_refused_by_strict_loading(
     assert [(f.model, f.current) for f in findings] == [(str(path), reason)]
 
 
-def test_the_builtin_metrics_declare_a_nonnegative_domain():
-    for metric in registry.metrics():  # vpt_censored is a share: [0, 1]
-        assert metric.domain == ((0.0, 1.0) if metric.name == "vpt_censored"
-                                 else (0.0, math.inf)), metric.name
+def test_the_builtin_metrics_declare_their_domain():
+    special = {"vpt_censored": (0.0, 1.0),  # a share
+               "rollout_skill": (-math.inf, 1.0)}  # 1 exact, 0 standing still, below: worse
+    for metric in registry.metrics():
+        assert metric.domain == special.get(metric.name, (0.0, math.inf)), metric.name
+    skill = next(m for m in registry.metrics() if m.name == "rollout_skill")
+    assert skill.worst() == -math.inf and skill.value_problem(1.5) is not None
 
 
 @pytest.mark.parametrize("created_at, why", [

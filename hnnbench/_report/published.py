@@ -30,8 +30,11 @@ __all__ = [
 
 
 def plain_rows(board: pd.DataFrame) -> pd.DataFrame:
-    """The rows without a variant: comparisons with published results use those only
-    (a variant row is a setting the sweep varied away from the others)."""
+    """The rows without a variant, of the protocol track: comparisons with published
+    results use those only (a variant row is a setting the sweep varied away from the
+    others; the tuned and recipe tracks are other budgets)."""
+    if "track" in board:
+        board = board[board["track"].fillna("protocol").astype(str) == "protocol"]
     if "variant" not in board:
         return board
     return board[board["variant"].fillna("").astype(str) == ""]

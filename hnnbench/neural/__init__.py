@@ -9,8 +9,8 @@ float64 rollouts, pixel autoencoders and second-order coordinates
 model is built. docs/MODELS.md ("Adding a family") shows a new family in a few lines.
 """
 
-from hnnbench.neural._config import NeuralConfig
+from hnnbench.neural._config import SHARED_SPACE, NeuralConfig
 from hnnbench.neural._family import Family
 from hnnbench.neural._model import NeuralModel
 
-__all__ = ["Family", "NeuralConfig", "NeuralModel"]
+__all__ = ["SHARED_SPACE", "Family", "NeuralConfig", "NeuralModel"]

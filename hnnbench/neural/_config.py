@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import MappingProxyType
 
 from hnnbench._contract import ModelConfig, check_int_at_least, check_positive
 from hnnbench._errors import ConfigError
+from hnnbench._space import Categorical, Distribution, IntRange, LogUniform
 from hnnbench.neural._embedding import ANGLE_EMBEDDINGS
 
-__all__ = ["ACTIVATIONS", "DTYPES", "NeuralConfig"]
+__all__ = ["ACTIVATIONS", "DTYPES", "SHARED_SPACE", "NeuralConfig"]
 
 ACTIVATIONS = ("tanh", "sigmoid", "softplus")
 DTYPES = ("float32", "float64")
@@ -67,3 +69,19 @@ class NeuralConfig(ModelConfig):
     def log_interval(self, steps: int) -> int:
         """Steps between two loss records (one compiled chunk of the JAX backend)."""
         return self.log_every or max(10, steps // 200)
+
+
+#: The search space over the settings every neural model has (``hnnbench tune``,
+#: docs/TUNING.md): the learning rate around the protocols' 1e-3 (two decades), the
+#: weight decay from none to the largest any protocol uses x 10, the width from a
+#: quarter to twice the 2019 paper's 200 units, one to three hidden layers, and the
+#: activation. A family declares ``{**SHARED_SPACE, <its own knobs>}`` (or leaves a
+#: setting out that it cannot use), so that the settings all families share are searched
+#: over the same ranges. Read-only.
+SHARED_SPACE: MappingProxyType[str, Distribution] = MappingProxyType({
+    "lr": LogUniform(1e-4, 1e-2),
+    "weight_decay": Categorical((0.0, 1e-5, 1e-4, 1e-3)),
+    "hidden": Categorical((50, 100, 200, 400)),
+    "layers": IntRange(2, 4),
+    "activation": Categorical(ACTIVATIONS),
+})

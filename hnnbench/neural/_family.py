@@ -21,7 +21,10 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Literal, Optional
+from types import ModuleType
+from typing import Any, Literal, Optional
+
+from hnnbench._space import SearchSpace
 
 __all__ = ["Family"]
 
@@ -59,6 +62,10 @@ class Family:
         baseline: the family every other is measured against: the aggregate across
             systems scores each run between this family's mean (0) and the floor (1)
             (docs/STATISTICS.md). One installed family declares it.
+        search_space: what ``hnnbench tune`` may vary (``{setting: distribution}``
+            over fields of the models' config; :data:`hnnbench.neural.SHARED_SPACE`
+            holds the settings every network has); every backend's model declares it.
+            ``None``: the family is not tuned.
     """
 
     name: str
@@ -74,7 +81,47 @@ class Family:
     order: Optional[float] = None
     network_inputs: Mapping[str, Literal["z", "q", "p"]] = field(default_factory=dict)
     baseline: bool = False
+    search_space: Optional[SearchSpace] = None
 
 
 #: Backends in listing order within a family.
 BACKEND_ORDER = ("torch", "jax")
+
+
+#: The implementation functions that take the model's options (:class:`Bound`).
+OPTION_FUNCTIONS = ("field", "energy")
+
+
+@dataclass(frozen=True)
+class BoundFunction:
+    """An implementation function with keyword options bound: ``f(*args)`` calls
+    ``fn(*args, **options)``. Equal (and hashing equal) when ``fn`` and ``options`` are,
+    so JAX's compiled functions, which take it as a static argument, are reused across
+    models of the same settings."""
+
+    fn: Callable[..., Any]
+    options: tuple[tuple[str, Any], ...]
+
+    def __call__(self, *args: Any) -> Any:
+        return self.fn(*args, **dict(self.options))
+
+
+@dataclass(frozen=True)
+class Bound:
+    """A family's implementation module with the model's options bound to its ``field``
+    and ``energy`` (:data:`OPTION_FUNCTIONS`); ``window_loss`` and everything else as the
+    module has them. Hashable (a static argument of JAX's compiled training chunk)."""
+
+    module: ModuleType
+    options: tuple[tuple[str, Any], ...]
+
+    def __getattr__(self, name: str) -> Any:
+        if name in ("module", "options") or name.startswith("__"):
+            raise AttributeError(name)
+        value = getattr(self.module, name)
+        return BoundFunction(value, self.options) if name in OPTION_FUNCTIONS else value
+
+
+def bind(module: ModuleType, options: tuple[tuple[str, Any], ...]) -> Any:
+    """``module`` itself without options, else a :class:`Bound` view of it."""
+    return Bound(module, tuple(options)) if options else module

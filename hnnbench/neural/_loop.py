@@ -18,7 +18,10 @@ rest, identically for every backend and family:
 - divergence: a seed whose training or validation loss becomes non-finite stops
   training at that chunk; it is *diverged* only if no checkpoint was kept before
   (its validation loss was never finite), and otherwise keeps its selected checkpoint
-  (the reason it stopped is recorded). Training ends when every seed has stopped.
+  (the reason it stopped is recorded). Training ends when every seed has stopped;
+- stopping early: a progress callback that returns ``True`` (a tuner's pruner) stops
+  every seed after that chunk, each with its selected checkpoint and the reason
+  (:data:`hnnbench._contract.STOPPED_BY_CALLER`).
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ from hnnbench._contract import (
     HISTORY_STEP,
     HISTORY_TRAIN,
     HISTORY_VALID,
+    STOPPED_BY_CALLER,
     Progress,
     Selection,
     TrainSettings,
@@ -153,8 +157,12 @@ def train(
         if improved.any():
             trainer.keep(improved)
         shown = live or list(range(len(seeds)))
-        progress(step, {HISTORY_TRAIN: float(np.mean(losses[shown, -1])),
-                        HISTORY_VALID: float(np.mean(valids[shown]))})
+        stop = progress(step, {HISTORY_TRAIN: float(np.mean(losses[shown, -1])),
+                               HISTORY_VALID: float(np.mean(valids[shown]))})
+        if stop is True and live and k + 1 < len(lengths):
+            for s in live:
+                stopped[s] = f"{STOPPED_BY_CALLER} at step {step} (a tuner's pruner)"
+            break
         if not live:
             break
     for s, fit in enumerate(fits):

@@ -31,7 +31,7 @@ from hnnbench.neural import _views as views
 from hnnbench.neural._backend import Inference, Weights, load_backend, missing_backend
 from hnnbench.neural._config import NeuralConfig
 from hnnbench.neural._embedding import Layout
-from hnnbench.neural._family import BACKEND_ORDER, Family
+from hnnbench.neural._family import BACKEND_ORDER, Family, bind
 from hnnbench.neural._init import autoencoder_init_arrays, network_init_arrays
 from hnnbench.neural._loop import train as run_training
 from hnnbench.neural._views import Problem
@@ -70,6 +70,8 @@ class NeuralModel(Model):
                 cls.order = family.order + 0.1 * offset
             if not cls.__dict__.get("description"):
                 cls.description = f"{family.title} ({cls.backend})"
+            if family.search_space is not None and "search_space" not in cls.__dict__:
+                cls.search_space = family.search_space
 
     @classmethod
     def unsupported_reason(cls, system: System) -> Optional[str]:
@@ -84,7 +86,8 @@ class NeuralModel(Model):
         super().__init__(cfg, system, device)
         self.view = views.view_for(self.family, system)
         self._backend = load_backend(self.backend, cfg, device)
-        self._impl = importlib.import_module(self.family.implementations[self.backend])
+        self._impl = bind(importlib.import_module(self.family.implementations[self.backend]),
+                          self.field_options())
         self._weights: Optional[Weights] = None
         self._inference: Optional[Inference] = None
         self.timings = self._backend.timings
@@ -167,6 +170,13 @@ class NeuralModel(Model):
             self._inference = self._backend.inference(self.family, self._impl,
                                                       self.get_weights(), self.layout())
         return self._inference
+
+    def field_options(self) -> tuple[tuple[str, Any], ...]:
+        """Keyword options of the family's ``field`` and ``energy`` (hashable ``(name,
+        value)`` pairs; default none): a family with its own config fields that change
+        the field (the LNN's kinetic prior, the D-HNN's dissipation scale) overrides
+        this, and its implementation functions take them as keyword arguments."""
+        return ()
 
     # -- training -------------------------------------------------------------------
     def training_options(self) -> tuple[int, tuple[tuple[str, Any], ...]]:

@@ -8,7 +8,7 @@ exactly. The learned energy is ``H``. On pixel systems it is the latent dynamics
 
 from __future__ import annotations
 
-from hnnbench.neural import Family, NeuralModel
+from hnnbench.neural import SHARED_SPACE, Family, NeuralModel
 
 HNN = Family(
     name="hnn",
@@ -18,6 +18,7 @@ HNN = Family(
     implementations={"torch": "hnnbench_plugins.models.hnn.torch",
                      "jax": "hnnbench_plugins.models.hnn.jax"},
     order=20,
+    search_space=SHARED_SPACE,
     observations=("state", "pixels"),
     learned_energy=True,
 )

@@ -18,14 +18,19 @@ instead of ~50x too large (a near-singular Hessian at initialisation stalled the
 and pendulum LNN at lr 1e-3: the issue "Every family at its honest best"). The network
 learns the difference to the true Lagrangian, whose kinetic term the prior only
 approximates (the 2019 spring's true one is ``q̇²/4``). It is the LNN's alone: the other
-families invert no Hessian of their network.
+families invert no Hessian of their network. Its weight is ``model.kinetic_prior``
+(default :data:`KINETIC_PRIOR`; 0: the plain network, as in the paper), a knob of the
+family's search space (``hnnbench tune``).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import Any
 
-from hnnbench.neural import Family, NeuralConfig, NeuralModel
+from hnnbench import Categorical, ConfigError
+from hnnbench.neural import SHARED_SPACE, Family, NeuralConfig, NeuralModel
 
 #: The weight of the declared kinetic term ``|q̇|²`` added to the network's output
 #: (the module docstring).
@@ -42,6 +47,10 @@ LNN = Family(
     order=40,
     coordinates="velocity",
     learned_energy=True,
+    # The shared space, but softplus only (LNNConfig), and the weight of the kinetic
+    # term from none (the paper's plain network) to twice the default.
+    search_space={**{k: v for k, v in SHARED_SPACE.items() if k != "activation"},
+                  "kinetic_prior": Categorical((0.0, 0.25, 0.5, 1.0))},
 )
 
 
@@ -58,22 +67,36 @@ class LNNConfig(NeuralConfig):
     the LNN trains under each system's protocol (docs/MODELS.md)."""
 
     activation: str = "softplus"
+    #: The weight of the declared kinetic term ``|q̇|²`` (the module docstring).
+    kinetic_prior: float = KINETIC_PRIOR
+
+    def validate(self) -> None:
+        super().validate()
+        if not (math.isfinite(self.kinetic_prior) and self.kinetic_prior >= 0):
+            raise ConfigError(f"model.kinetic_prior={self.kinetic_prior} is invalid: "
+                              "expected a finite number >= 0, e.g. model.kinetic_prior=0.5.")
 
 
-class LNNTorch(NeuralModel):
+class _LNN(NeuralModel):
+    Config = LNNConfig
+    cfg: LNNConfig
+
+    def field_options(self) -> tuple[tuple[str, Any], ...]:
+        return (("kinetic_prior", float(self.cfg.kinetic_prior)),)
+
+
+class LNNTorch(_LNN):
     """Lagrangian NN (PyTorch; ``torch.func`` derivatives)."""
 
-    Config = LNNConfig
     family = LNN
     backend = "torch"
     version = "3"  # 3: angles embedded (model.angle_embedding)
     profiles = QUICK
 
 
-class LNNJax(NeuralModel):
+class LNNJax(_LNN):
     """Lagrangian NN (JAX)."""
 
-    Config = LNNConfig
     family = LNN
     backend = "jax"
     version = "3"  # 3: angles embedded (model.angle_embedding)

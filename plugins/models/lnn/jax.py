@@ -1,5 +1,6 @@
 """The LNN in JAX: Euler-Lagrange accelerations with ``jax`` derivatives of the learned
-Lagrangian (the network plus the family's declared kinetic term,
+Lagrangian (the network plus the family's declared kinetic term ``kinetic_prior ·
+|q̇|²``, ``model.kinetic_prior``, default
 :data:`~hnnbench_plugins.models.lnn.KINETIC_PRIOR`), per state."""
 
 from __future__ import annotations
@@ -17,11 +18,11 @@ Net = Callable[[jax.Array], jax.Array]
 Lagrangian = Callable[[jax.Array], jax.Array]
 
 
-def learned(net: Net) -> Lagrangian:
-    """``L(z) = net(z) + KINETIC_PRIOR · |q̇|²`` of one state."""
+def learned(net: Net, kinetic_prior: float = KINETIC_PRIOR) -> Lagrangian:
+    """``L(z) = net(z) + kinetic_prior · |q̇|²`` of one state."""
     def lagrangian(z: jax.Array) -> jax.Array:
         qdot = z[z.shape[0] // 2:]
-        return net(z)[0] + KINETIC_PRIOR * jnp.sum(qdot * qdot)
+        return net(z)[0] + kinetic_prior * jnp.sum(qdot * qdot)
 
     return lagrangian
 
@@ -53,13 +54,15 @@ def euler_lagrange(lagrangian: Lagrangian, z: jax.Array) -> jax.Array:
                            axis=-1)
 
 
-def field(nets: Nets | dict[str, Net], z: jax.Array) -> jax.Array:
-    return euler_lagrange(learned(nets["L"]), z)
+def field(nets: Nets | dict[str, Net], z: jax.Array,
+          kinetic_prior: float = KINETIC_PRIOR) -> jax.Array:
+    return euler_lagrange(learned(nets["L"], kinetic_prior), z)
 
 
-def energy(nets: Nets | dict[str, Net], z: jax.Array) -> jax.Array:
+def energy(nets: Nets | dict[str, Net], z: jax.Array,
+           kinetic_prior: float = KINETIC_PRIOR) -> jax.Array:
     """``E = q̇ · ∂L/∂q̇ − L`` ``(N,)``."""
-    lagrangian = learned(nets["L"])
+    lagrangian = learned(nets["L"], kinetic_prior)
 
     def one(zi: jax.Array) -> jax.Array:
         n = zi.shape[0] // 2

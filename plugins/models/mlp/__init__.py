@@ -6,7 +6,7 @@ pixel systems it is the latent dynamics of the 2019 autoencoder.
 
 from __future__ import annotations
 
-from hnnbench.neural import Family, NeuralModel
+from hnnbench.neural import SHARED_SPACE, Family, NeuralModel
 
 MLP = Family(
     name="mlp",
@@ -16,6 +16,7 @@ MLP = Family(
     implementations={"torch": "hnnbench_plugins.models.mlp.torch",
                      "jax": "hnnbench_plugins.models.mlp.jax"},
     order=10,
+    search_space=SHARED_SPACE,
     observations=("state", "pixels"),
     baseline=True,
 )

@@ -19,7 +19,7 @@ Gruver et al.'s model must learn.
 
 from __future__ import annotations
 
-from hnnbench.neural import Family, NeuralModel
+from hnnbench.neural import SHARED_SPACE, Family, NeuralModel
 
 SO_MLP = Family(
     name="so_mlp",
@@ -32,6 +32,7 @@ SO_MLP = Family(
                      "jax": "hnnbench_plugins.models.so_mlp.jax"},
     order=50,
     coordinates="velocity",
+    search_space=SHARED_SPACE,
 )
 
 

@@ -1,0 +1,676 @@
+"""``hnnbench tune``: the tuned track, the same tuning budget for every model of a system.
+
+For one system and a list of models, each model gets one Optuna study over its declared
+search space (:attr:`hnnbench.Model.search_space`), and every study gets the same
+budget: ``trials`` trials, each trained for the same ``steps`` (default: the system's
+protocol steps of the profile). A trial is a real hnnbench job (:func:`hnnbench._job.
+run_seed_outcomes`, as a sweep's job, pinned to one core) that computes only the metric
+declared to select on (:attr:`hnnbench.Metric.selects`: a validation-split metric, never
+a test one) and writes an ordinary record under ``trials/``. The best trial by that
+metric is selected; its settings then train on each of ``seeds`` as ordinary jobs whose
+records say ``"track": "tuned"`` and carry ``tuning`` (the budget, the space, the
+selection and the CPU seconds of all trials), under ``final/``: the tuned track's
+records, which ``hnnbench report`` and ``hnnbench check`` read like a sweep's.
+
+A successive-halving pruner (Optuna's ``SuccessiveHalvingPruner``: rungs at 1/9 and 1/3
+of the step budget, the best third of the trials at a rung go on) stops a trial early
+on its own training loop's validation loss, reported after every logging interval
+(:func:`hnnbench._progress.observing`); a pruned trial keeps its record (``selection.
+stopped`` says so) and is never selected. A space holding a setting that changes what
+the training loss measures (``changes_training_loss``, e.g. the SRNN's window) is tuned
+without pruning, since those losses do not compare across trials.
+
+Layout of ``out`` (a directory for the whole tuned track; ``<system>`` parts side by
+side)::
+
+    tuning/<system>.db                       the Optuna storage (SQLite): one study per model
+    tuning/<system>/<model>.json             each study's summary: trials, selection, cost
+    trials/<system>/<model>/trial<k>/        each trial's job (result.json, hnnbench.log)
+    final/<system>/<model>/seed<s>/          the tuned track's records
+
+Running the same command again resumes: finished trials are in the storage, a trial
+that an interruption left running is replayed with the same settings (or read from its
+record, if it was written), and finished final records are kept. Resuming with another
+step budget, profile, space or objective than the study was made with is refused.
+docs/TUNING.md describes the track, the budget, the selection rule and the cost.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import shlex
+import socket
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Optional
+
+from omegaconf import OmegaConf, open_dict
+
+from hnnbench import _launch as launch
+from hnnbench import _progress as progress
+from hnnbench import _records as records
+from hnnbench import _registry as registry
+from hnnbench._config import compose, prepare_job, profile_of
+from hnnbench._contract import HISTORY_VALID, STOPPED_BY_CALLER, TrainSettings
+from hnnbench._errors import BackendMissingError, ConfigError, UnknownNameError
+from hnnbench._job import run_seed_outcomes
+from hnnbench._metric import Metric
+from hnnbench._record_schema import SELECTED_ON, STEPS_SETTING
+from hnnbench._space import (
+    Categorical,
+    Distribution,
+    IntRange,
+    LogUniform,
+    SearchSpace,
+    Uniform,
+    describe,
+    space_json,
+)
+from hnnbench._sweep import sweep_lock
+
+if TYPE_CHECKING:
+    import optuna
+
+log = logging.getLogger("hnnbench")
+
+__all__ = ["PRUNERS", "Study", "TuneRequest", "main", "run_tuning"]
+
+#: ``pruner=``: successive halving on the training loop's validation loss, or none.
+PRUNERS = ("successive_halving", "none")
+#: Successive halving: the first rung at this fraction of the step budget, each next one
+#: this many times later; at a rung the best ``1 / REDUCTION`` of the trials go on.
+REDUCTION = 3
+FIRST_RUNG = 1 / 9
+#: Settings the command passes on to every job (the system's, the evaluation's, and how
+#: jobs run); ``model.*`` is what the tuner searches, and is refused.
+PASSED_PREFIXES = ("system.", "evaluation.")
+PASSED_KEYS = ("timeout_s", "cache_dir", "data_dir", "device", "threads", "pin_cpu")
+#: The tuner's own arguments, ``key=value``.
+ARGUMENTS = ("system", "model", "trials", "seeds", "profile", "out", "steps", "pruner",
+             "trial_seed", "sampler_seed")
+
+USAGE = """\
+usage: hnnbench tune system=NAME model=A,B,... trials=N [seeds=0,1,2] [profile=paper]
+                     [steps=S] [out=DIR] [pruner=successive_halving|none]
+                     [trial_seed=0] [sampler_seed=0] [system.KEY=VALUE ...]
+
+Gives every model the same tuning budget on the system (N trials of S steps each,
+default S: the system's protocol steps), selects each model's settings on validation,
+and trains the selection on each seed: the tuned track (docs/TUNING.md). Re-running the
+same command resumes it. Records: OUT/final (report and check it like a sweep).
+"""
+
+
+@dataclass
+class TuneRequest:
+    """What ``hnnbench tune`` runs (see the module docstring).
+
+    Attributes:
+        system: one registered system.
+        models: registered models that declare a search space (``["all"]``: every one).
+        trials: trials per model (the same for every model), >= 1.
+        seeds: the seeds the selected settings train on.
+        profile: ``paper`` or ``quick``.
+        out: the tuned track's directory (default ``results/runs/tuned_<profile>``).
+        steps: optimizer steps of every trial and final run (``None``: the system's
+            protocol steps of the profile).
+        pruner: one of :data:`PRUNERS`.
+        trial_seed: the seed of every trial's data, initial weights and minibatches.
+        sampler_seed: the seed of each study's sampler (TPE).
+        overrides: settings passed to every job (``system.*``, ``evaluation.*``,
+            :data:`PASSED_KEYS`).
+        command: the command line stored in the records.
+    """
+
+    system: str
+    models: list[str]
+    trials: int
+    seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
+    profile: str = "paper"
+    out: Optional[Path] = None
+    steps: Optional[int] = None
+    pruner: str = "successive_halving"
+    trial_seed: int = 0
+    sampler_seed: int = 0
+    overrides: list[str] = field(default_factory=list)
+    command: Optional[str] = None
+
+    @property
+    def directory(self) -> Path:
+        return Path(self.out) if self.out is not None else \
+            Path("results") / "runs" / f"tuned_{self.profile}"
+
+
+@dataclass
+class Study:
+    """One model's tuning: its summary (:meth:`summary`) and final records."""
+
+    model: str
+    space: SearchSpace
+    budget_trials: int
+    steps: int
+    objective: Metric
+    pruner: str
+    trials: list[dict[str, Any]] = field(default_factory=list)
+    selected: Optional[dict[str, Any]] = None
+    finals: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def cpu_s(self) -> float:
+        """CPU seconds of every trial's job (pruned and failed ones included)."""
+        return float(sum(t.get("cpu_s") or 0.0 for t in self.trials))
+
+    def tuning(self, study_name: str) -> dict[str, Any]:
+        """The ``tuning`` block of the final records (``hnnbench._record_schema``)."""
+        assert self.selected is not None
+        states = [t["state"] for t in self.trials]
+        return {
+            "selected_on": SELECTED_ON,
+            "objective": self.objective.name,
+            "trials": self.budget_trials,
+            "steps": self.steps,
+            "space": space_json(self.space),
+            "selected": dict(self.selected["settings"]),
+            "selected_trial": self.selected["number"],
+            # "inf" where every trial diverged (strict JSON, as the record stores it)
+            "selected_value": records.encode(self.selected["value"]),
+            "completed": states.count("complete"),
+            "pruned": states.count("pruned"),
+            "pruner": self.pruner,
+            "sampler": "TPE",
+            "cpu_s": round(self.cpu_s, 3),
+            "study": study_name,
+        }
+
+
+# --------------------------------------------------------------------------- arguments
+
+
+def _int(key: str, value: str, low: int) -> int:
+    try:
+        number = int(value)
+    except ValueError:
+        number = low - 1
+    if number < low:
+        raise ConfigError(f"{key}={value} is invalid: expected an integer >= {low}, "
+                          f"e.g. {key}={max(low, 1)}.")
+    return number
+
+
+def parse(args: Sequence[str]) -> TuneRequest:
+    """The request of a command line (``key=value`` tokens); one-line
+    :class:`ConfigError` for anything else."""
+    values: dict[str, str] = {}
+    overrides: list[str] = []
+    for arg in args:
+        key, sep, value = arg.partition("=")
+        if arg in ("-h", "--help", "help"):
+            raise ConfigError(" ".join(USAGE.split()))
+        if not sep or not key:
+            raise ConfigError(f"hnnbench tune: '{arg}' is not KEY=VALUE, e.g. trials=20 "
+                              "(hnnbench tune --help)")
+        if key in ARGUMENTS:
+            values[key] = value
+        elif key.startswith("model."):
+            raise ConfigError(f"hnnbench tune: {arg}: model settings are what the tuner "
+                              "searches (each model's declared space) or the model's "
+                              "defaults; the step budget is steps=N")
+        elif key.startswith(PASSED_PREFIXES) or key in PASSED_KEYS:
+            overrides.append(arg)
+        else:
+            known = ", ".join([*ARGUMENTS, *(f"{p}*" for p in PASSED_PREFIXES), *PASSED_KEYS])
+            raise ConfigError(f"hnnbench tune: unknown argument '{key}'; expected one of "
+                              f"{known}")
+    for key in ("system", "model", "trials"):
+        if not values.get(key):
+            raise ConfigError(f"hnnbench tune: {key}= is required, e.g. hnnbench tune "
+                              "system=pendulum model=hnn_jax,mlp_jax trials=20")
+    if "," in values["system"]:
+        raise ConfigError(f"system={values['system']}: one system per tuning (its "
+                          "models share the budget); run one command per system")
+    pruner = values.get("pruner", "successive_halving")
+    if pruner not in PRUNERS:
+        raise ConfigError(f"pruner={pruner} is invalid: expected one of {', '.join(PRUNERS)}")
+    seeds = [_int("seeds", s, 0) for s in values.get("seeds", "0,1,2").split(",")]
+    if len(set(seeds)) != len(seeds):
+        raise ConfigError(f"seeds={values['seeds']} repeats a seed")
+    return TuneRequest(
+        system=values["system"],
+        models=[m for m in values["model"].split(",") if m],
+        trials=_int("trials", values["trials"], 1),
+        seeds=seeds,
+        profile=values.get("profile", "paper"),
+        out=Path(values["out"]) if values.get("out") else None,
+        steps=_int("steps", values["steps"], 1) if values.get("steps") else None,
+        pruner=pruner,
+        trial_seed=_int("trial_seed", values.get("trial_seed", "0"), 0),
+        sampler_seed=_int("sampler_seed", values.get("sampler_seed", "0"), 0),
+        overrides=overrides,
+        command=shlex.join(["hnnbench", "tune", *args]),
+    )
+
+
+def objective_metric() -> Metric:
+    """The registered metric declared to select on (:attr:`Metric.selects`)."""
+    found = [m for m in registry.metrics() if m.selects]
+    if len(found) != 1:
+        raise ConfigError(
+            "hnnbench tune selects on the one registered metric that declares "
+            f"selects=True, but {len(found)} do"
+            + (f" ({', '.join(m.name for m in found)})" if found else "")
+            + ": check the installed metric plugins (hnnbench list)")
+    return found[0]
+
+
+def _models(request: TuneRequest) -> list[str]:
+    """The requested models, ``all`` expanded to every model with a search space;
+    each must be installed and declare a space."""
+    available = registry.available("model")
+    out: list[str] = []
+    for name in request.models:
+        if name == "all":
+            names = [n for n in available if registry.discover("model")[n].search_space]
+        else:
+            if name not in registry.discover("model"):
+                raise UnknownNameError("model", name, available)
+            registry.get_class("model", name)  # unusable -> its error
+            names = [name]
+        for model in names:
+            if not registry.discover("model")[model].search_space:
+                raise ConfigError(f"model {model} declares no search space, so it has no "
+                                  "tuned track (hnnbench list shows the spaces)")
+            if model not in out:
+                out.append(model)
+    return out
+
+
+# --------------------------------------------------------------------------- settings
+
+
+def _rounded(value: float, low: float, high: float) -> float:
+    """``value`` to 3 significant digits (settings read as written), kept in bounds."""
+    return min(max(float(f"{value:.3g}"), low), high)
+
+
+def _override_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return value
+    return json.dumps(value)
+
+
+def _distribution(dist: Distribution) -> Any:
+    import optuna
+
+    if isinstance(dist, LogUniform):
+        return optuna.distributions.FloatDistribution(dist.low, dist.high, log=True)
+    if isinstance(dist, Uniform):
+        return optuna.distributions.FloatDistribution(dist.low, dist.high)
+    if isinstance(dist, IntRange):
+        return optuna.distributions.IntDistribution(dist.low, dist.high, log=dist.log)
+    assert isinstance(dist, Categorical)
+    return optuna.distributions.CategoricalDistribution(dist.choices)
+
+
+def _settings(space: SearchSpace, params: Mapping[str, Any]) -> dict[str, Any]:
+    """A trial's parameters as settings ``{"model.lr": 0.00312, ...}`` (floats to 3
+    significant digits)."""
+    out: dict[str, Any] = {}
+    for name, dist in space.items():
+        value = params[name]
+        if isinstance(dist, (LogUniform, Uniform)):
+            value = _rounded(float(value), dist.low, dist.high)
+        elif isinstance(dist, IntRange):
+            value = int(value)
+        out[f"model.{name}"] = value
+    return out
+
+
+def _pruned(record: Mapping[str, Any]) -> bool:
+    stopped = (record.get("selection") or {}).get("stopped") or ""
+    return str(stopped).startswith(STOPPED_BY_CALLER)
+
+
+def _value(record: Mapping[str, Any], objective: Metric) -> float:
+    """The trial's objective: its metric's mean where it is ``ok``, else the metric's
+    worst value (a diverged, failed or timed-out trial is a result of its settings)."""
+    if record.get("status") != "ok":
+        return objective.worst()
+    mean: Any = ((record.get("metrics") or {}).get(objective.name) or {}).get("mean")
+    try:
+        value = float(mean)
+    except (TypeError, ValueError):
+        return objective.worst()
+    return objective.worst() if math.isnan(value) else value
+
+
+# --------------------------------------------------------------------------- the run
+
+
+class Tuner:
+    """Runs a :class:`TuneRequest` (:func:`run_tuning`)."""
+
+    def __init__(self, request: TuneRequest) -> None:
+        self.request = request
+        self.root = request.directory.resolve()
+        self.system = request.system
+        self.objective = objective_metric()
+
+    # -- jobs ------------------------------------------------------------------------
+    def _overrides(self, model: str, seed: int, settings: Mapping[str, Any],
+                   steps: int) -> list[str]:
+        return [f"system={self.system}", f"model={model}", f"seed={seed}",
+                f"profile={self.request.profile}",
+                f"{STEPS_SETTING}={steps}",
+                *(f"{k}={_override_value(v)}" for k, v in settings.items()),
+                "track=tuned", *self.request.overrides]
+
+    def _job(self, overrides: list[str], directory: Path, tuning: dict[str, Any],
+             extra: Sequence[str] = (), rerun: bool = False) -> dict[str, Any]:
+        """Run one job (its record); ``extra``: overrides not stored as the job's."""
+        cfg = compose([*overrides, *extra])
+        with open_dict(cfg):
+            cfg.tuning = OmegaConf.create(tuning)
+            if rerun:
+                cfg.rerun = True
+        (outcome,) = run_seed_outcomes(cfg, directory, overrides=[*overrides, *extra])
+        return outcome.record
+
+    def protocol_steps(self, model: str) -> int:
+        """The system's protocol steps of the profile (the default step budget)."""
+        cfg = compose([f"system={self.system}", f"model={model}",
+                       f"profile={self.request.profile}", *self.request.overrides])
+        job = prepare_job(cfg)
+        return TrainSettings.resolve(job.system_cfg, job.model_cfg).steps
+
+    # -- one study -------------------------------------------------------------------
+    def study_name(self, model: str) -> str:
+        return f"{self.system}/{model}"
+
+    def _storage(self) -> Any:
+        import optuna
+
+        path = self.root / "tuning" / f"{self.system}.db"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return optuna.storages.RDBStorage(
+            f"sqlite:///{path}", engine_kwargs={"connect_args": {"timeout": 60}})
+
+    def _identity(self, model: str, space: SearchSpace, steps: int) -> dict[str, Any]:
+        """What a study is of: resuming with anything else is refused."""
+        return {"steps": steps, "profile": self.request.profile,
+                "objective": self.objective.name, "space": space_json(space),
+                "trial_seed": self.request.trial_seed,
+                # what the jobs compute, not how they run
+                "overrides": sorted(o for o in self.request.overrides
+                                    if o.split("=", 1)[0] not in PASSED_KEYS),
+                "pruner": self._pruner_name(space)}
+
+    def _pruner_name(self, space: SearchSpace) -> str:
+        loss_knobs = [n for n, d in space.items() if d.changes_training_loss]
+        if self.request.pruner == "none":
+            return "none"
+        if loss_knobs:
+            return f"none ({', '.join(loss_knobs)} changes the training loss)"
+        return f"successive_halving (rungs at 1/9 and 1/3 of the steps, best 1/{REDUCTION} on)"
+
+    def _open(self, model: str, space: SearchSpace, steps: int) -> optuna.Study:
+        import optuna
+
+        optuna.logging.set_verbosity(optuna.logging.WARNING)
+        identity = self._identity(model, space, steps)
+        pruning = identity["pruner"].startswith("successive_halving")
+        pruner = optuna.pruners.SuccessiveHalvingPruner(
+            min_resource=max(1, math.ceil(steps * FIRST_RUNG)),
+            reduction_factor=REDUCTION) if pruning else optuna.pruners.NopPruner()
+        storage = self._storage()
+        name = self.study_name(model)
+        study = optuna.create_study(storage=storage, study_name=name,
+                                    direction="minimize" if self.objective.better == "lower"
+                                    else "maximize", load_if_exists=True, pruner=pruner)
+        stored = study.user_attrs.get("identity")
+        if stored is None:
+            study.set_user_attr("identity", identity)
+        elif stored != identity:
+            differs = sorted(k for k in identity if identity[k] != stored.get(k))
+            raise ConfigError(
+                f"{self.root} holds the study {name} made with other settings "
+                f"({', '.join(f'{k}: {stored.get(k)!r} -> {identity[k]!r}' for k in differs)})"
+                "; resume with the settings it was made with, or choose another out=")
+        # Reseeded on each start by the trials so far (interrupted ones included), so a
+        # resumed study does not repeat its first draws.
+        study.sampler = optuna.samplers.TPESampler(
+            seed=self.request.sampler_seed + len(study.trials),
+            n_startup_trials=min(10, max(1, math.ceil(self.request.trials / 2))))
+        return study
+
+    def _trial_dir(self, model: str, number: int) -> Path:
+        return self.root / "trials" / self.system / model / f"trial{number:03d}"
+
+    def _recover(self, study: optuna.Study, model: str, space: SearchSpace) -> None:
+        """Trials an interruption left running: told from their record where it was
+        written, else failed and their settings queued again (they are not counted)."""
+        import optuna
+
+        for trial in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
+            record = records.read_record(self._trial_dir(model, trial.number) /
+                                         records.RECORD_NAME)
+            if record is not None and record.get("status") in (*records.FINISHED,
+                                                                "failed", "timeout"):
+                state = optuna.trial.TrialState.PRUNED if _pruned(record) else None
+                study.tell(trial.number, None if state else _value(record, self.objective),
+                           state=state)
+                log.info("%s trial %d: recovered from its record", self.study_name(model),
+                         trial.number)
+                continue
+            study.tell(trial.number, state=optuna.trial.TrialState.FAIL)
+            study.enqueue_trial(dict(trial.params), user_attrs={"replays": trial.number})
+            log.info("%s trial %d: interrupted; its settings run again",
+                     self.study_name(model), trial.number)
+
+    def _run_trial(self, study: optuna.Study, model: str, space: SearchSpace,
+                   steps: int, k: int) -> None:
+        import optuna
+
+        distributions = {n: _distribution(d) for n, d in space.items()}
+        trial = study.ask(distributions)
+        settings = _settings(space, trial.params)
+        pruning = not isinstance(study.pruner, optuna.pruners.NopPruner)
+        best = [math.inf]  # the training loop's validation loss: lower is better
+        asked = [False]
+
+        def observe(step: int, losses: Mapping[str, float]) -> Optional[bool]:
+            # The training loop's own validation loss (the family's objective on the
+            # validation split), best so far: what the pruner compares at its rungs.
+            value = losses.get(HISTORY_VALID)
+            if value is None or not math.isfinite(value):
+                return None
+            best[0] = min(best[0], value)
+            trial.report(best[0], step)
+            if pruning and step < steps and trial.should_prune():
+                asked[0] = True
+                return True
+            return None
+
+        directory = self._trial_dir(model, trial.number)
+        tuning = {"selected_on": SELECTED_ON, "objective": self.objective.name,
+                  "trial": trial.number, "study": self.study_name(model)}
+        start = time.perf_counter()
+        with progress.observing(observe):
+            record = self._job(
+                self._overrides(model, self.request.trial_seed, settings, steps),
+                directory, tuning,
+                extra=[f"evaluation.metrics=[{self.objective.name}]", "save_model=false"])
+        cpu = float((record.get("timings") or {}).get("cpu_s") or 0.0)
+        trial.set_user_attr("settings", settings)
+        trial.set_user_attr("status", record.get("status"))
+        trial.set_user_attr("cpu_s", cpu)
+        if record.get("status") == "skipped":
+            study.tell(trial, state=optuna.trial.TrialState.FAIL)
+            raise _Skipped(str(record.get("error")))
+        if asked[0] or _pruned(record):
+            study.tell(trial, state=optuna.trial.TrialState.PRUNED)
+            outcome = f"pruned at step {record.get('steps')}"
+        else:
+            value = _value(record, self.objective)
+            study.tell(trial, value)
+            outcome = f"{record.get('status')}, {self.objective.name}={value:.3g}"
+        spent = [float(t.user_attrs.get("cpu_s") or 0.0)
+                 for t in study.get_trials(deepcopy=False) if "cpu_s" in t.user_attrs]
+        left = (self.request.trials - k) * sum(spent) / max(len(spent), 1)
+        log.info("%s trial %d/%d (#%d): %s; %.1f s CPU, %.1f s wall; %s; this study so "
+                 "far %.0f s CPU, about %.0f s CPU to go (at its mean per trial)",
+                 self.study_name(model), k, self.request.trials, trial.number, outcome, cpu,
+                 time.perf_counter() - start,
+                 " ".join(f"{key}={_override_value(v)}" for key, v in settings.items()),
+                 sum(spent), left)
+
+    def tune_model(self, model: str) -> Study:
+        """Tune ``model`` to the budget (resuming its study), then train its selected
+        settings on each seed."""
+        import optuna
+
+        space = registry.discover("model")[model].search_space
+        assert space is not None
+        steps = self.request.steps or self.protocol_steps(model)
+        optuna_study = self._open(model, space, steps)
+        name = self.study_name(model)
+        result = Study(model, space, self.request.trials, steps, self.objective,
+                       self._pruner_name(space))
+        self._recover(optuna_study, model, space)
+        counted = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)
+
+        def done() -> int:
+            return len(optuna_study.get_trials(deepcopy=False, states=counted))
+
+        log.info("%s: %d/%d trials done; space: %s; %d steps per trial; pruner: %s",
+                 name, done(), self.request.trials, describe(space), steps, result.pruner)
+        skipped: Optional[str] = None
+        while done() < self.request.trials:
+            try:
+                self._run_trial(optuna_study, model, space, steps, done() + 1)
+            except _Skipped as err:
+                skipped = str(err)
+                log.warning("%s: skipped (%s); no tuning", name, skipped)
+                break
+        result.trials = [_trial_summary(t) for t in optuna_study.get_trials(deepcopy=False)
+                         if t.state in (*counted, optuna.trial.TrialState.FAIL)
+                         and t.user_attrs.get("status") is not None]
+        if skipped is None:
+            result.selected = _select(optuna_study, self.objective)
+        self._write_summary(result)
+        if result.selected is None:
+            return result
+        log.info("%s: selected trial %d (%s=%.3g) of %d; tuning CPU %.0f s: %s", name,
+                 result.selected["number"], self.objective.name, result.selected["value"],
+                 len(result.trials), result.cpu_s,
+                 " ".join(f"{k}={_override_value(v)}"
+                          for k, v in result.selected["settings"].items()))
+        tuning = result.tuning(name)
+        for seed in self.request.seeds:
+            directory = self.root / "final" / self.system / model / f"seed{seed}"
+            existing = records.read_record(directory / records.RECORD_NAME)
+            stale = existing is not None and existing.get("tuning") != tuning
+            overrides = self._overrides(model, seed, result.selected["settings"], steps)
+            record = self._job(overrides, directory, tuning, rerun=stale)
+            result.finals.append(record)
+        return result
+
+    def _write_summary(self, study: Study) -> None:
+        path = self.root / "tuning" / self.system / f"{study.model}.json"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        summary = {"system": self.system, "model": study.model,
+                   "profile": self.request.profile, "trials_budget": study.budget_trials,
+                   "steps": study.steps, "objective": study.objective.name,
+                   "selected_on": SELECTED_ON, "space": space_json(study.space),
+                   "pruner": study.pruner, "cpu_s": round(study.cpu_s, 3),
+                   "selected": study.selected, "trials": study.trials}
+        records.atomic_write_text(path, json.dumps(records.encode(summary), indent=2) + "\n")
+
+    def run(self) -> list[Study]:
+        models = _models(self.request)
+        log.info("hnnbench tune: %s, %d model(s) x %d trial(s), seeds %s, profile %s, "
+                 "into %s", self.system, len(models), self.request.trials,
+                 ",".join(map(str, self.request.seeds)), self.request.profile, self.root)
+        out = []
+        with sweep_lock(self.root / "trials" / self.system, self.request.command):
+            for model in models:
+                out.append(self.tune_model(model))
+        return out
+
+
+class _Skipped(Exception):
+    """The model cannot run on the system (its trial was recorded ``skipped``)."""
+
+
+def _trial_summary(trial: Any) -> dict[str, Any]:
+    return {"number": trial.number, "state": trial.state.name.lower(),
+            "value": trial.value, "status": trial.user_attrs.get("status"),
+            "settings": trial.user_attrs.get("settings"),
+            "cpu_s": trial.user_attrs.get("cpu_s"),
+            "last_step": trial.last_step}
+
+
+def _select(study: Any, objective: Metric) -> Optional[dict[str, Any]]:
+    """The best completed trial by the objective (ties: the earliest); pruned trials
+    are never selected. With every trial at the objective's worst value (all diverged),
+    the earliest."""
+    import optuna
+
+    complete = [t for t in study.get_trials(deepcopy=False,
+                                            states=(optuna.trial.TrialState.COMPLETE,))
+                if t.value is not None and t.user_attrs.get("settings") is not None]
+    if not complete:
+        return None
+    sign = 1.0 if objective.better == "lower" else -1.0
+    best = min(complete, key=lambda t: (sign * float(t.value), t.number))
+    return {"number": best.number, "value": float(best.value),
+            "settings": dict(best.user_attrs["settings"])}
+
+
+def run_tuning(request: TuneRequest) -> list[Study]:
+    """Run (or resume) a tuning in this process; one :class:`Study` per model."""
+    try:
+        import optuna  # noqa: F401
+    except ImportError:
+        raise BackendMissingError(
+            "hnnbench tune needs optuna, which is not installed: pip install "
+            "'hnnbench[tune]'") from None
+    profile_of([f"profile={request.profile}"])  # an unknown profile: one line
+    if request.system not in registry.discover("system"):
+        raise UnknownNameError("system", request.system, registry.available("system"))
+    registry.get_class("system", request.system)
+    context = launch.LaunchContext(command=request.command, cli_pid=os.getpid(),
+                                   host=socket.gethostname())
+    with launch.launched(context):  # jobs pin this process to one core, as the CLI's do
+        return Tuner(request).run()
+
+
+def main(args: Sequence[str]) -> int:
+    """``hnnbench tune ...``: exit 0 when every model was tuned (or skipped), 1 when a
+    final run failed."""
+    if any(a in ("-h", "--help", "help") for a in args):
+        print(USAGE)
+        return 0
+    if not logging.getLogger().handlers:
+        logging.basicConfig(level=logging.INFO, stream=sys.stderr,
+                            format="[%(asctime)s] %(message)s", datefmt="%H:%M:%S")
+    studies = run_tuning(parse(args))
+    failed = [f"{s.model} seed {r.get('seed')}" for s in studies for r in s.finals
+              if r.get("status") in ("failed", "timeout")]
+    for study in studies:
+        statuses = ", ".join(str(r.get("status")) for r in study.finals) or "no final runs"
+        print(f"{study.model}: {len(study.trials)} trial(s), tuning CPU {study.cpu_s:.0f} s, "
+              f"final: {statuses}", file=sys.stderr)
+    if failed:
+        print(f"hnnbench tune: {len(failed)} final run(s) failed: {', '.join(failed)}",
+              file=sys.stderr)
+        return 1
+    return 0
+
