@@ -85,7 +85,7 @@ def test_the_family_table_and_the_aggregate_are_those_of_the_committed_records(r
         assert (rows["iqm_low"] <= rows["iqm"]).all() and (rows["iqm"] <= rows["iqm_high"]).all()
 
 
-def test_every_published_system_has_every_model_with_three_seeds(board):
+def test_every_published_system_has_every_model_with_its_seeds(board):
     """Every installed model, or the missing ones named in results/README.md as not run."""
     systems = set(board["system"])
     have = {(s, m) for s, m in zip(board["system"], board["model"], strict=True)}
@@ -98,9 +98,13 @@ def test_every_published_system_has_every_model_with_three_seeds(board):
                          if ln.startswith(f"- Partly published: `{system}` lacks ")), "")
             assert all(m in line for m in missing), (system, missing, line)
     assert set(board["profile"]) == {"paper"}
-    # Seeds 0..n-1 with n >= 3 (the protocol: 5 of the JAX twin, 3 of the torch twin).
-    for seeds, n in zip(board["seeds"].astype(str), board["n_seeds"], strict=True):
-        assert n >= 3 and seeds == ";".join(map(str, range(n))), (seeds, n)
+    # Seeds 0..n-1 (scripts/paper_sweep.sh): at least 5 of the JAX twins and the
+    # reference (the family rows rest on them: a sign test over fewer cannot separate at
+    # 5%), at least 3 of the torch twins (the twin-parity check).
+    for model, seeds, n in zip(board["model"], board["seeds"].astype(str), board["n_seeds"],
+                               strict=True):
+        least = 3 if str(model).endswith("_torch") else 5
+        assert n >= least and seeds == ";".join(map(str, range(n))), (model, seeds, n)
     assert systems <= set(available("system"))
 
 
