@@ -2,7 +2,8 @@
 
 Training networks are *views* on a flat ``{name: tensor}`` parameter dict, so one
 definition serves one seed and, under :func:`torch.func.vmap`, a batch of seeds. Their
-operations are ``nn.Linear``'s (``F.linear``). Rollouts use :class:`FrozenMLP`, a
+operations are ``nn.Linear``'s (``F.linear``); the trainer's :class:`TrainingMLP`
+computes the same values with hand-written backward passes. Rollouts use :class:`FrozenMLP`, a
 detached float64 copy with pre-transposed weights and one ``addmm`` per layer: an ODE
 solve calls the network thousands of times on a handful of states, where per-call
 overhead, not arithmetic, decides the cost.
@@ -21,11 +22,13 @@ import torch.nn.functional as F
 from hnnbench.neural._embedding import NetInput
 from hnnbench.neural._init import AE_LAYERS
 from hnnbench.neural._views import CC_WEIGHT, DYNAMICS_WEIGHT
+from hnnbench.neural.torch import _backprop
 
 __all__ = [
     "MLP",
     "Autoencoder",
     "FrozenMLP",
+    "TrainingMLP",
     "Periodic",
     "activate",
     "activation_grad",
@@ -37,7 +40,10 @@ __all__ = [
 
 
 def symplectic(grad: torch.Tensor) -> torch.Tensor:
-    """``(dH/dq, dH/dp) -> (dH/dp, -dH/dq)`` along the last axis: ``J ∇H``."""
+    """``(dH/dq, dH/dp) -> (dH/dp, -dH/dq)`` along the last axis: ``J ∇H``; while
+    autograd records, one node with its backward written out."""
+    if grad.requires_grad and torch.is_grad_enabled():
+        return _backprop.symplectic(grad)
     n = grad.shape[-1] // 2
     return torch.cat([grad[..., n:], -grad[..., :n]], dim=-1)
 
@@ -237,6 +243,32 @@ class MLP:
         """:func:`input_hessian` of this network (``d_out == 1``)."""
         return input_hessian(self.weights, self.biases, self.activation, x, first_row,
                              self.periodic)
+
+
+class TrainingMLP(MLP):
+    """The training networks' :class:`MLP`: the same values, with the value and the
+    input gradient each one autograd node whose backward is written out
+    (:mod:`hnnbench.neural.torch._backprop`: the HNN's spring step 15% faster than
+    through the plain operations, ``benchmarks/torch_step_options.py``). Reverse mode
+    only (no ``torch.func.jacfwd``/``hessian`` through it); the angle embedding's maps
+    around the network stay plain operations. The input Hessian is :class:`MLP`'s."""
+
+    def _params(self) -> list[torch.Tensor]:
+        out = []
+        for w, b in zip(self.weights[:-1], self.biases, strict=True):
+            out += [w, b]
+        return [*out, self.weights[-1]]
+
+    def __call__(self, x: torch.Tensor) -> torch.Tensor:
+        u = x if self.periodic is None else self.periodic.embed(x)
+        return _backprop.value(self.activation, u, self._params())
+
+    def input_gradient(self, x: torch.Tensor) -> torch.Tensor:
+        if self.periodic is None:
+            return _backprop.input_gradient(self.activation, x, self._params())
+        grad_u = _backprop.input_gradient(self.activation, self.periodic.embed(x),
+                                          self._params())
+        return self.periodic.pull(x, grad_u)
 
 
 class FrozenMLP:
