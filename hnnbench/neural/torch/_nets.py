@@ -77,6 +77,17 @@ def activation_second(name: str, a: torch.Tensor, h: torch.Tensor) -> torch.Tens
     return s * (1.0 - s)
 
 
+def curvature_of(name: str, h: torch.Tensor, slope: torch.Tensor) -> torch.Tensor:
+    """Second derivative of the activation ``name`` from its value ``h`` and its first
+    derivative ``slope`` (tanh: ``-2 h σ'``; sigmoid: ``σ' (1 - 2h)``; softplus, whose
+    ``σ'`` is the logistic ``s``: ``s (1 - s)``), without evaluating it again."""
+    if name == "tanh":
+        return -2.0 * h * slope
+    if name == "sigmoid":
+        return slope * (1.0 - 2.0 * h)
+    return slope * (1.0 - slope)
+
+
 class Periodic:
     """The angle embedding of one network's inputs (:mod:`hnnbench.neural._embedding`)
     in torch, with its first and second derivatives for the closed-form gradients and
@@ -169,7 +180,7 @@ def input_hessian(weights: Sequence[torch.Tensor], biases: Sequence[torch.Tensor
     layer (its Jacobian enters the first tangent, its curvature the angle diagonal).
     """
     n, d = x.shape
-    pre, jac = [], []
+    slopes, jac = [], []  # σ'(a_k) and ∂a_k/∂x of each hidden layer
     h, tangent = (x if periodic is None else periodic.embed(x)), None  # tangent: ∂h/∂x
     for w, b in zip(weights[:-1], biases, strict=True):
         a = F.linear(h, w, b)
@@ -180,18 +191,19 @@ def input_hessian(weights: Sequence[torch.Tensor], biases: Sequence[torch.Tensor
         else:
             ja = periodic.first_tangent(w, x)
         h = activate(activation, a)
-        tangent = ja * activation_grad(activation, a, h)[:, None, :]
-        pre.append((a, h))
+        slope = activation_grad(activation, a, h)
+        tangent = ja * slope[:, None, :]
+        slopes.append((h, slope))
         jac.append(ja)
     value = F.linear(h, weights[-1])[:, 0]
     delta = weights[-1].expand(n, -1)  # ∂f/∂h of the last hidden layer, (N, width)
     hess = x.new_zeros(n, d - first_row, d)
     for k in range(len(weights) - 2, -1, -1):
-        a, hk = pre[k]
+        hk, slope = slopes[k]
         ja = jac[k]
-        curvature = delta * activation_second(activation, a, hk)  # (N, width)
+        curvature = delta * curvature_of(activation, hk, slope)  # (N, width)
         hess = hess + (ja[:, first_row:, :] * curvature[:, None, :]) @ ja.transpose(1, 2)
-        delta = (delta * activation_grad(activation, a, hk)) @ weights[k]
+        delta = (delta * slope) @ weights[k]
     if periodic is None:
         return value, delta, hess
     return value, periodic.pull(x, delta), periodic.curvature(x, delta, hess, first_row)
