@@ -1,27 +1,45 @@
 """What makes the torch training step slower than JAX's, option by option, side by side.
 
-    python benchmarks/torch_step_options.py                  # spring, full batch 750
-    python benchmarks/torch_step_options.py --batch 200 --steps 300 --repeats 5
+    python benchmarks/torch_step_options.py                       # spring and two_body shapes
+    python benchmarks/torch_step_options.py --shapes spring --steps 200 --repeats 5
+    python benchmarks/torch_step_options.py --no-compile          # without torch.compile (~1 min)
 
-One process, pinned to one core with one thread (as hnnbench runs its jobs). It times
-the MLP and HNN training steps of the spring at the paper's shape (2 -> 200 -> 200 ->
-out, tanh, Adam with weight decay), written directly in torch the way hnnbench's torch
-backend computes them (``F.linear`` layers; the HNN's closed-form input gradient), and
-changes one thing at a time:
+One process, pinned to one core with one thread (as hnnbench runs its jobs). For the
+MLP and the HNN at the paper's widths (d -> 200 -> 200 -> out, tanh, Adam with weight
+decay) on two shapes, the spring's full batch (690 rows of d = 2: its training set
+after the validation carve) and the two-body minibatch (200 rows of d = 8), it times
+one training step built several ways, on the same data and initial weights:
 
-- ``baseline``: hnnbench's torch step (Adam, default ``foreach`` implementation);
-- ``adam-fused``: ``torch.optim.Adam(fused=True)``;
-- ``adam-single``: ``torch.optim.Adam(foreach=False)`` (a loop over parameters);
-- ``tanh-sigmoid``: ``tanh(a) = 2 sigmoid(2a) - 1`` in a custom autograd function whose
-  backward is ``tanh_backward`` (one fused kernel), in place of ``torch.tanh``;
-- ``compile``: the whole step (forward, backward, Adam) under ``torch.compile``
-  (inductor's C++ code; its compile time is printed apart and not counted).
+- ``a47bd0f``: hnnbench's torch step before issue 29's work: :class:`MLP` networks
+  (plain tensor operations that autograd differentiates op by op), the loss
+  ``mean((f - y)**2)``, ``torch.optim.Adam(fused=True)`` with ``zero_grad``,
+  ``backward`` and ``step``;
+- ``+ direct Adam``: the same, the update by :class:`~hnnbench.neural.torch.FusedAdam`
+  (the same fused kernel, called without the optimizer's per-step Python);
+- ``+ mse_loss``: and ``F.mse_loss`` for the loss (one autograd node);
+- ``hnnbench``: and :class:`~hnnbench.neural.torch.TrainingMLP` networks (value and
+  input gradient each one autograd node with a hand-written backward,
+  :mod:`hnnbench.neural.torch._backprop`): the step hnnbench runs now;
+- ``hnnbench + flush denormals``: the same with ``torch.set_flush_denormal(True)``
+  (XLA's CPU default) around the step;
+- ``torch.func.grad``: the ``hnnbench`` loss differentiated by ``torch.func.grad`` over
+  the parameter dict instead of ``torch.autograd.grad``;
+- ``no autograd``: the step's gradient derived by hand and written as plain tensor
+  operations, nothing recorded: the floor for eager torch with these kernels;
+- ``torch.compile``: the ``a47bd0f`` step under ``torch.compile`` (inductor's C++
+  code for forward, backward and the update; ``--compile-mode``; its compile time is
+  printed apart, not counted, and set against the time it saves per step against
+  ``hnnbench``: the steps after which it pays off), unless ``--no-compile``;
+- ``JAX``: the same step as hnnbench's JAX backend runs it: one ``jax.jit``-compiled
+  chunk of 10 steps (``lax.scan`` of ``value_and_grad`` and optax's Adam made equal to
+  torch's), timed per step.
 
-Next to them, the same step in JAX (``jax.jit`` of forward, backward and optax Adam, the
-hnnbench JAX backend's structure), and per-op timings of torch's and XLA's ``tanh`` on
-the hidden layer's shape, so the ratios can be read against the op that dominates.
-Median of ``--repeats`` runs of ``--steps`` steps each, after a warm-up; the repeats of
-all variants are interleaved, so load changes hit every column alike.
+Each variant's gradient at the first step is compared with ``a47bd0f``'s (largest
+difference relative to the largest entry), so every row computes the same step.
+Median (and best) of ``--repeats`` runs of ``--steps`` steps each, after a warm-up;
+the repeats of all variants are interleaved, so load changes hit every column alike.
+Then per-op timings on the hidden layer's shape: torch's and XLA's ``tanh``, and the
+thin products in the two orientations a step can dispatch them.
 """
 
 from __future__ import annotations
@@ -29,160 +47,271 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
+import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+#: name -> (rows, state dimension): the spring's full batch, the two-body minibatch.
+SHAPES = {"spring": (690, 2), "two_body": (200, 8)}
+HIDDEN = 200
+LR, WEIGHT_DECAY = 1e-3, 1e-4
+Step = Callable[[], Any]
 
 
-def _pin(cpu: int) -> None:
-    if hasattr(os, "sched_setaffinity"):
-        os.sched_setaffinity(0, {cpu})
+def _pin(cpu: int | None) -> int | None:
+    if not hasattr(os, "sched_setaffinity"):
+        return None
+    cpu = min(os.sched_getaffinity(0)) if cpu is None else cpu
+    os.sched_setaffinity(0, {cpu})
+    return cpu
 
 
-def torch_variants(n: int, hidden: int, out: int, hnn: bool) -> dict[str, Callable[[], None]]:
+def initial_arrays(d: int, out: int, seed: int = 0) -> dict[str, Any]:
+    """The network ``f`` (``d -> 200 -> 200 -> out``) with hnnbench's seeded initial
+    weights, as numpy arrays."""
+    from hnnbench.neural import NeuralConfig
+    from hnnbench.neural._init import init_arrays
+
+    cfg = NeuralConfig(name="options", hidden=HIDDEN, layers=3)
+    return {f"f.{k}": v for k, v in init_arrays(seed, d, out, cfg).items()}
+
+
+def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
+                   ) -> tuple[dict[str, Step], dict[str, float], float]:
+    """``{name: step}`` for one shape and family, each variant's gradient difference
+    from the ``a47bd0f`` step (relative to its largest entry), and the seconds
+    ``torch.compile`` took (NaN without it)."""
+    import numpy as np
     import torch
     import torch.nn.functional as F
 
+    from hnnbench.neural.torch import MLP, FusedAdam, TrainingMLP, symplectic
+
     torch.set_num_threads(1)
-    gen = torch.Generator().manual_seed(0)
-    x = torch.randn(n, 2, generator=gen)
-    y = torch.randn(n, 2, generator=gen)
+    rng = np.random.default_rng(1)
+    x = torch.as_tensor(rng.normal(size=(n, d)), dtype=torch.float32)
+    y = torch.as_tensor(rng.normal(size=(n, d)), dtype=torch.float32)
+    arrays = initial_arrays(d, 1 if hnn else d)
 
-    class FastTanh(torch.autograd.Function):
-        @staticmethod
-        def forward(a: torch.Tensor) -> torch.Tensor:  # type: ignore[override]
-            return torch.sigmoid(a * 2.0).mul_(2.0).sub_(1.0)
+    def fresh() -> dict[str, torch.Tensor]:
+        return {k: torch.as_tensor(v, dtype=torch.float32).clone().requires_grad_()
+                for k, v in arrays.items()}
 
-        @staticmethod
-        def setup_context(ctx: Any, inputs: Any, output: torch.Tensor) -> None:
-            ctx.save_for_backward(output)
+    def plain_symplectic(g: torch.Tensor) -> torch.Tensor:  # a47bd0f's
+        return torch.cat([g[:, d // 2:], -g[:, :d // 2]], dim=-1)
 
-        @staticmethod
-        def backward(ctx: Any, grad: torch.Tensor) -> torch.Tensor:  # type: ignore[override]
-            (h,) = ctx.saved_tensors
-            return torch.ops.aten.tanh_backward(grad, h)
+    def field(net: MLP) -> torch.Tensor:
+        if not hnn:
+            return net(x)
+        j = symplectic if isinstance(net, TrainingMLP) else plain_symplectic
+        return j(net.input_gradient(x))
 
-    def params() -> list[torch.Tensor]:
-        shapes = [(hidden, 2), (hidden,), (hidden, hidden), (hidden,), (out, hidden)]
-        return [(torch.randn(*s, generator=gen) * 0.1).requires_grad_() for s in shapes]
+    def loss_mean(cls: type[MLP]) -> Callable[[dict[str, torch.Tensor]], torch.Tensor]:
+        return lambda p: torch.mean((field(cls.view(p, "f", 3, "tanh")) - y) ** 2)
 
-    def loss_of(act: Callable[[torch.Tensor], torch.Tensor]) -> Callable[..., torch.Tensor]:
-        def mlp(ps: list[torch.Tensor]) -> torch.Tensor:
-            w1, b1, w2, b2, w3 = ps
-            h = act(F.linear(act(F.linear(x, w1, b1)), w2, b2))
-            return torch.mean((F.linear(h, w3) - y) ** 2)
+    def loss_mse(cls: type[MLP]) -> Callable[[dict[str, torch.Tensor]], torch.Tensor]:
+        return lambda p: F.mse_loss(field(cls.view(p, "f", 3, "tanh")), y)
 
-        def hnn_loss(ps: list[torch.Tensor]) -> torch.Tensor:  # closed-form input gradient
-            w1, b1, w2, b2, w3 = ps
-            h1 = act(F.linear(x, w1, b1))
-            h2 = act(F.linear(h1, w2, b2))
-            g = (w3.expand(n, -1) * (1 - h2 * h2)) @ w2
-            g = (g * (1 - h1 * h1)) @ w1
-            field = torch.cat([g[:, 1:], -g[:, :1]], dim=1)
-            return torch.mean((field - y) ** 2)
+    grads: dict[str, list[torch.Tensor]] = {}
 
-        return hnn_loss if hnn else mlp
-
-    def step(act: Callable[[torch.Tensor], torch.Tensor], **adam: Any) -> Callable[[], None]:
-        ps = params()
-        opt = torch.optim.Adam(ps, lr=1e-3, weight_decay=1e-4, **adam)
-        loss = loss_of(act)
+    def optimizer_step(name: str, loss: Callable[..., torch.Tensor]) -> Step:
+        params = fresh()
+        grads[name] = list(torch.autograd.grad(loss(params), list(params.values())))
+        opt = torch.optim.Adam(list(params.values()), lr=LR, weight_decay=WEIGHT_DECAY,
+                               fused=True)
 
         def one() -> None:
-            value = loss(ps)
+            value = loss(params)
             opt.zero_grad(set_to_none=True)
             value.backward()
             opt.step()
 
         return one
 
+    def direct_step(name: str, loss: Callable[..., torch.Tensor], ftz: bool = False
+                    ) -> Step:
+        params = fresh()
+        grads[name] = list(torch.autograd.grad(loss(params), list(params.values())))
+        adam = FusedAdam(list(params.values()), LR, WEIGHT_DECAY)
+        if not ftz:
+            return lambda: adam.step(loss(params))
+
+        def flushed() -> None:
+            torch.set_flush_denormal(True)
+            try:
+                adam.step(loss(params))
+            finally:
+                torch.set_flush_denormal(False)
+
+        return flushed
+
+    def func_grad_step(name: str, loss: Callable[..., torch.Tensor]) -> Step:
+        params = fresh()
+        adam = FusedAdam(list(params.values()), LR, WEIGHT_DECAY)
+        grad_fn = torch.func.grad(loss)
+        grads[name] = list(grad_fn({k: v.detach() for k, v in params.items()}).values())
+
+        def one() -> None:
+            g = grad_fn({k: v.detach() for k, v in params.items()})
+            with torch.no_grad():
+                torch._foreach_add_(adam.steps, 1)
+                torch._fused_adam_(adam.params, list(g.values()), adam.exp_avg,
+                                   adam.exp_avg_sq, [], adam.steps, lr=LR, beta1=0.9,
+                                   beta2=0.999, weight_decay=WEIGHT_DECAY, eps=1e-8,
+                                   amsgrad=False, maximize=False)
+
+        return one
+
+    def manual_step(name: str) -> Step:
+        params = fresh()
+        w1, b1, w2, b2, w3 = (params[f"f.linears.{i}.{kind}"].detach() for i, kind in (
+            (0, "weight"), (0, "bias"), (1, "weight"), (1, "bias"), (2, "weight")))
+        adam = FusedAdam([w1, b1, w2, b2, w3], LR, WEIGHT_DECAY)
+        tb = torch.ops.aten.tanh_backward
+        half = d // 2
+        scale = 2.0 / (n * d)
+
+        def gradient() -> list[torch.Tensor]:
+            h1 = torch.addmm(b1, x, w1.t()).tanh_()
+            h2 = torch.addmm(b2, h1, w2.t()).tanh_()
+            if not hnn:
+                r = torch.mm(h2, w3.t()).sub_(y).mul_(scale)
+                da2 = tb(r @ w3, h2)
+                da1 = tb(da2 @ w2, h1)
+                return [da1.t() @ x, da1.sum(0), da2.t() @ h1, da2.sum(0), r.t() @ h2]
+            g2 = tb(w3.expand(n, -1), h2)
+            u1 = g2 @ w2
+            g1 = tb(u1, h1)
+            g0 = g1 @ w1
+            r = torch.cat([g0[:, half:], -g0[:, :half]], 1).sub_(y).mul_(scale)
+            dg0 = torch.cat([-r[:, half:], r[:, :half]], 1)  # Jᵀ r
+            gw1 = g1.t() @ dg0
+            dg1 = dg0 @ w1.t()
+            du1 = tb(dg1, h1)
+            dh1 = dg1.mul_(u1).mul_(h1).mul_(-2.0)
+            dg2 = du1 @ w2.t()
+            gw2 = g2.t() @ du1
+            gw3 = tb(dg2, h2).sum(0, keepdim=True)
+            da2 = tb(dg2.mul_(w3).mul_(h2).mul_(-2.0), h2)
+            gw2.addmm_(da2.t(), h1)
+            dh1.addmm_(da2, w2)
+            da1 = tb(dh1, h1)
+            gw1.addmm_(da1.t(), x)
+            return [gw1, da1.sum(0), gw2, da2.sum(0), gw3]
+
+        grads[name] = gradient()
+
+        def one() -> None:
+            g = gradient()
+            torch._foreach_add_(adam.steps, 1)
+            torch._fused_adam_(adam.params, g, adam.exp_avg, adam.exp_avg_sq, [],
+                               adam.steps, lr=LR, beta1=0.9, beta2=0.999,
+                               weight_decay=WEIGHT_DECAY, eps=1e-8, amsgrad=False,
+                               maximize=False)
+
+        return one
+
     variants = {
-        "baseline": step(torch.tanh),
-        "adam-fused": step(torch.tanh, fused=True),
-        "adam-single": step(torch.tanh, foreach=False),
-        "tanh-sigmoid": step(FastTanh.apply),
+        "a47bd0f": optimizer_step("a47bd0f", loss_mean(MLP)),
+        "+ direct Adam": direct_step("+ direct Adam", loss_mean(MLP)),
+        "+ mse_loss": direct_step("+ mse_loss", loss_mse(MLP)),
+        "hnnbench": direct_step("hnnbench", loss_mse(TrainingMLP)),
+        "hnnbench + flush denormals": direct_step("hnnbench + flush denormals",
+                                                  loss_mse(TrainingMLP), ftz=True),
+        "torch.func.grad": func_grad_step("torch.func.grad", loss_mse(MLP)),
+        "no autograd": manual_step("no autograd"),
     }
-    compiled = torch.compile(step(torch.tanh))
-    start = time.perf_counter()
-    compiled()
-    print(f"  torch.compile of the {'hnn' if hnn else 'mlp'} step: "
-          f"{time.perf_counter() - start:.1f} s (not counted)", flush=True)
-    variants["compile"] = compiled
-    return variants
+    compile_s = float("nan")
+    if compile_mode is not None:
+        compiled = torch.compile(optimizer_step("torch.compile", loss_mean(MLP)),
+                                 mode=compile_mode)
+        start = time.perf_counter()
+        compiled()
+        compile_s = time.perf_counter() - start
+        print(f"  torch.compile of the {'hnn' if hnn else 'mlp'} step ({n} x {d}): "
+              f"{compile_s:.1f} s (not counted)", flush=True)
+        variants["torch.compile"] = compiled
+    reference = grads["a47bd0f"]
+    diffs = {name: max(float((a - b).abs().max() / b.abs().max())
+                       for a, b in zip(g, reference, strict=True))
+             for name, g in grads.items()}
+    return variants, diffs, compile_s
 
 
-def jax_step(n: int, hidden: int, out: int, hnn: bool) -> Callable[[], None]:
+def jax_step(n: int, d: int, hnn: bool, chunk: int = 10) -> Step:
+    """hnnbench's JAX step: a jitted ``lax.scan`` chunk of ``chunk`` steps; each call
+    is one step (a chunk runs on every ``chunk``-th call)."""
     import jax
     import jax.numpy as jnp
     import numpy as np
-    import optax
 
-    rng = np.random.default_rng(0)
-    x = jnp.asarray(rng.normal(size=(n, 2)), jnp.float32)
-    y = jnp.asarray(rng.normal(size=(n, 2)), jnp.float32)
-    shapes = [(hidden, 2), (hidden,), (hidden, hidden), (hidden,), (out, hidden)]
-    ps = [jnp.asarray(rng.normal(size=s) * 0.1, jnp.float32) for s in shapes]
+    from hnnbench.neural.jax import adam_like_torch
 
-    def mlp(ps: list[Any]) -> Any:
+    rng = np.random.default_rng(1)
+    x = jnp.asarray(rng.normal(size=(n, d)), jnp.float32)
+    y = jnp.asarray(rng.normal(size=(n, d)), jnp.float32)
+    arrays = initial_arrays(d, 1 if hnn else d)
+    params = [jnp.asarray(arrays[f"f.linears.{i}.{kind}"], jnp.float32) for i, kind in (
+        (0, "weight"), (0, "bias"), (1, "weight"), (1, "bias"), (2, "weight"))]
+
+    def net(ps: list[Any], xi: Any) -> Any:
         w1, b1, w2, b2, w3 = ps
-        h = jnp.tanh(jnp.tanh(x @ w1.T + b1) @ w2.T + b2)
-        return jnp.mean((h @ w3.T - y) ** 2)
+        return w3 @ jnp.tanh(w2 @ jnp.tanh(w1 @ xi + b1) + b2)
 
-    def hnn_loss(ps: list[Any]) -> Any:
-        w1, b1, w2, b2, w3 = ps
+    def loss(ps: list[Any]) -> Any:
+        if hnn:
+            g = jax.vmap(jax.grad(lambda xi: net(ps, xi)[0]))(x)
+            f = jnp.concatenate([g[:, d // 2:], -g[:, :d // 2]], axis=1)
+        else:
+            f = jax.vmap(lambda xi: net(ps, xi))(x)
+        return jnp.mean((f - y) ** 2)
 
-        def h_of(xi: Any) -> Any:
-            return (jnp.tanh(jnp.tanh(xi @ w1.T + b1) @ w2.T + b2) @ w3.T)[0]
-
-        g = jax.vmap(jax.grad(h_of))(x)
-        return jnp.mean((jnp.concatenate([g[:, 1:], -g[:, :1]], 1) - y) ** 2)
-
-    loss = hnn_loss if hnn else mlp
-    opt = optax.chain(optax.add_decayed_weights(1e-4), optax.adam(1e-3))
-    state = [ps, opt.init(ps)]
+    opt = adam_like_torch(LR, WEIGHT_DECAY)
 
     @jax.jit
-    def update(ps: Any, st: Any) -> Any:
-        grads = jax.grad(loss)(ps)
-        upd, st = opt.update(grads, st, ps)
-        return optax.apply_updates(ps, upd), st
+    def run(ps: Any, st: Any) -> Any:
+        def body(carry: Any, _: Any) -> Any:
+            ps, st = carry
+            value, g = jax.value_and_grad(loss)(ps)
+            updates, st = opt.update(g, st, ps)
+            return (jax.tree.map(lambda p, u: p + u, ps, updates), st), value
+
+        (ps, st), values = jax.lax.scan(body, (ps, st), None, length=chunk)
+        return ps, st, values
+
+    state: list[Any] = [params, opt.init(params), 0]
+    state[0], state[1], values = run(state[0], state[1])
+    np.asarray(values)
 
     def one() -> None:
-        state[0], state[1] = update(state[0], state[1])
+        state[2] += 1
+        if state[2] % chunk == 0:
+            state[0], state[1], out = run(state[0], state[1])
+            np.asarray(out)  # the host reads the chunk's losses, as hnnbench's loop does
 
-    one()
-    jax.block_until_ready(state[0])
-
-    def synced() -> None:
-        one()
-
-    synced.block = lambda: jax.block_until_ready(state[0])  # type: ignore[attr-defined]
-    return synced
+    return one
 
 
-def time_steps(fn: Callable[[], None], steps: int) -> float:
+def time_steps(fn: Step, steps: int) -> float:
+    """Milliseconds per step of ``steps`` calls."""
     start = time.perf_counter()
     for _ in range(steps):
         fn()
-    block = getattr(fn, "block", None)
-    if block is not None:
-        block()
     return (time.perf_counter() - start) / steps * 1e3
 
 
-def op_timings(n: int, hidden: int) -> None:
+def op_timings(n: int, d: int) -> None:
+    """torch's and XLA's tanh, and the thin products in both orientations."""
     import jax
     import jax.numpy as jnp
     import torch
 
-    a = torch.randn(n, hidden)
-    ja = jnp.asarray(a.numpy())
-    jtanh = jax.jit(jnp.tanh)
-    jtanh(ja).block_until_ready()
-
-    def med(fn: Callable[[], Any], reps: int = 500) -> float:
+    def best_us(fn: Callable[[], Any], reps: int = 300) -> float:
         for _ in range(20):
             fn()
         times = []
@@ -191,46 +320,84 @@ def op_timings(n: int, hidden: int) -> None:
             for _ in range(reps):
                 fn()
             times.append((time.perf_counter() - start) / reps * 1e6)
-        return statistics.median(times)
+        return min(times)
 
+    a = torch.randn(n, HIDDEN)
+    w_out = torch.randn(d, HIDDEN)  # an output layer's weight, (out, in)
+    ja = jnp.asarray(a.numpy())
+    jtanh = jax.jit(jnp.tanh)
+    jtanh(ja).block_until_ready()
     rows = {
-        "torch.tanh": med(lambda: torch.tanh(a)),
-        "2 sigmoid(2a) - 1": med(lambda: torch.sigmoid(a * 2).mul_(2).sub_(1)),
-        "torch.sigmoid": med(lambda: torch.sigmoid(a)),
-        "jax.numpy.tanh (XLA)": med(lambda: jtanh(ja).block_until_ready()),
+        f"torch.tanh ({n}, {HIDDEN})": best_us(lambda: torch.tanh(a)),
+        f"XLA tanh ({n}, {HIDDEN})": best_us(lambda: jtanh(ja).block_until_ready()),
+        f"({n},{HIDDEN})x({HIDDEN},{d}) as h @ w.t() (F.linear's)":
+            best_us(lambda: a @ w_out.t()),
+        "the same as (w @ h.t()).t()": best_us(lambda: (w_out @ a.t()).t()),
+        f"({HIDDEN},{n})x({n},{d}) as g.t() @ x (a weight gradient)":
+            best_us(lambda: a.t() @ a[:, :d]),
+        "the same as (x.t() @ g).t()": best_us(lambda: (a[:, :d].t() @ a).t()),
     }
-    print(f"\n  one op on ({n}, {hidden}) float32, microseconds (median of 5 x 500):")
+    print(f"\n  ops, best of 5 x 300, microseconds ({n} rows, d = {d}):")
     for name, us in rows.items():
-        print(f"    {name:24s} {us:8.1f}")
+        print(f"    {name:58s} {us:8.1f}")
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--batch", type=int, default=750)
-    parser.add_argument("--hidden", type=int, default=200)
+    parser.add_argument("--shapes", nargs="+", choices=list(SHAPES), default=list(SHAPES))
     parser.add_argument("--steps", type=int, default=200)
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--cpu", type=int, default=0)
+    parser.add_argument("--cpu", type=int, default=None,
+                        help="the core to pin to (default: the first allowed one)")
+    parser.add_argument("--no-compile", action="store_true",
+                        help="leave out torch.compile (its compilation takes 10-60 s)")
+    parser.add_argument("--compile-mode", default="default",
+                        help="torch.compile's mode (default, reduce-overhead, "
+                        "max-autotune-no-cudagraphs)")
     args = parser.parse_args()
-    _pin(args.cpu)
-    print(f"load average {os.getloadavg()[0]:.2f}; batch {args.batch}, hidden {args.hidden}, "
-          f"{args.steps} steps x {args.repeats} repeats, one core, one thread", flush=True)
-    for family, out, hnn in (("mlp", 2, False), ("hnn", 1, True)):
-        variants = torch_variants(args.batch, args.hidden, out, hnn)
-        variants["jax"] = jax_step(args.batch, args.hidden, out, hnn)
-        times: dict[str, list[float]] = {k: [] for k in variants}
-        for fn in variants.values():  # warm-up
-            time_steps(fn, 10)
-        for _ in range(args.repeats):
-            for name, fn in variants.items():
-                times[name].append(time_steps(fn, args.steps))
-        jax_ms = statistics.median(times["jax"])
-        base = statistics.median(times["baseline"])
-        print(f"\n  {family} step, ms (median)   vs torch baseline   vs JAX")
-        for name, values in times.items():
-            ms = statistics.median(values)
-            print(f"    {name:14s} {ms:8.3f}       {ms / base:6.2f}x         {ms / jax_ms:6.2f}x")
-    op_timings(args.batch, args.hidden)
+    cpu = _pin(args.cpu)
+    print(f"load average {os.getloadavg()[0]:.2f}; {args.steps} steps x {args.repeats} "
+          f"repeats, pinned to core {cpu}, one thread", flush=True)
+    summary = []
+    for shape in args.shapes:
+        n, d = SHAPES[shape]
+        for family, hnn in (("mlp", False), ("hnn", True)):
+            variants, diffs, compile_s = torch_variants(
+                n, d, hnn, None if args.no_compile else args.compile_mode)
+            variants["JAX"] = jax_step(n, d, hnn)
+            times: dict[str, list[float]] = {k: [] for k in variants}
+            for fn in variants.values():  # warm-up
+                time_steps(fn, 20)
+            for _ in range(args.repeats):
+                for name, fn in variants.items():
+                    times[name].append(time_steps(fn, args.steps))
+            jax_ms = statistics.median(times["JAX"])
+            base = statistics.median(times["a47bd0f"])
+            print(f"\n  {shape} ({n} x {d}) {family} step: ms median / best, "
+                  "vs a47bd0f, vs JAX (medians), gradient vs a47bd0f's")
+            for name, values in times.items():
+                ms = statistics.median(values)
+                diff = diffs.get(name)
+                print(f"    {name:28s} {ms:7.3f} / {min(values):7.3f}   {ms / base:5.2f}x   "
+                      f"{ms / jax_ms:5.2f}x   {'—' if diff is None else f'{diff:.1e}'}")
+                summary.append((shape, family, name, ms, ms / jax_ms))
+            if "torch.compile" in times:
+                saved = (statistics.median(times["hnnbench"])
+                         - statistics.median(times["torch.compile"]))
+                print(f"    torch.compile saves {saved:.3f} ms per step against hnnbench's "
+                      f"step: its {compile_s:.1f} s of compilation pay off after "
+                      + (f"{compile_s / saved * 1e3:,.0f} steps" if saved > 0 else "never"))
+        op_timings(n, d)
+    print("\n| shape | family | " + " | ".join(dict.fromkeys(r[2] for r in summary))
+          + " |")
+    names = list(dict.fromkeys(r[2] for r in summary))
+    print("|---|---|" + "---|" * len(names))
+    for shape in args.shapes:
+        for family in ("mlp", "hnn"):
+            cells = {r[2]: r for r in summary if r[0] == shape and r[1] == family}
+            print(f"| {shape} | {family} | " + " | ".join(
+                f"{cells[k][3]:.3f} ({cells[k][4]:.2f}×)" if k in cells else "—"
+                for k in names) + " |")
     return 0
 
 

@@ -13,10 +13,14 @@ order, and pins every thread of the process to the first CPU whose lock it gets.
 lock is held until the process exits, so concurrent processes (joblib/loky workers,
 submitit tasks, even two sweeps) end up on different cores, and a reused worker keeps
 its core. When more processes than cores run at once (submitit_local starts a whole
-batch), the extra ones share a core, chosen by process id, but are pinned all the same,
-so XLA runs one thread in every job; such a process keeps that core even if another
-frees up, so do not start more job processes than cores. Linux only; elsewhere nothing
-is pinned.
+batch; two sweeps, or a sweep next to a stopped one whose workers still hold their
+locks), the extra ones share cores evenly: every core's first lock taken, a claimant
+takes the first free *second* lock (``cpu<n>.2.lock``), then third, and so on, so the
+two workers of a sweep started beside another never share a core while one is less
+shared (they used to share the core their process ids chose). They are pinned all the
+same, so XLA runs one thread in every job; such a process keeps that core even if
+another frees up, so do not start more job processes than cores. Linux only; elsewhere
+nothing is pinned.
 """
 
 from __future__ import annotations
@@ -36,6 +40,8 @@ __all__ = ["claim_core", "started_by_cli", "CLI_ENV"]
 CLI_ENV = launch.ENV
 
 _held: dict[str, object] = {}
+#: Claimants per core with a lock of their own; beyond, a core chosen by process id.
+_LEVELS = 8
 log = logging.getLogger("hnnbench")
 
 
@@ -95,17 +101,19 @@ def _claim(lock_dir: Optional[Path]) -> Optional[int]:
         _held["cpu"] = allowed[0]
         return allowed[0]
     directory = lock_dir or _lock_dir()
-    for cpu in allowed:
-        handle: IO[str] = open(directory / f"cpu{cpu}.lock", "a+")  # noqa: SIM115
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            handle.close()
-            continue
-        _pin_all_threads(cpu)
-        _held.update(cpu=cpu, handle=handle)  # the lock lives as long as the process
-        return cpu
-    cpu = allowed[os.getpid() % len(allowed)]  # every core taken: share one
+    for level in range(1, _LEVELS + 1):  # a core's first claimant, then its second, ...
+        for cpu in allowed:
+            name = f"cpu{cpu}.lock" if level == 1 else f"cpu{cpu}.{level}.lock"
+            handle: IO[str] = open(directory / name, "a+")  # noqa: SIM115
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                handle.close()
+                continue
+            _pin_all_threads(cpu)
+            _held.update(cpu=cpu, handle=handle)  # the lock lives as long as the process
+            return cpu
+    cpu = allowed[os.getpid() % len(allowed)]  # every slot taken: share one
     _pin_all_threads(cpu)
     _held["cpu"] = cpu
     return cpu

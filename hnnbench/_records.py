@@ -36,7 +36,7 @@ import uuid
 import zipfile
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cache, lru_cache
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -523,7 +523,10 @@ def load_arrays(path: Path | str, limit: int | None = None) -> dict[str, Any]:
     return out
 
 
+@cache
 def _version(dist: str) -> str | None:
+    """The installed version of ``dist`` (read once per process: 14 metadata lookups
+    were ~80 ms of every job's record)."""
     try:
         return metadata.version(dist)
     except metadata.PackageNotFoundError:

@@ -49,7 +49,7 @@ def _claimant(lock_dir):
     return proc, cpu, again, early.strip()
 
 
-def test_concurrent_claimants_get_distinct_cores_then_none(tmp_path):
+def test_concurrent_claimants_get_distinct_cores_then_share_them_evenly(tmp_path):
     allowed = sorted(os.sched_getaffinity(0))
     held, cpus = [], []
     try:
@@ -60,9 +60,15 @@ def test_concurrent_claimants_get_distinct_cores_then_none(tmp_path):
             assert early == f"[{cpu}]"  # threads that existed before the claim moved too
             cpus.append(int(cpu))
         assert sorted(cpus) == allowed  # one core each, in order
-        proc, cpu, again, early = _claimant(tmp_path)  # every core taken: share one
-        held.append(proc)
-        assert cpu == again and int(cpu) in allowed and early == f"[{cpu}]"
+        # every core taken: the next claimants share them evenly, one per core, in
+        # order (two workers started beside a stopped sweep never share one core)
+        second = []
+        for _ in allowed:
+            proc, cpu, again, early = _claimant(tmp_path)
+            held.append(proc)
+            assert cpu == again and early == f"[{cpu}]"
+            second.append(int(cpu))
+        assert second == allowed
     finally:
         for proc in held:
             proc.communicate("")

@@ -28,7 +28,22 @@ def _same(a: dict[str, float], b: dict[str, float]) -> bool:
 
 @pytest.mark.slow
 def test_run_writes_the_record_the_cli_writes(tmp_path):
-    rec = hnnbench.run("spring", "hnn_jax", seed=1, out=tmp_path / "api", **QUICK)
+    """In a fresh interpreter, as in a notebook: this process may have started JAX
+    unpinned already (another test), and then gets other bits than the CLI
+    (:func:`test_a_run_after_jax_started_unpinned_warns`)."""
+    import subprocess
+    import sys
+
+    script = "\n".join([
+        "import json, sys, hnnbench",
+        f"rec = hnnbench.run('spring', 'hnn_jax', seed=1, out=sys.argv[1], **{QUICK!r})",
+        "print('RECORD ' + json.dumps(hnnbench._records.encode(rec)))",
+    ])
+    api = subprocess.run([sys.executable, "-c", script, str(tmp_path / "api")],
+                         capture_output=True, text=True, timeout=600)
+    assert api.returncode == 0, api.stderr[-2000:]
+    line = next(ln for ln in api.stdout.splitlines() if ln.startswith("RECORD "))
+    rec = hnnbench._records.decode(json.loads(line.removeprefix("RECORD ")))
     assert rec["status"] == "ok"
     proc = cli("system=spring", "model=hnn_jax", "seed=1", "profile=quick", "device=cpu",
                "system.eval_n_traj=3", "system.steps=40", f"hydra.run.dir={tmp_path / 'cli'}")

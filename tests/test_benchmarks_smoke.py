@@ -152,6 +152,31 @@ def test_train_step_benchmark_times_other_families():
 
 
 @pytest.mark.slow
+def test_torch_step_options_compute_the_same_step():
+    """benchmarks/torch_step_options.py, tiny settings: every variant of the torch step
+    (the a47bd0f step, direct Adam, mse_loss, hnnbench's hand-written backward passes,
+    torch.func.grad, the autograd-free step) has the a47bd0f step's gradient, and the
+    summary has a row per family with a JAX column."""
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "torch_step_options.py"), "--shapes",
+         "spring", "--steps", "2", "--repeats", "1", "--no-compile"],
+        capture_output=True, text=True, timeout=600, env=env, cwd=REPO,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    variants = ("a47bd0f", "+ direct Adam", "+ mse_loss", "hnnbench", "torch.func.grad",
+                "no autograd")
+    for family in ("mlp", "hnn"):
+        block = proc.stdout.split(f"{family} step: ms")[1].split("\n\n")[0]
+        lines = {line.strip().split("  ")[0]: line.split() for line in block.splitlines()[1:]}
+        for name in variants:
+            assert name in lines, (name, block)
+            assert float(lines[name][-1]) < 1e-5, (family, name, lines[name])  # gradient
+    rows = [line for line in proc.stdout.splitlines() if line.startswith("| spring |")]
+    assert len(rows) == 2 and "JAX" in proc.stdout
+
+
+@pytest.mark.slow
 def test_chain_scaling_benchmark_prints_one_row_per_size_and_model():
     """benchmarks/chain_scaling.py at two tiny chains and two models: a table row per
     (N, model), the ratio 1.00x at the smallest N, a finite energy MSE everywhere."""

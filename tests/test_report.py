@@ -117,6 +117,26 @@ def test_figures_per_system_and_html_embeds_every_one(built):
     assert "<table" in page and "hnn_torch" in page and "Qualitative claims" in page
 
 
+@pytest.mark.skipif(not hasattr(__import__("os"), "sched_getaffinity"),
+                    reason="no CPU affinity: figures are drawn in one process")
+def test_figures_drawn_in_several_processes_are_the_serial_ones(tmp_path, monkeypatch):
+    """The system figures drawn by forked processes (the end of a sweep on several
+    cores) are the ones one process draws: the same files, byte for byte, in the same
+    order."""
+    from hnnbench._report import figures
+
+    sweep = make_sweep(tmp_path / "sweep")
+    recs = report.load_sweep(sweep)
+    board = leaderboard(recs)
+    drawn = {}
+    for processes in (1, 2):
+        monkeypatch.setattr(figures, "drawing_processes", lambda p=processes: p)
+        made = figures.make_figures(recs, board, tmp_path / f"figures{processes}")
+        drawn[processes] = [(m.label, m.kind, m.path.name, m.path.read_bytes()) for m in made]
+    systems = {label for label, kind, *_ in drawn[1] if label != "all systems"}
+    assert len(systems) >= 2 and drawn[2] == drawn[1], systems
+
+
 def test_no_learned_energy_figure_without_a_model_that_has_one(tmp_path):
     sweep = make_sweep(tmp_path / "s", pairs=(("spring", "mlp_torch"),), seeds=(3, 1))
     report.main([str(sweep)])

@@ -20,9 +20,14 @@ from __future__ import annotations
 import hashlib
 import logging
 import math
+import multiprocessing
+import os
 import re
+import sys
 import zipfile
 from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, Optional, cast
@@ -584,25 +589,30 @@ class Made:
 
 def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Path,
                  verdicts: Any = None) -> list[Made]:
-    """Every registered figure into ``directory`` (board figures get ``verdicts``, a
-    :class:`hnnbench._report.verdicts.Verdicts`, for the family heatmaps and the
-    performance profiles)."""
+    """Every registered figure into ``directory``: the board figures (given
+    ``verdicts``, a :class:`hnnbench._report.verdicts.Verdicts`, for the family heatmaps
+    and the performance profiles), then each system's (drawn by
+    :func:`drawing_processes` processes while this one draws the board's)."""
     directory = Path(directory)
-    made: list[Made] = []
-    for kind in FIGURES.values():
-        if kind.scope != "board":
-            continue
-        try:
-            figures = kind.make(board, recs, verdicts)
-        except Exception as err:  # one broken figure must not stop the report
-            log.warning("figure %s failed: %s", kind.name, err)
-            continue
-        for stem, fig in figures.items():
+
+    def board_figures() -> list[Made]:
+        made = []
+        for kind in FIGURES.values():
+            if kind.scope != "board":
+                continue
             try:
-                made.append(Made("all systems", kind.name,
-                                 _save(fig, safe_join(directory, f"{stem}.png"))))
-            except UnsafePathError as err:
-                log.warning("figure %s not written: %s", kind.name, err)
+                figures = kind.make(board, recs, verdicts)
+            except Exception as err:  # one broken figure must not stop the report
+                log.warning("figure %s failed: %s", kind.name, err)
+                continue
+            for stem, fig in figures.items():
+                try:
+                    made.append(Made("all systems", kind.name,
+                                     _save(fig, safe_join(directory, f"{stem}.png"))))
+                except UnsafePathError as err:
+                    log.warning("figure %s not written: %s", kind.name, err)
+        return made
+
     profiles = sorted({str(r.get("profile")) for r in recs})
     groups: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
     for rec, variant in zip(recs, variant_labels([r.get("overrides") for r in recs]),
@@ -617,35 +627,98 @@ def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Pat
         groups.setdefault((str(rec.get("profile")), str(rec.get("system")), variant),
                           []).append(rec)
     systems = registry.ordered("system", [k[1] for k in groups])
+    tasks = []
     for profile, system, variant in sorted(groups, key=lambda k: (k[0], systems.index(k[1]),
                                                                    k[2])):
-        seed, runs = runs_for_figures(groups[(profile, system, variant)])
-        if seed is None:
-            continue
         label = system if len(profiles) == 1 else f"{system} ({profile})"
         label += f" [{variant}]" if variant else ""
         stem = system if len(profiles) == 1 else f"{profile}_{system}"
         if variant:
             stem += "__" + slug(variant)
-        drawn = {r.model for r in runs}
-        missing = registry.ordered("model", {
-            str(r.get("model")) for r in groups[(profile, system, variant)]
-            if r.get("status") in ("ok", "diverged") and str(r.get("model")) not in drawn})
-        ctx = SystemRuns(f"{system} [{variant}]" if variant else system, seed, runs, missing)
-        for kind in FIGURES.values():
-            if kind.scope != "system":
-                continue
-            try:
-                fig = kind.make(ctx)
-            except Exception as err:
-                log.warning("figure %s/%s failed: %s", system, kind.name, err)
-                continue
-            if fig is not None:
-                try:
-                    path = _save(fig, safe_join(directory, f"{stem}_{kind.name}.png"))
-                except UnsafePathError as err:
-                    log.warning("figure %s/%s not written: %s", system, kind.name, err)
-                    continue
-                made.append(Made(label, kind.name, path))
+        name = f"{system} [{variant}]" if variant else system
+        tasks.append(_SystemTask(label, stem, name, system, directory,
+                                 groups[(profile, system, variant)]))
+    made, per_system = _map(_system_figures, tasks, board_figures)
+    for drawn in per_system:
+        made += drawn
     return made
+
+
+@dataclass
+class _SystemTask:
+    """The system-scope figures of one (profile, system, variant): what to draw them
+    from and where."""
+
+    label: str
+    stem: str
+    name: str  # SystemRuns.label
+    system: str
+    directory: Path
+    records: list[dict[str, Any]]
+
+
+def _system_figures(task: _SystemTask) -> list[Made]:
+    """Every system-scope figure of ``task``, drawn and saved."""
+    seed, runs = runs_for_figures(task.records)
+    if seed is None:
+        return []
+    drawn = {r.model for r in runs}
+    missing = registry.ordered("model", {
+        str(r.get("model")) for r in task.records
+        if r.get("status") in ("ok", "diverged") and str(r.get("model")) not in drawn})
+    ctx = SystemRuns(task.name, seed, runs, missing)
+    made = []
+    for kind in FIGURES.values():
+        if kind.scope != "system":
+            continue
+        try:
+            fig = kind.make(ctx)
+        except Exception as err:
+            log.warning("figure %s/%s failed: %s", task.system, kind.name, err)
+            continue
+        if fig is not None:
+            try:
+                path = _save(fig, safe_join(task.directory, f"{task.stem}_{kind.name}.png"))
+            except UnsafePathError as err:
+                log.warning("figure %s/%s not written: %s", task.system, kind.name, err)
+                continue
+            made.append(Made(task.label, kind.name, path))
+    return made
+
+
+def drawing_processes() -> int:
+    """How many processes draw the system figures: one per core this process may run
+    on (a command pinned to one core, as the basic launcher's is by its first job,
+    draws in itself), on Linux, where they fork and so inherit the figure registry;
+    one elsewhere."""
+    if not sys.platform.startswith("linux") or not hasattr(os, "sched_getaffinity"):
+        return 1
+    return len(os.sched_getaffinity(0))
+
+
+def _map(fn: Callable[[_SystemTask], list[Made]], tasks: list[_SystemTask],
+         meanwhile: Callable[[], list[Made]]) -> tuple[list[Made], list[list[Made]]]:
+    """``(meanwhile(), [fn(t) for t in tasks])``; the tasks in forked processes when
+    there are several tasks and cores (the end of a sweep drew its ~46 quick-sweep
+    figures one after the other: 41 s of one core of 2), while this process runs
+    ``meanwhile``; what a pool could not draw is drawn here."""
+    workers = min(drawing_processes(), len(tasks))
+    if workers < 2:
+        return meanwhile(), [fn(t) for t in tasks]
+    out: list[Optional[list[Made]]] = [None] * len(tasks)
+    first: Optional[list[Made]] = None
+    try:
+        with ProcessPoolExecutor(max_workers=workers,
+                                 mp_context=multiprocessing.get_context("fork")) as pool:
+            futures = [pool.submit(fn, t) for t in tasks]
+            first = meanwhile()
+            for i, future in enumerate(futures):
+                try:
+                    out[i] = future.result()
+                except BrokenProcessPool:
+                    break
+    except (OSError, BrokenProcessPool) as err:  # no process could start: draw here
+        log.warning("figures drawn in one process: %s", err)
+    first = meanwhile() if first is None else first
+    return first, [fn(t) if got is None else got for t, got in zip(tasks, out, strict=True)]
 

@@ -2,7 +2,8 @@
 
 Training networks are *views* on a flat ``{name: tensor}`` parameter dict, so one
 definition serves one seed and, under :func:`torch.func.vmap`, a batch of seeds. Their
-operations are ``nn.Linear``'s (``F.linear``). Rollouts use :class:`FrozenMLP`, a
+operations are ``nn.Linear``'s (``F.linear``); the trainer's :class:`TrainingMLP`
+computes the same values with hand-written backward passes. Rollouts use :class:`FrozenMLP`, a
 detached float64 copy with pre-transposed weights and one ``addmm`` per layer: an ODE
 solve calls the network thousands of times on a handful of states, where per-call
 overhead, not arithmetic, decides the cost.
@@ -21,11 +22,13 @@ import torch.nn.functional as F
 from hnnbench.neural._embedding import NetInput
 from hnnbench.neural._init import AE_LAYERS
 from hnnbench.neural._views import CC_WEIGHT, DYNAMICS_WEIGHT
+from hnnbench.neural.torch import _backprop
 
 __all__ = [
     "MLP",
     "Autoencoder",
     "FrozenMLP",
+    "TrainingMLP",
     "Periodic",
     "activate",
     "activation_grad",
@@ -37,7 +40,10 @@ __all__ = [
 
 
 def symplectic(grad: torch.Tensor) -> torch.Tensor:
-    """``(dH/dq, dH/dp) -> (dH/dp, -dH/dq)`` along the last axis: ``J ∇H``."""
+    """``(dH/dq, dH/dp) -> (dH/dp, -dH/dq)`` along the last axis: ``J ∇H``; while
+    autograd records, one node with its backward written out."""
+    if grad.requires_grad and torch.is_grad_enabled():
+        return _backprop.symplectic(grad)
     n = grad.shape[-1] // 2
     return torch.cat([grad[..., n:], -grad[..., :n]], dim=-1)
 
@@ -69,6 +75,17 @@ def activation_second(name: str, a: torch.Tensor, h: torch.Tensor) -> torch.Tens
         return h * (1.0 - h) * (1.0 - 2.0 * h)
     s = torch.sigmoid(a)
     return s * (1.0 - s)
+
+
+def curvature_of(name: str, h: torch.Tensor, slope: torch.Tensor) -> torch.Tensor:
+    """Second derivative of the activation ``name`` from its value ``h`` and its first
+    derivative ``slope`` (tanh: ``-2 h σ'``; sigmoid: ``σ' (1 - 2h)``; softplus, whose
+    ``σ'`` is the logistic ``s``: ``s (1 - s)``), without evaluating it again."""
+    if name == "tanh":
+        return -2.0 * h * slope
+    if name == "sigmoid":
+        return slope * (1.0 - 2.0 * h)
+    return slope * (1.0 - slope)
 
 
 class Periodic:
@@ -163,7 +180,7 @@ def input_hessian(weights: Sequence[torch.Tensor], biases: Sequence[torch.Tensor
     layer (its Jacobian enters the first tangent, its curvature the angle diagonal).
     """
     n, d = x.shape
-    pre, jac = [], []
+    slopes, jac = [], []  # σ'(a_k) and ∂a_k/∂x of each hidden layer
     h, tangent = (x if periodic is None else periodic.embed(x)), None  # tangent: ∂h/∂x
     for w, b in zip(weights[:-1], biases, strict=True):
         a = F.linear(h, w, b)
@@ -174,18 +191,19 @@ def input_hessian(weights: Sequence[torch.Tensor], biases: Sequence[torch.Tensor
         else:
             ja = periodic.first_tangent(w, x)
         h = activate(activation, a)
-        tangent = ja * activation_grad(activation, a, h)[:, None, :]
-        pre.append((a, h))
+        slope = activation_grad(activation, a, h)
+        tangent = ja * slope[:, None, :]
+        slopes.append((h, slope))
         jac.append(ja)
     value = F.linear(h, weights[-1])[:, 0]
     delta = weights[-1].expand(n, -1)  # ∂f/∂h of the last hidden layer, (N, width)
     hess = x.new_zeros(n, d - first_row, d)
     for k in range(len(weights) - 2, -1, -1):
-        a, hk = pre[k]
+        hk, slope = slopes[k]
         ja = jac[k]
-        curvature = delta * activation_second(activation, a, hk)  # (N, width)
+        curvature = delta * curvature_of(activation, hk, slope)  # (N, width)
         hess = hess + (ja[:, first_row:, :] * curvature[:, None, :]) @ ja.transpose(1, 2)
-        delta = (delta * activation_grad(activation, a, hk)) @ weights[k]
+        delta = (delta * slope) @ weights[k]
     if periodic is None:
         return value, delta, hess
     return value, periodic.pull(x, delta), periodic.curvature(x, delta, hess, first_row)
@@ -237,6 +255,32 @@ class MLP:
         """:func:`input_hessian` of this network (``d_out == 1``)."""
         return input_hessian(self.weights, self.biases, self.activation, x, first_row,
                              self.periodic)
+
+
+class TrainingMLP(MLP):
+    """The training networks' :class:`MLP`: the same values, with the value and the
+    input gradient each one autograd node whose backward is written out
+    (:mod:`hnnbench.neural.torch._backprop`: the HNN's spring step 15% faster than
+    through the plain operations, ``benchmarks/torch_step_options.py``). Reverse mode
+    only (no ``torch.func.jacfwd``/``hessian`` through it); the angle embedding's maps
+    around the network stay plain operations. The input Hessian is :class:`MLP`'s."""
+
+    def _params(self) -> list[torch.Tensor]:
+        out = []
+        for w, b in zip(self.weights[:-1], self.biases, strict=True):
+            out += [w, b]
+        return [*out, self.weights[-1]]
+
+    def __call__(self, x: torch.Tensor) -> torch.Tensor:
+        u = x if self.periodic is None else self.periodic.embed(x)
+        return _backprop.value(self.activation, u, self._params())
+
+    def input_gradient(self, x: torch.Tensor) -> torch.Tensor:
+        if self.periodic is None:
+            return _backprop.input_gradient(self.activation, x, self._params())
+        grad_u = _backprop.input_gradient(self.activation, self.periodic.embed(x),
+                                          self._params())
+        return self.periodic.pull(x, grad_u)
 
 
 class FrozenMLP:
