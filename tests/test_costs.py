@@ -19,9 +19,9 @@ def test_the_committed_job_costs_are_what_the_script_writes():
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     table = costs.load_costs()
-    published = {(rec["system"], rec["model"]) for rec in (
-        json.loads(p.read_text("utf-8")) for p in (REPO / "results" / "records").rglob("result.json"))
-        if not rec.get("variant")}
+    records = (json.loads(path.read_text("utf-8"))
+               for path in (REPO / "results" / "records").rglob("result.json"))
+    published = {(rec["system"], rec["model"]) for rec in records if not rec.get("variant")}
     assert published, "no published records"
     assert all(table[("paper", system, model)] > 0 for system, model in published)
     assert table[("quick", "spring", "oracle")] > 0
