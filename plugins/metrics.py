@@ -288,7 +288,10 @@ VPT_CENSORED = Metric(
     "vpt_censored", "Share of evaluation trajectories whose valid prediction time reached "
     "the horizon (there it is a lower bound; the horizon caps valid_prediction_time). A "
     "diagnostic, never marked best", _vpt_censored, better="higher", scale="linear",
-    check=CheckRule(3, 0.0), order=65, ranked=False, domain=(0.0, 1.0))
+    # A share of a handful of trajectories moves in steps of 1/M: as a ratio, 0 against
+    # one trajectory in 15 is infinitely apart. Shares below 0.25 count as 0.25, so the
+    # check fails only when one run censors most trajectories and the other almost none.
+    check=CheckRule(3, 0.25), order=65, ranked=False, domain=(0.0, 1.0))
 VPT_LYAPUNOV = Metric(
     "vpt_lyapunov", "Valid prediction time in Lyapunov times (chaotic systems); as "
     "valid_prediction_time for a degenerate model",
