@@ -10,7 +10,7 @@ and against this machine's fp32 matmul roofline, measured side by side.
         so_mlp_torch so_mlp_jax srnn_torch srnn_jax       # ms/step of every family
 
 ``--models`` takes any neural model (``<family>_<backend>``: the families mlp, hnn,
-dhnn, lnn, node2, srnn, each as torch and jax; default: mlp and hnn on both backends);
+dhnn, lnn, so_mlp, srnn, each as torch and jax; default: mlp and hnn on both backends);
 a model that cannot run on a system (``hnnbench list`` says why) is skipped with a
 note. For each system it builds the paper-profile dataset (``system.dataset(0)``, the
 same cache entry a real run uses) and, for each model, times ``Model.fit`` for ``--steps``
@@ -45,7 +45,7 @@ Compared with:
    step of the timed fit does on average), recorded from the torch model's own ``fit``
    (and checked with ``FlopCounterMode``; the JAX step's dot FLOPs are read from the
    optimised HLO of the training chunk JAX ``fit`` compiles and agree for mlp, hnn and
-   dhnn; lnn, node2 and srnn compute their derivatives differently in the two
+   dhnn; lnn, so_mlp and srnn compute their derivatives differently in the two
    backends, or loop inside the loss, and a warning says where they differ), each
    divided by the best fp32 rate measured on this
    machine, single thread, for that ``(M, K) x (K, N)`` shape (torch ``mm`` or JAX
