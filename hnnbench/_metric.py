@@ -54,8 +54,9 @@ class CheckRule:
         factor: how much worse is tolerated, as a ratio compared in log space: a
             lower-is-better value fails above ``reference * factor``, a higher-is-better
             one below ``reference / factor``.
-        floor: values below it count as it (a numerical noise floor, so that 1e-16 vs
-            1e-14 from an exact model on two machines is no regression).
+        floor: values below it count as it: a numerical noise floor (so that 1e-16 vs
+            1e-14 from an exact model on two machines is no regression), or a metric's
+            resolution (a share of 15 trajectories moves in steps of 1/15).
         gate: ``False``: differences are reported as information, never a failure.
         better: ``"lower"`` or ``"higher"``; a :class:`Metric` sets it to its own
             :attr:`Metric.better`.

@@ -70,3 +70,13 @@ def test_a_metric_that_raises_is_recorded_unless_it_declares_errors_fail_job():
     with pytest.raises(ValueError, match="a bug"):
         evaluate(None, None, None, traj, None,  # type: ignore[arg-type]
                  metrics=[fine, Metric("core", "raises", broken, errors_fail_job=True)])
+
+
+def test_vpt_censored_check_floors_shares_at_a_quarter():
+    """A share of 15 trajectories moves in steps of 1/15: 0 against 1/15 is no difference
+    for the check (twins, regressions), while 1 against 0 is (docs/METRICS.md)."""
+    rule = M.VPT_CENSORED.check
+    assert rule.better == "higher" and rule.floor == 0.25
+    assert rule.worsening(1 / 15, 0.0) == 1.0 and rule.worsening(0.0, 1 / 15) == 1.0
+    assert rule.worsening(1.0, 0.0) == 4.0 > rule.factor
+    assert rule.worsening(0.0, 1.0) < 1.0  # an improvement

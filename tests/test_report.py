@@ -119,10 +119,11 @@ def test_figures_per_system_and_html_embeds_every_one(built):
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "sched_getaffinity"),
                     reason="no CPU affinity: figures are drawn in one process")
-def test_figures_drawn_in_several_processes_are_the_serial_ones(tmp_path, monkeypatch):
+def test_figures_drawn_in_several_processes_are_the_serial_ones(tmp_path, monkeypatch,
+                                                               caplog):
     """The system figures drawn by forked processes (the end of a sweep on several
     cores) are the ones one process draws: the same files, byte for byte, in the same
-    order."""
+    order; and the pool did draw them (no fallback to one process)."""
     from hnnbench._report import figures
 
     sweep = make_sweep(tmp_path / "sweep")
@@ -135,6 +136,24 @@ def test_figures_drawn_in_several_processes_are_the_serial_ones(tmp_path, monkey
         drawn[processes] = [(m.label, m.kind, m.path.name, m.path.read_bytes()) for m in made]
     systems = {label for label, kind, *_ in drawn[1] if label != "all systems"}
     assert len(systems) >= 2 and drawn[2] == drawn[1], systems
+    assert "figures drawn in one process" not in caplog.text
+
+
+def test_no_fork_for_figures_once_jax_has_started(monkeypatch):
+    """XLA's threads do not survive a fork: a process that started a JAX backend (a
+    notebook that trained in-process) draws its figures itself."""
+    import sys as _sys
+    import types
+
+    from hnnbench._report import figures
+
+    monkeypatch.delitem(_sys.modules, "jax", raising=False)
+    assert not figures._jax_started()
+    monkeypatch.setitem(_sys.modules, "jax", types.ModuleType("jax"))
+    started = types.SimpleNamespace(backends_are_initialized=lambda: True)
+    monkeypatch.setitem(_sys.modules, "jax._src.xla_bridge", started)
+    monkeypatch.setitem(_sys.modules, "jax._src", types.SimpleNamespace(xla_bridge=started))
+    assert figures._jax_started() and figures.drawing_processes() == 1
 
 
 def test_no_learned_energy_figure_without_a_model_that_has_one(tmp_path):

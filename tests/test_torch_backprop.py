@@ -136,3 +136,20 @@ def test_fused_adam_is_torch_adam_to_the_bit(dtype):
     assert not torch.equal(ours[0], torch.tensor(start[0], dtype=dtype))
     assert torch.equal(ours[2], torch.tensor(start[2], dtype=dtype))
     assert [float(s) for s in adam.steps] == [60.0, 60.0, 0.0]
+
+
+@pytest.mark.parametrize("method", ["__call__", "input_gradient"])
+def test_a_second_derivative_through_the_training_network_raises(method):
+    """The hand-written backward passes treat their saved intermediates as constants, so
+    a second reverse pass through them would be wrong: it raises instead (a plugin that
+    needs second derivatives uses :class:`MLP` or ``input_hessian``)."""
+    params = params_of(0, 2, 1, 2, "tanh", None)
+    net = TrainingMLP.view(params, "f", 2, "tanh", None)
+    x = torch.tensor(np.random.default_rng(0).normal(size=(ROWS, 2)), requires_grad=True)
+    out = getattr(net, method)(x).sum()
+    (grad_x,) = torch.autograd.grad(out, [x], create_graph=True)
+    # the first pass runs without a graph (not one that would leave the saved
+    # intermediates out), so the second has nothing to differentiate
+    assert grad_x.grad_fn is None
+    with pytest.raises(RuntimeError, match="does not require grad|once_differentiable"):
+        torch.autograd.grad(grad_x.sum(), list(params.values()))

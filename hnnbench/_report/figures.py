@@ -693,7 +693,23 @@ def drawing_processes() -> int:
     one elsewhere."""
     if not sys.platform.startswith("linux") or not hasattr(os, "sched_getaffinity"):
         return 1
+    if _jax_started():  # XLA's thread pools do not survive a fork (JAX warns): draw here
+        return 1
     return len(os.sched_getaffinity(0))
+
+
+def _jax_started() -> bool:
+    """Whether this process has started a JAX backend (and with it XLA's threads).
+
+    A ``hnnbench`` command's parent process never has (its jobs run in workers), a
+    notebook that trained a JAX model in-process has; unknown counts as started."""
+    if "jax" not in sys.modules:
+        return False
+    try:
+        from jax._src import xla_bridge
+        return bool(xla_bridge.backends_are_initialized())
+    except (ImportError, AttributeError):  # another JAX layout: do not risk the fork
+        return True
 
 
 def _map(fn: Callable[[_SystemTask], list[Made]], tasks: list[_SystemTask],
@@ -708,17 +724,22 @@ def _map(fn: Callable[[_SystemTask], list[Made]], tasks: list[_SystemTask],
     out: list[Optional[list[Made]]] = [None] * len(tasks)
     first: Optional[list[Made]] = None
     try:
-        with ProcessPoolExecutor(max_workers=workers,
-                                 mp_context=multiprocessing.get_context("fork")) as pool:
-            futures = [pool.submit(fn, t) for t in tasks]
+        pool = ProcessPoolExecutor(max_workers=workers,
+                                   mp_context=multiprocessing.get_context("fork"))
+        futures = [pool.submit(fn, t) for t in tasks]
+    except (OSError, BrokenProcessPool) as err:  # no process could start: draw here
+        log.warning("figures drawn in one process: %s", err)
+        futures = []
+        pool = None
+    if pool is not None:
+        with pool:  # a figure's own error (in fn) propagates from result(), as it would here
             first = meanwhile()
             for i, future in enumerate(futures):
                 try:
                     out[i] = future.result()
-                except BrokenProcessPool:
+                except BrokenProcessPool as err:  # a worker died: the rest are drawn here
+                    log.warning("figures drawn in one process: %s", err)
                     break
-    except (OSError, BrokenProcessPool) as err:  # no process could start: draw here
-        log.warning("figures drawn in one process: %s", err)
     first = meanwhile() if first is None else first
     return first, [fn(t) if got is None else got for t, got in zip(tasks, out, strict=True)]
 

@@ -13,8 +13,10 @@ rounding (``tests/test_torch_backprop.py`` checks the values, the gradients with
 respect to every parameter and the input, seed batches under ``torch.func.vmap``, and
 every activation).
 
-Only reverse mode: these functions have no forward-mode rule, so ``torch.func.jacfwd``
-and ``hessian`` do not go through them; :class:`~hnnbench.neural.torch._nets.MLP`
+Only first-order reverse mode: these functions have no forward-mode rule, so
+``torch.func.jacfwd`` and ``hessian`` do not go through them, and their backward passes
+are ``once_differentiable`` (a second reverse pass raises instead of silently treating
+the saved intermediates as constants); :class:`~hnnbench.neural.torch._nets.MLP`
 keeps the plain operations for that (the tests' references, the LNN's Hessian).
 ``benchmarks/torch_step_options.py`` measures what they gain.
 
@@ -27,6 +29,7 @@ from __future__ import annotations
 from typing import Any, Optional
 
 import torch
+from torch.autograd.function import once_differentiable
 
 __all__ = ["input_gradient", "symplectic", "value"]
 
@@ -139,6 +142,7 @@ class _Value(torch.autograd.Function):
         ctx.save_for_backward(x, *params, *saved)
 
     @staticmethod
+    @once_differentiable  # the saved tensors are constants: a second derivative would be wrong
     def backward(ctx: Any, grad_out: Optional[torch.Tensor], *_: Any) -> Any:
         m = ctx.m
         if grad_out is None:
@@ -195,6 +199,7 @@ class _InputGradient(torch.autograd.Function):
         ctx.save_for_backward(x, *params, *saved)
 
     @staticmethod
+    @once_differentiable  # the saved tensors are constants: a second derivative would be wrong
     def backward(ctx: Any, grad_q0: Optional[torch.Tensor], *_: Any) -> Any:
         m = ctx.m
         if grad_q0 is None:
