@@ -78,6 +78,26 @@ def test_concurrent_claimants_get_distinct_cores_then_share_them_evenly(tmp_path
     assert cpu == str(allowed[0])
 
 
+def test_a_claimant_takes_the_least_held_core(tmp_path):
+    """Cores 0 and 1 held, a third claimant on core 0's second slot; once the first two
+    exit, the next claimant goes to the idle core 1, not beside the third on core 0."""
+    allowed = sorted(os.sched_getaffinity(0))[:2]
+    lock_dir = tmp_path
+    first = [_claimant(lock_dir) for _ in allowed]
+    extra = [_claimant(lock_dir) for _ in range(len(os.sched_getaffinity(0)) - 2)]
+    third, cpu3, _, _ = _claimant(lock_dir)
+    try:
+        assert [int(c) for _, c, _, _ in first] == allowed and int(cpu3) == allowed[0]
+        for proc, *_ in first:
+            proc.communicate("")
+        nxt, cpu4, _, _ = _claimant(lock_dir)
+        nxt.communicate("")
+        assert int(cpu4) == allowed[1]
+    finally:
+        for proc, *_ in [*extra, (third,)]:
+            proc.communicate("")
+
+
 def test_only_jobs_of_the_hnnbench_command_pin(monkeypatch):
     monkeypatch.delenv(affinity.CLI_ENV, raising=False)
     assert not affinity.started_by_cli()  # run_job from a notebook or a test
