@@ -5,7 +5,8 @@ it), as a Markdown table.
     python scripts/job_hours.py                        # results/records, paper profile
     python scripts/job_hours.py results/runs/<sweep> --profile quick
 
-benchmarks/README.md quotes it for the published paper sweep ("Whole sweeps"). A record
+benchmarks/README.md quotes it for the paper sweeps, the old protocol's and the
+re-published one (its first table, "Issue 29's figures"). A record
 without timings (a job skipped before it ran) counts as a job with no time; records
 of variants (``variant``) are counted apart under their family.
 """

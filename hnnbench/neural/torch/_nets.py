@@ -32,7 +32,6 @@ __all__ = [
     "Periodic",
     "activate",
     "activation_grad",
-    "activation_second",
     "input_hessian",
     "pixel_objective",
     "symplectic",
@@ -64,17 +63,6 @@ def activation_grad(name: str, a: torch.Tensor, h: torch.Tensor) -> torch.Tensor
     if name == "sigmoid":
         return h * (1.0 - h)
     return torch.sigmoid(a)
-
-
-def activation_second(name: str, a: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
-    """Second derivative of the activation ``name`` at pre-activation ``a`` (``h`` its
-    value)."""
-    if name == "tanh":
-        return -2.0 * h * (1.0 - h * h)
-    if name == "sigmoid":
-        return h * (1.0 - h) * (1.0 - 2.0 * h)
-    s = torch.sigmoid(a)
-    return s * (1.0 - s)
 
 
 def curvature_of(name: str, h: torch.Tensor, slope: torch.Tensor) -> torch.Tensor:
