@@ -10,7 +10,8 @@ JOBS ?= $(shell env -u OMP_NUM_THREADS nproc 2>/dev/null || echo 1)
 # What `make benchmark` sweeps, e.g. SYSTEMS=spring,pendulum MODELS=hnn_jax,mlp_jax.
 SYSTEMS ?= all
 MODELS ?= all
-# Seeds of `make benchmark` (the committed leaderboard: SEEDS=0,1,2).
+# Seeds of `make benchmark` (the committed leaderboard is built by scripts/paper_sweep.sh:
+# seeds 0-4 of the JAX twins and the oracle, 0-2 of the torch twins).
 SEEDS ?= 0
 PYTEST_ARGS ?=
 

@@ -6,7 +6,7 @@
 #     twin-parity check.
 # Each system gets two sweep directories, ROOT/<system>/jax and ROOT/<system>/torch;
 # re-running the same command skips every finished job (docs/SCALING.md). Publish with
-#   .venv/bin/python scripts/publish_results.py ROOT/*/jax ROOT/*/torch
+#   .venv/bin/python scripts/publish_results.py ROOT/*/jax ROOT/*/torch results/records
 #
 #   scripts/paper_sweep.sh SYSTEM[,SYSTEM...] [ROOT]      ROOT default: results/runs/paper
 #   JOBS=2 JAX_SEEDS=5 TORCH_SEEDS=3 scripts/paper_sweep.sh spring

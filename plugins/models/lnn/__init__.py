@@ -86,7 +86,8 @@ class _LNN(NeuralModel):
 
 
 class LNNTorch(_LNN):
-    """Lagrangian NN (PyTorch; ``torch.func`` derivatives)."""
+    """Lagrangian NN (PyTorch; closed-form input Hessians:
+    :func:`hnnbench.neural.torch.input_hessian`)."""
 
     family = LNN
     backend = "torch"
