@@ -6,7 +6,8 @@
 #     twin-parity check.
 # Each system gets two sweep directories, ROOT/<system>/jax and ROOT/<system>/torch;
 # re-running the same command skips every finished job (docs/SCALING.md). Publish with
-#   .venv/bin/python scripts/publish_results.py ROOT/*/jax ROOT/*/torch results/records
+#   .venv/bin/python scripts/publish_results.py ROOT/SYSTEM/jax ROOT/SYSTEM/torch results/records
+# (only sweeps not yet published next to results/records: a job given twice is refused)
 #
 #   scripts/paper_sweep.sh SYSTEM[,SYSTEM...] [ROOT]      ROOT default: results/runs/paper
 #   JOBS=2 JAX_SEEDS=5 TORCH_SEEDS=3 scripts/paper_sweep.sh spring
