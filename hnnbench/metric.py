@@ -1,5 +1,5 @@
 """Deprecated: ``hnnbench.metric`` is now private (``hnnbench._metric``); import the
-public names from :mod:`hnnbench`. Removed in hnnbench 0.5."""
+public names from :mod:`hnnbench`. To be removed in hnnbench 0.5."""
 
 from hnnbench._deprecated import forward
 

@@ -1,5 +1,5 @@
 """Deprecated: ``hnnbench.neural.views`` is now private; import the public names
-from :mod:`hnnbench.neural`. Removed in hnnbench 0.5."""
+from :mod:`hnnbench.neural`. To be removed in hnnbench 0.5."""
 
 from hnnbench._deprecated import forward
 
