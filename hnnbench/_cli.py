@@ -117,8 +117,8 @@ def cmd_list(args: list[str]) -> int:
              "package": f"{i.distribution} {i.dist_version}" if i.distribution else "?",
              "status": "ok" if i.ok else "error", "description": i.description,
              "error": i.error,
-             **({"search_space": space_json(i.search_space) if i.search_space else None}
-                if kind == "model" else {})}
+             **({"search_space": space_json(i.search_space) if i.search_space else None,
+                 "recipe": i.recipe} if kind == "model" else {})}
             for i in registry.discover(kind).values()
         ]
     if "--json" in args:
@@ -142,6 +142,14 @@ def cmd_list(args: list[str]) -> int:
         # A family's backends declare one space: shown once per family.
         print("Search spaces (hnnbench tune; docs/TUNING.md)")
         print(tabulate(list(dict.fromkeys(spaces)), headers=["family or model", "space"],
+                       tablefmt="simple"))
+        print()
+    recipes = [(i.family if i.family != "-" else i.name,
+                " ".join(f"{k}={v}" for k, v in (i.recipe or {}).items()))
+               for i in registry.discover("model").values() if i.recipe]
+    if recipes:
+        print("Recipes (track=recipe: the defaults a paper's own recipe sets; docs/TUNING.md)")
+        print(tabulate(list(dict.fromkeys(recipes)), headers=["family or model", "recipe"],
                        tablefmt="simple"))
         print()
     print("Profiles: " + ", ".join(registry.PROFILES))

@@ -319,19 +319,34 @@ def prepare_job(cfg: DictConfig) -> Job:
     return Job(cfg, system_cls, system_cfg, model_cls, model_cfg)
 
 
+def _single_choice(overrides: list[str], key: str, default: str) -> str:
+    """The value of ``key=...`` in ``overrides`` (the last one; ``default`` if none),
+    refused when it sweeps several values (the plugin configs are stored per value)."""
+    chosen = default
+    for item in overrides:
+        name, sep, value = item.partition("=")
+        if sep and name.lstrip("+~") == key:
+            chosen = value
+    if "," in chosen or chosen.startswith(("glob(", "choice(", "range(")):
+        raise ConfigError(f"{key}={chosen}: a sweep runs one {key}; start one sweep per {key}.")
+    return chosen
+
+
 def profile_of(overrides: list[str]) -> str:
     """The profile named by ``profile=...`` in ``overrides`` (default ``paper``)."""
-    profile = "paper"
-    for item in overrides:
-        key, sep, value = item.partition("=")
-        if sep and key.lstrip("+~") == "profile":
-            profile = value
-    if "," in profile or profile.startswith(("glob(", "choice(", "range(")):
-        raise ConfigError(
-            f"profile={profile}: a sweep runs one profile; start one sweep per profile."
-        )
+    profile = _single_choice(overrides, "profile", "paper")
     registry.validate_profile(profile)
     return profile
+
+
+def track_of(overrides: list[str]) -> str:
+    """The track named by ``track=...`` in ``overrides`` (default ``protocol``): the
+    recipe track's model defaults are each model's declared recipe."""
+    track = _single_choice(overrides, "track", DEFAULT_TRACK)
+    if track not in TRACKS:
+        raise ConfigError(f"track={track} is invalid: expected one of {', '.join(TRACKS)} "
+                          "(docs/TUNING.md).")
+    return track
 
 
 def compose(
@@ -357,7 +372,7 @@ def compose(
     overrides = list(overrides or [])
     _refuse_name_overrides(overrides)
     register_schema()
-    registry.register_configs(profile_of(overrides))
+    registry.register_configs(profile_of(overrides), track_of(overrides))
     GlobalHydra.instance().clear()
     context: Any
     if config_dir is None:

@@ -447,6 +447,11 @@ class Model(ABC):
             over fields of ``Config`` (:mod:`hnnbench._space`: ``LogUniform``,
             ``Uniform``, ``IntRange``, ``Categorical``); ``None`` (the default): the
             model is not tuned. Checked when the registry discovers the model.
+        recipe: the model's paper's own training recipe, ``{setting: value}`` over
+            fields of ``Config`` (the training fields included), which the defaults
+            take under ``track=recipe`` (the smoke profile's overrides still apply on
+            top); ``None`` (the default): no recipe, and the model's jobs on the recipe
+            track are skipped. Checked when the registry discovers the model.
     """
 
     Config: ClassVar[type[ModelConfig]] = ModelConfig
@@ -459,6 +464,7 @@ class Model(ABC):
     order: ClassVar[Optional[float]] = None
     ranked: ClassVar[bool] = True
     search_space: ClassVar[Optional[SearchSpace]] = None
+    recipe: ClassVar[Optional[dict[str, Any]]] = None
 
     def __init__(self, cfg: ModelConfig, system: System, device: str = "auto") -> None:
         self.cfg = cfg

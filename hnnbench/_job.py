@@ -466,6 +466,10 @@ def _execute(job: Job, cfg: DictConfig, seeds: list[int], dirs: dict[int, Path],
                       plugins={"system": plugin_provenance("system", str(cfg.system.name)),
                                "model": plugin_provenance("model", str(cfg.model.name))})
     reason = job.model_cls.unsupported_reason(system)
+    if reason is None and cfg.get("track") == "recipe" and not getattr(job.model_cls, "recipe",
+                                                                       None):
+        reason = ("it declares no published recipe, so it has no recipe-track row "
+                  "(docs/TUNING.md, 'Recipes'; hnnbench list shows the models with one)")
     if reason is not None:
         for record in runs.values():
             record.update(status="skipped",

@@ -35,7 +35,7 @@ from hnnbench._claims import Claim, ClaimSet
 from hnnbench._contract import Model, ModelConfig, System, SystemConfig
 from hnnbench._errors import ConfigError, HnnbenchError, UnknownNameError
 from hnnbench._metric import Metric
-from hnnbench._record_schema import metric_name_problem, name_problem
+from hnnbench._record_schema import DEFAULT_TRACK, metric_name_problem, name_problem
 from hnnbench._space import SearchSpace, space_problem
 
 log = logging.getLogger("hnnbench")
@@ -125,6 +125,14 @@ class PluginInfo(Generic[T]):
             return None
         space = getattr(self.cls, "search_space", None)
         return space if space else None
+
+    @property
+    def recipe(self) -> Optional[dict[str, Any]]:
+        """A usable model's declared paper recipe (``track=recipe``), else ``None``."""
+        if self.kind != "model" or self.cls is None:
+            return None
+        recipe = getattr(self.cls, "recipe", None)
+        return dict(recipe) if recipe else None
 
 
 @dataclass
@@ -304,13 +312,19 @@ class PluginGroup(Generic[T]):
         if missing:
             return str(missing)
         if config_base is not None:
+            tracks = [DEFAULT_TRACK, *(["recipe"] if getattr(obj, "recipe", None) else [])]
             for profile in PROFILES:
-                _, error = _guarded(f"the {self.kind} '{name}' ({target})",
-                                    f"its {profile} config cannot be built",
-                                    functools.partial(_default_config, self.kind, name, obj,
-                                                      profile, check=True))
-                if error is not None:
-                    return error
+                for track in tracks:
+                    what = f"its {profile} config" + (" on the recipe track"
+                                                      if track == "recipe" else "")
+                    _, error = _guarded(f"the {self.kind} '{name}' ({target})",
+                                        f"{what} cannot be built",
+                                        functools.partial(_default_config, self.kind, name,
+                                                          obj, profile, check=True,
+                                                          track=track))
+                    if error is not None:
+                        return (f"{target}.recipe (track=recipe): {error}"
+                                if track == "recipe" and "recipe" not in error else error)
         return None
 
 
@@ -423,8 +437,9 @@ def refresh() -> None:
     _stored_profile.clear()
 
 
-#: The profile whose plugin configs are in Hydra's ConfigStore (a cache, like discovery).
-_stored_profile: dict[str, str] = {}
+#: The profile and track whose plugin configs are in Hydra's ConfigStore (a cache, like
+#: discovery).
+_stored_profile: dict[str, tuple[str, str]] = {}
 
 
 def available(kind: Kind) -> list[str]:
@@ -453,40 +468,54 @@ def validate_profile(name: str) -> None:
         raise UnknownNameError("profile", name, PROFILES)
 
 
-def config_defaults(kind: str, name: str, profile: str = "paper") -> Any:
-    """The plugin's config dataclass instance for ``profile``: its defaults with the
-    plugin's own profile overrides applied."""
-    return _default_config(kind, name, group(kind).get(name), profile)
+def config_defaults(kind: str, name: str, profile: str = "paper",
+                    track: str = DEFAULT_TRACK) -> Any:
+    """The plugin's config dataclass instance for ``profile`` and ``track``: its
+    defaults, with a model's declared :attr:`~hnnbench.Model.recipe` on the recipe
+    track, and the plugin's own profile overrides on top."""
+    return _default_config(kind, name, group(kind).get(name), profile, track=track)
 
 
-def _default_config(kind: str, name: str, cls: Any, profile: str, check: bool = False) -> Any:
+def _default_config(kind: str, name: str, cls: Any, profile: str, check: bool = False,
+                    track: str = DEFAULT_TRACK) -> Any:
     """:func:`config_defaults` of the plugin class ``cls``; ``check``: also run the
     config's ``validate()`` (at discovery: a plugin whose own defaults are invalid is
     refused with the reason)."""
-    overrides = dict((getattr(cls, "profiles", {}) or {}).get(profile, {}))
     fields = {f.name for f in dataclasses.fields(cls.Config)}
-    unknown = sorted(set(overrides) - fields)
-    if unknown:
-        raise ConfigError(
-            f"The {kind} '{name}' declares profile '{profile}' overrides for unknown config "
-            f"fields {unknown}; fix {cls.__module__}.{cls.__name__}.profiles"
-        )
+    overrides: dict[str, Any] = {}
+    recipe = getattr(cls, "recipe", None) if track == "recipe" else None
+    declared = [("recipe", "recipe", recipe or {}),
+                (f"profile '{profile}' overrides", "profiles",
+                 (getattr(cls, "profiles", {}) or {}).get(profile, {}))]
+    for what, attribute, values in declared:
+        if not isinstance(values, dict):
+            raise ConfigError(f"The {kind} '{name}' declares its {what} as "
+                              f"{type(values).__name__}: expected a dict of config field -> "
+                              f"value; fix {cls.__module__}.{cls.__name__}.{attribute}")
+        unknown = sorted(set(values) - fields)
+        if unknown:
+            raise ConfigError(
+                f"The {kind} '{name}' declares {what} for unknown config fields {unknown}; "
+                f"fix {cls.__module__}.{cls.__name__}.{attribute}"
+            )
+        overrides.update(values)
     config = cls.Config(**{**overrides, "name": name})
     if check:
         config.validate()
     return config
 
 
-def register_configs(profile: str = "paper") -> None:
+def register_configs(profile: str = "paper", track: str = DEFAULT_TRACK) -> None:
     """Store every working plugin's config as an option of the ``system`` / ``model``
-    Hydra config group, with the defaults of ``profile``. A plugin whose config cannot
+    Hydra config group, with the defaults of ``profile`` on ``track`` (a model's declared
+    recipe on the recipe track: :func:`config_defaults`). A plugin whose config cannot
     be built (whatever it raises) is marked broken, with the reason, and left out."""
     from hydra.core.config_store import ConfigStore
 
     validate_profile(profile)
     store = ConfigStore.instance()
     stored = store.repo.get("system", {})
-    if _stored_profile.get("profile") == profile and stored:  # already there (cached)
+    if _stored_profile.get("key") == (profile, track) and stored:  # already there (cached)
         return
     for plugins in (SYSTEMS, MODELS):
         for name in plugins.available():
@@ -494,12 +523,12 @@ def register_configs(profile: str = "paper") -> None:
             node, error = _guarded(f"the {plugins.kind} '{name}' ({info.target})",
                                    f"its {profile} config cannot be built",
                                    functools.partial(config_defaults, plugins.kind, name,
-                                                     profile))
+                                                     profile, track))
             if error is not None:
                 info.error, info.cls = error, None
                 continue
             store.store(group=plugins.kind, name=name, node=node, provider="hnnbench")
-    _stored_profile["profile"] = profile
+    _stored_profile["key"] = (profile, track)
 
 
 def family_models() -> dict[str, dict[str, str]]:

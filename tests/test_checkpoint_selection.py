@@ -25,7 +25,7 @@ class ScriptedTrainer:
         self.chunk = -1
         self.kept = [None] * len(valid)
 
-    def run_chunk(self, indices, length):
+    def run_chunk(self, indices, length, lrs=None):
         self.chunk += 1
         losses = np.ones((len(self.valid), length))
         for s, k in self.nan_train.items():

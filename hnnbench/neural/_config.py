@@ -10,10 +10,15 @@ from hnnbench._errors import ConfigError
 from hnnbench._space import Categorical, Distribution, IntRange, LogUniform
 from hnnbench.neural._embedding import ANGLE_EMBEDDINGS
 
-__all__ = ["ACTIVATIONS", "DTYPES", "SHARED_SPACE", "NeuralConfig"]
+__all__ = ["ACTIVATIONS", "DTYPES", "LOSSES", "LR_SCHEDULES", "SHARED_SPACE", "NeuralConfig"]
 
 ACTIVATIONS = ("tanh", "sigmoid", "softplus")
 DTYPES = ("float32", "float64")
+#: The training objectives of a family trained on derivatives (``NeuralConfig.loss``).
+LOSSES = ("mse", "l1")
+#: The learning-rate schedules of the training loop (``NeuralConfig.lr_schedule``;
+#: :func:`hnnbench.neural._loop.lr_factors`).
+LR_SCHEDULES = ("constant", "one_cycle")
 
 
 @dataclass
@@ -35,6 +40,14 @@ class NeuralConfig(ModelConfig):
         angle_embedding: how every network reads the system's angles
             (:attr:`hnnbench.System.angles`): ``cos_sin``, ``wrap`` or ``none``
             (:mod:`hnnbench.neural._embedding`; docs/MODELS.md, "Periodic coordinates").
+        loss: the training objective of a family trained on derivatives, over every
+            component of the predicted time derivative: ``mse`` (mean squared error,
+            every protocol's) or ``l1`` (mean absolute error, the LNN paper's recipe).
+            Families trained on trajectory windows or pixels have their own objective
+            and accept ``mse`` only. The validation loss that selects the checkpoint is
+            the same objective on the validation split.
+        lr_schedule: ``constant`` (every protocol's: ``lr`` at every step) or
+            ``one_cycle`` (``lr`` is the peak; :func:`hnnbench.neural._loop.lr_factors`).
     """
 
     hidden: int = 200
@@ -44,6 +57,8 @@ class NeuralConfig(ModelConfig):
     log_every: int = 0
     rollout_max_steps: int = 50_000
     angle_embedding: str = "cos_sin"
+    loss: str = "mse"
+    lr_schedule: str = "constant"
 
     def validate(self) -> None:
         super().validate()
@@ -61,6 +76,11 @@ class NeuralConfig(ModelConfig):
                 f"model.angle_embedding='{self.angle_embedding}' is invalid: expected one "
                 f"of {', '.join(ANGLE_EMBEDDINGS)}."
             )
+        for key, value, allowed in (("loss", self.loss, LOSSES),
+                                    ("lr_schedule", self.lr_schedule, LR_SCHEDULES)):
+            if value not in allowed:
+                raise ConfigError(f"model.{key}='{value}' is invalid: expected one of "
+                                  f"{', '.join(allowed)}.")
         if self.dtype not in DTYPES:
             raise ConfigError(
                 f"model.dtype='{self.dtype}' is invalid: expected one of {', '.join(DTYPES)}."

@@ -66,6 +66,11 @@ class Family:
             over fields of the models' config; :data:`hnnbench.neural.SHARED_SPACE`
             holds the settings every network has); every backend's model declares it.
             ``None``: the family is not tuned.
+        recipe: the family paper's own training recipe as settings of the models'
+            config (``{setting: value}``; the training fields ``steps``,
+            ``batch_size``, ``lr``, ``weight_decay`` included), applied under
+            ``track=recipe`` (docs/TUNING.md, "Recipes"); every backend's model declares
+            it. ``None``: no recipe (its models are skipped on the recipe track).
     """
 
     name: str
@@ -82,6 +87,7 @@ class Family:
     network_inputs: Mapping[str, Literal["z", "q", "p"]] = field(default_factory=dict)
     baseline: bool = False
     search_space: Optional[SearchSpace] = None
+    recipe: Optional[Mapping[str, Any]] = None
 
 
 #: Backends in listing order within a family.

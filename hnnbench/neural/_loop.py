@@ -6,6 +6,8 @@ a time (a compiled ``lax.scan`` in JAX, a Python loop in torch). This module doe
 rest, identically for every backend and family:
 
 - the chunk plan: one chunk per loss record (``NeuralConfig.log_interval``);
+- the learning rate of every step (:func:`lr_factors` of ``NeuralConfig.lr_schedule``),
+  handed to the backend with each chunk;
 - the minibatch indices of every seed, drawn on the host from its own
   :class:`~hnnbench.neural._init.BatchStream` (the next chunk's while the current one
   runs), so a seed trained in a batch of seeds sees exactly the minibatches it sees
@@ -44,19 +46,31 @@ from hnnbench._contract import (
 )
 from hnnbench.neural._init import BatchStream
 
-__all__ = ["SeedFit", "Trainer", "chunk_lengths", "train"]
+__all__ = ["ONE_CYCLE_FLOOR", "ONE_CYCLE_START", "SeedFit", "Trainer", "chunk_lengths",
+           "lr_factors", "train"]
+
+#: The one-cycle schedule (:func:`lr_factors`): where on its sin² cycle it starts (a
+#: fraction of the cycle) and its floor (a fraction of the peak ``lr``). The shape of the
+#: schedule in the LNN paper's published double-pendulum notebook
+#: (github.com/MilesCranmer/lagrangian_nns, notebooks/DoublePendulum.ipynb): starts at
+#: sin²(0.2π) ≈ 0.35 of the peak, peaks at 3/8 of training, ends at 1e-4 of the peak.
+ONE_CYCLE_START = 0.2
+ONE_CYCLE_FLOOR = 1e-4
 
 
 class Trainer(Protocol):
     """A backend's training state for ``S`` seeds."""
 
-    def run_chunk(self, indices: Optional[np.ndarray], length: int) -> tuple[Any, Any]:
+    def run_chunk(self, indices: Optional[np.ndarray], length: int,
+                  lrs: Optional[np.ndarray]) -> tuple[Any, Any]:
         """Run ``length`` optimizer steps.
 
         Args:
             indices: ``(S, length, batch)`` minibatch row indices, or ``None`` (every
                 step uses the whole training set).
             length: steps in this chunk.
+            lrs: ``(length,)`` float64, the learning rate of each step (every seed's),
+                or ``None``: the settings' constant ``lr`` at every step.
 
         Returns:
             ``(losses, val_loss)``, array-likes of shape ``(S, length)`` (each step's
@@ -100,6 +114,23 @@ def chunk_lengths(steps: int, interval: int) -> list[int]:
     return lengths
 
 
+def lr_factors(schedule: str, steps: int) -> np.ndarray:
+    """The learning rate of each of ``steps`` steps as a fraction of ``lr``, ``(steps,)``.
+
+    ``constant``: 1 at every step. ``one_cycle``: at step ``k`` (0-based, training
+    fraction ``f = k / steps``), ``c + (1 - c) · sin²(π (a + (1 - a) f))`` with
+    ``a`` = :data:`ONE_CYCLE_START` and ``c`` = :data:`ONE_CYCLE_FLOOR`: up from
+    ``sin²(πa)`` to the peak 1 at ``f = (1/2 - a) / (1 - a)``, then down to ``c``.
+    """
+    if schedule == "constant":
+        return np.ones(steps)
+    if schedule != "one_cycle":
+        raise ValueError(f"unknown learning-rate schedule '{schedule}'")
+    f = np.arange(steps, dtype=np.float64) / max(steps, 1)
+    a, c = ONE_CYCLE_START, ONE_CYCLE_FLOOR
+    return c + (1.0 - c) * np.sin(np.pi * (a + (1.0 - a) * f)) ** 2
+
+
 def train(
     trainer: Trainer,
     n_train: int,
@@ -107,9 +138,13 @@ def train(
     seeds: Sequence[int],
     interval: int,
     progress: Progress,
+    schedule: str = "constant",
 ) -> list[SeedFit]:
-    """Train every seed of ``trainer`` for ``settings.steps`` steps; one
-    :class:`SeedFit` per seed, in ``seeds`` order."""
+    """Train every seed of ``trainer`` for ``settings.steps`` steps, the learning rate
+    following ``schedule`` (:func:`lr_factors`); one :class:`SeedFit` per seed, in
+    ``seeds`` order."""
+    rates = None if schedule == "constant" else settings.lr * lr_factors(schedule,
+                                                                         settings.steps)
     batch = settings.batch_size
     streams = None if batch is None or batch >= n_train else [
         BatchStream(seed, n_train, int(batch)) for seed in seeds]
@@ -127,7 +162,8 @@ def train(
     step = 0
     indices = draw(lengths[0])
     for k, length in enumerate(lengths):
-        losses_out, valid_out = trainer.run_chunk(indices, length)
+        lrs = None if rates is None else rates[step:step + length]
+        losses_out, valid_out = trainer.run_chunk(indices, length, lrs)
         if k + 1 < len(lengths):  # drawn while an asynchronous backend computes
             indices = draw(lengths[k + 1])
         losses = np.asarray(losses_out, dtype=np.float64).reshape(len(seeds), length)

@@ -26,7 +26,7 @@ import numpy as np
 
 from hnnbench._contract import Dataset, FitResult, Model, Progress, System, TrainSettings
 from hnnbench._datasets import with_validation
-from hnnbench._errors import RolloutDiverged
+from hnnbench._errors import ConfigError, RolloutDiverged
 from hnnbench.neural import _views as views
 from hnnbench.neural._backend import Inference, Weights, load_backend, missing_backend
 from hnnbench.neural._config import NeuralConfig
@@ -72,6 +72,8 @@ class NeuralModel(Model):
                 cls.description = f"{family.title} ({cls.backend})"
             if family.search_space is not None and "search_space" not in cls.__dict__:
                 cls.search_space = family.search_space
+            if family.recipe is not None and "recipe" not in cls.__dict__:
+                cls.recipe = dict(family.recipe)
 
     @classmethod
     def unsupported_reason(cls, system: System) -> Optional[str]:
@@ -85,6 +87,14 @@ class NeuralModel(Model):
     def __init__(self, cfg: NeuralConfig, system: System, device: str = "auto") -> None:
         super().__init__(cfg, system, device)
         self.view = views.view_for(self.family, system)
+        if cfg.loss != "mse" and (self.family.data != "derivatives"
+                                  or isinstance(self.view, views.PixelView)):
+            trained_on = "pixel observations" if isinstance(self.view, views.PixelView) \
+                else "trajectory windows"
+            raise ConfigError(
+                f"model.loss={cfg.loss}: {self.name} trains on {trained_on} by its own "
+                "objective; the loss choice applies to families trained on derivatives. "
+                "Use model.loss=mse.")
         self._backend = load_backend(self.backend, cfg, device)
         self._impl = bind(importlib.import_module(self.family.implementations[self.backend]),
                           self.field_options())
@@ -205,7 +215,8 @@ class NeuralModel(Model):
         trainer = self._backend.trainer(self.family, self._impl, problem, initial, settings,
                                         self.layout())
         fits = run_training(trainer, problem.n, settings, seeds,
-                            self.cfg.log_interval(settings.steps), progress)
+                            self.cfg.log_interval(settings.steps), progress,
+                            self.cfg.lr_schedule)
         if problems[0].kind == "windows":
             self.data_step = float(np.median(problems[0].train[1]))
         return fits, self._backend.weights(trainer)

@@ -150,19 +150,29 @@ def adam_like_torch(lr: Any, weight_decay: Any) -> optax.GradientTransformation:
     not AdamW's decoupled decay), and puts ``eps = 1e-8`` outside the square root of the
     bias-corrected second moment, as ``optax.adam`` does.
     """
+    return optax.chain(adam_direction(weight_decay), optax.scale(-lr))
+
+
+def adam_direction(weight_decay: Any) -> optax.GradientTransformation:
+    """:func:`adam_like_torch` without its learning rate: the update direction, which
+    the training chunk scales by each step's rate (``-lr_k · direction``: the same
+    arithmetic as ``optax.adam``'s ``scale(-lr)``)."""
     return optax.chain(
         optax.add_decayed_weights(weight_decay),
-        optax.adam(lr, b1=0.9, b2=0.999, eps=1e-8, eps_root=0.0),
+        optax.scale_by_adam(b1=0.9, b2=0.999, eps=1e-8, eps_root=0.0),
     )
 
 
 def _loss(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], static: Any,
           params: Any, *arrays: jax.Array) -> jax.Array:
-    """One seed's loss on a batch of a :class:`~hnnbench.neural._views.Problem`."""
+    """One seed's loss on a batch of a :class:`~hnnbench.neural._views.Problem`
+    (``kind`` is the problem's, with ``:l1`` appended for the mean absolute error of a
+    derivatives problem, ``NeuralConfig.loss``)."""
     nets = eqx.combine(params, static)
-    if kind == "derivatives":
+    if kind.startswith("derivatives"):
         z, zdot = arrays
-        return jnp.mean((impl.field(nets, z) - zdot) ** 2)
+        error = impl.field(nets, z) - zdot
+        return jnp.mean(jnp.abs(error)) if kind.endswith(":l1") else jnp.mean(error ** 2)
     if kind == "windows":
         return impl.window_loss(nets, *arrays, **dict(options))
     return pixel_objective(impl.field, nets, *arrays)
@@ -170,50 +180,55 @@ def _loss(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], sta
 
 def scan_steps(
     loss_fn: Callable[..., jax.Array], optimizer: Any, params: Any, opt_state: Any,
-    idx: Optional[jax.Array], arrays: tuple[jax.Array, ...], length: int,
+    idx: Optional[jax.Array], arrays: tuple[jax.Array, ...], lrs: jax.Array, length: int,
 ) -> tuple[Any, Any, jax.Array]:
     """``length`` optimizer steps of ``loss_fn(params, *batch)`` under ``lax.scan``;
-    ``idx`` is ``(length, batch)`` row indices or ``None`` (full batch). Returns the
-    new params, optimizer state and the ``(length,)`` losses, each taken before its
-    update."""
+    ``idx`` is ``(length, batch)`` row indices or ``None`` (full batch), ``lrs`` the
+    ``(length,)`` learning rates, ``optimizer`` the update direction
+    (:func:`adam_direction`). Returns the new params, optimizer state and the
+    ``(length,)`` losses, each taken before its update."""
 
-    def step(carry: tuple[Any, Any], batch_idx: Optional[jax.Array]) -> Any:
+    def step(carry: tuple[Any, Any], xs: tuple[Optional[jax.Array], jax.Array]) -> Any:
         params, opt_state = carry
+        batch_idx, lr = xs
         batch = arrays if batch_idx is None else tuple(a[batch_idx] for a in arrays)
         loss, grads = jax.value_and_grad(loss_fn)(params, *batch)
-        updates, opt_state = optimizer.update(grads, opt_state, params)
+        direction, opt_state = optimizer.update(grads, opt_state, params)
+        updates = jax.tree.map(lambda u: (-lr).astype(u.dtype) * u, direction)
         return (optax.apply_updates(params, updates), opt_state), loss
 
-    (params, opt_state), losses = jax.lax.scan(step, (params, opt_state), idx, length=length)
+    (params, opt_state), losses = jax.lax.scan(step, (params, opt_state), (idx, lrs),
+                                               length=length)
     return params, opt_state, losses
 
 
 def _chunk(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], static: Any,
            length: int, params: Any,
            opt_state: Any, idx: Optional[jax.Array], train: tuple[jax.Array, ...],
-           valid: tuple[jax.Array, ...], lr: jax.Array, weight_decay: jax.Array
+           valid: tuple[jax.Array, ...], lrs: jax.Array, weight_decay: jax.Array
            ) -> tuple[Any, Any, jax.Array, jax.Array]:
-    """One chunk of ``length`` steps, then the validation loss. ``lr`` and ``weight_decay``
-    are traced, so one executable serves every learning rate."""
-    optimizer = adam_like_torch(lr, weight_decay)
+    """One chunk of ``length`` steps at the ``(length,)`` learning rates ``lrs``, then
+    the validation loss. ``lrs`` and ``weight_decay`` are traced, so one executable
+    serves every learning rate and schedule."""
+    optimizer = adam_direction(weight_decay)
 
     def loss_fn(p: Any, *batch: jax.Array) -> jax.Array:
         return _loss(kind, impl, options, static, p, *batch)
 
     params, opt_state, losses = scan_steps(loss_fn, optimizer, params, opt_state, idx, train,
-                                           length)
+                                           lrs, length)
     return params, opt_state, losses, loss_fn(params, *valid)
 
 
 def _batched_chunk(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...],
                    static: Any, length: int, stacked: bool, params: Any, opt_state: Any,
                    idx: Optional[jax.Array], train: tuple[jax.Array, ...],
-                   valid: tuple[jax.Array, ...], lr: jax.Array, weight_decay: jax.Array
+                   valid: tuple[jax.Array, ...], lrs: jax.Array, weight_decay: jax.Array
                    ) -> tuple[Any, Any, jax.Array, jax.Array]:
     """:func:`_chunk` for stacked seeds: ``vmap`` over params, optimizer state, indices
     and, when ``stacked``, each seed's own data (hyperparameters shared)."""
     def one(p: Any, o: Any, i: Optional[jax.Array], tr: Any, te: Any) -> Any:
-        return _chunk(kind, impl, options, static, length, p, o, i, tr, te, lr, weight_decay)
+        return _chunk(kind, impl, options, static, length, p, o, i, tr, te, lrs, weight_decay)
 
     data = 0 if stacked else None
     return jax.vmap(one, in_axes=(0, 0, None if idx is None else 0, data, data))(
@@ -263,7 +278,7 @@ class JaxTrainer:
                  for w in initial]
         tree = trees[0] if self.seeds == 1 else _stack(trees)
         params, self.static = eqx.partition(tree, eqx.is_inexact_array)
-        optimizer = adam_like_torch(settings.lr, settings.weight_decay)
+        optimizer = adam_direction(settings.weight_decay)
         opt_state = (optimizer.init(params) if self.seeds == 1
                      else jax.vmap(optimizer.init)(params))
         self.params, self.opt_state = backend.place(params), backend.place(opt_state)
@@ -271,15 +286,20 @@ class JaxTrainer:
         self.train = tuple(backend.array(a) for a in problem.train)
         self.valid = tuple(backend.array(a) for a in problem.valid)
         self.kept: Any = None  # the selected checkpoint (Trainer.keep)
-        self.hyper = (backend.array(settings.lr), backend.array(settings.weight_decay))
-        self.statics = (problem.kind, impl, problem.options, self.static)
+        self.lr = settings.lr
+        self.weight_decay = backend.array(settings.weight_decay)
+        kind = f"{problem.kind}:l1" if cfg.loss == "l1" else problem.kind
+        self.statics = (kind, impl, problem.options, self.static)
 
-    def run_chunk(self, indices: Optional[np.ndarray], length: int) -> tuple[Any, Any]:
+    def run_chunk(self, indices: Optional[np.ndarray], length: int,
+                  lrs: Optional[np.ndarray]) -> tuple[Any, Any]:
         idx = None
         if indices is not None:
             block = indices[0] if self.seeds == 1 else indices
             idx = self.backend.place(jnp.asarray(block, dtype=jnp.int32))
-        args = (self.params, self.opt_state, idx, self.train, self.valid, *self.hyper)
+        rates = np.full(length, self.lr) if lrs is None else np.asarray(lrs)
+        args = (self.params, self.opt_state, idx, self.train, self.valid,
+                self.backend.array(rates), self.weight_decay)
         batched = self.seeds > 1
         statics = (*self.statics, length, *((self.stacked,) if batched else ()))
         compiled, seconds = _compiled(batched, statics, args)

@@ -69,9 +69,12 @@ def make_loss(impl: ModuleType, kind: str, layout: Layout, cfg: NeuralConfig,
     def nets_of(params: Params) -> dict[str, MLP]:
         return networks(params, layout, cfg, TrainingMLP.view)
 
+    objective = F.l1_loss if cfg.loss == "l1" else F.mse_loss
+
     def derivatives(params: Params, z: torch.Tensor, zdot: torch.Tensor) -> torch.Tensor:
-        # mse_loss: the same value and gradient as mean((f - zdot)²), one autograd node
-        return F.mse_loss(impl.field(nets_of(params), z), zdot)
+        # mse_loss: the same value and gradient as mean((f - zdot)²), one autograd node;
+        # l1_loss: mean(|f - zdot|) (NeuralConfig.loss)
+        return objective(impl.field(nets_of(params), z), zdot)
 
     def windows(params: Params, windows: torch.Tensor, dts: torch.Tensor) -> torch.Tensor:
         return impl.window_loss(nets_of(params), windows, dts, **dict(options))
@@ -164,10 +167,12 @@ class TorchTrainer:
             return tuple(a[seed, idx] for a in self.train)
         return tuple(a[idx] for a in self.train)  # shared data, per-seed rows
 
-    def run_chunk(self, indices: Optional[np.ndarray], length: int
-                  ) -> tuple[np.ndarray, np.ndarray]:
+    def run_chunk(self, indices: Optional[np.ndarray], length: int,
+                  lrs: Optional[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         losses = []
         for j in range(length):
+            if lrs is not None:
+                self.adam.lr = float(lrs[j])
             if indices is None:
                 batch, per_seed = self.train, self.stacked
             else:
