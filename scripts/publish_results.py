@@ -24,7 +24,8 @@
    ``<!-- leaderboard:end -->`` with the family table, its provenance, the heatmap and
    the twins' agreement, and the block between ``<!-- provenance:begin -->`` and
    ``<!-- provenance:end -->`` in results/README.md with the provenance and the list of
-   systems published so far.
+   systems published so far, and the block between ``<!-- tracks:begin -->`` and
+   ``<!-- tracks:end -->`` in README.md with the tracks side by side (tracks.md).
 
 Records come from other machines (docs/LEADERBOARD.md, "Threat model"): a record's
 directory is built from its names by ``hnnbench._paths.safe_join`` (a name that is not a
@@ -276,6 +277,8 @@ def main(argv: list[str] | None = None) -> int:
     text = replace_block(text, "aggregate", aggregate_markdown(
         report.verdicts, profile.relative_to(ROOT).as_posix() if profile else None,
         heading=""))
+    text = replace_block(text, "tracks", report.files["tracks_md"].read_text()
+                         .removeprefix("# Tracks").strip())
     readme.write_text(text)
     results_readme = RESULTS / "README.md"
     listing = f"- Systems published: {', '.join(md_code(s) for s in systems)}"

@@ -91,6 +91,16 @@ def test_the_family_table_and_the_aggregate_are_those_of_the_committed_records(r
         assert (rows["iqm_low"] <= rows["iqm"]).all() and (rows["iqm"] <= rows["iqm_high"]).all()
 
 
+def test_the_readme_sets_the_tracks_of_the_committed_records_side_by_side(rebuilt,
+                                                                         committed):
+    from hnnbench._report.verdicts import tracks_frame, tracks_markdown
+
+    fams = families(records_frame(committed), rebuilt)
+    expected = tracks_markdown(tracks_frame(fams)).strip()
+    assert _block((REPO / "README.md").read_text(), "tracks").strip() == expected
+    assert (RESULTS / "tracks.md").read_text().strip() == f"# Tracks\n\n{expected}"
+
+
 def test_every_published_system_has_every_model_with_its_seeds(board):
     """Every installed model, or the missing ones named in results/README.md as not run."""
     systems = set(board["system"])

@@ -15,6 +15,9 @@ Writes into ``out`` (default: the only sweep directory):
   and the normalisation of every (system, metric).
 - ``leaderboard.md``: the family table (marks), the twin agreement, every model's row;
   ``aggregate.md``: the aggregate and the verdicts its intervals support.
+- ``tracks.md`` (and ``tracks.csv`` when some row is of another track than the
+  protocol): each track's verdict per system and headline metric, side by side, and
+  where it changes (:func:`hnnbench._report.verdicts.tracks_frame`).
 - ``paper_comparison.md``: published values next to ours, and every claim.
 - ``figures/``: the registered figures (:mod:`hnnbench._report.figures`).
 - ``leaderboard.html``: one self-contained page with all of the above.
@@ -36,7 +39,13 @@ from hnnbench._report.html import page
 from hnnbench._report.inputs import ReportError, load_sweeps, provenance
 from hnnbench._report.published import comparison_markdown
 from hnnbench._report.tables import leaderboard_markdown
-from hnnbench._report.verdicts import Verdicts, aggregate_markdown, build_verdicts
+from hnnbench._report.verdicts import (
+    Verdicts,
+    aggregate_markdown,
+    build_verdicts,
+    tracks_frame,
+    tracks_markdown,
+)
 from hnnbench._table import leaderboard
 
 log = logging.getLogger("hnnbench")
@@ -102,6 +111,13 @@ def write_report(sweep_dir: Path | str | Sequence[Path | str], out: Path | str |
         report.files["aggregate_md"] = out / "aggregate.md"
         R.atomic_write_text(report.files["aggregate_md"], aggregate_markdown(
             verdicts, f"figures/{profile.name}" if profile is not None else None))
+    tracks = tracks_frame(verdicts.families)
+    if not tracks.empty:
+        report.files["tracks"] = out / "tracks.csv"
+        R.atomic_write_text(report.files["tracks"], tracks.to_csv(index=False))
+    report.files["tracks_md"] = out / "tracks.md"
+    R.atomic_write_text(report.files["tracks_md"], "# Tracks\n\n" + tracks_markdown(tracks)
+                        + "\n")
     report.files["paper"] = out / "paper_comparison.md"
     R.atomic_write_text(report.files["paper"], comparison_markdown(board))
     report.files["html"] = out / "leaderboard.html"

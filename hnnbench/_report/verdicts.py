@@ -13,12 +13,14 @@ import pandas as pd
 from hnnbench import _stats as stats
 from hnnbench._aggregate import Aggregate, aggregate, headline_metrics
 from hnnbench._families import RANKING_KEY, SCOPE_KEY, Families, families, key_of, select
+from hnnbench._record_schema import DEFAULT_TRACK, TRACKS
 from hnnbench._report.markdown import md_code, md_text
 from hnnbench._report.tables import md_table
 from hnnbench._table import records_frame
 
 __all__ = ["Verdicts", "aggregate_frame", "aggregate_markdown", "build_verdicts",
-           "left_out_lines", "main_scope", "marks_line", "supported_lines"]
+           "left_out_lines", "main_scope", "marks_line", "supported_lines", "tracks_frame",
+           "tracks_markdown"]
 
 
 @dataclass
@@ -185,4 +187,73 @@ def aggregate_markdown(verdicts: Verdicts, figure: Optional[str] = None,
         lines += [*left, ""]
     if figure:
         lines += [f"![Performance profiles]({figure})", ""]
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- tracks
+
+
+def _leaders(rows: pd.DataFrame, metric: str) -> str:
+    """One track's verdict on one (system, metric): ``best: <family>``, ``tied: <a>,
+    <b>`` (the leader and every family not separated from it), or ``""`` (no leader:
+    fewer than two ranked families with every seed ``ok``, or the track did not run)."""
+    column = f"{metric}_mark"
+    if column not in rows:
+        return ""
+    marks = rows[column].fillna("").astype(str)
+    best = rows.loc[marks == "best", "family"].astype(str).tolist()
+    if best:
+        return f"best: {best[0]}"
+    tied = rows.loc[marks == "tied", "family"].astype(str).tolist()
+    return f"tied: {', '.join(tied)}" if tied else ""
+
+
+def tracks_frame(fams: Families, metrics: Optional[list[str]] = None) -> pd.DataFrame:
+    """The verdicts of every track side by side (docs/TUNING.md): one row per (profile,
+    system, metric of ``metrics``, default the headline ones) where some track other
+    than the protocol has family rows; a column per track present (its
+    :func:`_leaders` text) and ``changes``: whether two tracks with a verdict name
+    different leaders. Empty when every row is of one track."""
+    board = fams.board
+    if board.empty or "track" not in board:
+        return pd.DataFrame()
+    if "variant" in board:
+        board = board[board["variant"].fillna("").astype(str) == ""]
+    board = board.assign(track=board["track"].fillna(DEFAULT_TRACK).astype(str))
+    present = [t for t in TRACKS if t in set(board["track"])]
+    present += sorted(set(board["track"]) - set(present))
+    if len(present) < 2:
+        return pd.DataFrame()
+    if metrics is None:
+        metrics = [m for m in headline_metrics() if f"{m}_mark" in board]
+    rows = []
+    for (profile, system), group in board.groupby(["profile", "system"], sort=False):
+        if set(group["track"]) == {DEFAULT_TRACK}:
+            continue
+        for metric in metrics:
+            verdicts = {t: _leaders(group[group["track"] == t], metric) for t in present}
+            said = {v for v in verdicts.values() if v}
+            rows.append({"profile": profile, "system": system, "metric": metric,
+                         **verdicts, "changes": len(said) > 1})
+    return pd.DataFrame(rows)
+
+
+def tracks_markdown(frame: pd.DataFrame) -> str:
+    """The tracks side by side (:func:`tracks_frame`) and one line per (system, metric)
+    whose verdict changes between tracks; a line saying so when no other track ran."""
+    if frame.empty:
+        return ("Only the protocol track has published rows: no tuned or recipe rows yet "
+                "(docs/TUNING.md).")
+    shown = frame.drop(columns=["changes"]).replace("", "—")
+    lines = [md_table(shown), ""]
+    changed = frame[frame["changes"]]
+    tracks = [c for c in frame.columns if c not in ("profile", "system", "metric", "changes")]
+    if changed.empty:
+        lines.append("The verdict does not change between tracks on any system and "
+                     "headline metric shown.")
+        return "\n".join(lines)
+    lines += ["Where the verdict changes between tracks:", ""]
+    for _, r in changed.iterrows():
+        said = "; ".join(f"{t} {md_text(str(r[t]))}" for t in tracks if r[t])
+        lines.append(f"- {md_code(str(r['system']))}, {md_code(str(r['metric']))}: {said}.")
     return "\n".join(lines)
