@@ -57,7 +57,8 @@ def tree(tmp_path, monkeypatch):
     (root / "results" / "figures").mkdir(parents=True)
     (root / "README.md").write_text(
         "# x\n\n<!-- aggregate:begin -->\n<!-- aggregate:end -->\n\n"
-        "<!-- leaderboard:begin -->\n<!-- leaderboard:end -->\n")
+        "<!-- leaderboard:begin -->\n<!-- leaderboard:end -->\n\n"
+        "<!-- tracks:begin -->\n<!-- tracks:end -->\n")
     (root / "results" / "README.md").write_text(
         "<!-- provenance:begin -->\n<!-- provenance:end -->\n")
     (root / "results" / "figures" / "old_system_energy.png").write_bytes(b"stale")
