@@ -730,7 +730,7 @@ def rerun_config(rec: dict[str, Any], cache_dir: Path) -> dict[str, Any]:
         raise CheckError(f"--rerun {spec}: the record holds no resolved config to run again")
     try:
         defaults = P.default_config(str(rec.get("system")), str(rec.get("model")),
-                                    str(rec.get("profile") or "paper"))
+                                    str(rec.get("profile") or "paper"), track_of(rec))
     except HnnbenchError as err:
         raise CheckError(f"--rerun {spec}: cannot compose its defaults: {err}") from None
     out = {k: v for k, v in config.items() if k not in R.RUN_ONLY_KEYS}

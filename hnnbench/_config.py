@@ -339,7 +339,7 @@ def profile_of(overrides: list[str]) -> str:
     return profile
 
 
-def track_of(overrides: list[str]) -> str:
+def track_of_overrides(overrides: list[str]) -> str:
     """The track named by ``track=...`` in ``overrides`` (default ``protocol``): the
     recipe track's model defaults are each model's declared recipe."""
     track = _single_choice(overrides, "track", DEFAULT_TRACK)
@@ -372,7 +372,7 @@ def compose(
     overrides = list(overrides or [])
     _refuse_name_overrides(overrides)
     register_schema()
-    registry.register_configs(profile_of(overrides), track_of(overrides))
+    registry.register_configs(profile_of(overrides), track_of_overrides(overrides))
     GlobalHydra.instance().clear()
     context: Any
     if config_dir is None:

@@ -28,12 +28,15 @@ from typing import Any, Literal, Optional
 from hnnbench import _registry as registry
 from hnnbench._errors import HnnbenchError
 from hnnbench._record_schema import (
+    DEFAULT_TRACK,
     ID_COLUMNS,
     PROVENANCE_COLUMNS,
     RESERVED,
     STATUS_COLUMNS,
     TRACK_KEYS,
+    TRACKS,
     metric_name_problem,
+    track_of,
     tuned_settings,
 )
 from hnnbench._records import RUN_ONLY_KEYS, encode
@@ -61,23 +64,27 @@ TAKEN = RESERVED | set(ID_COLUMNS) | set(STATUS_COLUMNS) | set(PROVENANCE_COLUMN
 
 
 @cache
-def _defaults_text(system: str, model: str, profile: str) -> str:
+def _defaults_text(system: str, model: str, profile: str, track: str) -> str:
     from omegaconf import OmegaConf
 
     from hnnbench._config import compose
 
-    cfg = compose([f"system={system}", f"model={model}", f"profile={profile}"])
+    cfg = compose([f"system={system}", f"model={model}", f"profile={profile}",
+                   f"track={track}"])
     return json.dumps(encode(OmegaConf.to_container(cfg, resolve=True)), sort_keys=True)
 
 
-def default_config(system: str, model: str, profile: str) -> dict[str, Any]:
-    """The resolved job config of (``system``, ``model``, ``profile``) with nothing
-    else set, as a record stores it (strict JSON values); composed once per process.
+def default_config(system: str, model: str, profile: str,
+                   track: str = DEFAULT_TRACK) -> dict[str, Any]:
+    """The resolved job config of (``system``, ``model``, ``profile``, ``track``) with
+    nothing else set, as a record stores it (strict JSON values; on the recipe track the
+    model's declared recipe is part of the defaults); composed once per process.
 
     Raises:
         HnnbenchError: a name that is not installed (the one-line message).
     """
-    return dict(json.loads(_defaults_text(system, model, profile)))
+    return dict(json.loads(_defaults_text(system, model, profile,
+                                          track if track in TRACKS else DEFAULT_TRACK)))
 
 
 def value_text(value: Any) -> str:
@@ -175,7 +182,7 @@ def config_variant(record: dict[str, Any], fallback: str = "") -> Variant:
                 ("seed", record.get("seed"), config.get("seed", record.get("seed"))))
     wrong = [f"{key}: record {a}, config {b}" for key, a, b in identity if not _same(a, b)]
     try:
-        default = default_config(str(system), str(model), str(profile))
+        default = default_config(str(system), str(model), str(profile), track_of(record))
     except HnnbenchError as err:
         installed = _installed("system", str(system)) is not None and \
             _installed("model", str(model)) is not None

@@ -484,6 +484,10 @@ def _default_config(kind: str, name: str, cls: Any, profile: str, check: bool = 
     fields = {f.name for f in dataclasses.fields(cls.Config)}
     overrides: dict[str, Any] = {}
     recipe = getattr(cls, "recipe", None) if track == "recipe" else None
+    if isinstance(recipe, dict) and profile != "paper":
+        # the smoke profile shortens training through the system's steps: a recipe's
+        # own training length (a model field, which takes precedence) is left out
+        recipe = {k: v for k, v in recipe.items() if k != "steps"}
     declared = [("recipe", "recipe", recipe or {}),
                 (f"profile '{profile}' overrides", "profiles",
                  (getattr(cls, "profiles", {}) or {}).get(profile, {}))]

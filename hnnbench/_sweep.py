@@ -42,7 +42,7 @@ from hnnbench._config import (
     prepare_job,
     profile_of,
     register_schema,
-    track_of,
+    track_of_overrides,
 )
 from hnnbench._errors import ConfigError, HnnbenchError, UnknownNameError
 from hnnbench._hydra import (
@@ -52,6 +52,7 @@ from hnnbench._hydra import (
     one_line_errors,
     waiting_for_every_submitit_job,
 )
+from hnnbench._record_schema import DEFAULT_TRACK
 
 log = logging.getLogger("hnnbench")
 
@@ -282,7 +283,7 @@ def plan(argv: list[str]) -> Plan:
         return Plan(argv=flags + list(ns.overrides), multirun=False, n_jobs=None,
                     overrides=list(ns.overrides))
     profile_of(list(ns.overrides))
-    track_of(list(ns.overrides))
+    track_of_overrides(list(ns.overrides))
     parser = OverridesParser.create()
     entries = [_parse_override(parser, text) for text in ns.overrides]
     if not (ns.help or ns.hydra_help or ns.info is not None):
@@ -636,8 +637,9 @@ def _launch_plan(checked: Plan, command: str) -> Execution:
     Plugins.instance().register(HnnbenchSweeper)
     shell = "--shell-completion" in checked.argv
     register_schema()
-    registry.register_configs("paper" if shell else profile_of(checked.overrides),
-                              "protocol" if shell else track_of(checked.overrides))
+    registry.register_configs(
+        "paper" if shell else profile_of(checked.overrides),
+        DEFAULT_TRACK if shell else track_of_overrides(checked.overrides))
     if checked.multirun and checked.n_jobs:
         print(f"hnnbench: {checked.n_jobs} job(s)", file=sys.stderr)
     with tempfile.TemporaryDirectory(prefix="hnnbench-") as tmp:

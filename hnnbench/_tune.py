@@ -223,6 +223,10 @@ def parse(args: Sequence[str]) -> TuneRequest:
                               "defaults; the step budget is steps=N")
         elif key.startswith(PASSED_PREFIXES) or key in PASSED_KEYS:
             overrides.append(arg)
+        elif key.lstrip("+~") == "track":
+            raise ConfigError(f"hnnbench tune: {arg}: the tuner writes the tuned track "
+                              "(track=tuned); a paper's recipe runs as hnnbench -m ... "
+                              "track=recipe (docs/TUNING.md, 'Recipes')")
         else:
             known = ", ".join([*ARGUMENTS, *(f"{p}*" for p in PASSED_PREFIXES), *PASSED_KEYS])
             raise ConfigError(f"hnnbench tune: unknown argument '{key}'; expected one of "

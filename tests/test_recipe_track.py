@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hnnbench import ConfigError
-from hnnbench._config import compose, track_of
+from hnnbench._config import compose, track_of_overrides
 from hnnbench._contract import TrainSettings
 from hnnbench._registry import config_defaults
 from hnnbench.neural._loop import ONE_CYCLE_FLOOR, ONE_CYCLE_START, lr_factors
@@ -52,9 +52,9 @@ def test_compose_applies_the_recipe_and_lets_the_command_line_win():
 
 def test_one_track_per_sweep():
     with pytest.raises(ConfigError, match="a sweep runs one track"):
-        track_of(["track=protocol,recipe"])
+        track_of_overrides(["track=protocol,recipe"])
     with pytest.raises(ConfigError, match="expected one of protocol, tuned, recipe"):
-        track_of(["track=recipes"])
+        track_of_overrides(["track=recipes"])
 
 
 def test_loss_choice_is_refused_where_the_family_has_its_own_objective():
@@ -169,3 +169,56 @@ def test_a_third_party_recipe_is_checked_and_listed():
         for name in ("recipe_model", "unknown_recipe_model", "invalid_recipe_model"):
             registry.MODELS._registered.pop(name, None)
         registry.refresh()
+
+
+def test_a_recipe_record_is_the_main_row_of_its_track_and_passes_check(tmp_path):
+    """A recipe job's settings are its track's defaults: no variant, nothing undeclared
+    (``hnnbench check`` and the publish script compare a record with its track's
+    defaults)."""
+    import hnnbench
+    from hnnbench._provenance import config_variant
+
+    pytest.importorskip("jax")
+    rec = hnnbench.run("damped_spring", "dhnn_jax", seed=0, profile="quick",
+                       out=tmp_path / "recipe", track="recipe", model__hidden=16,
+                       system__n_traj=6)
+    assert rec["track"] == "recipe" and rec["status"] == "ok", rec.get("error")
+    assert rec["config"]["model"]["batch_size"] == 128  # the recipe's
+    assert rec["steps"] == 300  # the quick profile's steps, not the recipe's 5000
+    variant = config_variant(rec)
+    assert variant.label == "model.hidden=16 system.n_traj=6", variant
+    assert variant.undeclared == ()
+
+
+def test_quick_leaves_a_recipes_steps_out_and_the_command_line_wins():
+    assert config_defaults("model", "dhnn_jax", "paper", "recipe").steps == 5000
+    assert config_defaults("model", "dhnn_jax", "quick", "recipe").steps is None
+    cfg = compose(["system=spring", "model=dhnn_jax", "track=recipe", "model.steps=700"])
+    assert cfg.model.steps == 700 and cfg.model.batch_size == 128
+
+
+def test_the_schedule_is_the_same_whatever_the_chunking_and_in_a_seed_batch():
+    """The per-step rates are sliced per chunk by the shared loop: the chunk length
+    (``log_every``) changes nothing, and seeds trained as one batch get what each gets
+    alone."""
+    pytest.importorskip("jax")
+    from hnnbench_plugins.models.hnn import HNNJax
+    from hnnbench_plugins.systems.spring import Spring, SpringConfig
+
+    system = Spring(SpringConfig(name="spring"))
+    data = [system.dataset(s) for s in (0, 1)]
+    train = TrainSettings(steps=60, batch_size=100, lr=3e-3, weight_decay=0.0)
+
+    def fit(log_every: int) -> list[float]:
+        cfg = HNNJax.Config(name="hnn_jax", dtype="float64", hidden=16, log_every=log_every,
+                            lr_schedule="one_cycle", loss="l1")
+        return [HNNJax(cfg, system, "cpu").fit(d, train, s, lambda *_: None)
+                .history["val_loss"][-1] for s, d in zip((0, 1), data, strict=True)]
+
+    alone = fit(7)
+    np.testing.assert_allclose(fit(60), alone, rtol=1e-12)
+    cfg = HNNJax.Config(name="hnn_jax", dtype="float64", hidden=16, log_every=7,
+                        lr_schedule="one_cycle", loss="l1")
+    batched = HNNJax(cfg, system, "cpu").fit_seeds(data, train, [0, 1], lambda *_: None)
+    np.testing.assert_allclose([f.history["val_loss"][-1] for _, f in batched], alone,
+                               rtol=1e-10)

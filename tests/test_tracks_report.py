@@ -49,3 +49,13 @@ def test_a_report_of_one_track_says_only_the_protocol_ran(tmp_path):
                           tmp_path / "out", figures=False)
     assert "tracks" not in report.files
     assert "Only the protocol track has published rows" in report.files["tracks_md"].read_text()
+
+
+def test_a_report_of_the_recipe_track_alone_shows_its_verdicts(tmp_path):
+    recipe = make_sweep(tmp_path / "recipe", pairs=PAIRS, seeds=SEEDS)
+    _as_track(recipe, "recipe")
+    report = write_report([recipe], tmp_path / "out", figures=False)
+    tracks = pd.read_csv(report.files["tracks"], keep_default_na=False)
+    assert "recipe" in tracks.columns and "protocol" not in tracks.columns
+    assert not tracks["changes"].any()
+    assert "Only the protocol track" not in report.files["tracks_md"].read_text()

@@ -213,7 +213,7 @@ def tracks_frame(fams: Families, metrics: Optional[list[str]] = None) -> pd.Data
     system, metric of ``metrics``, default the headline ones) where some track other
     than the protocol has family rows; a column per track present (its
     :func:`_leaders` text) and ``changes``: whether two tracks with a verdict name
-    different leaders. Empty when every row is of one track."""
+    different leaders. Empty when every row is of the protocol track."""
     board = fams.board
     if board.empty or "track" not in board:
         return pd.DataFrame()
@@ -222,7 +222,7 @@ def tracks_frame(fams: Families, metrics: Optional[list[str]] = None) -> pd.Data
     board = board.assign(track=board["track"].fillna(DEFAULT_TRACK).astype(str))
     present = [t for t in TRACKS if t in set(board["track"])]
     present += sorted(set(board["track"]) - set(present))
-    if len(present) < 2:
+    if present == [DEFAULT_TRACK]:
         return pd.DataFrame()
     if metrics is None:
         metrics = [m for m in headline_metrics() if f"{m}_mark" in board]
