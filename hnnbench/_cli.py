@@ -13,8 +13,8 @@ import contextlib
 import os
 import signal
 import sys
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import Any, Optional
 
 from hnnbench import _registry as registry
 from hnnbench._errors import ConfigError, HnnbenchError
@@ -136,24 +136,30 @@ def cmd_list(args: list[str]) -> int:
         print(f"{title} (entry points: {registry.GROUPS[kind]})")
         print(tabulate(rows, headers=headers, tablefmt="simple"))
         print()
-    spaces = [(i.family if i.family != "-" else i.name, describe(i.search_space))
-              for i in registry.discover("model").values() if i.search_space]
-    if spaces:
-        # A family's backends declare one space: shown once per family.
-        print("Search spaces (hnnbench tune; docs/TUNING.md)")
-        print(tabulate(list(dict.fromkeys(spaces)), headers=["family or model", "space"],
-                       tablefmt="simple"))
-        print()
-    recipes = [(i.family if i.family != "-" else i.name,
-                " ".join(f"{k}={v}" for k, v in (i.recipe or {}).items()))
-               for i in registry.discover("model").values() if i.recipe]
-    if recipes:
-        print("Recipes (track=recipe: the defaults a paper's own recipe sets; docs/TUNING.md)")
-        print(tabulate(list(dict.fromkeys(recipes)), headers=["family or model", "recipe"],
-                       tablefmt="simple"))
-        print()
+    # A family's backends declare one space and one recipe: each shown once per family.
+    _per_family("Search spaces (hnnbench tune; docs/TUNING.md)", "space",
+                lambda i: describe(i.search_space) if i.search_space else None)
+    _per_family("Recipes (track=recipe: the defaults a paper's own recipe sets; "
+                "docs/TUNING.md)", "recipe",
+                lambda i: " ".join(f"{k}={v}" for k, v in i.recipe.items()) if i.recipe
+                else None)
     print("Profiles: " + ", ".join(registry.PROFILES))
     return 0
+
+
+def _per_family(title: str, header: str, describe: Callable[[Any], Optional[str]]) -> None:
+    """A table of what each model family (or familyless model) declares, once per
+    family, for the installed models where ``describe`` gives a text."""
+    from tabulate import tabulate
+
+    rows = [(i.family if i.family != "-" else i.name, text)
+            for i in registry.discover("model").values()
+            if (text := describe(i)) is not None]
+    if rows:
+        print(title)
+        print(tabulate(list(dict.fromkeys(rows)), headers=["family or model", header],
+                       tablefmt="simple"))
+        print()
 
 
 def _subcommand(name: str, args: list[str]) -> int:

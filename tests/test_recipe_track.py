@@ -127,21 +127,14 @@ def test_a_third_party_recipe_is_checked_and_listed():
     import io
     import json
 
+    from stub_models import Unrun
+
     import hnnbench
     from hnnbench import _registry as registry
     from hnnbench._cli import cmd_list
 
-    class WithRecipe(hnnbench.Model):
+    class WithRecipe(Unrun):
         recipe = {"lr": 3e-3, "steps": 500}
-
-        def fit(self, data, train, seed, progress):  # pragma: no cover - not run
-            raise NotImplementedError
-
-        def time_derivative(self, x):  # pragma: no cover
-            return x
-
-        def rollout(self, x0, t, rtol=1e-9, atol=1e-9):  # pragma: no cover
-            return np.zeros((len(x0), len(t), x0.shape[1]))
 
     class UnknownSetting(WithRecipe):
         recipe = {"hidden": 600}  # not a ModelConfig field

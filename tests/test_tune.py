@@ -102,17 +102,10 @@ def test_every_built_in_neural_family_declares_a_valid_space_over_its_config():
 
 
 def test_a_third_party_model_declares_a_space_and_list_shows_it(tmp_path):
-    class Spaced(hnnbench.Model):
+    from stub_models import Unrun
+
+    class Spaced(Unrun):
         search_space = {"lr": hnnbench.LogUniform(1e-3, 1e-1)}
-
-        def fit(self, data, train, seed, progress):  # pragma: no cover - not run
-            raise NotImplementedError
-
-        def time_derivative(self, x):  # pragma: no cover
-            return x
-
-        def rollout(self, x0, t, rtol=1e-9, atol=1e-9):  # pragma: no cover
-            return np.zeros((len(x0), len(t), x0.shape[1]))
 
     class BadSpace(Spaced):
         search_space = {"hidden": hnnbench.IntRange(1, 10)}  # not a ModelConfig field
