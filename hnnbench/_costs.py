@@ -56,13 +56,16 @@ def load_costs(path: Optional[Path] = None) -> dict[JobKey, float]:
 
 def job_key(overrides: Sequence[str], default_profile: str) -> Optional[JobKey]:
     """The ``(profile, system, model)`` a job's overrides choose (``None`` when they
-    choose no system or model)."""
+    choose no system or model, or a track other than the protocol: the published costs
+    are the protocol's, and a recipe's network may cost many times more)."""
     chosen: dict[str, str] = {}
     for text in overrides:
         key, _, value = text.partition("=")
-        if key in ("system", "model", "profile"):
-            chosen[key] = value
+        if key.lstrip("+~") in ("system", "model", "profile", "track"):
+            chosen[key.lstrip("+~")] = value
     if "system" not in chosen or "model" not in chosen:
+        return None
+    if chosen.get("track", "protocol") != "protocol":
         return None
     return chosen.get("profile", default_profile), chosen["system"], chosen["model"]
 

@@ -39,6 +39,10 @@ def test_job_key_and_durations():
         "paper", "spring", "hnn_jax")
     assert costs.job_key(["profile=quick", "system=a", "model=b"], "paper") == ("quick", "a", "b")
     assert costs.job_key(["seed=1"], "paper") is None
+    # the published costs are the protocol's: a recipe job's is not known
+    assert costs.job_key(["system=a", "model=b", "track=recipe"], "paper") is None
+    assert costs.job_key(["system=a", "model=b", "track=protocol"], "paper") == (
+        "paper", "a", "b")
     assert [costs.duration_text(s) for s in (3, 600, 3 * 3600 + 300)] == [
         "3 s", "10 min", "3 h 05 min"]
     assert costs.duration_text(80 * 60) == "80 min"
