@@ -91,27 +91,40 @@ def sentence_after(markdown: str, heading: str) -> str:
 
 
 def record_dir(rec: dict) -> Path:
-    """``results/records/<system>/<model>/seed<k>`` of a record, built by
+    """``results/records/<system>/<model>/seed<k>`` of a protocol record, and
+    ``results/records/<system>/<model>/<track>/seed<k>`` of a tuned or recipe one (so a
+    row of another track never replaces the protocol's), built by
     ``hnnbench._paths.safe_join``: a system or model that is not a name
-    (``hnnbench._record_schema.NAME_PATTERN``), a seed that is not a non-negative
-    integer, or a path outside results/records is refused (``SystemExit``, naming the
-    record)."""
+    (``hnnbench._record_schema.NAME_PATTERN``), a track not of ``TRACKS``, a seed that is
+    not a non-negative integer, or a path outside results/records is refused
+    (``SystemExit``, naming the record)."""
     from hnnbench._errors import UnsafePathError
     from hnnbench._paths import safe_join
-    from hnnbench._record_schema import name_problem
+    from hnnbench._record_schema import DEFAULT_TRACK, TRACKS, name_problem
 
     where = rec.get("path", "a record")
     seed = rec.get("seed")
+    track = rec.get("track", DEFAULT_TRACK)
     problem = name_problem("system", rec.get("system")) or \
         name_problem("model", rec.get("model")) or \
+        (None if track in TRACKS else f"track {track!r} is not one of {', '.join(TRACKS)}") or \
         (None if isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0
          else f"seed {seed!r} is not a non-negative integer")
     if problem:
         raise SystemExit(f"publish: {where}: {problem}")
+    parts = [rec["system"], rec["model"], *([track] if track != DEFAULT_TRACK else []),
+             f"seed{seed}"]
     try:
-        return safe_join(RECORDS, rec["system"], rec["model"], f"seed{seed}")
+        return safe_join(RECORDS, *parts)
     except UnsafePathError as err:
         raise SystemExit(f"publish: {where}: {err}") from None
+
+
+def job_of(rec: dict) -> tuple[str, str, str, int]:
+    """A published job's identity: (track, system, model, seed)."""
+    from hnnbench._record_schema import track_of
+
+    return track_of(rec), str(rec["system"]), str(rec["model"]), int(rec["seed"])
 
 
 def copy_figure_rollouts(sweeps: list[Path]) -> tuple[int, int]:
@@ -126,18 +139,20 @@ def copy_figure_rollouts(sweeps: list[Path]) -> tuple[int, int]:
     from hnnbench._paths import safe_join
     from hnnbench._report.figures import figure_arrays
 
-    chosen: dict[tuple[str, str], tuple[int, Path]] = {}
+    chosen: dict[tuple[str, str, str], tuple[int, Path]] = {}
     for sweep in sweeps:
         for rec in R.load(sweep, strict=True).records:
             source = Path(rec["path"]) / R.ROLLOUT_NAME
             if rec.get("status") not in ("ok", "diverged") or not source.is_file():
                 continue
-            key, seed = (str(rec["system"]), str(rec["model"])), int(rec["seed"])
+            track, system, model, seed = job_of(rec)
+            key = (track, system, model)
             if key not in chosen or seed < chosen[key][0]:
                 chosen[key] = (seed, source)
     written = {}
-    for (system, model), (seed, source) in sorted(chosen.items()):
-        rec = {"system": system, "model": model, "seed": seed, "path": str(source.parent)}
+    for (track, system, model), (seed, source) in sorted(chosen.items()):
+        rec = {"system": system, "model": model, "seed": seed, "track": track,
+               "path": str(source.parent)}
         target = safe_join(record_dir(rec), R.ROLLOUT_NAME)
         buffer = io.BytesIO()
         np.savez_compressed(buffer, **figure_arrays(R.load_arrays(source)))
@@ -170,7 +185,7 @@ def given_records(sweeps: list[Path]) -> list[dict]:
     from hnnbench._provenance import config_variant
 
     out: list[dict] = []
-    seen: dict[tuple[str, str, int], str] = {}
+    seen: dict[tuple[str, str, str, int], str] = {}
     for sweep in sweeps:
         recs, bad = R.load(sweep, strict=True)
         if bad:
@@ -188,7 +203,7 @@ def given_records(sweeps: list[Path]) -> list[dict]:
                 if variant.label else None)
             if why:
                 raise SystemExit(f"publish: {rec['path']}: {why}")
-            job = (str(rec["system"]), str(rec["model"]), int(rec["seed"]))
+            job = job_of(rec)
             if job in seen:
                 raise SystemExit(f"publish: {job} is in both {seen[job]} and {rec['path']}: "
                                  "the report would count it twice; move the superseded "
@@ -217,10 +232,16 @@ def copy_records(sweeps: list[Path], recs: list[dict] | None = None) -> int:
     return len(recs)
 
 
-def published_jobs() -> set[tuple[str, str, int]]:
-    """The (system, model, seed) of every record under results/records."""
-    return {(p.parts[-4], p.parts[-3], int(p.parts[-2].removeprefix("seed")))
+def published_jobs() -> set[tuple[str, str, str, int]]:
+    """The (track, system, model, seed) of every record under results/records
+    (:func:`record_dir`'s layout)."""
+    from hnnbench._record_schema import DEFAULT_TRACK
+
+    jobs = {(DEFAULT_TRACK, p.parts[-4], p.parts[-3], int(p.parts[-2].removeprefix("seed")))
             for p in RECORDS.glob("*/*/seed*/result.json")}
+    return jobs | {(p.parts[-3], p.parts[-5], p.parts[-4],
+                    int(p.parts[-2].removeprefix("seed")))
+                   for p in RECORDS.glob("*/*/*/seed*/result.json")}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -239,8 +260,7 @@ def main(argv: list[str] | None = None) -> int:
     recs = given_records(args.sweeps)
     # Every record already published must be among those given (results/records itself
     # may be given), so that the page and the records agree.
-    stale = published_jobs() - {(str(r["system"]), str(r["model"]), int(r["seed"]))
-                                for r in recs}
+    stale = published_jobs() - {job_of(r) for r in recs}
     if stale:
         print(f"publish: results/records holds jobs the directories given here do not "
               f"({sorted(stale)[:5]} ...): pass every sweep that was published, or "

@@ -49,6 +49,29 @@ def test_a_record_of_other_settings_is_not_published(tmp_path, monkeypatch):
     assert not (tmp_path / "records").exists()
 
 
+def test_a_row_of_another_track_is_published_beside_the_protocols(tmp_path, monkeypatch):
+    """A tuned or recipe record of a job the protocol also ran lands in a directory of
+    its track (records/<system>/<model>/<track>/seed<k>), never over the protocol's."""
+    import json
+
+    records_dir = tmp_path / "records"
+    monkeypatch.setattr(publish_results, "RECORDS", records_dir)
+    protocol, recipe = tmp_path / "protocol", tmp_path / "recipe"
+    write_run(protocol, "spring", "hnn_torch", 0, profile="paper", rollout=False)
+    job = write_run(recipe, "spring", "hnn_torch", 0, profile="paper", rollout=False)
+    record = json.loads((job / "result.json").read_text())
+    (job / "result.json").write_text(json.dumps({**record, "track": "recipe"}))
+    assert publish_results.copy_records([protocol, recipe]) == 2
+    assert (records_dir / "spring" / "hnn_torch" / "seed0" / "result.json").is_file()
+    kept = json.loads((records_dir / "spring" / "hnn_torch" / "recipe" / "seed0" /
+                       "result.json").read_text())
+    assert kept["track"] == "recipe"
+    assert publish_results.published_jobs() == {("protocol", "spring", "hnn_torch", 0),
+                                                ("recipe", "spring", "hnn_torch", 0)}
+    with pytest.raises(SystemExit, match=r"\('recipe', 'spring', 'hnn_torch', 0\) is in both"):
+        publish_results.copy_records([recipe, recipe])
+
+
 @pytest.fixture()
 def tree(tmp_path, monkeypatch):
     """A repository root of its own: README.md and results/README.md with their markers,
