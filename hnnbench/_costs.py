@@ -54,20 +54,35 @@ def load_costs(path: Optional[Path] = None) -> dict[JobKey, float]:
         return {}
 
 
-def job_key(overrides: Sequence[str], default_profile: str) -> Optional[JobKey]:
-    """The ``(profile, system, model)`` a job's overrides choose (``None`` when they
-    choose no system or model, or a track other than the protocol: the published costs
-    are the protocol's, and a recipe's network may cost many times more)."""
+def _chosen(overrides: Sequence[str]) -> dict[str, str]:
     chosen: dict[str, str] = {}
     for text in overrides:
         key, _, value = text.partition("=")
-        if key.lstrip("+~") in ("system", "model", "profile", "track"):
+        if key.lstrip("+~") in ("system", "model", "profile", "track", "seed"):
             chosen[key.lstrip("+~")] = value
+    return chosen
+
+
+def job_key(overrides: Sequence[str], default_profile: str) -> Optional[JobKey]:
+    """The ``(profile, system, model)`` whose published cost a job's overrides choose
+    (``None`` when they choose no system or model, or a track other than the protocol:
+    the published costs are the protocol's, and a recipe's network may cost many times
+    more)."""
+    chosen = _chosen(overrides)
     if "system" not in chosen or "model" not in chosen:
         return None
     if chosen.get("track", "protocol") != "protocol":
         return None
     return chosen.get("profile", default_profile), chosen["system"], chosen["model"]
+
+
+def job_directory(overrides: Sequence[str]) -> Optional[str]:
+    """``<system>/<model>/seed<k>``, the directory in a sweep of the job these overrides
+    choose, whatever its track (``None`` when they choose no system or model)."""
+    chosen = _chosen(overrides)
+    if "system" not in chosen or "model" not in chosen:
+        return None
+    return f"{chosen['system']}/{chosen['model']}/seed{chosen.get('seed', '0')}"
 
 
 def duration_text(seconds: float) -> str:
@@ -118,7 +133,8 @@ class SweepProgress:
     _pending: bool = False
     _last_on_new: float = float("-inf")
     _on_new_failed: bool = False
-    _jobs: dict[str, JobKey] = field(default_factory=dict)  # job directory -> key
+    # job directory -> its published cost's key (None: no cost, e.g. another track)
+    _jobs: dict[str, Optional[JobKey]] = field(default_factory=dict)
     _kept: set[str] = field(default_factory=set)
     _done: set[str] = field(default_factory=set)
     _seen: set[Path] = field(default_factory=set)
@@ -133,12 +149,10 @@ class SweepProgress:
             self._seen = set(existing)
         had = {self._job_of(p) for p in existing}
         for overrides in batch:
-            key = job_key(overrides, self.default_profile)
-            if key is None:
+            job = job_directory(overrides)
+            if job is None:
                 continue
-            seed = next((o.split("=", 1)[1] for o in overrides if o.startswith("seed=")), "0")
-            job = f"{key[1]}/{key[2]}/seed{seed}"
-            self._jobs[job] = key
+            self._jobs[job] = job_key(overrides, self.default_profile)
             if job in had:
                 self._kept.add(job)
         if self._thread is None:
@@ -201,8 +215,8 @@ class SweepProgress:
         text = f"{len(done)}/{len(todo)} jobs done in {duration_text(elapsed)}"
         if not left or not done:
             return text
-        done_cost = [self.costs[jobs[j]] for j in done if jobs[j] in self.costs]
-        left_cost = [self.costs[jobs[j]] for j in left if jobs[j] in self.costs]
+        done_cost = [self.costs[k] for j in done if (k := jobs[j]) is not None and k in self.costs]
+        left_cost = [self.costs[k] for j in left if (k := jobs[j]) is not None and k in self.costs]
         if len(done_cost) == len(done) and len(left_cost) == len(left) and sum(done_cost) > 0:
             # this sweep's seconds per published second, times what is left
             eta = elapsed / sum(done_cost) * sum(left_cost)

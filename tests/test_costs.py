@@ -87,6 +87,23 @@ def test_progress_counts_new_records_and_scales_the_eta(tmp_path):
     assert progress.line().startswith("1/3 jobs done")
 
 
+def test_progress_counts_the_jobs_of_another_track(tmp_path):
+    """A recipe sweep's jobs are counted like any other (they have no published cost,
+    so the ETA is the mean time per finished job)."""
+    table = {("paper", "s", "a"): 10.0}
+    out = io.StringIO()
+    progress = costs.SweepProgress(tmp_path, default_profile="paper", costs=table,
+                                   every_s=0.05, out=out)
+    progress.add([["system=s", "model=a", "track=recipe", f"seed={k}"] for k in (0, 1)])
+    _record(tmp_path, "s/a/seed0")
+    deadline = time.monotonic() + 10
+    while "1/2 jobs done" not in out.getvalue() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    progress.stop()
+    assert progress.line().startswith("1/2 jobs done"), out.getvalue()
+    assert "for the 1 left" in progress.line()
+
+
 def test_progress_calls_on_new_when_records_arrive_and_survives_its_errors(tmp_path):
     """``on_new`` (the sweeper's leaderboard rewrite) runs once new records are there,
     not before, at most once per ``on_new_every_s``; an exception in it is printed once
