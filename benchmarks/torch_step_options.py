@@ -22,6 +22,9 @@ one training step built several ways, on the same data and initial weights:
   :mod:`hnnbench.neural.torch._backprop`): the step hnnbench runs now;
 - ``hnnbench + flush denormals``: the same with ``torch.set_flush_denormal(True)``
   (XLA's CPU default) around the step;
+- ``hnnbench + oneDNN tanh``: the same with the forward ``tanh`` computed by oneDNN's
+  eltwise kernel (``torch.tanh(a.to_mkldnn()).to_dense()``, both layout conversions
+  counted) in place of ATen's (within 1 ulp of float64 ``tanh`` here, like ATen's);
 - ``torch.func.grad``: the ``hnnbench`` loss differentiated by ``torch.func.grad`` over
   the parameter dict instead of ``torch.autograd.grad``;
 - ``no autograd``: the step's gradient derived by hand and written as plain tensor
@@ -38,7 +41,8 @@ Each variant's gradient at the first step is compared with ``a47bd0f``'s (larges
 difference relative to the largest entry), so every row computes the same step.
 Median (and best) of ``--repeats`` runs of ``--steps`` steps each, after a warm-up;
 the repeats of all variants are interleaved, so load changes hit every column alike.
-Then per-op timings on the hidden layer's shape: torch's and XLA's ``tanh``, and the
+Then per-op timings on the hidden layer's shape: torch's, XLA's and oneDNN's ``tanh``
+(and torch's ``sigmoid``, for scale), and the
 thin products in the two orientations a step can dispatch them.
 """
 
@@ -119,6 +123,26 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
 
     grads: dict[str, list[torch.Tensor]] = {}
 
+    def with_onednn_tanh(loss: Callable[..., torch.Tensor]) -> Callable[..., torch.Tensor]:
+        """``loss`` with the hand-written backward's forward ``tanh`` by oneDNN."""
+        from hnnbench.neural.torch import _backprop
+
+        plain = _backprop._act
+
+        def act(name: str, a: torch.Tensor) -> torch.Tensor:
+            if name == "tanh" and a.dtype == torch.float32:
+                return torch.tanh(a.to_mkldnn()).to_dense()
+            return plain(name, a)
+
+        def patched(p: dict[str, torch.Tensor]) -> torch.Tensor:
+            _backprop._act = act
+            try:
+                return loss(p)
+            finally:
+                _backprop._act = plain
+
+        return patched
+
     def optimizer_step(name: str, loss: Callable[..., torch.Tensor]) -> Step:
         params = fresh()
         grads[name] = list(torch.autograd.grad(loss(params), list(params.values())))
@@ -133,8 +157,10 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
 
         return one
 
-    def direct_step(name: str, loss: Callable[..., torch.Tensor], ftz: bool = False
-                    ) -> Step:
+    def direct_step(name: str, loss: Callable[..., torch.Tensor], ftz: bool = False,
+                    onednn: bool = False) -> Step:
+        if onednn:
+            loss = with_onednn_tanh(loss)
         params = fresh()
         grads[name] = list(torch.autograd.grad(loss(params), list(params.values())))
         adam = FusedAdam(list(params.values()), LR, WEIGHT_DECAY)
@@ -223,6 +249,8 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
         "hnnbench": direct_step("hnnbench", loss_mse(TrainingMLP)),
         "hnnbench + flush denormals": direct_step("hnnbench + flush denormals",
                                                   loss_mse(TrainingMLP), ftz=True),
+        "hnnbench + oneDNN tanh": direct_step("hnnbench + oneDNN tanh",
+                                              loss_mse(TrainingMLP), onednn=True),
         "torch.func.grad": func_grad_step("torch.func.grad", loss_mse(MLP)),
         "no autograd": manual_step("no autograd"),
     }
@@ -330,6 +358,9 @@ def op_timings(n: int, d: int) -> None:
     rows = {
         f"torch.tanh ({n}, {HIDDEN})": best_us(lambda: torch.tanh(a)),
         f"XLA tanh ({n}, {HIDDEN})": best_us(lambda: jtanh(ja).block_until_ready()),
+        f"oneDNN tanh ({n}, {HIDDEN}), with both layout conversions":
+            best_us(lambda: torch.tanh(a.to_mkldnn()).to_dense()),
+        f"torch.sigmoid ({n}, {HIDDEN})": best_us(lambda: torch.sigmoid(a)),
         f"({n},{HIDDEN})x({HIDDEN},{d}) as h @ w.t() (F.linear's)":
             best_us(lambda: a @ w_out.t()),
         "the same as (w @ h.t()).t()": best_us(lambda: (w_out @ a.t()).t()),
