@@ -155,7 +155,8 @@ def test_train_step_benchmark_times_other_families():
 def test_torch_step_options_compute_the_same_step():
     """benchmarks/torch_step_options.py, tiny settings: every variant of the torch step
     (the a47bd0f step, direct Adam, mse_loss, hnnbench's hand-written backward passes,
-    torch.func.grad, the autograd-free step) has the a47bd0f step's gradient, and the
+    with oneDNN's tanh, torch.func.grad, the autograd-free step) has the a47bd0f step's
+    gradient, and the
     summary has a row per family with a JAX column."""
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     proc = subprocess.run(
@@ -164,8 +165,8 @@ def test_torch_step_options_compute_the_same_step():
         capture_output=True, text=True, timeout=600, env=env, cwd=REPO,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
-    variants = ("a47bd0f", "+ direct Adam", "+ mse_loss", "hnnbench", "torch.func.grad",
-                "no autograd")
+    variants = ("a47bd0f", "+ direct Adam", "+ mse_loss", "hnnbench",
+                "hnnbench + oneDNN tanh", "torch.func.grad", "no autograd")
     for family in ("mlp", "hnn"):
         block = proc.stdout.split(f"{family} step: ms")[1].split("\n\n")[0]
         lines = {line.strip().split("  ")[0]: line.split() for line in block.splitlines()[1:]}
