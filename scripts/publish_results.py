@@ -254,6 +254,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from hnnbench._errors import HnnbenchError
     from hnnbench._report import write_report
+    from hnnbench._report.figures import main_profile_figure
     from hnnbench._report.markdown import md_code
     from hnnbench._report.verdicts import aggregate_markdown
 
@@ -293,7 +294,7 @@ def main(argv: list[str] | None = None) -> int:
     ])
     text = replace_block(readme.read_text(), "leaderboard", body)
     assert report.verdicts is not None
-    profile = next((m.path for m in report.figures if m.kind == "profile"), None)
+    profile = main_profile_figure(report.figures)
     text = replace_block(text, "aggregate", aggregate_markdown(
         report.verdicts, profile.relative_to(ROOT).as_posix() if profile else None,
         heading=""))

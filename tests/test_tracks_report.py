@@ -10,6 +10,7 @@ from report_fixtures import make_sweep, scale_metric
 
 from hnnbench import _records as records
 from hnnbench._report import write_report
+from hnnbench._report.figures import main_profile_figure
 
 PAIRS = (("spring", "mlp_torch"), ("spring", "hnn_torch"), ("pendulum", "mlp_torch"),
          ("pendulum", "hnn_torch"))
@@ -59,3 +60,48 @@ def test_a_report_of_the_recipe_track_alone_shows_its_verdicts(tmp_path):
     assert "recipe" in tracks.columns and "protocol" not in tracks.columns
     assert not tracks["changes"].any()
     assert "Only the protocol track" not in report.files["tracks_md"].read_text()
+
+
+def _as_tuned(root: Path, lr: float) -> None:
+    """Every record under ``root`` as the tuned track's, its tuning selecting
+    ``model.lr=lr`` at a step budget of 20."""
+    for path in root.rglob(records.RECORD_NAME):
+        rec = records.read_record(path)
+        assert rec is not None
+        config = {**rec["config"], "track": "tuned",
+                  "model": {**rec["config"]["model"], "lr": lr, "steps": 20}}
+        records.write_record(path.parent, {
+            **rec, "track": "tuned", "config": config,
+            "overrides": [*rec["overrides"], f"model.lr={lr}", "model.steps=20", "track=tuned"],
+            "tuning": {"selected_on": "validation", "trials": 4, "steps": 20,
+                       "selected": {"model.lr": lr}, "cpu_s": 12.0, "space": {}}})
+
+
+def test_a_report_draws_each_track_apart_and_speaks_of_the_protocol(tmp_path):
+    """With a tuned track beside the protocol: the per-system figures of the tuned runs
+    are their own (named by the track, not by the selected settings, which are no
+    variant), the heatmaps and performance profiles of the main scope keep their names
+    (the README embeds them) and the tuned track gets its own, and the per-system marks,
+    the aggregate's left-out lines and the paper comparison's seed line speak of the
+    protocol's rows only."""
+    from hnnbench._report.verdicts import left_out_lines, marks_line
+
+    pairs = PAIRS[:2]
+    protocol = make_sweep(tmp_path / "protocol", pairs=pairs, seeds=SEEDS)
+    alone = write_report([protocol], tmp_path / "alone")
+    tuned = make_sweep(tmp_path / "tuned", pairs=pairs, seeds=(0, 1))  # 2 seeds: no verdict
+    _as_tuned(tuned, 0.003)
+    both = write_report([protocol, tuned], tmp_path / "both")
+    names = {p.name for p in (tmp_path / "both" / "figures").glob("*.png")}
+    assert {p.name for p in (tmp_path / "alone" / "figures").glob("*.png")} <= names
+    assert "performance_profile.png" in names and "heatmap_energy_mse.png" in names
+    assert "heatmap_energy_mse_quick_tuned.png" in names
+    assert any(n.startswith("spring_tuned_") for n in names), sorted(names)
+    assert not any("model.lr" in n or "/" in n for n in names), sorted(names)
+    assert main_profile_figure(both.figures).name == "performance_profile.png"
+    assert both.verdicts is not None and alone.verdicts is not None
+    assert marks_line(both.verdicts.families) == marks_line(alone.verdicts.families)
+    assert left_out_lines(both.verdicts.aggregate) == left_out_lines(alone.verdicts.aggregate)
+    seed_line = both.files["paper"].read_text().splitlines()[2]
+    assert seed_line == alone.files["paper"].read_text().splitlines()[2]
+    assert "seed(s) per row" in seed_line

@@ -34,7 +34,7 @@ from typing import Any
 import pandas as pd
 
 from hnnbench import _records as R
-from hnnbench._report.figures import Made, make_figures
+from hnnbench._report.figures import Made, main_profile_figure, make_figures
 from hnnbench._report.html import page
 from hnnbench._report.inputs import ReportError, load_sweeps, provenance
 from hnnbench._report.published import comparison_markdown
@@ -107,7 +107,7 @@ def write_report(sweep_dir: Path | str | Sequence[Path | str], out: Path | str |
     R.atomic_write_text(report.files["md"], leaderboard_markdown(board, verdicts.families,
                                                                  prov, heatmaps))
     if aggregate:
-        profile = next((m.path for m in report.figures if m.kind == "profile"), None)
+        profile = main_profile_figure(report.figures)
         report.files["aggregate_md"] = out / "aggregate.md"
         R.atomic_write_text(report.files["aggregate_md"], aggregate_markdown(
             verdicts, f"figures/{profile.name}" if profile is not None else None))

@@ -24,6 +24,7 @@ import multiprocessing
 import os
 import re
 import sys
+import textwrap
 import zipfile
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -43,15 +44,20 @@ from hnnbench._contract import HISTORY_TRAIN, HISTORY_VALID
 from hnnbench._errors import UnsafePathError
 from hnnbench._families import family_order
 from hnnbench._paths import safe_join
-from hnnbench._record_schema import name_problem
+from hnnbench._record_schema import DEFAULT_TRACK, name_problem, track_of
 from hnnbench._report import style
-from hnnbench._table import format_value, metric_declarations, variant_labels
+from hnnbench._table import (
+    format_value,
+    metric_declarations,
+    variant_labels,
+    variant_overrides,
+)
 
 log = logging.getLogger("hnnbench")
 
-__all__ = ["CELL_STATES", "FIGURES", "FigureKind", "Made", "Run", "SystemRuns", "cell_states",
-           "figure", "figure_arrays", "make_figures", "rank_table", "runs_for_figures",
-           "slug"]
+__all__ = ["CELL_STATES", "FIGURES", "PROFILE_FIGURE", "FigureKind", "Made", "Run",
+           "SystemRuns", "cell_states", "figure", "figure_arrays", "main_profile_figure",
+           "make_figures", "rank_table", "runs_for_figures", "slug"]
 
 #: How many evaluation trajectories the rollout figures show.
 N_TRAJ_SHOWN = 3
@@ -202,7 +208,20 @@ def _new_figure(n_panels: int, width: float = 4.6, height: float = 3.6) -> Any:
     return fig, list(axes)
 
 
+def _fit_suptitle(fig: Any) -> None:
+    """Wrap the figure's title to its width (a figure of few panels cut it off)."""
+    title = getattr(fig, "_suptitle", None)
+    if title is None or not title.get_text():
+        return
+    # centred on the figure: clear of a legend beside the panels (about 1.8 in) on both sides
+    width = max(fig.get_figwidth() - 3.6 * bool(fig.legends), 3.0)
+    per_line = int(width * 72 / (0.55 * float(title.get_fontsize())))
+    if len(title.get_text()) > per_line:
+        title.set_text(textwrap.fill(title.get_text(), width=max(per_line, 20)))
+
+
 def _save(fig: Any, path: Path) -> Path:
+    _fit_suptitle(fig)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.stem}.tmp.png")
     fig.savefig(tmp, dpi=100, format="png")
@@ -390,19 +409,25 @@ def cell_states(board: pd.DataFrame, metric: str, index: Sequence[str],
 @figure("heatmap", "Which family wins where: rank by metric", scope="board")
 def heatmap_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
                     verdicts: Any = None) -> dict[str, Any]:
-    fams = getattr(getattr(verdicts, "families", None), "board", None)
-    if fams is None or fams.empty:
+    from hnnbench._report.verdicts import scope_label, scopes
+
+    board = getattr(getattr(verdicts, "families", None), "board", None)
+    if board is None or board.empty:
         return {}
     out = {}
-    for metric in _plotted("heatmap"):
-        if f"{metric}_mean" not in fams or fams[f"{metric}_mean"].isna().all():
-            continue
-        ranks, values = rank_table(fams, metric)
-        if ranks.shape[0] < 2 or values.isna().all().all():
-            continue  # a ranking needs two families
-        states = cell_states(fams, metric, list(values.index), list(values.columns))
-        marks = _marks(fams, metric)
-        out[f"heatmap_{metric}"] = _heatmap(ranks, values, states, marks, metric)
+    for main, fams in scopes(board):  # the main scope first, then each other track
+        label = scope_label(fams)
+        suffix = "" if main else "_" + slug(label.replace("/", "_"))
+        for metric in _plotted("heatmap"):
+            if f"{metric}_mean" not in fams or fams[f"{metric}_mean"].isna().all():
+                continue
+            ranks, values = rank_table(fams, metric)
+            if ranks.shape[0] < 2 or values.isna().all().all():
+                continue  # a ranking needs two families
+            states = cell_states(fams, metric, list(values.index), list(values.columns))
+            marks = _marks(fams, metric)
+            out[f"heatmap_{metric}{suffix}"] = _heatmap(ranks, values, states, marks, metric,
+                                                        "" if main else label)
     return out
 
 
@@ -415,13 +440,13 @@ def _marks(board: pd.DataFrame, metric: str) -> dict[tuple[str, str], str]:
 
 
 def _heatmap(ranks: pd.DataFrame, values: pd.DataFrame, states: pd.DataFrame,
-             marks: dict[tuple[str, str], str], metric: str) -> Any:
+             marks: dict[tuple[str, str], str], metric: str, scope: str = "") -> Any:
     import matplotlib as mpl
     from matplotlib.patches import Patch
 
     n_rows, n_systems = ranks.shape
-    fig, (ax,) = _new_figure(1, width=max(6.0, 1.05 * n_systems + 2.5),
-                             height=max(3.0, 0.42 * n_rows + 2.0))
+    width = max(6.0, 1.05 * n_systems + 2.5)
+    fig, (ax,) = _new_figure(1, width=width, height=max(3.0, 0.42 * n_rows + 2.0))
     worst = max(float(np.nanmax(ranks.to_numpy())), 2.0) if ranks.notna().any().any() else 2.0
     shade = ((ranks - 1) / (worst - 1)).to_numpy(dtype=float)
     rgba = mpl.colormaps["RdYlGn_r"](np.nan_to_num(shade))
@@ -452,14 +477,22 @@ def _heatmap(ranks: pd.DataFrame, values: pd.DataFrame, states: pd.DataFrame,
     ax.set_xticks(range(n_systems), [str(s) for s in values.columns], rotation=35,
                   ha="right", fontsize=8)
     ax.set_yticks(range(n_rows), [str(m) for m in values.index], fontsize=8)
-    ax.set_title(f"Rank of each family by {metric} within each system (1 = best, the mean "
-                 "below; \u2605 best: separated from every other family by the sign test; "
-                 "= tied: not separated from the leader)", fontsize=9)
+    title = (f"{scope}: " * bool(scope)
+             + f"Rank of each family by {metric} within each system (1 = best, the mean "
+             "below; \u2605 best: separated from every other family by the sign test; "
+             "= tied: not separated from the leader)")
+    ax.set_title(textwrap.fill(title, width=int(width * 13)), fontsize=9)  # ~13 chars/inch
     handles = [Patch(facecolor=DIVERGED_COLOR, label="diverged (inf)")]
     handles += [Patch(facecolor=c, edgecolor="0.6", label=t) for c, t, _ in CELL_STATES.values()]
     fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=7,
                frameon=False)
     return fig
+
+
+#: The performance profiles of the main scope (the paper profile's protocol track where
+#: there is one: :func:`hnnbench._report.verdicts.main_scope`); another scope's file is
+#: ``performance_profile_<profile>[_<track>]``.
+PROFILE_FIGURE = "performance_profile"
 
 
 @figure("profile", "Performance profiles: the share of runs above each normalised score",
@@ -473,7 +506,10 @@ def profile_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
     if agg is None or not agg.profiles or \
             max(len(curves) for _, curves in agg.profiles.values()) < 2:
         return {}  # a profile compares two families at least
+    from hnnbench._report.verdicts import main_scope, scope_label
+
     profiles = list(dict.fromkeys(p for p, _ in agg.profiles))
+    main = scope_label(main_scope(agg.iqm)) if not agg.iqm.empty else profiles[0]
     out = {}
     for profile in profiles:
         metrics = [m for p, m in agg.profiles if p == profile]
@@ -494,14 +530,14 @@ def profile_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
         fig.legend(handles, labels, loc="outside right upper", fontsize=8)
         fig.suptitle("Performance profiles over every (system, seed) run, 95% stratified "
                      "bootstrap bands", fontsize=9)
-        out["performance_profile" if len(profiles) == 1 else
-            f"performance_profile_{profile}"] = fig
+        out[PROFILE_FIGURE if profile == main else
+            f"{PROFILE_FIGURE}_{slug(profile.replace('/', '_'))}"] = fig
     return out
 
 
 def _swept_key(recs: Sequence[dict[str, Any]]) -> Optional[str]:
     """The one numeric override whose value differs between the records, or None."""
-    labels = variant_labels([r.get("overrides") for r in recs])
+    labels = variant_labels([variant_overrides(r) for r in recs])
     keys: set[str] = set()
     for label in labels:
         for token in label.split():
@@ -587,6 +623,13 @@ class Made:
         return iter((self.label, self.kind, self.path))
 
 
+def main_profile_figure(made: Sequence[Made]) -> Optional[Path]:
+    """The main scope's performance-profile figure among ``made`` (:data:`PROFILE_FIGURE`),
+    or ``None``."""
+    return next((m.path for m in made if m.kind == "profile"
+                 and m.path.stem == PROFILE_FIGURE), None)
+
+
 def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Path,
                  verdicts: Any = None) -> list[Made]:
     """Every registered figure into ``directory``: the board figures (given
@@ -614,30 +657,37 @@ def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Pat
         return made
 
     profiles = sorted({str(r.get("profile")) for r in recs})
-    groups: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
-    for rec, variant in zip(recs, variant_labels([r.get("overrides") for r in recs]),
+    # One figure set per (profile, system, track, variant): a tuned or recipe record is
+    # its track's main row (its selected settings are no variant), drawn apart from the
+    # protocol's runs of the same models.
+    groups: dict[tuple[str, str, str, str], list[dict[str, Any]]] = {}
+    for rec, variant in zip(recs, variant_labels([variant_overrides(r) for r in recs]),
                             strict=True):
-        # A figure's file is named after the system and profile: a record whose names
-        # are not names draws none (hnnbench._paths.safe_join refuses it regardless).
+        # A figure's file is named after the system, profile and track: a record whose
+        # names are not names draws none (hnnbench._paths.safe_join refuses it regardless).
         problem = name_problem("system", rec.get("system")) or \
             name_problem("profile", rec.get("profile"))
         if problem:
             log.warning("no figures from %s: %s", rec.get("path", "a record"), problem)
             continue
-        groups.setdefault((str(rec.get("profile")), str(rec.get("system")), variant),
+        track = track_of(rec)
+        groups.setdefault((str(rec.get("profile")), str(rec.get("system")), track, variant),
                           []).append(rec)
     systems = registry.ordered("system", [k[1] for k in groups])
     tasks = []
-    for profile, system, variant in sorted(groups, key=lambda k: (k[0], systems.index(k[1]),
-                                                                   k[2])):
+    for profile, system, track, variant in sorted(groups, key=lambda k: (
+            k[0], systems.index(k[1]), k[2] != DEFAULT_TRACK, k[2], k[3])):
         label = system if len(profiles) == 1 else f"{system} ({profile})"
-        label += f" [{variant}]" if variant else ""
         stem = system if len(profiles) == 1 else f"{profile}_{system}"
+        name = system
+        if track != DEFAULT_TRACK:
+            label, stem, name = f"{label}, {track} track", f"{stem}_{slug(track)}", \
+                f"{name} ({track})"
         if variant:
-            stem += "__" + slug(variant)
-        name = f"{system} [{variant}]" if variant else system
+            label, stem, name = f"{label} [{variant}]", f"{stem}__{slug(variant)}", \
+                f"{name} [{variant}]"
         tasks.append(_SystemTask(label, stem, name, system, directory,
-                                 groups[(profile, system, variant)]))
+                                 groups[(profile, system, track, variant)]))
     made, per_system = _map(_system_figures, tasks, board_figures)
     for drawn in per_system:
         made += drawn

@@ -196,7 +196,7 @@ def claims_frame(board: pd.DataFrame) -> pd.DataFrame:
 
 def comparison_markdown(board: pd.DataFrame) -> str:
     profile = main_profile(board)
-    lines = ["# Comparison with published results", "", seed_line(board), ""]
+    lines = ["# Comparison with published results", "", seed_line(plain_rows(board)), ""]
     if profile != "paper":
         lines += [f"Note: profile {md_code(profile)} is not the paper settings (profile `paper`); "
                   "this comparison is indicative only.", ""]

@@ -19,8 +19,8 @@ from hnnbench._report.tables import md_table
 from hnnbench._table import records_frame
 
 __all__ = ["Verdicts", "aggregate_frame", "aggregate_markdown", "build_verdicts",
-           "left_out_lines", "main_scope", "marks_line", "supported_lines", "tracks_frame",
-           "tracks_markdown"]
+           "left_out_lines", "main_scope", "marks_line", "scope_label", "scopes",
+           "supported_lines", "tracks_frame", "tracks_markdown"]
 
 
 @dataclass
@@ -58,13 +58,45 @@ def _interval(point: float, low: float, high: float) -> str:
 
 
 def main_scope(frame: pd.DataFrame) -> pd.DataFrame:
-    """The rows of one scope (:data:`hnnbench._families.SCOPE_KEY`) of an aggregate
-    frame: the paper profile's where there is one, else the first scope's."""
+    """The rows of one scope (:data:`hnnbench._families.SCOPE_KEY`) of a frame with
+    scope columns (an aggregate frame, a family board): the paper profile's where there
+    is one, and in it the protocol track's where there is one, else the first scope's.
+    The README's aggregate, its per-system marks and the heatmaps speak of this scope;
+    the other tracks are compared with it in the tracks table."""
     if frame.empty:
         return frame
     if "profile" in frame and (frame["profile"].astype(str) == "paper").any():
         frame = frame[frame["profile"].astype(str) == "paper"]
+    if "track" in frame:
+        track = frame["track"].fillna(DEFAULT_TRACK).astype(str)
+        if (track == DEFAULT_TRACK).any():
+            frame = frame[track == DEFAULT_TRACK]
     return select(frame, SCOPE_KEY, key_of(frame.iloc[0], SCOPE_KEY))
+
+
+def scopes(frame: pd.DataFrame) -> list[tuple[bool, pd.DataFrame]]:
+    """``(is_main, rows)`` per scope (:data:`hnnbench._families.SCOPE_KEY`) of ``frame``,
+    the main scope (:func:`main_scope`) first."""
+    if frame.empty:
+        return []
+    main = main_scope(frame)
+    out = [(True, main)]
+    keys = [k for k in SCOPE_KEY if k in frame]
+    for _, rows in frame.groupby([frame[k].fillna("").astype(str) for k in keys],
+                                 sort=False):
+        if not rows.index.isin(main.index).any():
+            out.append((False, rows))
+    return out
+
+
+def scope_label(frame: pd.DataFrame) -> str:
+    """``paper``, ``paper/tuned``: the scope of ``frame``'s first row (the track left
+    out where it is the protocol), as the aggregate names its performance profiles."""
+    if frame.empty:
+        return ""
+    names = key_of(frame.iloc[0], SCOPE_KEY)
+    return "/".join(n for k, n in zip(SCOPE_KEY, names, strict=True)
+                    if not (k == "track" and n in ("", DEFAULT_TRACK)))
 
 
 def aggregate_frame(agg: Aggregate, metrics: Optional[list[str]] = None) -> pd.DataFrame:
@@ -128,8 +160,9 @@ def supported_lines(agg: Aggregate, metrics: Optional[list[str]] = None) -> list
 
 
 def marks_line(fams: Families, metrics: Optional[list[str]] = None) -> str:
-    """How many (system, metric) cells have a separated best, of those with a leader."""
-    board = fams.board
+    """How many (system, metric) cells have a separated best, of those with a leader
+    (the main scope: :func:`main_scope`)."""
+    board = main_scope(fams.board)
     if metrics is None:
         metrics = [m for m in headline_metrics() if f"{m}_mark" in board]
     if "variant" in board:
@@ -155,8 +188,9 @@ def marks_line(fams: Families, metrics: Optional[list[str]] = None) -> str:
 
 
 def left_out_lines(agg: Aggregate) -> list[str]:
-    """One line per (headline metric, reason): the systems its aggregate leaves out."""
-    scales = agg.scales
+    """One line per (headline metric, reason): the systems its aggregate leaves out (the
+    main scope: :func:`main_scope`)."""
+    scales = main_scope(agg.scales)
     if scales.empty:
         return []
     unused = scales[~scales["used"].astype(bool) & scales["metric"].isin(headline_metrics())]
