@@ -249,8 +249,9 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
         "hnnbench": direct_step("hnnbench", loss_mse(TrainingMLP)),
         "hnnbench + flush denormals": direct_step("hnnbench + flush denormals",
                                                   loss_mse(TrainingMLP), ftz=True),
-        "hnnbench + oneDNN tanh": direct_step("hnnbench + oneDNN tanh",
-                                              loss_mse(TrainingMLP), onednn=True),
+        **({"hnnbench + oneDNN tanh": direct_step("hnnbench + oneDNN tanh",
+                                                  loss_mse(TrainingMLP), onednn=True)}
+           if torch.backends.mkldnn.is_available() else {}),  # a build without oneDNN
         "torch.func.grad": func_grad_step("torch.func.grad", loss_mse(MLP)),
         "no autograd": manual_step("no autograd"),
     }
@@ -358,8 +359,9 @@ def op_timings(n: int, d: int) -> None:
     rows = {
         f"torch.tanh ({n}, {HIDDEN})": best_us(lambda: torch.tanh(a)),
         f"XLA tanh ({n}, {HIDDEN})": best_us(lambda: jtanh(ja).block_until_ready()),
-        f"oneDNN tanh ({n}, {HIDDEN}), with both layout conversions":
-            best_us(lambda: torch.tanh(a.to_mkldnn()).to_dense()),
+        **({f"oneDNN tanh ({n}, {HIDDEN}), with both layout conversions":
+            best_us(lambda: torch.tanh(a.to_mkldnn()).to_dense())}
+           if torch.backends.mkldnn.is_available() else {}),
         f"torch.sigmoid ({n}, {HIDDEN})": best_us(lambda: torch.sigmoid(a)),
         f"({n},{HIDDEN})x({HIDDEN},{d}) as h @ w.t() (F.linear's)":
             best_us(lambda: a @ w_out.t()),

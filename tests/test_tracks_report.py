@@ -105,3 +105,35 @@ def test_a_report_draws_each_track_apart_and_speaks_of_the_protocol(tmp_path):
     seed_line = both.files["paper"].read_text().splitlines()[2]
     assert seed_line == alone.files["paper"].read_text().splitlines()[2]
     assert "seed(s) per row" in seed_line
+
+
+def test_a_report_of_another_track_alone_keeps_plain_names_and_compares_nothing(tmp_path):
+    """A recipe-only report: its heatmaps keep the plain names (it is the only scope),
+    no scope line, and the paper comparison says it reads the protocol track only."""
+    recipe = make_sweep(tmp_path / "recipe", pairs=PAIRS, seeds=(0, 1, 2))
+    _as_track(recipe, "recipe")
+    report = write_report([recipe], tmp_path / "out")
+    names = {p.name for p in (tmp_path / "out" / "figures").glob("*.png")}
+    assert "heatmap_energy_mse.png" in names and not any("recipe" in n[:8] for n in names)
+    assert any(n.startswith("spring_recipe_") for n in names), sorted(names)
+    paper = report.files["paper"].read_text()
+    assert "No protocol-track rows" in paper and "Profile ?" not in paper
+    assert "Of the " not in report.files["aggregate_md"].read_text()
+
+
+def test_the_aggregate_speaks_of_the_protocol_even_where_only_another_track_has_one(
+        tmp_path):
+    """The protocol track without its baseline (no MLP: nothing to normalise) beside a
+    tuned track with one: the aggregate says there is none for the protocol (it does not
+    show the tuned track's under the protocol's marks), names its scope, and draws the
+    tuned track's performance profiles under the tuned track's name only."""
+    protocol = make_sweep(tmp_path / "protocol", pairs=PAIRS[1::2], seeds=SEEDS)  # HNN only
+    tuned = make_sweep(tmp_path / "tuned", pairs=PAIRS, seeds=SEEDS)
+    _as_tuned(tuned, 0.003)
+    report = write_report([protocol, tuned], tmp_path / "out")
+    text = report.files["aggregate_md"].read_text()
+    assert "No aggregate" in text and "Of the `quick` rows" in text, text
+    assert main_profile_figure(report.figures) is None
+    names = {p.name for p in (tmp_path / "out" / "figures").glob("*.png")}
+    assert "performance_profile_quick_tuned.png" in names and \
+        "performance_profile.png" not in names, sorted(names)

@@ -415,7 +415,8 @@ def heatmap_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
     if board is None or board.empty:
         return {}
     out = {}
-    for main, fams in scopes(board):  # the main scope first, then each other track
+    several = len(scopes(board)) > 1  # then every heatmap names its scope
+    for main, fams in scopes(board, verdicts.main):  # the main scope, then each other
         label = scope_label(fams)
         suffix = "" if main else "_" + slug(label.replace("/", "_"))
         for metric in _plotted("heatmap"):
@@ -427,7 +428,7 @@ def heatmap_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
             states = cell_states(fams, metric, list(values.index), list(values.columns))
             marks = _marks(fams, metric)
             out[f"heatmap_{metric}{suffix}"] = _heatmap(ranks, values, states, marks, metric,
-                                                        "" if main else label)
+                                                        label if several else "")
     return out
 
 
@@ -509,7 +510,7 @@ def profile_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
     from hnnbench._report.verdicts import main_scope, scope_label
 
     profiles = list(dict.fromkeys(p for p, _ in agg.profiles))
-    main = scope_label(main_scope(agg.iqm)) if not agg.iqm.empty else profiles[0]
+    main = scope_label(main_scope(agg.iqm, verdicts.main))
     out = {}
     for profile in profiles:
         metrics = [m for p, m in agg.profiles if p == profile]
@@ -528,8 +529,9 @@ def profile_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
             ax.grid(alpha=0.3)
         handles, labels = axes[0].get_legend_handles_labels()
         fig.legend(handles, labels, loc="outside right upper", fontsize=8)
-        fig.suptitle("Performance profiles over every (system, seed) run, 95% stratified "
-                     "bootstrap bands", fontsize=9)
+        fig.suptitle(f"{profile}: " * (len(profiles) > 1 or profile != main)
+                     + "Performance profiles over every (system, seed) run, 95% "
+                     "stratified bootstrap bands", fontsize=9)
         out[PROFILE_FIGURE if profile == main else
             f"{PROFILE_FIGURE}_{slug(profile.replace('/', '_'))}"] = fig
     return out
@@ -560,11 +562,25 @@ def sweep_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
                   verdicts: Any = None) -> dict[str, Any]:
     """Per system, each metric of interest against the value of the one numeric setting
     the sweep varied, one line per model (mean ± std over seeds)."""
+    from hnnbench._report.verdicts import scope_label, scopes
+
     key = _swept_key(recs)
     if key is None or "variant" not in board:
         return {}
     out = {}
     declared = metric_declarations()
+    for main, scoped in scopes(board, getattr(verdicts, "main", None)):
+        label = "" if main else scope_label(scoped)
+        for name, fig in _sweep_figures(scoped, key, declared, label).items():
+            out[name + ("" if main else "_" + slug(label.replace("/", "_")))] = fig
+    return out
+
+
+def _sweep_figures(board: pd.DataFrame, key: str, declared: dict[str, Any], scope: str
+                   ) -> dict[str, Any]:
+    """:func:`sweep_figures` of one scope's rows (``scope``: its label, ``""`` for the
+    main one)."""
+    out = {}
     for system in registry.ordered("system", board["system"].astype(str)):
         rows = board[board["system"] == system].copy()
         rows["x"] = rows["variant"].astype(str).str.partition("=")[2].astype(float)
@@ -594,7 +610,8 @@ def sweep_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
             ax.grid(alpha=0.3, which="both")
         handles, labels = axes[0].get_legend_handles_labels()
         fig.legend(handles, labels, loc="outside right upper", fontsize=7)
-        fig.suptitle(f"{system}: metrics against {key} (mean ± std over seeds)")
+        fig.suptitle(f"{system}{f' ({scope})' if scope else ''}: metrics against {key} "
+                     "(mean ± std over seeds)")
         out[f"{system}_sweep_{slug(key)}"] = fig
     return out
 
@@ -688,6 +705,13 @@ def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Pat
                 f"{name} [{variant}]"
         tasks.append(_SystemTask(label, stem, name, system, directory,
                                  groups[(profile, system, track, variant)]))
+    taken: set[str] = set()
+    for task in tasks:  # two groups whose names join alike must not share a file
+        if task.stem in taken:
+            task.stem += "-" + hashlib.sha1(task.label.encode()).hexdigest()[:8]
+            log.warning("figures of %s renamed %s: another group's names join alike",
+                        task.label, task.stem)
+        taken.add(task.stem)
     made, per_system = _map(_system_figures, tasks, board_figures)
     for drawn in per_system:
         made += drawn
@@ -696,8 +720,8 @@ def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Pat
 
 @dataclass
 class _SystemTask:
-    """The system-scope figures of one (profile, system, variant): what to draw them
-    from and where."""
+    """The system-scope figures of one (profile, system, track, variant): what to draw
+    them from and where."""
 
     label: str
     stem: str

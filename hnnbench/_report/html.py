@@ -23,6 +23,7 @@ from hnnbench._report.verdicts import (
     aggregate_frame,
     left_out_lines,
     marks_line,
+    scope_line,
     supported_lines,
 )
 from hnnbench._table import display_frame
@@ -158,18 +159,25 @@ def _provenance_table(recs: Sequence[dict[str, Any]]) -> pd.DataFrame:
 
 
 def _aggregate_section(verdicts: Verdicts, figures: list[Made]) -> list[str]:
-    agg = verdicts.aggregate
+    agg, key = verdicts.aggregate, verdicts.main
     parts = ["<h2>Across systems</h2>"]
-    if agg.empty:
-        parts.append(f'<p class="note">No aggregate: {html.escape(agg.note)}.</p>')
+    scope = scope_line(verdicts)
+    if scope:
+        parts.append(f'<p class="note">{_inline_code(scope)}</p>')
+    table = aggregate_frame(agg, key=key) if not agg.empty else pd.DataFrame()
+    if table.empty:
+        why = agg.note if agg.empty else "no (system, metric) of this scope is normalised"
+        parts.append(f'<p class="note">No aggregate: {html.escape(why)}.</p>')
+        parts += [f'<p class="note">{_inline_code(line)}</p>'
+                  for line in left_out_lines(agg, key)]
         return parts
     rule = stats.aggregate_rule(agg.baseline or "the baseline")
     parts += [f'<p class="note">{_inline_code(rule)}</p>',
-              _table(aggregate_frame(agg), "aggregate"),
+              _table(table, "aggregate"),
               '<p class="note">What the intervals support:</p><ul>']
-    parts += [f"<li>{_inline_code(line[2:])}</li>" for line in supported_lines(agg)]
-    parts.append(f"<li>{_inline_code(marks_line(verdicts.families))}</li></ul>")
-    parts += [f'<p class="note">{_inline_code(line)}</p>' for line in left_out_lines(agg)]
+    parts += [f"<li>{_inline_code(line[2:])}</li>" for line in supported_lines(agg, key=key)]
+    parts.append(f"<li>{_inline_code(marks_line(verdicts.families, key=key))}</li></ul>")
+    parts += [f'<p class="note">{_inline_code(line)}</p>' for line in left_out_lines(agg, key)]
     parts += [_img(m.path, m.path.stem) for m in figures if m.kind == "profile"]
     return parts
 

@@ -41,6 +41,9 @@ def plain_rows(board: pd.DataFrame) -> pd.DataFrame:
 
 
 def main_profile(board: pd.DataFrame) -> Optional[str]:
+    """The profile the comparison with published results reads: ``paper`` where the
+    protocol track has rows of it, else the first profile of the protocol's rows."""
+    board = plain_rows(board) if not board.empty else board
     profiles = list(dict.fromkeys(str(p) for p in board["profile"])) if not board.empty else []
     if not profiles:
         return None
@@ -196,8 +199,15 @@ def claims_frame(board: pd.DataFrame) -> pd.DataFrame:
 
 def comparison_markdown(board: pd.DataFrame) -> str:
     profile = main_profile(board)
-    lines = ["# Comparison with published results", "", seed_line(plain_rows(board)), ""]
-    if profile != "paper":
+    rows = plain_rows(board)
+    rows = rows[rows["profile"].astype(str) == str(profile)] if profile is not None else rows
+    lines = ["# Comparison with published results", ""]
+    if rows.empty:
+        lines += ["No protocol-track rows: the comparison with published results reads the "
+                  "protocol track only (the tuned and recipe tracks are other budgets).", ""]
+    else:
+        lines += [seed_line(rows), ""]
+    if profile is not None and profile != "paper":
         lines += [f"Note: profile {md_code(profile)} is not the paper settings (profile `paper`); "
                   "this comparison is indicative only.", ""]
     for claim_set in registry.claim_sets():

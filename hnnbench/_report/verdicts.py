@@ -12,14 +12,15 @@ import pandas as pd
 
 from hnnbench import _stats as stats
 from hnnbench._aggregate import Aggregate, aggregate, headline_metrics
-from hnnbench._families import RANKING_KEY, SCOPE_KEY, Families, families, key_of, select
+from hnnbench._families import RANKING_KEY, SCOPE_KEY, Families, families
 from hnnbench._record_schema import DEFAULT_TRACK, TRACKS
 from hnnbench._report.markdown import md_code, md_text
 from hnnbench._report.tables import md_table
 from hnnbench._table import records_frame
 
 __all__ = ["Verdicts", "aggregate_frame", "aggregate_markdown", "build_verdicts",
-           "left_out_lines", "main_scope", "marks_line", "scope_label", "scopes",
+           "left_out_lines", "main_key", "main_scope", "marks_line", "scope_label",
+           "scope_line", "scopes",
            "supported_lines", "tracks_frame", "tracks_markdown"]
 
 
@@ -29,6 +30,13 @@ class Verdicts:
 
     families: Families
     aggregate: Aggregate = field(default_factory=Aggregate)
+
+    @property
+    def main(self) -> Optional[Scope]:
+        """The scope every part of the report speaks of (:func:`main_key` of the family
+        board; of the aggregate where the board is empty)."""
+        key = main_key(self.families.board)
+        return key if key is not None else main_key(self.aggregate.iqm)
 
 
 def build_verdicts(records: list[dict], board: pd.DataFrame, with_aggregate: bool = True,
@@ -57,36 +65,61 @@ def _interval(point: float, low: float, high: float) -> str:
     return f"{_fmt(point)} [{_fmt(low)}, {_fmt(high)}]"
 
 
-def main_scope(frame: pd.DataFrame) -> pd.DataFrame:
+Scope = tuple[str, ...]
+
+
+def _scope_values(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame``'s :data:`~hnnbench._families.SCOPE_KEY` columns as strings (a missing
+    column or value is ``""``; a missing track is the protocol)."""
+    out = pd.DataFrame(index=frame.index)
+    for k in SCOPE_KEY:
+        column = frame[k] if k in frame else pd.Series(None, index=frame.index, dtype=object)
+        out[k] = column.fillna(DEFAULT_TRACK if k == "track" else "").astype(str)
+    if "track" in out:
+        out.loc[out["track"] == "", "track"] = DEFAULT_TRACK
+    return out
+
+
+def main_key(frame: pd.DataFrame) -> Optional[Scope]:
+    """The main scope's key in ``frame`` (a family board, an aggregate frame): the paper
+    profile where there is one, and in it the protocol track where there is one, else
+    the first scope's; ``None`` for an empty frame."""
+    if frame.empty:
+        return None
+    values = _scope_values(frame)
+    if (values["profile"] == "paper").any():
+        values = values[values["profile"] == "paper"]
+    if (values["track"] == DEFAULT_TRACK).any():
+        values = values[values["track"] == DEFAULT_TRACK]
+    return tuple(values.iloc[0])
+
+
+def main_scope(frame: pd.DataFrame, key: Optional[Scope] = None) -> pd.DataFrame:
     """The rows of one scope (:data:`hnnbench._families.SCOPE_KEY`) of a frame with
-    scope columns (an aggregate frame, a family board): the paper profile's where there
-    is one, and in it the protocol track's where there is one, else the first scope's.
-    The README's aggregate, its per-system marks and the heatmaps speak of this scope;
-    the other tracks are compared with it in the tracks table."""
+    scope columns: those of ``key`` (:attr:`Verdicts.main`: the scope every part of a
+    report speaks of; possibly none), else :func:`main_key`'s. The README's aggregate,
+    its per-system marks, the heatmaps and the performance profiles speak of the main
+    scope; the other tracks are compared with it in the tracks table."""
     if frame.empty:
         return frame
-    if "profile" in frame and (frame["profile"].astype(str) == "paper").any():
-        frame = frame[frame["profile"].astype(str) == "paper"]
-    if "track" in frame:
-        track = frame["track"].fillna(DEFAULT_TRACK).astype(str)
-        if (track == DEFAULT_TRACK).any():
-            frame = frame[track == DEFAULT_TRACK]
-    return select(frame, SCOPE_KEY, key_of(frame.iloc[0], SCOPE_KEY))
+    key = main_key(frame) if key is None else key
+    values = _scope_values(frame)
+    return frame[(values == pd.Series(key, index=list(SCOPE_KEY))).all(axis=1)]
 
 
-def scopes(frame: pd.DataFrame) -> list[tuple[bool, pd.DataFrame]]:
-    """``(is_main, rows)`` per scope (:data:`hnnbench._families.SCOPE_KEY`) of ``frame``,
-    the main scope (:func:`main_scope`) first."""
+def scopes(frame: pd.DataFrame, key: Optional[Scope] = None
+           ) -> list[tuple[bool, pd.DataFrame]]:
+    """``(is_main, rows)`` per scope of ``frame`` present in it, the main scope
+    (:func:`main_scope` of ``key``) first."""
     if frame.empty:
         return []
-    main = main_scope(frame)
-    out = [(True, main)]
-    keys = [k for k in SCOPE_KEY if k in frame]
-    for _, rows in frame.groupby([frame[k].fillna("").astype(str) for k in keys],
-                                 sort=False):
-        if not rows.index.isin(main.index).any():
-            out.append((False, rows))
-    return out
+    values = _scope_values(frame)
+    key = main_key(frame) if key is None else key
+    out = []
+    for scope, rows in frame.groupby([values[k] for k in SCOPE_KEY], sort=False):
+        scope = scope if isinstance(scope, tuple) else (scope,)
+        out.append((tuple(map(str, scope)) == tuple(key or ()), rows))
+    return sorted(out, key=lambda item: not item[0])
 
 
 def scope_label(frame: pd.DataFrame) -> str:
@@ -94,16 +127,17 @@ def scope_label(frame: pd.DataFrame) -> str:
     out where it is the protocol), as the aggregate names its performance profiles."""
     if frame.empty:
         return ""
-    names = key_of(frame.iloc[0], SCOPE_KEY)
+    names = tuple(_scope_values(frame).iloc[0])
     return "/".join(n for k, n in zip(SCOPE_KEY, names, strict=True)
-                    if not (k == "track" and n in ("", DEFAULT_TRACK)))
+                    if not (k == "track" and n == DEFAULT_TRACK))
 
 
-def aggregate_frame(agg: Aggregate, metrics: Optional[list[str]] = None) -> pd.DataFrame:
+def aggregate_frame(agg: Aggregate, metrics: Optional[list[str]] = None,
+                    key: Optional[Scope] = None) -> pd.DataFrame:
     """One row per family: the IQM [interval] of each of ``metrics`` (default: the
     headline metrics that have an aggregate) and the systems each covers, in the main
     scope (:func:`main_scope`)."""
-    iqm = main_scope(agg.iqm)
+    iqm = main_scope(agg.iqm, key)
     if iqm.empty:
         return pd.DataFrame()
     if metrics is None:
@@ -123,14 +157,14 @@ def aggregate_frame(agg: Aggregate, metrics: Optional[list[str]] = None) -> pd.D
     return pd.DataFrame(rows)
 
 
-def supported_lines(agg: Aggregate, metrics: Optional[list[str]] = None) -> list[str]:
+def supported_lines(agg: Aggregate, metrics: Optional[list[str]] = None,
+                    key: Optional[Scope] = None) -> list[str]:
     """Markdown bullets: per metric, which family beats which with the interval of P(A > B)
     above one half, and which pairs no interval separates (the main scope)."""
-    poi = main_scope(agg.improvement)
+    poi = main_scope(agg.improvement, key)
     if poi.empty:
         return []
-    scope = key_of(poi.iloc[0], SCOPE_KEY)
-    iqm_all = select(agg.iqm, SCOPE_KEY, scope)
+    iqm_all = main_scope(agg.iqm, main_key(poi))
     order = list(dict.fromkeys(iqm_all.sort_values("iqm", ascending=False)["family"]))
     if metrics is None:
         metrics = [m for m in headline_metrics() if (poi["metric"] == m).any()]
@@ -159,10 +193,11 @@ def supported_lines(agg: Aggregate, metrics: Optional[list[str]] = None) -> list
     return lines
 
 
-def marks_line(fams: Families, metrics: Optional[list[str]] = None) -> str:
+def marks_line(fams: Families, metrics: Optional[list[str]] = None,
+               key: Optional[Scope] = None) -> str:
     """How many (system, metric) cells have a separated best, of those with a leader
     (the main scope: :func:`main_scope`)."""
-    board = main_scope(fams.board)
+    board = main_scope(fams.board, key)
     if metrics is None:
         metrics = [m for m in headline_metrics() if f"{m}_mark" in board]
     if "variant" in board:
@@ -187,10 +222,10 @@ def marks_line(fams: Families, metrics: Optional[list[str]] = None) -> str:
             f"best (bold); in {tied} the leaders are tied (italics).{tail}")
 
 
-def left_out_lines(agg: Aggregate) -> list[str]:
+def left_out_lines(agg: Aggregate, key: Optional[Scope] = None) -> list[str]:
     """One line per (headline metric, reason): the systems its aggregate leaves out (the
     main scope: :func:`main_scope`)."""
-    scales = main_scope(agg.scales)
+    scales = main_scope(agg.scales, key)
     if scales.empty:
         return []
     unused = scales[~scales["used"].astype(bool) & scales["metric"].isin(headline_metrics())]
@@ -206,22 +241,39 @@ def aggregate_markdown(verdicts: Verdicts, figure: Optional[str] = None,
     """The aggregate across systems (aggregate.md; the README's aggregate block): the
     method, the IQM table, the verdicts its intervals support, the per-system marks,
     and ``figure`` (a path to the performance-profile figure) if given."""
-    agg = verdicts.aggregate
+    agg, key = verdicts.aggregate, verdicts.main
     lines = [heading, ""] if heading else []
-    if agg.empty:
-        lines += [f"No aggregate: {md_text(agg.note or 'nothing to aggregate')}.", ""]
-        lines += [marks_line(verdicts.families), ""]
+    scope = scope_line(verdicts)
+    if scope:
+        lines += [scope, ""]
+    table = aggregate_frame(agg, key=key) if not agg.empty else pd.DataFrame()
+    if table.empty:
+        why = agg.note if agg.empty else "no (system, metric) of this scope is normalised"
+        lines += [f"No aggregate: {md_text(why or 'nothing to aggregate')}.", ""]
+        lines += [*left_out_lines(agg, key)] + [""] * bool(left_out_lines(agg, key))
+        lines += [marks_line(verdicts.families, key=key), ""]
         return "\n".join(lines)
     lines += [stats.aggregate_rule(md_text(agg.baseline or "the baseline")), ""]
-    lines += [md_table(aggregate_frame(agg)), ""]
-    lines += ["What the intervals support:", "", *supported_lines(agg),
-              f"- {marks_line(verdicts.families)}", ""]
-    left = left_out_lines(agg)
+    lines += [md_table(table), ""]
+    lines += ["What the intervals support:", "", *supported_lines(agg, key=key),
+              f"- {marks_line(verdicts.families, key=key)}", ""]
+    left = left_out_lines(agg, key)
     if left:
         lines += [*left, ""]
     if figure:
         lines += [f"![Performance profiles]({figure})", ""]
     return "\n".join(lines)
+
+
+def scope_line(verdicts: Verdicts) -> str:
+    """Which rows the aggregate and the marks speak of, where the report holds several
+    scopes (profiles or tracks); ``""`` where it holds one."""
+    board = verdicts.families.board
+    if board.empty or len(scopes(board)) < 2:
+        return ""
+    label = scope_label(main_scope(board, verdicts.main))
+    return (f"Of the {md_code(label)} rows (profile/track; the other tracks are set beside "
+            "it in the tracks table, tracks.md).")
 
 
 # --------------------------------------------------------------------------- tracks
