@@ -44,7 +44,7 @@ from hnnbench._contract import HISTORY_TRAIN, HISTORY_VALID
 from hnnbench._errors import UnsafePathError
 from hnnbench._families import family_order
 from hnnbench._paths import safe_join
-from hnnbench._record_schema import DEFAULT_TRACK, name_problem, track_of
+from hnnbench._record_schema import DEFAULT_TRACK, TRACKS, name_problem, track_of
 from hnnbench._report import style
 from hnnbench._table import (
     format_value,
@@ -693,7 +693,7 @@ def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Pat
     systems = registry.ordered("system", [k[1] for k in groups])
     tasks = []
     for profile, system, track, variant in sorted(groups, key=lambda k: (
-            k[0], systems.index(k[1]), k[2] != DEFAULT_TRACK, k[2], k[3])):
+            k[0], systems.index(k[1]), _track_rank(k[2]), k[2], k[3])):
         label = system if len(profiles) == 1 else f"{system} ({profile})"
         stem = system if len(profiles) == 1 else f"{profile}_{system}"
         name = system
@@ -716,6 +716,11 @@ def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Pat
     for drawn in per_system:
         made += drawn
     return made
+
+
+def _track_rank(track: str) -> int:
+    """Tracks in :data:`hnnbench._record_schema.TRACKS` order, any other after them."""
+    return TRACKS.index(track) if track in TRACKS else len(TRACKS)
 
 
 @dataclass
