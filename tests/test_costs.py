@@ -141,3 +141,9 @@ def test_a_sweep_prints_its_estimate_and_progress(tmp_path):
                     f"hydra.sweep.dir={tmp_path / 'sweep'}", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "hnnbench: the published runs of these jobs took" in proc.stderr, proc.stderr
+
+
+def test_a_jobs_directory_whatever_its_track():
+    assert costs.job_directory(["system=s", "model=m", "+seed=3", "track=tuned"]) == "s/m/seed3"
+    assert costs.job_directory(["system=s", "model=m"]) == "s/m/seed0"  # the default seed
+    assert costs.job_directory(["seed=1"]) is None

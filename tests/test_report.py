@@ -433,3 +433,19 @@ def test_a_claim_on_a_model_that_did_not_train_is_not_tested_and_a_recipe_is_nam
     board.loc[0, "n_untrained"] = 2  # 2 of 5: trained; judged on the values
     (res,) = C.evaluate_claims(_lookup(values), [claim], pairs, board_untrained(board))
     assert res.outcome == C.NOT_REPRODUCED and "recipe not run" in res.note
+
+
+def test_a_long_figure_title_is_wrapped_to_the_figure_width():
+    from matplotlib.figure import Figure
+
+    from hnnbench._report.figures import _fit_suptitle
+
+    fig = Figure(figsize=(5.0, 3.0))
+    fig.subplots(1, 1)
+    fig.suptitle("word " * 60)
+    _fit_suptitle(fig)
+    lines = fig._suptitle.get_text().splitlines()
+    assert len(lines) > 1 and max(map(len, lines)) <= 5.0 * 72 / (0.55 * 12)
+    fig.suptitle("short")
+    _fit_suptitle(fig)
+    assert fig._suptitle.get_text() == "short"
