@@ -16,7 +16,7 @@ from hnnbench._families import RANKING_KEY, SCOPE_KEY, Families, families
 from hnnbench._record_schema import DEFAULT_TRACK, TRACKS
 from hnnbench._report.markdown import md_code, md_text
 from hnnbench._report.tables import md_table
-from hnnbench._table import records_frame
+from hnnbench._table import metric_declarations, records_frame
 
 __all__ = ["Verdicts", "aggregate_frame", "aggregate_markdown", "build_verdicts",
            "left_out_lines", "main_key", "main_scope", "marks_line", "scope_label",
@@ -281,7 +281,8 @@ def scope_line(verdicts: Verdicts) -> str:
 
 def _leaders(rows: pd.DataFrame, metric: str) -> str:
     """One track's verdict on one (system, metric): ``best: <family>``, ``tied: <a>,
-    <b>`` (the leader and every family not separated from it), or ``""`` (no leader:
+    <b>`` (the leader and every family not separated from it, the best mean first), or
+    ``""`` (no leader:
     fewer than two ranked families with every seed ``ok``, or the track did not run)."""
     column = f"{metric}_mark"
     if column not in rows:
@@ -290,7 +291,14 @@ def _leaders(rows: pd.DataFrame, metric: str) -> str:
     best = rows.loc[marks == "best", "family"].astype(str).tolist()
     if best:
         return f"best: {best[0]}"
-    tied = rows.loc[marks == "tied", "family"].astype(str).tolist()
+    tied_rows = rows[marks == "tied"]
+    mean = f"{metric}_mean"
+    if mean in tied_rows and len(tied_rows):  # the best mean first
+        declared = metric_declarations().get(metric)
+        higher = declared is not None and declared.better == "higher"
+        tied_rows = tied_rows.assign(_m=pd.to_numeric(tied_rows[mean], errors="coerce"))
+        tied_rows = tied_rows.sort_values("_m", ascending=not higher, kind="stable")
+    tied = tied_rows["family"].astype(str).tolist()
     return f"tied: {', '.join(tied)}" if tied else ""
 
 
@@ -299,7 +307,10 @@ def tracks_frame(fams: Families, metrics: Optional[list[str]] = None) -> pd.Data
     system, metric of ``metrics``, default the headline ones) where some track other
     than the protocol has family rows; a column per track present (its
     :func:`_leaders` text) and ``changes``: whether two tracks with a verdict name
-    different leaders. Empty when every row is of the protocol track."""
+    leaders that have no family in common (``best: lnn`` against ``tied: dhnn, lnn`` is
+    no change: the second track does not separate its leaders, the LNN among them), and
+    ``mean_changes``: whether the family with the best mean (the first named) differs, a
+    statement about means. Empty when every row is of the protocol track."""
     board = fams.board
     if board.empty or "track" not in board:
         return pd.DataFrame()
@@ -318,10 +329,18 @@ def tracks_frame(fams: Families, metrics: Optional[list[str]] = None) -> pd.Data
             continue
         for metric in metrics:
             verdicts = {t: _leaders(group[group["track"] == t], metric) for t in present}
-            said = {v for v in verdicts.values() if v}
+            said = [v for v in verdicts.values() if v]
+            leaders = [_leader_set(v) for v in said]
+            changes = any(not (a & b) for i, a in enumerate(leaders) for b in leaders[i + 1:])
+            firsts = {v.partition(": ")[2].split(",")[0].strip() for v in said}
             rows.append({"profile": profile, "system": system, "metric": metric,
-                         **verdicts, "changes": len(said) > 1})
+                         **verdicts, "changes": changes, "mean_changes": len(firsts) > 1})
     return pd.DataFrame(rows)
+
+
+def _leader_set(verdict: str) -> set[str]:
+    """The families a :func:`_leaders` text names (``best: a`` -> {a}; ``tied: a, b``)."""
+    return {name.strip() for name in verdict.partition(": ")[2].split(",") if name.strip()}
 
 
 def tracks_markdown(frame: pd.DataFrame) -> str:
@@ -330,16 +349,32 @@ def tracks_markdown(frame: pd.DataFrame) -> str:
     if frame.empty:
         return ("Only the protocol track has published rows: no tuned or recipe rows yet "
                 "(docs/TUNING.md).")
-    shown = frame.drop(columns=["changes"]).replace("", "—")
+    shown = frame.drop(columns=["changes", "mean_changes"]).replace("", "—")
     lines = [md_table(shown), ""]
+    tracks = [c for c in frame.columns
+              if c not in ("profile", "system", "metric", "changes", "mean_changes")]
+    lines += ["Each cell names the best family, or the families tied for the lead with the "
+              "best mean first. A verdict changes between two tracks where their leaders "
+              "have no family in common. A track of 3 seeds never separates its leaders "
+              "(the sign test needs 5 paired seeds: docs/STATISTICS.md), and the recipe "
+              "track ranks only the families that declare a recipe.", ""]
+
+    def said(r: pd.Series) -> str:
+        return "; ".join(f"{t} {md_text(str(r[t]))}" for t in tracks if r[t])
+
     changed = frame[frame["changes"]]
-    tracks = [c for c in frame.columns if c not in ("profile", "system", "metric", "changes")]
     if changed.empty:
-        lines.append("The verdict does not change between tracks on any system and "
-                     "headline metric shown.")
-        return "\n".join(lines)
-    lines += ["Where the verdict changes between tracks:", ""]
-    for _, r in changed.iterrows():
-        said = "; ".join(f"{t} {md_text(str(r[t]))}" for t in tracks if r[t])
-        lines.append(f"- {md_code(str(r['system']))}, {md_code(str(r['metric']))}: {said}.")
-    return "\n".join(lines)
+        lines += ["No verdict changes between tracks on any system and headline metric "
+                  "shown.", ""]
+    else:
+        lines += ["Where the verdict changes between tracks:", ""]
+        lines += [f"- {md_code(str(r['system']))}, {md_code(str(r['metric']))}: {said(r)}."
+                  for _, r in changed.iterrows()]
+        lines.append("")
+    means = frame[frame["mean_changes"] & ~frame["changes"]]
+    if not means.empty:
+        lines += ["Where only the best mean moves to another family (not separated; a "
+                  "difference of means over the seeds, not a verdict):", ""]
+        lines += [f"- {md_code(str(r['system']))}, {md_code(str(r['metric']))}: {said(r)}."
+                  for _, r in means.iterrows()]
+    return "\n".join(lines).rstrip("\n")
