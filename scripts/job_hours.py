@@ -4,6 +4,7 @@ it), as a Markdown table.
 
     python scripts/job_hours.py                        # results/records, paper profile
     python scripts/job_hours.py results/runs/<sweep> --profile quick
+    python scripts/job_hours.py --track recipe         # another track's records ('any': all)
 
 benchmarks/README.md quotes it for the paper sweeps, the old protocol's and the
 re-published one (its first table, "Issue 29's figures"). A record
@@ -24,9 +25,10 @@ from typing import Any, Optional
 REPO = Path(__file__).resolve().parents[1]
 
 
-def load(directories: Sequence[Path], profile: Optional[str]) -> list[dict[str, Any]]:
-    """Every readable ``result.json`` below ``directories`` of ``profile`` (any when
-    ``None``)."""
+def load(directories: Sequence[Path], profile: Optional[str],
+         track: Optional[str] = "protocol") -> list[dict[str, Any]]:
+    """Every readable ``result.json`` below ``directories`` of ``profile`` and ``track``
+    (any when ``None``; a record without a track is the protocol's)."""
     out = []
     for directory in directories:
         for path in sorted(directory.rglob("result.json")):
@@ -35,7 +37,10 @@ def load(directories: Sequence[Path], profile: Optional[str]) -> list[dict[str, 
             except (OSError, ValueError):
                 print(f"job_hours.py: {path} is not readable JSON, left out", file=sys.stderr)
                 continue
-            if isinstance(rec, dict) and (profile is None or rec.get("profile") == profile):
+            if not isinstance(rec, dict):
+                continue
+            if (profile is None or rec.get("profile") == profile) and \
+                    (track is None or (rec.get("track") or "protocol") == track):
                 out.append(rec)
     return out
 
@@ -76,8 +81,11 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument("dirs", nargs="*", type=Path, default=[REPO / "results" / "records"])
     parser.add_argument("--profile", default="paper",
                         help="only records of this profile (default: paper; 'any': all)")
+    parser.add_argument("--track", default="protocol",
+                        help="only records of this track (default: protocol; 'any': all)")
     args = parser.parse_args(argv)
-    recs = load(args.dirs, None if args.profile == "any" else args.profile)
+    recs = load(args.dirs, None if args.profile == "any" else args.profile,
+                None if args.track == "any" else args.track)
     if not recs:
         print("job_hours.py: no records", file=sys.stderr)
         return 1
