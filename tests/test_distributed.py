@@ -194,9 +194,11 @@ def test_scancel_mid_run_then_rerun_finishes_every_job_once(slurm_cluster: str,
     records written before the cancel are kept as they were (not redone).
 
     The jobs train longer than the other tests' (a cancelled task is killed KillWait,
-    5 s, after the cancel; a job of the shared sweep can finish within that)."""
+    5 s, after the cancel; a job of the shared sweep can finish within that): 20 000
+    steps, about 15-30 s a job. At 3000 steps the jobs took 3-6 s once the JAX
+    compilation cache of the earlier tests was warm, too short to be caught mid-run."""
     launcher = (*SLURM[:-1], "hydra.launcher.array_parallelism=1")
-    sweep = Sweep(tmp_path, "scancel", launcher, extra=("system.steps=3000",))
+    sweep = Sweep(tmp_path, "scancel", launcher, extra=("system.steps=20000",))
     driver = sweep.popen()
     cancelled = None
     deadline = time.monotonic() + 600
@@ -207,7 +209,7 @@ def test_scancel_mid_run_then_rerun_finishes_every_job_once(slurm_cluster: str,
                 log = sweep.dir / ".submitit" / task / f"{task}_0_log.out"
                 text = log.read_text() if state == "RUNNING" and log.exists() else ""
                 # Mid-run: the task's job has started and written no record yet. At
-                # once: a job takes 10-20 s here, and a cancelled task has KillWait (5 s,
+                # once: a job takes 15-30 s here, and a cancelled task has KillWait (5 s,
                 # scripts/cluster/slurm.sh) between SIGTERM, which submitit ignores, and
                 # SIGKILL, in which it could still finish.
                 started = re.search(r"(\w+) x (\w+) seed=(\d+): start", text)
