@@ -32,9 +32,8 @@ import pandas as pd
 
 from hnnbench import _registry as registry
 from hnnbench import _stats as stats
-from hnnbench._families import SCOPE_KEY, Families, family_order, key_of, select
+from hnnbench._families import SCOPE_KEY, Families, family_order, key_of, scope_name, select
 from hnnbench._metric import CheckRule
-from hnnbench._record_schema import DEFAULT_TRACK
 from hnnbench._table import metric_declarations
 
 __all__ = ["Aggregate", "aggregate", "headline_metrics", "profile_taus"]
@@ -232,8 +231,7 @@ def aggregate(fams: Families, metrics: Optional[Sequence[str]] = None,
                              "p": 1.0 - p, "p_low": 1.0 - high, "p_high": 1.0 - low,
                              "n_systems": len(common)})
         taus = profile_taus(group["score"].to_numpy(float))
-        label = "/".join(n for k, n in zip(SCOPE_KEY, names, strict=True)
-                         if not (k == "track" and n == DEFAULT_TRACK))  # the default track
+        label = scope_name(names)
         out.profiles[(label, metric)] = (taus, {
             family: stats.performance_profile(list(strata[family].values()), taus)
             for family in families})

@@ -52,6 +52,7 @@ __all__ = [
     "RANKING_KEY",
     "ROW_KEY",
     "SCOPE_KEY",
+    "scope_name",
     "Families",
     "competitor",
     "families",
@@ -73,6 +74,13 @@ MARKS = ("best", "tied")
 ROW_KEY = (*FAMILY_KEY, "variant", "track")
 RANKING_KEY = tuple(k for k in ROW_KEY if k != "family")
 SCOPE_KEY = (*(k for k in FAMILY_KEY if k not in ("system", "family")), "track")
+
+
+def scope_name(names: Sequence[str]) -> str:
+    """``paper``, ``paper/tuned``: a scope's :data:`SCOPE_KEY` values joined, the
+    protocol track (the default) left out."""
+    return "/".join(str(n) for k, n in zip(SCOPE_KEY, names, strict=True)
+                    if not (k == "track" and n in ("", DEFAULT_TRACK)))
 
 
 def _with_track(frame: pd.DataFrame) -> pd.DataFrame:

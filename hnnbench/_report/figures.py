@@ -46,6 +46,7 @@ from hnnbench._families import family_order
 from hnnbench._paths import safe_join
 from hnnbench._record_schema import DEFAULT_TRACK, TRACKS, name_problem, track_of
 from hnnbench._report import style
+from hnnbench._report.verdicts import main_scope, scope_label, scopes
 from hnnbench._table import (
     format_value,
     metric_declarations,
@@ -409,8 +410,6 @@ def cell_states(board: pd.DataFrame, metric: str, index: Sequence[str],
 @figure("heatmap", "Which family wins where: rank by metric", scope="board")
 def heatmap_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
                     verdicts: Any = None) -> dict[str, Any]:
-    from hnnbench._report.verdicts import scope_label, scopes
-
     board = getattr(getattr(verdicts, "families", None), "board", None)
     if board is None or board.empty:
         return {}
@@ -507,8 +506,6 @@ def profile_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
     if agg is None or not agg.profiles or \
             max(len(curves) for _, curves in agg.profiles.values()) < 2:
         return {}  # a profile compares two families at least
-    from hnnbench._report.verdicts import main_scope, scope_label
-
     profiles = list(dict.fromkeys(p for p, _ in agg.profiles))
     main = scope_label(main_scope(agg.iqm, verdicts.main))
     out = {}
@@ -562,8 +559,6 @@ def sweep_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
                   verdicts: Any = None) -> dict[str, Any]:
     """Per system, each metric of interest against the value of the one numeric setting
     the sweep varied, one line per model (mean ± std over seeds)."""
-    from hnnbench._report.verdicts import scope_label, scopes
-
     key = _swept_key(recs)
     if key is None or "variant" not in board:
         return {}

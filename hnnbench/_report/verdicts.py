@@ -12,7 +12,7 @@ import pandas as pd
 
 from hnnbench import _stats as stats
 from hnnbench._aggregate import Aggregate, aggregate, headline_metrics
-from hnnbench._families import RANKING_KEY, SCOPE_KEY, Families, families
+from hnnbench._families import RANKING_KEY, SCOPE_KEY, Families, families, scope_name
 from hnnbench._record_schema import DEFAULT_TRACK, TRACKS
 from hnnbench._report.markdown import md_code, md_text
 from hnnbench._report.tables import md_table
@@ -127,9 +127,7 @@ def scope_label(frame: pd.DataFrame) -> str:
     out where it is the protocol), as the aggregate names its performance profiles."""
     if frame.empty:
         return ""
-    names = tuple(_scope_values(frame).iloc[0])
-    return "/".join(n for k, n in zip(SCOPE_KEY, names, strict=True)
-                    if not (k == "track" and n == DEFAULT_TRACK))
+    return scope_name(tuple(_scope_values(frame).iloc[0]))
 
 
 def aggregate_frame(agg: Aggregate, metrics: Optional[list[str]] = None,
