@@ -20,10 +20,11 @@ Distributions (all immutable; :func:`describe` and :func:`space_json` show them)
   booleans).
 
 Each takes ``changes_training_loss=True`` for a setting that changes what the model's
-own training loss measures (the SRNN's window: a longer window sums the error over a
-longer horizon). The tuner's pruner compares trials by that loss part-way through
-training, which is unfair across such a setting, so it prunes no trial of a space that
-holds one (docs/TUNING.md).
+own loss measures on the validation split (the training loop's validation loss). The
+tuner's pruner compares trials by that loss part-way through training, which is unfair
+across such a setting, so it prunes no trial of a space that holds one
+(docs/TUNING.md). The SRNN's window is not one: it sets the training windows, and its
+validation windows keep the family's declared length.
 
 A contract (it imports nothing else of hnnbench but the errors).
 """

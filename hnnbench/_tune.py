@@ -17,8 +17,9 @@ of the step budget, the best third of the trials at a rung go on) stops a trial 
 on its own training loop's validation loss, reported after every logging interval
 (:func:`hnnbench._progress.observing`); a pruned trial keeps its record (``selection.
 stopped`` says so) and is never selected. A space holding a setting that changes what
-the training loss measures (``changes_training_loss``, e.g. the SRNN's window) is tuned
-without pruning, since those losses do not compare across trials.
+that validation loss measures (``changes_training_loss``; no built-in family has one:
+the SRNN's window sets its training windows only) is tuned without pruning, since
+those losses do not compare across trials.
 
 Layout of ``out`` (a directory for the whole tuned track; ``<system>`` parts side by
 side)::

@@ -40,6 +40,21 @@ def trained():
     return system, data, tm, jm
 
 
+@pytest.mark.parametrize("window", [3, 5, 8])
+def test_validation_windows_keep_the_familys_length_whatever_the_training_window(window):
+    """``model.window`` sets the training windows; the validation windows always have the
+    family's declared length (5), so validation losses compare across windows."""
+    from hnnbench._datasets import with_validation
+
+    system = Spring(SpringConfig(name="spring", n_traj=24))
+    model = SRNNJax(SRNNConfig(name="srnn", hidden=16, window=window), system, "cpu")
+    problem = model.view.problem(with_validation(system.dataset(0), 0),
+                                 *model.training_options())
+    (train_windows, train_dts), (valid_windows, valid_dts) = problem.train, problem.valid
+    assert train_windows.shape[1] == window and train_dts.shape[1] == window - 1
+    assert valid_windows.shape[1] == model.family.window == 5 and valid_dts.shape[1] == 4
+
+
 def test_the_leapfrog_step_is_the_training_interval(trained):
     system, data, tm, jm = trained
     assert tm.data_step == pytest.approx(system.cfg.t_end / (system.cfg.n_points - 1))

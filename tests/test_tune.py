@@ -200,6 +200,21 @@ class _Trainer:
         pass
 
 
+def test_a_loss_changing_knob_turns_the_pruner_off_and_the_srnn_window_does_not():
+    """The pruner compares the training loop's validation loss across trials: a knob
+    declared ``changes_training_loss`` turns it off; the SRNN's window changes only the
+    training windows (its validation windows keep the family's length), so its study
+    is pruned like every other family's."""
+    from hnnbench._tune import Tuner, TuneRequest
+
+    tuner = Tuner(TuneRequest(system="spring", models=["srnn_jax"], trials=2))
+    flagged = {"window": IntRange(3, 8, changes_training_loss=True)}
+    assert tuner._pruner_name(flagged) == "none (window changes the training loss)"
+    srnn = registry.discover("model")["srnn_jax"].search_space
+    assert not any(d.changes_training_loss for d in srnn.values())
+    assert tuner._pruner_name(srnn).startswith("successive_halving")
+
+
 def test_a_progress_callback_that_returns_true_stops_training_with_the_reason():
     trainer = _Trainer()
     settings = TrainSettings(steps=100, batch_size=None, lr=1e-3, weight_decay=0.0)

@@ -49,7 +49,11 @@ class Family:
         data: ``"derivatives"``: trains on ``(z, ż)`` pairs by mean squared error;
             ``"windows"``: trains on windows of consecutive observed states of each
             training trajectory (``window_loss``).
-        window: states per training window, first included (``data == "windows"``).
+        window: states per window, first included (``data == "windows"``): the
+            default training window (a model's ``window`` setting may change it) and
+            the length of every validation window, whatever the training window, so
+            that the validation loss (the checkpoint selector's and a tuner's pruner's
+            yardstick) measures the same horizon for every setting.
         observations: the system observations it runs on (``"state"``, ``"pixels"``).
         learned_energy: whether the implementation defines ``energy``.
         network_inputs: which part of the working coordinates ``z = (q, v)`` each

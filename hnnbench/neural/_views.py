@@ -199,23 +199,29 @@ class View:
     def problem(self, data: Dataset, window: int = 0,
                 options: tuple[tuple[str, Any], ...] = ()) -> Problem:
         """The training problem of ``data`` for this family (``window``: states per
-        trajectory window; ``options``: the family's loss options). ``data`` must
-        hold a validation split (:func:`hnnbench._datasets.with_validation`)."""
+        training window, 0 for the family's; ``options``: the family's loss options).
+        ``data`` must hold a validation split
+        (:func:`hnnbench._datasets.with_validation`). Validation windows always have the
+        family's declared length (:attr:`Family.window`), so the validation loss
+        compares across training windows."""
         valid = _validation(data)
         if self.family.data == "windows":
-            length = window or self.family.window
+            lengths = (window or self.family.window, self.family.window)
             out = []
             wrapped = tuple(self.system.wrapped_angles)
-            for split in (data.train, valid):
+            for split, length in zip((data.train, valid), lengths, strict=True):
                 z, _ = self._pairs(split)
                 out.append(trajectory_windows(split, z, length, wrapped))
-            for (windows, _), part in zip(out, ("training", "validation"), strict=True):
+            for (windows, _), part, length in zip(out, ("training", "validation"), lengths,
+                                                  strict=True):
                 if windows.shape[0] == 0:
+                    setting = ("model.window" if part == "training"
+                               else f"the {self.family.name} family's validation window")
                     raise UnsupportedPair(
                         f"the {self.system.name} {part} data has no {length} consecutive, "
                         "equally spaced samples of one trajectory, which the "
-                        f"{self.family.name} family trains on (model.window={length}: a "
-                        "shorter window may fit)"
+                        f"{self.family.name} family needs ({setting}={length}"
+                        + (": a shorter window may fit)" if part == "training" else ")")
                     )
             return Problem("windows", out[0], out[1], options)
         return Problem("derivatives", self._pairs(data.train), self._pairs(valid))
