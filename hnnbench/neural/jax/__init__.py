@@ -368,6 +368,12 @@ def _map_solve(step: Callable[[Nets, jax.Array, jax.Array], jax.Array], nets: Ne
     return jnp.concatenate([y0[:, None], jnp.swapaxes(zs, 0, 1)], axis=1)
 
 
+#: Rows per call of the float64 field and energy (:meth:`JaxInference.field`): each
+#: compiles once per job for this shape instead of once per array size (the training,
+#: validation and test sets, the rollouts: four compilations of about a second each for
+#: an LNN).
+ROWS = 1024
+
 #: diffrax's result code of a step size below ``dtmin`` (the stall rule).
 _STALLED = int(diffrax.RESULTS.dt_min_reached._value)  # type: ignore[attr-defined]
 
@@ -410,12 +416,23 @@ class JaxInference:
             nets_from_weights(weights, layout, cfg.layers, cfg.activation, backend.dtype))
 
     def field(self, z: np.ndarray) -> np.ndarray:
-        out = _apply(self.impl.field, self.nets64, self.backend.array(z, jnp.float64))
-        return np.asarray(out, dtype=np.float64)
+        return self._rows(self.impl.field, z)
 
     def energy(self, z: np.ndarray) -> np.ndarray:
-        out = _apply(self.impl.energy, self.nets64, self.backend.array(z, jnp.float64))
-        return np.asarray(out, dtype=np.float64)
+        return self._rows(self.impl.energy, z)
+
+    def _rows(self, fn: Field, z: np.ndarray) -> np.ndarray:
+        """``fn`` of the ``(N, D)`` rows ``z`` in float64, in blocks of :data:`ROWS` rows
+        (the last one padded with copies of its last row), so that one compiled program
+        serves every array size of a job."""
+        z = np.asarray(z, dtype=np.float64)
+        n = z.shape[0]
+        padded = np.empty((max(1, -(-n // ROWS)) * ROWS, *z.shape[1:]), dtype=np.float64)
+        padded[:n] = z
+        padded[n:] = z[-1] if n else 0.0
+        outs = [_apply(fn, self.nets64, self.backend.array(padded[i:i + ROWS], jnp.float64))
+                for i in range(0, padded.shape[0], ROWS)]  # dispatched, then gathered
+        return np.concatenate([np.asarray(o, dtype=np.float64) for o in outs])[:n]
 
     def rollout(self, z0: np.ndarray, t: np.ndarray, rtol: float, atol: float,
                 max_steps: int) -> np.ndarray:
@@ -471,7 +488,8 @@ class JaxBackend:
         return jax.device_put(tree, self.device)
 
     def array(self, x: Any, dtype: Any = None) -> jax.Array:
-        return jax.device_put(jnp.asarray(np.asarray(x), dtype=dtype or self.dtype),
+        # cast by numpy (the same rounding): JAX would compile a cast per shape
+        return jax.device_put(np.asarray(x, dtype=np.dtype(dtype or self.dtype)),
                               self.device)
 
     def trainer(self, family: Family, impl: ModuleType, problem: Problem,

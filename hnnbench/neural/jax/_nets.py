@@ -125,8 +125,8 @@ def nets_from_weights(weights: Mapping[str, Any], layout: Layout, layers: int,
     """Build :class:`Nets` of ``layout``'s networks from flat weights
     (``"<net>.linears.<i>.weight"``, and ``"autoencoder.<half>.<i>.<weight|bias>"`` if
     present), cast to ``dtype``."""
-    def array(key: str) -> jax.Array:
-        return jnp.asarray(np.asarray(weights[key]), dtype=dtype)
+    def array(key: str) -> jax.Array:  # cast by numpy, put as is: nothing compiled per shape
+        return jax.device_put(np.asarray(weights[key], dtype=np.dtype(dtype)))
 
     def net(name: str, inputs: NetInput) -> MLPNet:
         linears = tuple(Dense(array(f"{name}.linears.{i}.weight"),
