@@ -5,6 +5,7 @@
     python benchmarks/sweep.py --overrides system=spring,pendulum model=mlp_torch,hnn_torch
     python benchmarks/sweep.py --overrides profile=paper seed=0 --n-jobs 4
     python benchmarks/sweep.py --from results/runs/paper_2026-11-22_10-00-00 [DIR ...]
+    python benchmarks/sweep.py --launchers joblib_300mb joblib  # loky's own worker limit
 
     # The 30 jobs of the original benchmark (6 systems x MLP/HNN x torch/JAX + oracle,
     # paper profile, seed 0), as `make benchmark` runs them (joblib, one worker per core):
@@ -52,7 +53,11 @@ from tabulate import tabulate
 #: The sweep run by default; ``--overrides`` replaces these keys and adds others.
 DEFAULT_OVERRIDES = {"system": "all", "model": "all", "profile": "quick"}
 PHASES = ("data_s", "compile_s", "fit_s", "eval_s")
-LAUNCHERS = ("basic", "joblib", "submitit_local")
+LAUNCHERS = ("basic", "joblib", "joblib_300mb", "submitit_local")
+#: Environment of a launcher's command beyond the benchmark's own. ``joblib_300mb``:
+#: joblib with loky's own worker memory-growth limit (300 MB), which replaced a worker
+#: every few jobs before hnnbench raised it (hnnbench._sweep.WORKER_GROWTH).
+LAUNCHER_ENV = {"joblib_300mb": {"HNNBENCH_WORKER_GROWTH_MB": "300"}}
 
 
 @dataclass
@@ -95,7 +100,7 @@ def launcher_args(name: str, n_jobs: int) -> list[str]:
     """Hydra overrides that select launcher ``name``."""
     if name == "basic":
         return []
-    if name == "joblib":
+    if name in ("joblib", "joblib_300mb"):
         return ["hydra/launcher=joblib", f"hydra.launcher.n_jobs={n_jobs}"]
     # submitit_local starts every job of a batch at once: batches of n_jobs.
     return ["hydra/launcher=submitit_local", f"hydra.sweeper.max_batch_size={n_jobs}"]
@@ -114,15 +119,18 @@ def load_records(directory: Path) -> list[dict[str, Any]]:
     return out
 
 
-def run_sweep(label: str, args: list[str], root: Path, cache: Path | None = None) -> Sweep:
+def run_sweep(label: str, args: list[str], root: Path, cache: Path | None = None,
+              extra_env: dict[str, str] | None = None) -> Sweep:
     """Run ``hnnbench -m ARGS`` into ``root/label`` with ``cache`` as the hnnbench cache
-    (datasets and JAX compilations; default: a fresh one, ``root/label/cache``)."""
+    (datasets and JAX compilations; default: a fresh one, ``root/label/cache``) and
+    ``extra_env`` set."""
     directory = root / label / "sweep"
     cache = root / label / "cache" if cache is None else cache
     log = root / label / "hnnbench.log"
     log.parent.mkdir(parents=True)
     command = [hnnbench_exe(), "-m", *args, f"hydra.sweep.dir={directory}"]
-    env = {**os.environ, "HNNBENCH_CACHE_DIR": str(cache), "HNNBENCH_PROGRESS": "log"}
+    env = {**os.environ, "HNNBENCH_CACHE_DIR": str(cache), "HNNBENCH_PROGRESS": "log",
+           **(extra_env or {})}
     print(f"[{label}] {' '.join(command[1:])}", flush=True)
     before = _children_cpu_s()
     start = time.perf_counter()
@@ -292,7 +300,8 @@ def benchmark(overrides: list[str], launchers: list[str], n_jobs: int, keep: Pat
             label = name if name == "basic" else f"{name} n_jobs={n_jobs}"
             # The directory name goes into a Hydra override: no '=' or spaces in it.
             slug = name if name == "basic" else f"{name}_{n_jobs}"
-            sweep = run_sweep(slug, [*args, *launcher_args(name, n_jobs)], root, cache)
+            sweep = run_sweep(slug, [*args, *launcher_args(name, n_jobs)], root, cache,
+                              LAUNCHER_ENV.get(name))
             sweep.label = label
             sweeps.append(sweep)
         print(f"\nmachine after: {machine_line()}\n")

@@ -370,6 +370,42 @@ def plan(argv: list[str]) -> Plan:
                 pinned=pinned)
 
 
+#: Memory (bytes) a joblib worker may gain over its first job before joblib's loky
+#: replaces it with a new process. loky's own limit, 300 MB, is crossed within a few jobs
+#: by a worker that imports its second backend and keeps each job's compiled JAX
+#: programs (25-30 MB a job), and every replacement imports Hydra, torch and JAX again
+#: (benchmarks/README.md, "joblib's worker replacement"). At this limit a worker is
+#: replaced after some 60 JAX jobs, which still bounds its memory.
+WORKER_GROWTH = 2_000_000_000
+
+#: Environment variable: the limit in MB (10^6 bytes) instead of :data:`WORKER_GROWTH`
+#: (300: loky's own).
+WORKER_GROWTH_ENV = "HNNBENCH_WORKER_GROWTH_MB"
+
+
+def worker_growth() -> int:
+    """The memory growth (bytes) a joblib worker is allowed: ``$HNNBENCH_WORKER_GROWTH_MB``
+    or :data:`WORKER_GROWTH`; a bad value is reported in one line and the default used."""
+    text = os.environ.get(WORKER_GROWTH_ENV, "").strip()
+    if not text:
+        return WORKER_GROWTH
+    if text.isdigit() and int(text) >= 1:
+        return int(text) * 1_000_000
+    log.warning("%s=%r is invalid: expected a whole number of megabytes >= 1 (300 is "
+                "loky's own limit); using %d", WORKER_GROWTH_ENV, text,
+                WORKER_GROWTH // 1_000_000)
+    return WORKER_GROWTH
+
+
+def set_worker_growth() -> None:
+    """Set loky's memory-growth limit to :func:`worker_growth` in this process, where a
+    loky worker reads it after each task; nothing where loky is not loaded (any other
+    launcher). loky declares no public setting for it."""
+    module = sys.modules.get("joblib.externals.loky.process_executor")
+    if module is not None and isinstance(getattr(module, "_MAX_MEMORY_LEAK_SIZE", None), int):
+        module._MAX_MEMORY_LEAK_SIZE = worker_growth()  # type: ignore[attr-defined]
+
+
 def _task(cfg) -> list[dict[str, Any]]:  # noqa: ANN001 - Hydra passes a DictConfig
     """The Hydra task: one job. Returns its outcomes (``{"record", "kept"}`` per seed),
     which :class:`Sweeper` collects from any launcher; a single run (no sweeper) writes
@@ -379,6 +415,7 @@ def _task(cfg) -> list[dict[str, Any]]:  # noqa: ANN001 - Hydra passes a DictCon
 
     from hnnbench._job import run_seed_outcomes
 
+    set_worker_growth()
     hc = HydraConfig.get()
     multirun = hc.mode == RunMode.MULTIRUN
     context = launch.current()

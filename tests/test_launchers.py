@@ -238,3 +238,47 @@ def test_a_users_own_launcher_file_on_the_searchpath_is_accepted(tmp_path: Path)
                     f"hydra.sweep.dir={tmp_path / 'sweep'}", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "1 jobs: 1 ok" in proc.stdout, proc.stdout[-2000:]
+
+
+_HELD: list[bytes] = []
+
+
+def _grow_by(megabytes: int, limit_mb: str | None) -> int:
+    """In a loky worker: keep ``megabytes`` of touched memory (a job's kept programs);
+    with ``limit_mb``, first what every hnnbench job does under that setting ("": the
+    default)."""
+    import time
+
+    from hnnbench._sweep import WORKER_GROWTH_ENV, set_worker_growth
+
+    if limit_mb is not None:
+        os.environ[WORKER_GROWTH_ENV] = limit_mb
+        set_worker_growth()
+    _HELD.append(b"\x01" * (megabytes * 1024 * 1024))  # touched, so resident
+    time.sleep(1.2)  # loky checks a worker's memory at most once a second
+    return os.getpid()
+
+
+def _pid() -> int:
+    return os.getpid()
+
+
+@pytest.mark.filterwarnings("ignore:A worker stopped while some jobs")
+@pytest.mark.parametrize(("limit_mb", "replaced"), [(None, True), ("", False), ("300", True)])
+def test_a_joblib_worker_is_not_replaced_for_the_memory_a_few_jobs_keep(limit_mb, replaced):
+    """loky replaces a worker whose memory grew 300 MB since its first task; hnnbench's
+    jobs raise that limit (a replacement re-imports torch, JAX and Hydra), so a worker
+    that kept 400 MB runs the next job itself; HNNBENCH_WORKER_GROWTH_MB=300 restores
+    loky's own limit."""
+    pytest.importorskip("psutil")  # loky checks memory only with psutil
+    from joblib.externals.loky import get_reusable_executor
+
+    executor = get_reusable_executor(max_workers=1, reuse=False)  # joblib's worker pool
+    try:
+        first = executor.submit(_pid).result()  # loky's reference size: after a first task
+        grown = executor.submit(_grow_by, 400, limit_mb).result()
+        after = executor.submit(_pid).result()
+    finally:
+        executor.shutdown(wait=True)
+    assert first == grown != os.getpid()
+    assert (after != grown) is replaced
