@@ -381,19 +381,27 @@ WORKER_GROWTH = 2_000_000_000
 #: Environment variable: the limit in MB (10^6 bytes) instead of :data:`WORKER_GROWTH`
 #: (300: loky's own).
 WORKER_GROWTH_ENV = "HNNBENCH_WORKER_GROWTH_MB"
+_growth_warned = False
 
 
 def worker_growth() -> int:
     """The memory growth (bytes) a joblib worker is allowed: ``$HNNBENCH_WORKER_GROWTH_MB``
     or :data:`WORKER_GROWTH`; a bad value is reported in one line and the default used."""
+    global _growth_warned
     text = os.environ.get(WORKER_GROWTH_ENV, "").strip()
     if not text:
         return WORKER_GROWTH
-    if text.isdigit() and int(text) >= 1:
-        return int(text) * 1_000_000
-    log.warning("%s=%r is invalid: expected a whole number of megabytes >= 1 (300 is "
-                "loky's own limit); using %d", WORKER_GROWTH_ENV, text,
-                WORKER_GROWTH // 1_000_000)
+    try:
+        megabytes = int(text)
+    except ValueError:
+        megabytes = 0
+    if megabytes >= 1:
+        return megabytes * 1_000_000
+    if not _growth_warned:  # once per process, not once per job
+        log.warning("%s=%r is invalid: expected a whole number of megabytes >= 1 (300 is "
+                    "loky's own limit); using %d", WORKER_GROWTH_ENV, text,
+                    WORKER_GROWTH // 1_000_000)
+        _growth_warned = True
     return WORKER_GROWTH
 
 

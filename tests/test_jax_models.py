@@ -96,6 +96,27 @@ def test_training_dtype_and_float64_inference(trained, data):
     assert out.shape == data.test.x.shape and out.dtype == np.float64
 
 
+@pytest.mark.parametrize("n", [0, 1, 1023, 1024, 1025, 2100])
+def test_field_and_energy_in_blocks_of_rows_equal_one_call(trained, n):
+    """Inference runs rows in blocks of ROWS (the last padded by repeating its last row):
+    at every block edge it returns what one call on all rows returns."""
+    import jax.numpy as jnp
+
+    from hnnbench.neural.jax import ROWS, _apply
+
+    assert ROWS == 1024
+    z = np.random.default_rng(n).normal(size=(n, 2))
+    infer = trained._infer()
+    for name in ("field", "energy"):
+        fn = getattr(trained._impl, name, None)
+        if fn is None:
+            continue
+        got = getattr(infer, name)(z)
+        want = np.asarray(_apply(fn, infer.nets64, jnp.asarray(z, dtype=jnp.float64)))
+        assert got.shape == want.shape and got.dtype == np.float64
+        np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-15)
+
+
 @pytest.mark.parametrize("batch_size", [None, 16], ids=["full", "minibatch"])
 @pytest.mark.parametrize("cls", MODELS, ids=lambda c: c.__name__)
 def test_same_seed_same_losses(cls, spring, data, batch_size):

@@ -282,3 +282,20 @@ def test_a_joblib_worker_is_not_replaced_for_the_memory_a_few_jobs_keep(limit_mb
         executor.shutdown(wait=True)
     assert first == grown != os.getpid()
     assert (after != grown) is replaced
+
+
+@pytest.mark.parametrize(("text", "limit"), [("", 2_000_000_000), ("300", 300_000_000),
+                                             ("0", 2_000_000_000), ("²", 2_000_000_000),
+                                             ("lots", 2_000_000_000)])
+def test_the_worker_growth_setting_is_read_in_megabytes_and_a_bad_one_is_one_line(
+        monkeypatch, caplog, text, limit):
+    from hnnbench import _sweep
+
+    monkeypatch.setenv(_sweep.WORKER_GROWTH_ENV, text)
+    monkeypatch.setattr(_sweep, "_growth_warned", False)
+    assert _sweep.worker_growth() == limit
+    assert _sweep.worker_growth() == limit
+    warned = [r.getMessage() for r in caplog.records if _sweep.WORKER_GROWTH_ENV in r.getMessage()]
+    assert len(warned) == (text not in ("", "300"))  # once, however many jobs ask
+    if warned:
+        assert "expected a whole number of megabytes" in warned[0]

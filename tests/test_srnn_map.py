@@ -55,6 +55,20 @@ def test_validation_windows_keep_the_familys_length_whatever_the_training_window
     assert valid_windows.shape[1] == model.family.window == 5 and valid_dts.shape[1] == 4
 
 
+@pytest.mark.parametrize("window", [3, 5])
+def test_a_short_validation_split_gets_its_longest_windows_whatever_the_training_window(
+        window):
+    """10 trajectories of 30 points: the validation split keeps each one's last 3 points,
+    so its windows have 3 states (the longest it holds), for every training window."""
+    from hnnbench._datasets import with_validation
+
+    system = Spring(SpringConfig(name="spring", n_traj=10))
+    model = SRNNJax(SRNNConfig(name="srnn", hidden=16, window=window), system, "cpu")
+    problem = model.view.problem(with_validation(system.dataset(0), 0),
+                                 *model.training_options())
+    assert problem.train[0].shape[1] == window and problem.valid[0].shape[1] == 3
+
+
 def test_the_leapfrog_step_is_the_training_interval(trained):
     system, data, tm, jm = trained
     assert tm.data_step == pytest.approx(system.cfg.t_end / (system.cfg.n_points - 1))

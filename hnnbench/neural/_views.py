@@ -201,29 +201,36 @@ class View:
         """The training problem of ``data`` for this family (``window``: states per
         training window, 0 for the family's; ``options``: the family's loss options).
         ``data`` must hold a validation split
-        (:func:`hnnbench._datasets.with_validation`). Validation windows always have the
-        family's declared length (:attr:`Family.window`), so the validation loss
-        compares across training windows."""
+        (:func:`hnnbench._datasets.with_validation`). Validation windows have the
+        family's declared length (:attr:`Family.window`), or the longest shorter one
+        the validation split holds (a short split of few trajectories): a length set by
+        the data alone, never by ``window``, so the validation loss compares across
+        training windows."""
         valid = _validation(data)
         if self.family.data == "windows":
-            lengths = (window or self.family.window, self.family.window)
-            out = []
             wrapped = tuple(self.system.wrapped_angles)
-            for split, length in zip((data.train, valid), lengths, strict=True):
+
+            def windows_of(split: Split, length: int) -> tuple[np.ndarray, np.ndarray]:
                 z, _ = self._pairs(split)
-                out.append(trajectory_windows(split, z, length, wrapped))
-            for (windows, _), part, length in zip(out, ("training", "validation"), lengths,
-                                                  strict=True):
-                if windows.shape[0] == 0:
-                    setting = ("model.window" if part == "training"
-                               else f"the {self.family.name} family's validation window")
-                    raise UnsupportedPair(
-                        f"the {self.system.name} {part} data has no {length} consecutive, "
-                        "equally spaced samples of one trajectory, which the "
-                        f"{self.family.name} family needs ({setting}={length}"
-                        + (": a shorter window may fit)" if part == "training" else ")")
-                    )
-            return Problem("windows", out[0], out[1], options)
+                return trajectory_windows(split, z, length, wrapped)
+
+            length = window or self.family.window
+            train = windows_of(data.train, length)
+            if train[0].shape[0] == 0:
+                raise UnsupportedPair(
+                    f"the {self.system.name} training data has no {length} consecutive, "
+                    "equally spaced samples of one trajectory, which the "
+                    f"{self.family.name} family trains on (model.window={length}: a "
+                    "shorter window may fit)")
+            for valid_length in range(self.family.window, 1, -1):
+                validation = windows_of(valid, valid_length)
+                if validation[0].shape[0]:
+                    return Problem("windows", train, validation, options)
+            raise UnsupportedPair(
+                f"the {self.system.name} validation data has no 2 consecutive, equally "
+                "spaced samples of one trajectory, which the "
+                f"{self.family.name} family's validation loss needs (more points per "
+                "trajectory, or more trajectories, would give some)")
         return Problem("derivatives", self._pairs(data.train), self._pairs(valid))
 
 
