@@ -51,7 +51,8 @@ class Family:
             training trajectory (``window_loss``).
         window: states per window, first included (``data == "windows"``): the
             default training window (a model's ``window`` setting may change it) and
-            the length of every validation window, whatever the training window, so
+            the length of every validation window, whatever the training window (a
+            validation split too short for it gets its longest shorter windows), so
             that the validation loss (the checkpoint selector's and a tuner's pruner's
             yardstick) measures the same horizon for every setting.
         observations: the system observations it runs on (``"state"``, ``"pixels"``).

@@ -5,9 +5,10 @@ A separable Hamiltonian ``H(q, p) = T(p) + V(q)`` from two scalar networks, trai
 observed states of a training trajectory, ``substeps`` leapfrog steps per observed
 interval (each interval's own measured time step) predict the next states, and the
 loss is their mean squared error against the observations. No ``dx/dt`` target is
-used. The validation loss is the same error on windows of the validation split, always
-5 states long (the family's declared window), whatever ``model.window`` trains on, so
-that checkpoints and tuned settings are compared over one horizon. Leapfrog
+used. The validation loss is the same error on windows of the validation split, 5
+states long (the family's declared window; a validation split too short for them gets
+its longest shorter ones) whatever ``model.window`` trains on, so that checkpoints and
+tuned settings are compared over one horizon. Leapfrog
 (Störmer-Verlet) is symplectic for separable ``H``:
 
     p ← p − (h/2) ∇V(q);   q ← q + h ∇T(p);   p ← p − (h/2) ∇V(q)
