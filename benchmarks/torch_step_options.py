@@ -25,6 +25,10 @@ one training step built several ways, on the same data and initial weights:
 - ``hnnbench + oneDNN tanh``: the same with the forward ``tanh`` computed by oneDNN's
   eltwise kernel (``torch.tanh(a.to_mkldnn()).to_dense()``, both layout conversions
   counted) in place of ATen's (within 1 ulp of float64 ``tanh`` here, like ATen's);
+- ``hnnbench + sigmoid tanh``: the same with the forward ``tanh`` written as
+  ``2 sigmoid(2a) - 1`` in place (ATen's float32 ``sigmoid`` kernel is several times
+  cheaper than its ``tanh``; absolute error within a few ulps of 1, relative error
+  large where ``|a|`` is tiny);
 - ``torch.func.grad``: the ``hnnbench`` loss differentiated by ``torch.func.grad`` over
   the parameter dict instead of ``torch.autograd.grad``;
 - ``no autograd``: the step's gradient derived by hand and written as plain tensor
@@ -41,9 +45,10 @@ Each variant's gradient at the first step is compared with ``a47bd0f``'s (larges
 difference relative to the largest entry), so every row computes the same step.
 Median (and best) of ``--repeats`` runs of ``--steps`` steps each, after a warm-up;
 the repeats of all variants are interleaved, so load changes hit every column alike.
-Then per-op timings on the hidden layer's shape: torch's, XLA's and oneDNN's ``tanh``
-(and torch's ``sigmoid``, for scale), and the
-thin products in the two orientations a step can dispatch them.
+Then per-op timings on the hidden layer's shape: torch's, XLA's, oneDNN's and the
+sigmoid form's ``tanh`` (and torch's ``sigmoid``, for scale), the thin products in the
+two orientations a step can dispatch them, and each float32 ``tanh``'s error against
+float64's.
 """
 
 from __future__ import annotations
@@ -73,6 +78,20 @@ def _pin(cpu: int | None) -> int | None:
     cpu = min(os.sched_getaffinity(0)) if cpu is None else cpu
     os.sched_setaffinity(0, {cpu})
     return cpu
+
+
+def onednn_tanh(a: Any) -> Any:
+    """``tanh(a)`` by oneDNN's eltwise kernel, both layout conversions included."""
+    import torch
+
+    return torch.tanh(a.to_mkldnn()).to_dense()
+
+
+def sigmoid_tanh_(a: Any) -> Any:
+    """``tanh(a) = 2 sigmoid(2a) - 1`` in place (ATen's float32 ``sigmoid`` is a much
+    cheaper kernel than its ``tanh``); the absolute error is a few float32 ulps of 1,
+    so the relative error grows where ``|a|`` is small (``op_timings`` prints both)."""
+    return a.mul_(2.0).sigmoid_().mul_(2.0).sub_(1.0)
 
 
 def initial_arrays(d: int, out: int, seed: int = 0) -> dict[str, Any]:
@@ -123,15 +142,17 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
 
     grads: dict[str, list[torch.Tensor]] = {}
 
-    def with_onednn_tanh(loss: Callable[..., torch.Tensor]) -> Callable[..., torch.Tensor]:
-        """``loss`` with the hand-written backward's forward ``tanh`` by oneDNN."""
+    def with_tanh(kernel: Callable[[torch.Tensor], torch.Tensor],
+                  loss: Callable[..., torch.Tensor]) -> Callable[..., torch.Tensor]:
+        """``loss`` with the hand-written backward's forward float32 ``tanh`` by
+        ``kernel`` (the backward's ``tanh_backward`` reads its output, as before)."""
         from hnnbench.neural.torch import _backprop
 
         plain = _backprop._act
 
         def act(name: str, a: torch.Tensor) -> torch.Tensor:
             if name == "tanh" and a.dtype == torch.float32:
-                return torch.tanh(a.to_mkldnn()).to_dense()
+                return kernel(a)
             return plain(name, a)
 
         def patched(p: dict[str, torch.Tensor]) -> torch.Tensor:
@@ -158,9 +179,9 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
         return one
 
     def direct_step(name: str, loss: Callable[..., torch.Tensor], ftz: bool = False,
-                    onednn: bool = False) -> Step:
-        if onednn:
-            loss = with_onednn_tanh(loss)
+                    tanh: Callable[[torch.Tensor], torch.Tensor] | None = None) -> Step:
+        if tanh is not None:
+            loss = with_tanh(tanh, loss)
         params = fresh()
         grads[name] = list(torch.autograd.grad(loss(params), list(params.values())))
         adam = FusedAdam(list(params.values()), LR, WEIGHT_DECAY)
@@ -250,8 +271,10 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
         "hnnbench + flush denormals": direct_step("hnnbench + flush denormals",
                                                   loss_mse(TrainingMLP), ftz=True),
         **({"hnnbench + oneDNN tanh": direct_step("hnnbench + oneDNN tanh",
-                                                  loss_mse(TrainingMLP), onednn=True)}
+                                                  loss_mse(TrainingMLP), tanh=onednn_tanh)}
            if torch.backends.mkldnn.is_available() else {}),  # a build without oneDNN
+        "hnnbench + sigmoid tanh": direct_step("hnnbench + sigmoid tanh",
+                                               loss_mse(TrainingMLP), tanh=sigmoid_tanh_),
         "torch.func.grad": func_grad_step("torch.func.grad", loss_mse(MLP)),
         "no autograd": manual_step("no autograd"),
     }
@@ -338,6 +361,7 @@ def op_timings(n: int, d: int) -> None:
     """torch's and XLA's tanh, and the thin products in both orientations."""
     import jax
     import jax.numpy as jnp
+    import numpy as np
     import torch
 
     def best_us(fn: Callable[[], Any], reps: int = 300) -> float:
@@ -360,8 +384,11 @@ def op_timings(n: int, d: int) -> None:
         f"torch.tanh ({n}, {HIDDEN})": best_us(lambda: torch.tanh(a)),
         f"XLA tanh ({n}, {HIDDEN})": best_us(lambda: jtanh(ja).block_until_ready()),
         **({f"oneDNN tanh ({n}, {HIDDEN}), with both layout conversions":
-            best_us(lambda: torch.tanh(a.to_mkldnn()).to_dense())}
+            best_us(lambda: onednn_tanh(a))}
            if torch.backends.mkldnn.is_available() else {}),
+        f"2 sigmoid(2a) - 1 in place ({n}, {HIDDEN}), with a copy":
+            best_us(lambda: sigmoid_tanh_(a.clone())),
+        f"  the copy alone ({n}, {HIDDEN})": best_us(lambda: a.clone()),
         f"torch.sigmoid ({n}, {HIDDEN})": best_us(lambda: torch.sigmoid(a)),
         f"({n},{HIDDEN})x({HIDDEN},{d}) as h @ w.t() (F.linear's)":
             best_us(lambda: a @ w_out.t()),
@@ -373,6 +400,19 @@ def op_timings(n: int, d: int) -> None:
     print(f"\n  ops, best of 5 x 300, microseconds ({n} rows, d = {d}):")
     for name, us in rows.items():
         print(f"    {name:58s} {us:8.1f}")
+    grid = torch.linspace(-10.0, 10.0, 200_001)
+    exact = torch.tanh(grid.double())
+    kernels = {"torch.tanh": torch.tanh(grid),
+               "XLA tanh": torch.as_tensor(np.asarray(jtanh(jnp.asarray(grid.numpy())))),
+               "2 sigmoid(2a) - 1": sigmoid_tanh_(grid.clone())}
+    if torch.backends.mkldnn.is_available():
+        kernels["oneDNN tanh"] = onednn_tanh(grid)
+    print("\n  float32 tanh against float64 tanh on 200001 points of [-10, 10]: "
+          "largest absolute error, largest relative error (|tanh| >= 1e-30):")
+    for name, value in kernels.items():
+        err = (value.double() - exact).abs()
+        rel = (err / exact.abs().clamp_min(1e-30)).max()
+        print(f"    {name:20s} {float(err.max()):.2e}  {float(rel):.2e}")
 
 
 def main() -> int:

@@ -155,9 +155,10 @@ def test_train_step_benchmark_times_other_families():
 def test_torch_step_options_compute_the_same_step():
     """benchmarks/torch_step_options.py, tiny settings: every variant of the torch step
     (the a47bd0f step, direct Adam, mse_loss, hnnbench's hand-written backward passes,
-    with oneDNN's tanh, torch.func.grad, the autograd-free step) has the a47bd0f step's
-    gradient, and the
-    summary has a row per family with a JAX column."""
+    with oneDNN's tanh, with the sigmoid form of tanh, torch.func.grad, the
+    autograd-free step) has the a47bd0f step's gradient, the summary has a row per
+    family with a JAX column, and the tanh error table bounds every kernel's absolute
+    error at float32 rounding."""
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     proc = subprocess.run(
         [sys.executable, str(REPO / "benchmarks" / "torch_step_options.py"), "--shapes",
@@ -166,7 +167,8 @@ def test_torch_step_options_compute_the_same_step():
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     variants = ("a47bd0f", "+ direct Adam", "+ mse_loss", "hnnbench",
-                "hnnbench + oneDNN tanh", "torch.func.grad", "no autograd")
+                "hnnbench + oneDNN tanh", "hnnbench + sigmoid tanh", "torch.func.grad",
+                "no autograd")
     for family in ("mlp", "hnn"):
         block = proc.stdout.split(f"{family} step: ms")[1].split("\n\n")[0]
         lines = {line.strip().split("  ")[0]: line.split() for line in block.splitlines()[1:]}
@@ -175,6 +177,10 @@ def test_torch_step_options_compute_the_same_step():
             assert float(lines[name][-1]) < 1e-5, (family, name, lines[name])  # gradient
     rows = [line for line in proc.stdout.splitlines() if line.startswith("| spring |")]
     assert len(rows) == 2 and "JAX" in proc.stdout
+    errors = proc.stdout.split("largest relative error")[1].split("\n\n")[0]
+    kernels = {line[:24].strip(): float(line.split()[-2]) for line in errors.splitlines()[1:]}
+    assert {"torch.tanh", "XLA tanh", "2 sigmoid(2a) - 1"} <= set(kernels), errors
+    assert all(0 <= err < 1e-6 for err in kernels.values()), kernels
 
 
 @pytest.mark.slow
