@@ -33,6 +33,7 @@ one training step built several ways, on the same data and initial weights:
   the parameter dict instead of ``torch.autograd.grad``;
 - ``no autograd``: the step's gradient derived by hand and written as plain tensor
   operations, nothing recorded: the floor for eager torch with these kernels;
+- ``no autograd + sigmoid tanh``: that floor with the sigmoid form of ``tanh``;
 - ``torch.compile``: the ``a47bd0f`` step under ``torch.compile`` (inductor's C++
   code for forward, backward and the update; ``--compile-mode``; its compile time is
   printed apart, not counted, and set against the time it saves per step against
@@ -214,7 +215,8 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
 
         return one
 
-    def manual_step(name: str) -> Step:
+    def manual_step(name: str, tanh_: Callable[[torch.Tensor], torch.Tensor] = torch.tanh_
+                    ) -> Step:
         params = fresh()
         w1, b1, w2, b2, w3 = (params[f"f.linears.{i}.{kind}"].detach() for i, kind in (
             (0, "weight"), (0, "bias"), (1, "weight"), (1, "bias"), (2, "weight")))
@@ -224,8 +226,8 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
         scale = 2.0 / (n * d)
 
         def gradient() -> list[torch.Tensor]:
-            h1 = torch.addmm(b1, x, w1.t()).tanh_()
-            h2 = torch.addmm(b2, h1, w2.t()).tanh_()
+            h1 = tanh_(torch.addmm(b1, x, w1.t()))
+            h2 = tanh_(torch.addmm(b2, h1, w2.t()))
             if not hnn:
                 r = torch.mm(h2, w3.t()).sub_(y).mul_(scale)
                 da2 = tb(r @ w3, h2)
@@ -277,6 +279,8 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
                                                loss_mse(TrainingMLP), tanh=sigmoid_tanh_),
         "torch.func.grad": func_grad_step("torch.func.grad", loss_mse(MLP)),
         "no autograd": manual_step("no autograd"),
+        "no autograd + sigmoid tanh": manual_step("no autograd + sigmoid tanh",
+                                                  sigmoid_tanh_),
     }
     compile_s = float("nan")
     if compile_mode is not None:

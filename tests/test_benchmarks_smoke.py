@@ -156,7 +156,7 @@ def test_torch_step_options_compute_the_same_step():
     """benchmarks/torch_step_options.py, tiny settings: every variant of the torch step
     (the a47bd0f step, direct Adam, mse_loss, hnnbench's hand-written backward passes,
     with oneDNN's tanh, with the sigmoid form of tanh, torch.func.grad, the
-    autograd-free step) has the a47bd0f step's gradient, the summary has a row per
+    autograd-free step, with either tanh) has the a47bd0f step's gradient, the summary has a row per
     family with a JAX column, and the tanh error table bounds every kernel's absolute
     error at float32 rounding."""
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
@@ -168,7 +168,7 @@ def test_torch_step_options_compute_the_same_step():
     assert proc.returncode == 0, proc.stderr[-3000:]
     variants = ("a47bd0f", "+ direct Adam", "+ mse_loss", "hnnbench",
                 "hnnbench + oneDNN tanh", "hnnbench + sigmoid tanh", "torch.func.grad",
-                "no autograd")
+                "no autograd", "no autograd + sigmoid tanh")
     for family in ("mlp", "hnn"):
         block = proc.stdout.split(f"{family} step: ms")[1].split("\n\n")[0]
         lines = {line.strip().split("  ")[0]: line.split() for line in block.splitlines()[1:]}
