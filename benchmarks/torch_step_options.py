@@ -407,7 +407,7 @@ def op_timings(n: int, d: int) -> None:
     grid = torch.linspace(-10.0, 10.0, 200_001)
     exact = torch.tanh(grid.double())
     kernels = {"torch.tanh": torch.tanh(grid),
-               "XLA tanh": torch.as_tensor(np.asarray(jtanh(jnp.asarray(grid.numpy())))),
+               "XLA tanh": torch.as_tensor(np.array(jtanh(jnp.asarray(grid.numpy())))),
                "2 sigmoid(2a) - 1": sigmoid_tanh_(grid.clone())}
     if torch.backends.mkldnn.is_available():
         kernels["oneDNN tanh"] = onednn_tanh(grid)
