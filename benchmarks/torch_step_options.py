@@ -292,6 +292,11 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
         print(f"  torch.compile of the {'hnn' if hnn else 'mlp'} step ({n} x {d}): "
               f"{compile_s:.1f} s (not counted)", flush=True)
         variants["torch.compile"] = compiled
+    for swapped, plain in (("hnnbench + sigmoid tanh", "hnnbench"),
+                           ("no autograd + sigmoid tanh", "no autograd")):
+        if all(torch.equal(a, b) for a, b in zip(grads[swapped], grads[plain], strict=True)):
+            raise RuntimeError(f"{swapped!r} computed {plain!r}'s gradient bit for bit: "
+                               "its tanh kernel was not used")
     reference = grads["a47bd0f"]
     diffs = {name: max(float((a - b).abs().max() / b.abs().max())
                        for a, b in zip(g, reference, strict=True))
