@@ -321,6 +321,30 @@ def test_tracks_are_separate_rows_never_ranked_together():
     assert "track" not in leaderboard(recs[:4]) and "tuning_cpu_s" not in leaderboard(recs[:4])
 
 
+def test_the_tracks_table_says_what_each_familys_tuning_cost():
+    from hnnbench._families import families
+    from hnnbench._report.verdicts import tracks_frame, tracks_markdown, tuning_costs
+    from hnnbench._table import records_frame
+
+    recs = [_record("hnn_jax", s, None, 1.0) for s in (0, 1)]
+    recs += [_record("hnn_jax", s, "tuned", 0.5, cpu=1234.4) for s in (0, 1)]
+    recs += [_record("mlp_jax", s, "tuned", 0.1, cpu=87.6) for s in (0, 1)]
+    recs += [_record("hnn_jax", s, "tuned", 0.5, cpu=5.0, system="pendulum") for s in (0, 1)]
+    fams = families(records_frame(recs), leaderboard(recs))
+    costs = tuning_costs(fams)
+    assert costs.to_dict("records") == [
+        {"profile": "quick", "system": "spring", "mlp": "88", "hnn": "1,234"},
+        {"profile": "quick", "system": "pendulum", "mlp": "—", "hnn": "5"}]
+    text = tracks_markdown(tracks_frame(fams), costs)
+    assert "| quick     | spring   | 88    | 1,234 |" in text
+    assert "the CPU seconds of its study" in text
+    # no tuned row: no cost table, and the plain text is unchanged
+    protocol = recs[:2] + [_record("mlp_jax", s, "recipe", 0.1) for s in (0, 1)]
+    fams = families(records_frame(protocol), leaderboard(protocol))
+    assert tuning_costs(fams).empty
+    assert "CPU seconds" not in tracks_markdown(tracks_frame(fams), tuning_costs(fams))
+
+
 def test_the_gate_never_compares_a_tuned_row_with_a_protocol_one():
     ref = leaderboard([_record("hnn_jax", 0, None, 1.0)])
     cur = leaderboard([_record("hnn_jax", 0, "tuned", 100.0)])

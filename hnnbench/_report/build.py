@@ -45,6 +45,7 @@ from hnnbench._report.verdicts import (
     build_verdicts,
     tracks_frame,
     tracks_markdown,
+    tuning_costs,
 )
 from hnnbench._table import leaderboard
 
@@ -116,8 +117,8 @@ def write_report(sweep_dir: Path | str | Sequence[Path | str], out: Path | str |
         report.files["tracks"] = out / "tracks.csv"
         R.atomic_write_text(report.files["tracks"], tracks.to_csv(index=False))
     report.files["tracks_md"] = out / "tracks.md"
-    R.atomic_write_text(report.files["tracks_md"], "# Tracks\n\n" + tracks_markdown(tracks)
-                        + "\n")
+    R.atomic_write_text(report.files["tracks_md"], "# Tracks\n\n"
+                        + tracks_markdown(tracks, tuning_costs(verdicts.families)) + "\n")
     report.files["paper"] = out / "paper_comparison.md"
     R.atomic_write_text(report.files["paper"], comparison_markdown(board))
     report.files["html"] = out / "leaderboard.html"

@@ -21,7 +21,7 @@ from hnnbench._table import metric_declarations, records_frame
 __all__ = ["Verdicts", "aggregate_frame", "aggregate_markdown", "build_verdicts",
            "left_out_lines", "main_key", "main_scope", "marks_line", "scope_label",
            "scope_line", "scopes",
-           "supported_lines", "tracks_frame", "tracks_markdown"]
+           "supported_lines", "tracks_frame", "tracks_markdown", "tuning_costs"]
 
 
 @dataclass
@@ -341,9 +341,35 @@ def _leader_set(verdict: str) -> set[str]:
     return {name.strip() for name in verdict.partition(": ")[2].split(",") if name.strip()}
 
 
-def tracks_markdown(frame: pd.DataFrame) -> str:
+def tuning_costs(fams: Families) -> pd.DataFrame:
+    """What each family's tuned settings cost: one row per (profile, system) with tuned
+    family rows, a column per family (in the board's order) holding the CPU seconds of
+    its study (``tuning_cpu_s``: every trial, pruned ones included, not the final
+    seeds), formatted; ``—`` where the family has no tuned row there. Empty when no row
+    is of the tuned track."""
+    board = fams.board
+    if board.empty or "track" not in board or "tuning_cpu_s" not in board:
+        return pd.DataFrame()
+    if "variant" in board:
+        board = board[board["variant"].fillna("").astype(str) == ""]
+    tuned = board[board["track"].fillna(DEFAULT_TRACK).astype(str) == "tuned"]
+    if tuned.empty:
+        return pd.DataFrame()
+    order = list(dict.fromkeys(tuned["family"].astype(str)))
+    rows = []
+    for (profile, system), group in tuned.groupby(["profile", "system"], sort=False):
+        cpu = dict(zip(group["family"].astype(str),
+                       pd.to_numeric(group["tuning_cpu_s"], errors="coerce"), strict=True))
+        rows.append({"profile": profile, "system": system,
+                     **{f: ("—" if f not in cpu or not math.isfinite(cpu[f])
+                            else f"{cpu[f]:,.0f}") for f in order}})
+    return pd.DataFrame(rows)
+
+
+def tracks_markdown(frame: pd.DataFrame, costs: Optional[pd.DataFrame] = None) -> str:
     """The tracks side by side (:func:`tracks_frame`) and one line per (system, metric)
-    whose verdict changes between tracks; a line saying so when no other track ran."""
+    whose verdict changes between tracks; a line saying so when no other track ran; then,
+    where ``costs`` (:func:`tuning_costs`) has rows, what each family's tuning cost."""
     if frame.empty:
         return ("Only the protocol track has published rows: no tuned or recipe rows yet "
                 "(docs/TUNING.md).")
@@ -375,4 +401,10 @@ def tracks_markdown(frame: pd.DataFrame) -> str:
                   "difference of means over the seeds, not a verdict):", ""]
         lines += [f"- {md_code(str(r['system']))}, {md_code(str(r['metric']))}: {said(r)}."
                   for _, r in means.iterrows()]
+        lines.append("")
+    if costs is not None and not costs.empty:
+        lines += ["What each family's tuned settings cost: the CPU seconds of its study "
+                  "(every trial, pruned ones included; the final seeds not counted), the "
+                  "leaderboard's `tuning_cpu_s`. Every family on a system had the same "
+                  "trials and steps per trial (docs/TUNING.md).", "", md_table(costs)]
     return "\n".join(lines).rstrip("\n")
