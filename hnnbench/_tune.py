@@ -97,7 +97,7 @@ ARGUMENTS = ("system", "model", "trials", "seeds", "profile", "out", "steps", "p
              "trial_seed", "sampler_seed")
 
 USAGE = """\
-usage: hnnbench tune system=NAME model=A,B,... trials=N [seeds=0,1,2] [profile=paper]
+usage: hnnbench tune system=NAME model=A,B,... trials=N [seeds=0,1,2,3,4] [profile=paper]
                      [steps=S] [out=DIR] [pruner=successive_halving|none]
                      [trial_seed=0] [sampler_seed=0] [system.KEY=VALUE ...]
 
@@ -132,7 +132,7 @@ class TuneRequest:
     system: str
     models: list[str]
     trials: int
-    seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
+    seeds: list[int] = field(default_factory=lambda: [0, 1, 2, 3, 4])
     profile: str = "paper"
     out: Optional[Path] = None
     steps: Optional[int] = None
@@ -242,7 +242,7 @@ def parse(args: Sequence[str]) -> TuneRequest:
     pruner = values.get("pruner", "successive_halving")
     if pruner not in PRUNERS:
         raise ConfigError(f"pruner={pruner} is invalid: expected one of {', '.join(PRUNERS)}")
-    seeds = [_int("seeds", s, 0) for s in values.get("seeds", "0,1,2").split(",")]
+    seeds = [_int("seeds", s, 0) for s in values.get("seeds", "0,1,2,3,4").split(",")]
     if len(set(seeds)) != len(seeds):
         raise ConfigError(f"seeds={values['seeds']} repeats a seed")
     return TuneRequest(

@@ -136,7 +136,7 @@ def sweep(systems: Names, models: Names, seeds: Iterable[int] = (0,),
     return board
 
 
-def tune(system: str, models: Names, trials: int, seeds: Iterable[int] = (0, 1, 2),
+def tune(system: str, models: Names, trials: int, seeds: Iterable[int] = (0, 1, 2, 3, 4),
          profile: str = "paper", out: Optional[Union[str, Path]] = None,
          steps: Optional[int] = None, pruner: str = "successive_halving",
          trial_seed: int = 0, sampler_seed: int = 0, **overrides: Any) -> pd.DataFrame:
