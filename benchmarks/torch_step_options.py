@@ -367,7 +367,10 @@ def time_steps(fn: Step, steps: int) -> float:
 
 
 def op_timings(n: int, d: int) -> None:
-    """torch's and XLA's tanh, and the thin products in both orientations."""
+    """Microseconds of each float32 tanh kernel on an ``(n, HIDDEN)`` activation (ATen's,
+    XLA's, oneDNN's where torch has it, and ``2 sigmoid(2a) - 1`` in place), of
+    ``torch.sigmoid`` and of the thin ``d``-column products in both orientations; then
+    each tanh kernel's largest absolute and relative error against float64 tanh."""
     import jax
     import jax.numpy as jnp
     import numpy as np

@@ -93,10 +93,10 @@ def test_the_family_table_and_the_aggregate_are_those_of_the_committed_records(r
 
 def test_the_readme_sets_the_tracks_of_the_committed_records_side_by_side(rebuilt,
                                                                          committed):
-    from hnnbench._report.verdicts import tracks_frame, tracks_markdown
+    from hnnbench._report.verdicts import tracks_frame, tracks_markdown, tuning_costs
 
     fams = families(records_frame(committed), rebuilt)
-    expected = tracks_markdown(tracks_frame(fams)).strip()
+    expected = tracks_markdown(tracks_frame(fams), tuning_costs(fams)).strip()
     assert _block((REPO / "README.md").read_text(), "tracks").strip() == expected
     assert (RESULTS / "tracks.md").read_text().strip() == f"# Tracks\n\n{expected}"
 
@@ -178,3 +178,35 @@ def test_rerunning_one_pair_lands_inside_the_committed_mean_pm_3_std(board, tmp_
         mean, std = row[f"{metric}_mean"], row[f"{metric}_std"]
         assert math.isfinite(value)
         assert abs(value - mean) <= 3 * std + 1e-12, (metric, value, mean, std)
+
+
+def test_the_tuned_track_covers_five_systems_with_every_family_on_equal_budgets(committed):
+    """docs/TUNING.md's promise, read from the committed records: on each system with
+    tuned rows, every ranked family of the protocol track has them, each family's study
+    had the same trials of the same steps, selected on validation, and each family's
+    seeds share the one selected configuration; at least five such systems."""
+    from hnnbench._check import budget_findings
+    from hnnbench._record_schema import track_of
+
+    tuned = [r for r in committed if track_of(r) == "tuned"]
+    assert budget_findings(tuned) == []
+    protocol_families: dict[str, set[str]] = {}
+    for r in committed:
+        if track_of(r) == "protocol" and r.get("ranked", True) and r["model"] != "oracle":
+            protocol_families.setdefault(r["system"], set()).add(str(r["family"]))
+    pairs: dict[tuple[str, str], list[dict]] = {}
+    for r in tuned:
+        assert r["tuning"]["selected_on"] == "validation", (r["system"], r["model"])
+        assert r["tuning"]["objective"].startswith("val_"), (r["system"], r["model"])
+        pairs.setdefault((r["system"], str(r["family"])), []).append(r)
+    complete = []
+    for system in sorted({s for s, _ in pairs}):
+        fams = {f for s, f in pairs if s == system}
+        assert fams == protocol_families[system], (system, fams)
+        complete.append(system)
+        for fam in fams:
+            runs = pairs[(system, fam)]
+            assert sorted(r["seed"] for r in runs)[:3] == [0, 1, 2], (system, fam)
+            assert len({json.dumps(r["tuning"]["selected"], sort_keys=True)
+                        for r in runs}) == 1, (system, fam)
+    assert len(complete) >= 5, complete
