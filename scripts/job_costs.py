@@ -2,8 +2,10 @@
 model), from the runs this repository publishes (hnnbench._costs reads it for the
 sweep's estimate and ETA).
 
-- paper profile: the median ``timings.total_s`` over the main-row records in
-  results/records (every seed; variants left out);
+- paper profile: the median ``timings.total_s`` over the protocol track's records in
+  results/records (every seed). A tuned or recipe record trains other settings (other
+  widths, steps, schedules: docs/TUNING.md), so its time says nothing of a protocol
+  job's and is left out;
 - quick profile: ``total_s_mean`` of results/reference/quick.csv (the CI gate's seed-0
   sweep).
 
@@ -28,13 +30,16 @@ RECORDS = REPO / "results" / "records"
 QUICK = REPO / "results" / "reference" / "quick.csv"
 
 
-def rows() -> list[dict[str, object]]:
+def rows(records: Path = RECORDS, quick: Path = QUICK) -> list[dict[str, object]]:
+    """The table's rows: the paper profile's from ``records``, the quick profile's from
+    ``quick``."""
     from hnnbench._costs import median_seconds
+    from hnnbench._record_schema import DEFAULT_TRACK, track_of
 
     times: dict[tuple[str, str, str], list[float]] = defaultdict(list)
-    for path in sorted(RECORDS.rglob("result.json")):
+    for path in sorted(records.rglob("result.json")):
         rec = json.loads(path.read_text("utf-8"))
-        if rec.get("variant") or not isinstance(rec.get("timings"), dict):
+        if track_of(rec) != DEFAULT_TRACK or not isinstance(rec.get("timings"), dict):
             continue
         total = rec["timings"].get("total_s")
         if isinstance(total, (int, float)):
@@ -44,8 +49,8 @@ def rows() -> list[dict[str, object]]:
         out.append({"profile": profile, "system": system, "model": model,
                     "seconds": f"{median_seconds(values):.3g}", "n_runs": len(values),
                     "source": "results/records (median total_s)"})
-    if QUICK.exists():
-        with QUICK.open(newline="", encoding="utf-8") as fh:
+    if quick.exists():
+        with quick.open(newline="", encoding="utf-8") as fh:
             for row in csv.DictReader(fh):
                 if row.get("variant") or not row.get("total_s_mean"):
                     continue

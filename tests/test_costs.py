@@ -27,6 +27,27 @@ def test_the_committed_job_costs_are_what_the_script_writes():
     assert table[("quick", "spring", "oracle")] > 0
 
 
+def test_the_job_costs_are_the_protocol_tracks_own(tmp_path):
+    """A tuned or recipe record trains other settings: its time is no protocol job's."""
+    sys.path.insert(0, str(REPO / "scripts"))
+    import job_costs
+
+    def write(track, seed, total):
+        rec = {"system": "spring", "model": "hnn_jax", "seed": seed, "profile": "paper",
+               "timings": {"total_s": total}, **({"track": track} if track else {})}
+        path = tmp_path / (track or "protocol") / f"seed{seed}" / "result.json"
+        path.parent.mkdir(parents=True)
+        path.write_text(json.dumps(rec))
+
+    write(None, 0, 10.0)
+    write("protocol", 1, 12.0)
+    write("tuned", 0, 500.0)
+    write("recipe", 0, 900.0)
+    (row,) = job_costs.rows(tmp_path, tmp_path / "no_quick.csv")
+    assert (row["system"], row["model"], row["seconds"], row["n_runs"]) == \
+        ("spring", "hnn_jax", "11", 2)
+
+
 def test_a_broken_cost_file_gives_no_estimate(tmp_path):
     bad = tmp_path / "costs.csv"
     bad.write_text("profile,system\nx,y\n")
