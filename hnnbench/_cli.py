@@ -25,7 +25,7 @@ usage: hnnbench [-m] [KEY=VALUE ...]        run one job, or a sweep with -m (Hyd
        hnnbench list [--json]               registered systems and models
        hnnbench report DIR [--out OUT]      tables and figures from a sweep's records
        hnnbench check DIR --reference CSV   leaderboard regression gate
-       hnnbench tune system=S model=A,B trials=N [seeds=0,1,2] [steps=K] [out=DIR]
+       hnnbench tune system=S model=A,B trials=N [seeds=0,...,4] [steps=K] [out=DIR]
                                             the tuned track: the same tuning budget
                                             for every model, selected on validation
 

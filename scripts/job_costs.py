@@ -3,9 +3,9 @@ model), from the runs this repository publishes (hnnbench._costs reads it for th
 sweep's estimate and ETA).
 
 - paper profile: the median ``timings.total_s`` over the protocol track's records in
-  results/records (every seed). A tuned or recipe record trains other settings (other
-  widths, steps, schedules: docs/TUNING.md), so its time says nothing of a protocol
-  job's and is left out;
+  results/records (every seed; variants left out). A tuned or recipe record trains other
+  settings (other widths, steps, schedules: docs/TUNING.md), so its time says nothing
+  of a protocol job's and is left out too;
 - quick profile: ``total_s_mean`` of results/reference/quick.csv (the CI gate's seed-0
   sweep).
 
@@ -35,11 +35,13 @@ def rows(records: Path = RECORDS, quick: Path = QUICK) -> list[dict[str, object]
     ``quick``."""
     from hnnbench._costs import median_seconds
     from hnnbench._record_schema import DEFAULT_TRACK, track_of
+    from hnnbench._table import _variant_items, variant_overrides
 
     times: dict[tuple[str, str, str], list[float]] = defaultdict(list)
     for path in sorted(records.rglob("result.json")):
         rec = json.loads(path.read_text("utf-8"))
-        if track_of(rec) != DEFAULT_TRACK or not isinstance(rec.get("timings"), dict):
+        if track_of(rec) != DEFAULT_TRACK or not isinstance(rec.get("timings"), dict) \
+                or _variant_items(variant_overrides(rec)):  # another track, or a variant
             continue
         total = rec["timings"].get("total_s")
         if isinstance(total, (int, float)):

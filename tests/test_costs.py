@@ -27,15 +27,17 @@ def test_the_committed_job_costs_are_what_the_script_writes():
     assert table[("quick", "spring", "oracle")] > 0
 
 
-def test_the_job_costs_are_the_protocol_tracks_own(tmp_path):
-    """A tuned or recipe record trains other settings: its time is no protocol job's."""
-    sys.path.insert(0, str(REPO / "scripts"))
+def test_the_job_costs_are_the_protocol_tracks_own(tmp_path, monkeypatch):
+    """A tuned or recipe record, or a variant, trains other settings: its time is no
+    protocol job's."""
+    monkeypatch.syspath_prepend(str(REPO / "scripts"))
     import job_costs
 
-    def write(track, seed, total):
+    def write(track, seed, total, *extra):
         rec = {"system": "spring", "model": "hnn_jax", "seed": seed, "profile": "paper",
-               "timings": {"total_s": total}, **({"track": track} if track else {})}
-        path = tmp_path / (track or "protocol") / f"seed{seed}" / "result.json"
+               "timings": {"total_s": total}, **({"track": track} if track else {}),
+               "overrides": ["system=spring", "model=hnn_jax", f"seed={seed}", *extra]}
+        path = tmp_path / (track or "protocol") / f"seed{seed}{''.join(extra)}" / "result.json"
         path.parent.mkdir(parents=True)
         path.write_text(json.dumps(rec))
 
@@ -43,6 +45,7 @@ def test_the_job_costs_are_the_protocol_tracks_own(tmp_path):
     write("protocol", 1, 12.0)
     write("tuned", 0, 500.0)
     write("recipe", 0, 900.0)
+    write(None, 2, 700.0, "model.hidden=400")
     (row,) = job_costs.rows(tmp_path, tmp_path / "no_quick.csv")
     assert (row["system"], row["model"], row["seconds"], row["n_runs"]) == \
         ("spring", "hnn_jax", "11", 2)

@@ -344,9 +344,9 @@ def _leader_set(verdict: str) -> set[str]:
 def tuning_costs(fams: Families) -> pd.DataFrame:
     """What each family's tuned settings cost: one row per (profile, system) with tuned
     family rows, a column per family (in the board's order) holding the CPU seconds of
-    its study (``tuning_cpu_s``: every trial, pruned ones included, not the final
-    seeds), formatted; ``—`` where the family has no tuned row there. Empty when no row
-    is of the tuned track."""
+    the study of its primary twin, the one its family row shows (``tuning_cpu_s``: every
+    trial, pruned ones included, not the final seeds), formatted; ``—`` where the family
+    has no tuned row there. Empty when no row is of the tuned track."""
     board = fams.board
     if board.empty or "track" not in board or "tuning_cpu_s" not in board:
         return pd.DataFrame()
@@ -370,11 +370,11 @@ def tracks_markdown(frame: pd.DataFrame, costs: Optional[pd.DataFrame] = None) -
     """The tracks side by side (:func:`tracks_frame`) and one line per (system, metric)
     whose verdict changes between tracks; a line saying so when no other track ran; then,
     where ``costs`` (:func:`tuning_costs`) has rows, what each family's tuning cost."""
-    if frame.empty:
+    if frame.empty and (costs is None or costs.empty):
         return ("Only the protocol track has published rows: no tuned or recipe rows yet "
                 "(docs/TUNING.md).")
-    shown = frame.drop(columns=["changes", "mean_changes"]).replace("", "—")
-    lines = [md_table(shown), ""]
+    lines = [] if frame.empty else \
+        [md_table(frame.drop(columns=["changes", "mean_changes"]).replace("", "—")), ""]
     tracks = [c for c in frame.columns
               if c not in ("profile", "system", "metric", "changes", "mean_changes")]
     lines += ["Each cell names the best family, or the families tied for the lead with the "
@@ -405,6 +405,8 @@ def tracks_markdown(frame: pd.DataFrame, costs: Optional[pd.DataFrame] = None) -
     if costs is not None and not costs.empty:
         lines += ["What each family's tuned settings cost: the CPU seconds of its study "
                   "(every trial, pruned ones included; the final seeds not counted), the "
-                  "leaderboard's `tuning_cpu_s`. Every family on a system had the same "
-                  "trials and steps per trial (docs/TUNING.md).", "", md_table(costs)]
+                  "leaderboard's `tuning_cpu_s`. `hnnbench tune` gives every family of a "
+                  "system the same trials of the same steps, and `hnnbench check` flags a "
+                  "system whose tuned records state unequal budgets (docs/TUNING.md).",
+                  "", md_table(costs)]
     return "\n".join(lines).rstrip("\n")
