@@ -179,3 +179,32 @@ def test_rerunning_one_pair_lands_inside_the_committed_mean_pm_3_std(board, tmp_
         assert math.isfinite(value)
         assert abs(value - mean) <= 3 * std + 1e-12, (metric, value, mean, std)
 
+
+def test_every_tuned_system_has_every_family_on_equal_budgets(committed):
+    """docs/TUNING.md's promise, read from the committed records: on each system with
+    tuned rows, every ranked family of the protocol track has them, each family's study
+    had the same trials of the same steps, selected on validation, and each family's
+    seeds 0 to 4 share the one selected configuration."""
+    from hnnbench._check import budget_findings
+    from hnnbench._record_schema import track_of
+
+    tuned = [r for r in committed if track_of(r) == "tuned"]
+    assert budget_findings(tuned) == []
+    protocol_families: dict[str, set[str]] = {}
+    for r in committed:
+        if track_of(r) == "protocol" and r.get("ranked", True) and r["model"] != "oracle":
+            protocol_families.setdefault(r["system"], set()).add(str(r["family"]))
+    pairs: dict[tuple[str, str], list[dict]] = {}
+    for r in tuned:
+        assert r["tuning"]["selected_on"] == "validation", (r["system"], r["model"])
+        assert r["tuning"]["objective"].startswith("val_"), (r["system"], r["model"])
+        pairs.setdefault((r["system"], str(r["family"])), []).append(r)
+    for system in sorted({s for s, _ in pairs}):
+        fams = {f for s, f in pairs if s == system}
+        assert fams == protocol_families[system], (system, fams)
+        for fam in fams:
+            runs = pairs[(system, fam)]
+            assert sorted(r["seed"] for r in runs)[:5] == [0, 1, 2, 3, 4], (system, fam)
+            assert len({json.dumps(r["tuning"]["selected"], sort_keys=True)
+                        for r in runs}) == 1, (system, fam)
+    assert pairs, "no tuned records"
