@@ -184,7 +184,7 @@ def test_every_tuned_system_has_every_family_on_equal_budgets(committed):
     """docs/TUNING.md's promise, read from the committed records: on each system with
     tuned rows, every ranked family of the protocol track has them, each family's study
     had the same trials of the same steps, selected on validation, and each family's
-    seeds 0 to 4 share the one selected configuration."""
+    seeds 0 to 4 share the one selected configuration; at least five such systems."""
     from hnnbench._check import budget_findings
     from hnnbench._record_schema import track_of
 
@@ -207,4 +207,4 @@ def test_every_tuned_system_has_every_family_on_equal_budgets(committed):
             assert sorted(r["seed"] for r in runs)[:5] == [0, 1, 2, 3, 4], (system, fam)
             assert len({json.dumps(r["tuning"]["selected"], sort_keys=True)
                         for r in runs}) == 1, (system, fam)
-    assert pairs, "no tuned records"
+    assert len({s for s, _ in pairs}) >= 5, sorted({s for s, _ in pairs})  # issue #32
