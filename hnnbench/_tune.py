@@ -96,8 +96,13 @@ PASSED_KEYS = ("timeout_s", "cache_dir", "data_dir", "device", "threads", "pin_c
 ARGUMENTS = ("system", "model", "trials", "seeds", "profile", "out", "steps", "pruner",
              "trial_seed", "sampler_seed")
 
-USAGE = """\
-usage: hnnbench tune system=NAME model=A,B,... trials=N [seeds=0,1,2,3,4] [profile=paper]
+#: The seeds the selected settings train on unless ``seeds=`` says otherwise: five, as
+#: the paired sign test cannot separate two families on fewer (docs/TUNING.md).
+DEFAULT_SEEDS = (0, 1, 2, 3, 4)
+_SEEDS_TEXT = ",".join(map(str, DEFAULT_SEEDS))
+
+USAGE = f"""\
+usage: hnnbench tune system=NAME model=A,B,... trials=N [seeds={_SEEDS_TEXT}] [profile=paper]
                      [steps=S] [out=DIR] [pruner=successive_halving|none]
                      [trial_seed=0] [sampler_seed=0] [system.KEY=VALUE ...]
 
@@ -132,7 +137,7 @@ class TuneRequest:
     system: str
     models: list[str]
     trials: int
-    seeds: list[int] = field(default_factory=lambda: [0, 1, 2, 3, 4])
+    seeds: list[int] = field(default_factory=lambda: list(DEFAULT_SEEDS))
     profile: str = "paper"
     out: Optional[Path] = None
     steps: Optional[int] = None
@@ -242,7 +247,7 @@ def parse(args: Sequence[str]) -> TuneRequest:
     pruner = values.get("pruner", "successive_halving")
     if pruner not in PRUNERS:
         raise ConfigError(f"pruner={pruner} is invalid: expected one of {', '.join(PRUNERS)}")
-    seeds = [_int("seeds", s, 0) for s in values.get("seeds", "0,1,2,3,4").split(",")]
+    seeds = [_int("seeds", s, 0) for s in values.get("seeds", _SEEDS_TEXT).split(",")]
     if len(set(seeds)) != len(seeds):
         raise ConfigError(f"seeds={values['seeds']} repeats a seed")
     return TuneRequest(

@@ -300,6 +300,14 @@ def _leaders(rows: pd.DataFrame, metric: str) -> str:
     return f"tied: {', '.join(tied)}" if tied else ""
 
 
+def _main_rows_by_track(board: pd.DataFrame) -> pd.DataFrame:
+    """A family board's rows of no variant, its ``track`` column filled (a row with none
+    is of :data:`DEFAULT_TRACK`) and text."""
+    if "variant" in board:
+        board = board[board["variant"].fillna("").astype(str) == ""]
+    return board.assign(track=board["track"].fillna(DEFAULT_TRACK).astype(str))
+
+
 def tracks_frame(fams: Families, metrics: Optional[list[str]] = None) -> pd.DataFrame:
     """The verdicts of every track side by side (docs/TUNING.md): one row per (profile,
     system, metric of ``metrics``, default the headline ones) where some track other
@@ -312,9 +320,7 @@ def tracks_frame(fams: Families, metrics: Optional[list[str]] = None) -> pd.Data
     board = fams.board
     if board.empty or "track" not in board:
         return pd.DataFrame()
-    if "variant" in board:
-        board = board[board["variant"].fillna("").astype(str) == ""]
-    board = board.assign(track=board["track"].fillna(DEFAULT_TRACK).astype(str))
+    board = _main_rows_by_track(board)
     present = [t for t in TRACKS if t in set(board["track"])]
     present += sorted(set(board["track"]) - set(present))
     if present == [DEFAULT_TRACK]:
@@ -350,9 +356,8 @@ def tuning_costs(fams: Families) -> pd.DataFrame:
     board = fams.board
     if board.empty or "track" not in board or "tuning_cpu_s" not in board:
         return pd.DataFrame()
-    if "variant" in board:
-        board = board[board["variant"].fillna("").astype(str) == ""]
-    tuned = board[board["track"].fillna(DEFAULT_TRACK).astype(str) == "tuned"]
+    board = _main_rows_by_track(board)
+    tuned = board[board["track"] == "tuned"]
     if tuned.empty:
         return pd.DataFrame()
     order = list(dict.fromkeys(tuned["family"].astype(str)))
