@@ -13,6 +13,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -239,3 +240,43 @@ def test_sweep_benchmark_warm_runs_start_from_the_filled_cache(tmp_path):
         record = json.loads(path.read_text())
         assert record["status"] == "ok" and record["data"]["cache_hit"] is True
     assert not (tmp_path / "basic" / "cache").exists()  # no cache of its own
+
+
+GPU_RUNS = REPO / "benchmarks" / "results" / "gpu-h100-2026-11-28"
+
+
+@pytest.mark.parametrize("run", ["1-default-autotuning", "2-seeds-per-job", "3-autotune-off"])
+def test_gpu_summaries_are_what_their_committed_records_give(run, tmp_path):
+    """benchmarks/README.md's GPU figures: each committed summary.md is what
+    ``gpu.py --summarize`` prints from the records beside it (and results/records), and
+    every GPU record validates against the record schema."""
+    from hnnbench._record_schema import shape_problems
+
+    copy = tmp_path / run
+    shutil.copytree(GPU_RUNS / run, copy)
+    proc = subprocess.run([sys.executable, str(REPO / "benchmarks" / "gpu.py"), "--summarize",
+                           str(copy)], capture_output=True, text=True, timeout=120, cwd=REPO)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert (copy / "summary.md").read_text() == (GPU_RUNS / run / "summary.md").read_text()
+    records = [json.loads(p.read_text()) for p in (GPU_RUNS / run).rglob("result.json")]
+    assert records and all(r["device"].startswith("cuda") for r in records)
+    assert all(shape_problems(r) == [] for r in records)
+
+
+@pytest.mark.slow
+def test_gpu_benchmark_runs_its_parts_on_the_cpu(tmp_path):
+    """benchmarks/gpu.py end to end with --device cpu (the GPU itself is not here): a job
+    per pair, the seed batch against separate jobs, the host CPU part, and the tables."""
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "gpu.py"), "--out", str(tmp_path),
+         "--device", "cpu", "--profile", "quick", "--systems", "spring",
+         "--models", "mlp_torch", "--batch-system", "spring", "--batch-models", "mlp_torch",
+         "--cpu-system", "spring", "--budget-s", "300"],
+        capture_output=True, text=True, timeout=600, cwd=REPO,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    summary = (tmp_path / "summary.md").read_text()
+    assert "| spring | mlp_torch | ok | cpu |" in summary
+    assert "| mlp_torch |" in summary.split("three separate jobs")[1]
+    assert "ok,ok,ok / ok,ok,ok" in summary

@@ -25,7 +25,7 @@ from typing import Optional, Protocol
 import numpy as np
 
 from hnnbench._contract import TrainSettings
-from hnnbench._errors import BackendMissingError, HnnbenchError
+from hnnbench._errors import BackendMissingError, ConfigError, HnnbenchError
 from hnnbench.neural._config import NeuralConfig
 from hnnbench.neural._embedding import Layout
 from hnnbench.neural._family import Family
@@ -33,7 +33,8 @@ from hnnbench.neural._loop import Trainer
 from hnnbench.neural._views import Problem
 
 __all__ = ["BACKENDS", "MIN_STEP_FRACTION", "Backend", "Inference", "Weights", "load_backend",
-           "map_plan", "missing_backend", "rollout_min_step", "stall_text"]
+           "device_request", "gpu_device", "map_plan", "missing_backend", "rollout_min_step",
+           "stall_text"]
 
 #: The stall rule of every neural rollout, in both backends (docs/METRICS.md,
 #: "Diverged"): when the adaptive solver's next step size falls below this fraction of
@@ -49,6 +50,34 @@ def rollout_min_step(t: np.ndarray) -> float:
     :data:`MIN_STEP_FRACTION` of its span), in ``t``'s units."""
     t = np.asarray(t, dtype=np.float64)
     return MIN_STEP_FRACTION * float(abs(t[-1] - t[0])) if t.size else 0.0
+
+
+def device_request(requested: str) -> tuple[str, int]:
+    """A job's ``device`` setting, the same in both backends: ``("auto", 0)``,
+    ``("cpu", 0)`` or ``("cuda", N)`` (``cuda``, ``gpu`` -> N = 0; ``cuda:N``, ``gpu:N``).
+    Anything else is a :class:`ConfigError` saying what is accepted."""
+    req = str(requested).strip().lower()
+    if req in ("auto", "cpu"):
+        return req, 0
+    kind, colon, index = req.partition(":")
+    if kind in ("cuda", "gpu") and (index.isdigit() if colon else True):
+        return "cuda", int(index or 0)
+    raise ConfigError(f"device={requested} is invalid: expected auto, cpu, cuda or cuda:N.")
+
+
+def gpu_device(requested: str, index: int, count: int, backend: str, install: str) -> None:
+    """Raise a :class:`ConfigError` unless GPU ``index`` is one of the ``count`` GPUs
+    ``backend`` sees (``install``: how to get a CUDA build of it)."""
+    if count == 0:
+        raise ConfigError(
+            f"device={requested} was requested but {backend} sees no CUDA GPU: use device=cpu "
+            f"or device=auto (or install a CUDA build of {backend}: {install})."
+        )
+    if index >= count:
+        raise ConfigError(
+            f"device={requested} was requested but {backend} sees only {count} GPU(s): "
+            f"use device=cuda:0..{count - 1}."
+        )
 
 
 def map_plan(t: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:

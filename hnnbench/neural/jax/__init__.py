@@ -21,6 +21,12 @@ another place or ``JAX_ENABLE_COMPILATION_CACHE=false`` turns it off. For the ro
 to be cacheable it must hold no host callbacks, so equinox's in-graph error checks
 answer with NaN (``EQX_ON_ERROR=nan``, unless set otherwise) instead of calling back to
 raise; a NaN rollout is recorded as diverged, like a solver failure.
+
+On a GPU, XLA's kernel autotuning is off (``--xla_gpu_autotune_level=0`` is added to
+``XLA_FLAGS`` unless they set the level already): it times candidate kernels for every
+product while compiling, which for these small networks cost more than it saved (a
+two-body ``mlp_jax`` job on an H100: compilation 35.5 s with it, 5.1 s without;
+docs/SCALING.md, "GPUs"). It has no effect on the CPU.
 """
 
 from __future__ import annotations
@@ -36,17 +42,30 @@ import numpy as np
 
 os.environ.setdefault("EQX_ON_ERROR", "nan")  # read when equinox is imported
 
+
+def _gpu_autotuning_off() -> None:
+    """Add ``--xla_gpu_autotune_level=0`` to ``XLA_FLAGS`` unless a level is set there
+    (read when JAX starts its GPU backend; the module docstring says why)."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_gpu_autotune_level" not in flags:
+        os.environ["XLA_FLAGS"] = f"{flags} --xla_gpu_autotune_level=0".strip()
+
+
+_gpu_autotuning_off()
+
 import diffrax  # noqa: E402
 import equinox as eqx  # noqa: E402
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import optax  # noqa: E402
 
-from hnnbench import _paths as paths
+from hnnbench import _paths as paths  # noqa: E402
 from hnnbench._contract import TrainSettings  # noqa: E402
-from hnnbench._errors import ConfigError, RolloutDiverged  # noqa: E402
+from hnnbench._errors import RolloutDiverged  # noqa: E402
 from hnnbench.neural._backend import (  # noqa: E402
     Weights,
+    device_request,
+    gpu_device,
     map_plan,
     rollout_min_step,
     stall_text,
@@ -112,27 +131,14 @@ def _gpus() -> list[Any]:
 
 def resolve_device(requested: str) -> Any:
     """``auto`` -> the first GPU if JAX sees one, else the CPU; ``cpu``; ``cuda[:N]``."""
-    req = str(requested).strip().lower()
-    if req == "auto":
-        gpus = _gpus()
-        return gpus[0] if gpus else jax.devices("cpu")[0]
-    if req == "cpu":
+    kind, index = device_request(requested)
+    if kind == "cpu":
         return jax.devices("cpu")[0]
-    if req in ("cuda", "gpu") or req.startswith(("cuda:", "gpu:")):
-        index = int(req.split(":", 1)[1]) if ":" in req and req.split(":", 1)[1].isdigit() else 0
-        gpus = _gpus()
-        if not gpus:
-            raise ConfigError(
-                f"device={requested} was requested but JAX sees no CUDA GPU: use device=cpu "
-                "or device=auto (or install a CUDA build of jax: pip install 'jax[cuda12]')."
-            )
-        if index >= len(gpus):
-            raise ConfigError(
-                f"device={requested} was requested but JAX sees only {len(gpus)} GPU(s): "
-                f"use device=cuda:0..{len(gpus) - 1}."
-            )
-        return gpus[index]
-    raise ConfigError(f"device={requested} is invalid: expected auto, cpu, cuda or cuda:N.")
+    gpus = _gpus()
+    if kind == "auto":
+        return gpus[0] if gpus else jax.devices("cpu")[0]
+    gpu_device(requested, index, len(gpus), "jax", "pip install 'jax[cuda12]'")
+    return gpus[index]
 
 
 def device_name(device: Any) -> str:

@@ -17,8 +17,14 @@ import torch
 import torch.nn.functional as F
 
 from hnnbench._contract import TrainSettings
-from hnnbench._errors import ConfigError, RolloutDiverged
-from hnnbench.neural._backend import Weights, map_plan, rollout_min_step
+from hnnbench._errors import RolloutDiverged
+from hnnbench.neural._backend import (
+    Weights,
+    device_request,
+    gpu_device,
+    map_plan,
+    rollout_min_step,
+)
 from hnnbench.neural._config import NeuralConfig
 from hnnbench.neural._embedding import Layout
 from hnnbench.neural._family import Family
@@ -42,15 +48,15 @@ Params = dict[str, torch.Tensor]
 
 
 def resolve_device(requested: str) -> torch.device:
-    """``auto`` -> the GPU if one is there, else the CPU."""
-    if requested == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    if requested.startswith("cuda") and not torch.cuda.is_available():
-        raise ConfigError(
-            f"device={requested} was requested but torch sees no CUDA GPU: use device=cpu "
-            "or device=auto (or install a CUDA build of torch: TORCH_SPEC=torch make setup)."
-        )
-    return torch.device(requested)
+    """``auto`` -> the first GPU if torch sees one, else the CPU; ``cpu``; ``cuda[:N]``.
+    A GPU always carries its index (``cuda:0``), so both backends name it alike."""
+    kind, index = device_request(requested)
+    count = torch.cuda.device_count() if kind != "cpu" and torch.cuda.is_available() else 0
+    if kind == "cpu" or (kind == "auto" and count == 0):
+        return torch.device("cpu")
+    if kind == "cuda":
+        gpu_device(requested, index, count, "torch", "TORCH_SPEC=torch make setup")
+    return torch.device("cuda", index)
 
 
 def networks(params: Mapping[str, Any], layout: Layout, cfg: NeuralConfig,
