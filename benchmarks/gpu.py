@@ -13,7 +13,9 @@ jobs share the GPU. In order, each part started only while ``--budget-s`` is not
 1. ``--systems`` × ``--models``: one job each, ``device=cuda``, seed 0;
 2. the seed batch, on ``--batch-system`` for each of ``--batch-models``:
    ``-m seed=0,1,2 device=cuda`` (three jobs in one process, the basic launcher) and the
-   same with ``seeds_per_job=3`` (one job training the three seeds as one batch);
+   same with ``seeds_per_job=3`` (one job training the three seeds as one batch); the
+   three seeds' datasets are generated into the cache first, so neither side pays for
+   them (the batch table shows each side's ``data_s``);
 3. the CPU baseline on this host: ``--cpu-system`` × ``--models`` with ``device=cpu``
    (``threads=1``, as the published records ran).
 
@@ -26,7 +28,10 @@ GPU is faster. The seed batch's ratio is the wall time of the three separate job
 process over the batch's.
 
 Records land under ``DIR/<part>/...`` as the CLI writes them (``save_model=false``);
-``DIR/summary.md`` holds the tables and ``DIR/environment.txt`` what the host has.
+``DIR/summary.md`` holds the tables, ``DIR/environment.txt`` what the host has (read
+in a child process, so this process never holds the GPU), ``DIR/walls.json`` and
+``DIR/exits.json`` each job's wall seconds and exit status. The script exits 1 when a
+job it started failed or ran past ``--job-timeout-s``.
 """
 
 from __future__ import annotations
@@ -34,7 +39,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
 import time
@@ -51,56 +55,93 @@ def _hnnbench() -> list[str]:
     return [sys.executable, "-c", "import sys; from hnnbench._cli import main; sys.exit(main())"]
 
 
+#: Each job's environment: progress lines in its log, and JAX allocating GPU memory as
+#: it needs it rather than 75 % of the card up front.
+JOB_ENV = {"HNNBENCH_PROGRESS": "log", "XLA_PYTHON_CLIENT_PREALLOCATE": "false"}
+
+
 def _run(args: list[str], log: Path, timeout_s: float) -> tuple[float, int]:
-    """Run the CLI with ``args``; its output to ``log``. Returns (wall s, exit status)."""
-    env = {**os.environ, "HNNBENCH_PROGRESS": "log", "XLA_PYTHON_CLIENT_PREALLOCATE": "false"}
+    """Run the CLI with ``args``; its output to ``log``. Returns (wall s, exit status;
+    124 when it ran past ``timeout_s`` and was killed)."""
     start = time.perf_counter()
     with log.open("w") as out:
         try:
             rc = subprocess.run([*_hnnbench(), *args], stdout=out, stderr=subprocess.STDOUT,
-                                env=env, timeout=timeout_s, cwd=REPO).returncode
+                                env={**os.environ, **JOB_ENV}, timeout=timeout_s,
+                                cwd=REPO).returncode
         except subprocess.TimeoutExpired:
             rc = 124
     return time.perf_counter() - start, rc
 
 
+_ENVIRONMENT = """
+import os, platform
+print(f"XLA_FLAGS={os.environ.get('XLA_FLAGS', '')!r}")
+print(f"python {platform.python_version()} on {platform.machine()}, {os.cpu_count()} CPUs")
+try:
+    import torch
+    gpu = torch.cuda.get_device_name(0) if torch.cuda.is_available() else "no GPU"
+    print(f"torch {torch.__version__}, CUDA {torch.version.cuda}, {gpu}")
+except Exception as exc:
+    print(f"torch: {exc!r}")
+try:
+    import jax
+    print(f"jax {jax.__version__}, devices {jax.devices()}")
+except Exception as exc:
+    print(f"jax: {exc!r}")
+"""
+
+def environment() -> str:
+    """Python, torch (CUDA, the GPU's name) and JAX (its devices), as a job sees them:
+    read in a child process, so that this process starts no GPU backend."""
+    proc = subprocess.run([sys.executable, "-c", _ENVIRONMENT], capture_output=True,
+                          text=True, env={**os.environ, **JOB_ENV}, cwd=REPO, check=False)
+    return (proc.stdout + proc.stderr[-500:]).strip()
+
+
+def warm_datasets(system: str, model: str, seeds: tuple[int, ...]) -> None:
+    """Generate ``system``'s datasets and evaluation sets of ``seeds`` into the cache
+    (a child process, the CPU only), as a job would."""
+    code = (
+        "import functools, sys\n"
+        "from hnnbench import _cache as cache\n"
+        "from hnnbench._config import compose, prepare_job\n"
+        "from hnnbench._contract import Dataset, Trajectories\n"
+        f"job = prepare_job(compose(['system={system}', 'model={model}']))\n"
+        "system = job.system_cls(job.system_cfg)\n"
+        f"for seed in {list(seeds)}:\n"
+        "    cache.cached(system, seed, 'dataset', functools.partial(system.dataset, seed),\n"
+        "                 Dataset.load)\n"
+        "    cache.cached(system, seed, 'evaluation',\n"
+        "                 functools.partial(system.evaluation, seed), Trajectories.load)\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO,
+                   env={**os.environ, **JOB_ENV})
+
+
 def _records(directory: Path) -> list[dict[str, Any]]:
+    """Every record under ``directory``, in path order."""
     return [json.loads(p.read_text()) for p in sorted(directory.rglob("result.json"))]
 
 
 def _published(system: str, model: str, seed: int = 0) -> dict[str, Any] | None:
+    """The published (CPU) record of the job, or None."""
     path = PUBLISHED / system / model / f"seed{seed}" / "result.json"
     return json.loads(path.read_text()) if path.is_file() else None
 
 
-def environment() -> str:
-    lines = [f"XLA_FLAGS={os.environ.get('XLA_FLAGS', '')!r}",
-             f"python {platform.python_version()} on {platform.machine()}, "
-             f"{os.cpu_count()} CPUs"]
-    try:
-        import torch
-        lines.append(f"torch {torch.__version__}, CUDA {torch.version.cuda}, "
-                     f"available {torch.cuda.is_available()}"
-                     + (f", {torch.cuda.get_device_name(0)}" if torch.cuda.is_available()
-                        else ""))
-    except Exception as exc:  # noqa: BLE001 - a report of what is there
-        lines.append(f"torch: {exc!r}")
-    try:
-        import jax
-        lines.append(f"jax {jax.__version__}, devices {jax.devices()}")
-    except Exception as exc:  # noqa: BLE001
-        lines.append(f"jax: {exc!r}")
-    return "\n".join(lines)
-
-
-def measure(args: argparse.Namespace) -> None:
+def measure(args: argparse.Namespace) -> int:
+    """Run the three parts (module docstring) into ``args.out``; print and write the
+    tables. Returns 1 if a job failed or was stopped at its limit, else 0."""
     out = Path(args.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
-    (out / "environment.txt").write_text(environment() + "\n")
-    print(environment(), flush=True)
+    env_text = environment()
+    (out / "environment.txt").write_text(env_text + "\n")
+    print(env_text, flush=True)
     start = time.perf_counter()
     common = [f"profile={args.profile}", "save_model=false"]
     walls: dict[str, float] = {}
+    exits: dict[str, int] = {}
 
     def budget_left(what: str) -> bool:
         spent = time.perf_counter() - start
@@ -119,6 +160,7 @@ def measure(args: argparse.Namespace) -> None:
         argv = (["-m"] if multirun else []) + [*overrides, *common, f"{key}={directory}"]
         wall, rc = _run(argv, out / part / f"{name}.log", args.job_timeout_s)
         walls[f"{part}/{name}"] = wall
+        exits[f"{part}/{name}"] = rc
         print(f"[{time.perf_counter() - start:6.0f} s] {part}/{name}: exit {rc}, "
               f"{wall:.1f} s wall", flush=True)
 
@@ -126,6 +168,8 @@ def measure(args: argparse.Namespace) -> None:
         for model in args.models:
             job("gpu", f"{system}-{model}",
                 [f"system={system}", f"model={model}", "seed=0", f"device={args.device}"])
+    if args.batch_models and budget_left("the seed batch's datasets"):
+        warm_datasets(args.batch_system, args.batch_models[0], SEEDS)
     for model in args.batch_models:
         seeds = "seed=" + ",".join(map(str, SEEDS))
         base = [f"system={args.batch_system}", f"model={model}", seeds, f"device={args.device}"]
@@ -136,14 +180,22 @@ def measure(args: argparse.Namespace) -> None:
         job("cpu", f"{args.cpu_system}-{model}",
             [f"system={args.cpu_system}", f"model={model}", "seed=0", "device=cpu"])
     (out / "walls.json").write_text(json.dumps(walls, indent=1) + "\n")
+    (out / "exits.json").write_text(json.dumps(exits, indent=1) + "\n")
     summarize(out)
+    failed = sorted(k for k, rc in exits.items() if rc != 0)
+    if failed:
+        print(f"{len(failed)} job(s) failed or ran past the limit: {', '.join(failed)}",
+              file=sys.stderr)
+    return 1 if failed else 0
 
 
 def _ratio(cpu: float | None, gpu: float | None) -> str:
+    """``cpu / gpu`` as ``1.23×``; ``—`` where either is missing."""
     return f"{cpu / gpu:.2f}×" if cpu and gpu else "—"
 
 
 def _t(rec: dict[str, Any] | None, key: str) -> float | None:
+    """A timing (seconds) of an ``ok`` record, else None."""
     if not rec or rec.get("status") != "ok":
         return None
     value = rec.get("timings", {}).get(key)
@@ -151,12 +203,17 @@ def _t(rec: dict[str, Any] | None, key: str) -> float | None:
 
 
 def _s(value: float | None) -> str:
+    """Seconds to one decimal; ``—`` for None."""
     return f"{value:.1f}" if value is not None else "—"
 
 
 def summarize(out: Path) -> str:
     """The tables, from the records under ``out``; written to ``out/summary.md``."""
-    walls = json.loads((out / "walls.json").read_text()) if (out / "walls.json").is_file() else {}
+    def read(name: str) -> dict[str, Any]:
+        path = out / name
+        return json.loads(path.read_text()) if path.is_file() else {}
+
+    walls, exits = read("walls.json"), read("exits.json")
     host_cpu = {(r["system"], r["model"]): r for r in _records(out / "cpu")}
     lines = ["| system | model | GPU status | device | GPU fit s | GPU total s "
              "| this host's CPU fit / total s | fit: CPU / GPU (this host) "
@@ -182,20 +239,25 @@ def summarize(out: Path) -> str:
         part, name = key.split("/", 1)
         if part == "gpu" and name not in recorded:
             system, model = name.split("-", 1)
-            lines.append(f"| {system} | {model} | no record: the process ran {wall:.1f} s "
-                         "(see its log) |" + " — |" * 9)
+            rc = exits.get(key)
+            how = ("stopped at the job limit" if rc == 124 else f"exit {rc}") if rc else ""
+            lines.append(f"| {system} | {model} | no record: the process ran {wall:.1f} s"
+                         f"{', ' + how if how else ''} (see its log) |" + " — |" * 9)
     lines += ["", "| model | three separate jobs: wall s | seeds_per_job=3: wall s "
-              "| throughput ratio | records (separate / batch) |", "|---|---|---|---|---|"]
+              "| throughput ratio | data s in them (separate / batch) "
+              "| records (separate / batch) |", "|---|---|---|---|---|---|"]
     for key in sorted(walls):
         part, name = key.split("/", 1)
         if part != "batch" or not name.endswith("-separate"):
             continue
         model = name[: -len("-separate")]
         sep, bat = walls.get(key), walls.get(f"batch/{model}-seeds_per_job3")
-        n_sep = [r["status"] for r in _records(out / "batch" / name)]
-        n_bat = [r["status"] for r in _records(out / "batch" / f"{model}-seeds_per_job3")]
+        r_sep = _records(out / "batch" / name)
+        r_bat = _records(out / "batch" / f"{model}-seeds_per_job3")
+        data = [sum(_t(r, "data_s") or 0.0 for r in rs) for rs in (r_sep, r_bat)]
+        statuses = [",".join(r["status"] for r in rs) or "—" for rs in (r_sep, r_bat)]
         lines.append(f"| {model} | {_s(sep)} | {_s(bat)} | {_ratio(sep, bat)} "
-                     f"| {','.join(n_sep) or '—'} / {','.join(n_bat) or '—'} |")
+                     f"| {data[0]:.1f} / {data[1]:.1f} | {statuses[0]} / {statuses[1]} |")
     text = "\n".join(lines) + "\n"
     (out / "summary.md").write_text(text)
     print(text, flush=True)
@@ -203,6 +265,7 @@ def summarize(out: Path) -> str:
 
 
 def main() -> int:
+    """The command line (module docstring)."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", help="where the records and summary go")
@@ -227,8 +290,7 @@ def main() -> int:
         return 0
     if not args.out:
         parser.error("--out DIR is required (or --summarize DIR)")
-    measure(args)
-    return 0
+    return measure(args)
 
 
 if __name__ == "__main__":

@@ -29,6 +29,10 @@ one training step built several ways, on the same data and initial weights:
   ``2 sigmoid(2a) - 1`` in place (ATen's float32 ``sigmoid`` kernel is several times
   cheaper than its ``tanh``; absolute error within a few ulps of 1, relative error
   large where ``|a|`` is tiny);
+- ``hnnbench + fused linear-tanh``: the same with each hidden layer's forward product,
+  bias and ``tanh`` as one oneDNN call (``torch.ops.mkldnn._linear_pointwise`` with its
+  ``tanh`` post-op, the fusion inductor uses on CPU) in place of ``addmm`` then ATen's
+  ``tanh_``: the issue's "fused activations";
 - ``torch.func.grad``: the ``hnnbench`` loss differentiated by ``torch.func.grad`` over
   the parameter dict instead of ``torch.autograd.grad``;
 - ``no autograd``: the step's gradient derived by hand and written as plain tensor
@@ -165,6 +169,32 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
 
         return patched
 
+    def with_fused_linear_tanh(loss: Callable[..., torch.Tensor]
+                               ) -> Callable[..., torch.Tensor]:
+        """``loss`` with the hand-written backward's forward layers (product, bias,
+        float32 ``tanh``) each one oneDNN call with a ``tanh`` post-op."""
+        from hnnbench.neural.torch import _backprop
+
+        plain = _backprop._forward
+        fused = torch.ops.mkldnn._linear_pointwise
+
+        def forward(name: str, x: torch.Tensor, params: tuple[torch.Tensor, ...]) -> Any:
+            if name != "tanh" or x.dtype != torch.float32:
+                return plain(name, x, params)
+            hs = [x]
+            for k in range(len(params) // 2):
+                hs.append(fused(hs[-1], params[2 * k], params[2 * k + 1], "tanh", [], ""))
+            return [None] * (len(params) // 2), hs
+
+        def patched(p: dict[str, torch.Tensor]) -> torch.Tensor:
+            _backprop._forward = forward
+            try:
+                return loss(p)
+            finally:
+                _backprop._forward = plain
+
+        return patched
+
     def optimizer_step(name: str, loss: Callable[..., torch.Tensor]) -> Step:
         params = fresh()
         grads[name] = list(torch.autograd.grad(loss(params), list(params.values())))
@@ -277,6 +307,9 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
            if torch.backends.mkldnn.is_available() else {}),  # a build without oneDNN
         "hnnbench + sigmoid tanh": direct_step("hnnbench + sigmoid tanh",
                                                loss_mse(TrainingMLP), tanh=sigmoid_tanh_),
+        **({"hnnbench + fused linear-tanh": direct_step(
+            "hnnbench + fused linear-tanh", with_fused_linear_tanh(loss_mse(TrainingMLP)))}
+           if torch.backends.mkldnn.is_available() else {}),
         "torch.func.grad": func_grad_step("torch.func.grad", loss_mse(MLP)),
         "no autograd": manual_step("no autograd"),
         "no autograd + sigmoid tanh": manual_step("no autograd + sigmoid tanh",
@@ -293,8 +326,10 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
               f"{compile_s:.1f} s (not counted)", flush=True)
         variants["torch.compile"] = compiled
     for swapped, plain in (("hnnbench + sigmoid tanh", "hnnbench"),
+                           ("hnnbench + fused linear-tanh", "hnnbench"),
                            ("no autograd + sigmoid tanh", "no autograd")):
-        if all(torch.equal(a, b) for a, b in zip(grads[swapped], grads[plain], strict=True)):
+        if swapped in grads and all(
+                torch.equal(a, b) for a, b in zip(grads[swapped], grads[plain], strict=True)):
             raise RuntimeError(f"{swapped!r} computed {plain!r}'s gradient bit for bit: "
                                "its tanh kernel was not used")
     reference = grads["a47bd0f"]
@@ -369,7 +404,8 @@ def time_steps(fn: Step, steps: int) -> float:
 def op_timings(n: int, d: int) -> None:
     """Microseconds of each float32 tanh kernel on an ``(n, HIDDEN)`` activation (ATen's,
     XLA's, oneDNN's where torch has it, and ``2 sigmoid(2a) - 1`` in place), of
-    ``torch.sigmoid`` and of the thin ``d``-column products in both orientations; then
+    ``torch.sigmoid``, of a hidden layer with and without its tanh (fused by oneDNN, or
+    not), and of the thin ``d``-column products in both orientations; then
     each tanh kernel's largest absolute and relative error against float64 tanh."""
     import jax
     import jax.numpy as jnp
@@ -389,6 +425,7 @@ def op_timings(n: int, d: int) -> None:
 
     a = torch.randn(n, HIDDEN)
     w_out = torch.randn(d, HIDDEN)  # an output layer's weight, (out, in)
+    w_hid, b_hid = torch.randn(HIDDEN, HIDDEN) / HIDDEN**0.5, torch.randn(HIDDEN)
     ja = jnp.asarray(a.numpy())
     jtanh = jax.jit(jnp.tanh)
     jtanh(ja).block_until_ready()
@@ -402,6 +439,13 @@ def op_timings(n: int, d: int) -> None:
             best_us(lambda: sigmoid_tanh_(a.clone())),
         f"  the copy alone ({n}, {HIDDEN})": best_us(lambda: a.clone()),
         f"torch.sigmoid ({n}, {HIDDEN})": best_us(lambda: torch.sigmoid(a)),
+        f"a hidden layer ({n},{HIDDEN})x({HIDDEN},{HIDDEN}) + b: addmm": best_us(
+            lambda: torch.addmm(b_hid, a, w_hid.t())),
+        "  the same, then ATen tanh_ (hnnbench's)": best_us(
+            lambda: torch.addmm(b_hid, a, w_hid.t()).tanh_()),
+        **({"  the same as one oneDNN call with a tanh post-op": best_us(
+            lambda: torch.ops.mkldnn._linear_pointwise(a, w_hid, b_hid, "tanh", [], ""))}
+           if torch.backends.mkldnn.is_available() else {}),
         f"({n},{HIDDEN})x({HIDDEN},{d}) as h @ w.t() (F.linear's)":
             best_us(lambda: a @ w_out.t()),
         "the same as (w @ h.t()).t()": best_us(lambda: (w_out @ a.t()).t()),

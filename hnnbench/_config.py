@@ -21,6 +21,7 @@ from hnnbench._contract import Model, ModelConfig, System, SystemConfig
 from hnnbench._errors import ConfigError, HnnbenchError, UnknownNameError
 from hnnbench._metric import EvaluationConfig
 from hnnbench._record_schema import DEFAULT_TRACK, TRACKS
+from hnnbench.neural._backend import device_request
 
 __all__ = [
     "EvaluationConfig",
@@ -34,7 +35,6 @@ __all__ = [
     "register_schema",
 ]
 
-DEVICE_RE = re.compile(r"^(auto|cpu|cuda(:\d+)?)$")
 #: Seeds must fit every backend's generator (torch, numpy, JAX keys): 0 <= seed < 2**32.
 MAX_SEED = 2**32 - 1
 #: Hydra plugins that are installed separately, by config-group option.
@@ -205,10 +205,7 @@ def validate_run(cfg: Any) -> None:
         if len(set(values)) != len(values) or values[0] != seed:
             raise ConfigError(f"seed_batch={values} must hold distinct seeds starting with "
                               f"seed={seed}; let seeds_per_job set it.")
-    if not DEVICE_RE.match(str(cfg.device)):
-        raise ConfigError(
-            f"device={cfg.device} is invalid: expected auto, cpu, cuda or cuda:N."
-        )
+    device_request(str(cfg.device))  # a ConfigError saying what is accepted
     limit = cfg.get("timeout_s")
     if limit is not None and (isinstance(limit, bool) or not isinstance(limit, (int, float))
                               or not (limit >= 0 and math.isfinite(limit))):

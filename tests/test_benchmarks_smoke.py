@@ -156,7 +156,8 @@ def test_train_step_benchmark_times_other_families():
 def test_torch_step_options_compute_the_same_step():
     """benchmarks/torch_step_options.py, tiny settings: every variant of the torch step
     (the a47bd0f step, direct Adam, mse_loss, hnnbench's hand-written backward passes,
-    with oneDNN's tanh, with the sigmoid form of tanh, torch.func.grad, the
+    with oneDNN's tanh, with the sigmoid form of tanh, with oneDNN's fused layer and
+    tanh, torch.func.grad, the
     autograd-free step, with either tanh) has the a47bd0f step's gradient (the script
     itself fails if a swapped tanh left a gradient bit for bit unchanged), the summary
     has a row per family with a JAX column, and the tanh error table bounds every
@@ -174,7 +175,7 @@ def test_torch_step_options_compute_the_same_step():
                                  "hnnbench + sigmoid tanh", "torch.func.grad",
                                  "no autograd", "no autograd + sigmoid tanh")
     if torch.backends.mkldnn.is_available():  # a build without oneDNN has no such row
-        variants += ("hnnbench + oneDNN tanh",)
+        variants += ("hnnbench + oneDNN tanh", "hnnbench + fused linear-tanh")
     for family in ("mlp", "hnn"):
         block = proc.stdout.split(f"{family} step: ms")[1].split("\n\n")[0]
         lines = {line.strip().split("  ")[0]: line.split() for line in block.splitlines()[1:]}
@@ -266,7 +267,8 @@ def test_gpu_summaries_are_what_their_committed_records_give(run, tmp_path):
 @pytest.mark.slow
 def test_gpu_benchmark_runs_its_parts_on_the_cpu(tmp_path):
     """benchmarks/gpu.py end to end with --device cpu (the GPU itself is not here): a job
-    per pair, the seed batch against separate jobs, the host CPU part, and the tables."""
+    per pair, the seed batch against separate jobs on warm caches, the host CPU part,
+    the tables, and each job's exit status."""
     proc = subprocess.run(
         [sys.executable, str(REPO / "benchmarks" / "gpu.py"), "--out", str(tmp_path),
          "--device", "cpu", "--profile", "quick", "--systems", "spring",
@@ -277,6 +279,16 @@ def test_gpu_benchmark_runs_its_parts_on_the_cpu(tmp_path):
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     summary = (tmp_path / "summary.md").read_text()
-    assert "| spring | mlp_torch | ok | cpu |" in summary
-    assert "| mlp_torch |" in summary.split("three separate jobs")[1]
-    assert "ok,ok,ok / ok,ok,ok" in summary
+    (row,) = [line for line in summary.splitlines() if line.startswith("| spring | mlp_torch")]
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[2:4] == ["ok", "cpu"] and float(cells[4]) > 0
+    assert cells[6] != "— / —" and cells[7].endswith("×")  # part 3 ran: this host's CPU
+    (batch,) = [line for line in summary.split("three separate jobs")[1].splitlines()
+                if line.startswith("| mlp_torch |")]
+    assert batch.endswith("| ok,ok,ok / ok,ok,ok |"), batch
+    data_sep, data_batch = (float(v) for v in batch.split("|")[5].split("/"))
+    assert data_sep < 1.0 and data_batch < 1.0  # the datasets were generated beforehand
+    assert json.loads((tmp_path / "exits.json").read_text()) == {
+        "gpu/spring-mlp_torch": 0, "batch/mlp_torch-separate": 0,
+        "batch/mlp_torch-seeds_per_job3": 0, "cpu/spring-mlp_torch": 0}
+    assert "XLA_FLAGS" in (tmp_path / "environment.txt").read_text()

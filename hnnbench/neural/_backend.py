@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import re
 from collections.abc import Sequence
 from types import ModuleType
 from typing import Optional, Protocol
@@ -52,17 +53,22 @@ def rollout_min_step(t: np.ndarray) -> float:
     return MIN_STEP_FRACTION * float(abs(t[-1] - t[0])) if t.size else 0.0
 
 
+_DEVICE = re.compile(r"(auto|cpu|cuda(?::(\d+))?)", re.ASCII)
+
+
 def device_request(requested: str) -> tuple[str, int]:
-    """A job's ``device`` setting, the same in both backends: ``("auto", 0)``,
-    ``("cpu", 0)`` or ``("cuda", N)`` (``cuda``, ``gpu`` -> N = 0; ``cuda:N``, ``gpu:N``).
-    Anything else is a :class:`ConfigError` saying what is accepted."""
-    req = str(requested).strip().lower()
-    if req in ("auto", "cpu"):
-        return req, 0
-    kind, colon, index = req.partition(":")
-    if kind in ("cuda", "gpu") and (index.isdigit() if colon else True):
-        return "cuda", int(index or 0)
-    raise ConfigError(f"device={requested} is invalid: expected auto, cpu, cuda or cuda:N.")
+    """A job's ``device`` setting, read the same way by the job's validation and by both
+    backends: ``auto`` -> ``("auto", 0)``, ``cpu`` -> ``("cpu", 0)``, ``cuda`` ->
+    ``("cuda", 0)``, ``cuda:N`` -> ``("cuda", N)``. Anything else is a
+    :class:`ConfigError` saying what is accepted."""
+    match = _DEVICE.fullmatch(str(requested))
+    if match is None:
+        raise ConfigError(
+            f"device={requested} is invalid: expected auto, cpu, cuda or cuda:N.")
+    text, index = match.group(1), match.group(2)
+    if text in ("auto", "cpu"):
+        return text, 0
+    return "cuda", int(index or 0)
 
 
 def gpu_device(requested: str, index: int, count: int, backend: str, install: str) -> None:

@@ -23,10 +23,10 @@ answer with NaN (``EQX_ON_ERROR=nan``, unless set otherwise) instead of calling 
 raise; a NaN rollout is recorded as diverged, like a solver failure.
 
 On a GPU, XLA's kernel autotuning is off (``--xla_gpu_autotune_level=0`` is added to
-``XLA_FLAGS`` unless they set the level already): it times candidate kernels for every
-product while compiling, which for these small networks cost more than it saved (a
-two-body ``mlp_jax`` job on an H100: compilation 35.5 s with it, 5.1 s without;
-docs/SCALING.md, "GPUs"). It has no effect on the CPU.
+``XLA_FLAGS`` at import unless they name that flag already): it times candidate kernels
+for every product while compiling, which for these small networks cost more than it
+saved (a two-body ``mlp_jax`` job on an H100: compilation 35.5 s with it, 5.1 s without;
+docs/SCALING.md, "GPUs"). The CPU backend ignores the flag.
 """
 
 from __future__ import annotations
@@ -44,8 +44,11 @@ os.environ.setdefault("EQX_ON_ERROR", "nan")  # read when equinox is imported
 
 
 def _gpu_autotuning_off() -> None:
-    """Add ``--xla_gpu_autotune_level=0`` to ``XLA_FLAGS`` unless a level is set there
-    (read when JAX starts its GPU backend; the module docstring says why)."""
+    """Add ``--xla_gpu_autotune_level=0`` to ``XLA_FLAGS`` unless the variable names
+    that flag already (the module docstring says why). This sets the variable for the
+    whole process; JAX reads it when it starts its GPU backend, so it has no effect where
+    that happened before this module was imported (a level given through a
+    ``--flagfile`` is not seen, and the flag is added after it)."""
     flags = os.environ.get("XLA_FLAGS", "")
     if "xla_gpu_autotune_level" not in flags:
         os.environ["XLA_FLAGS"] = f"{flags} --xla_gpu_autotune_level=0".strip()
