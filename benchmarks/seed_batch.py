@@ -2,6 +2,7 @@
 
     python benchmarks/seed_batch.py [--systems two_body real_pendulum] [--steps 1000]
     python benchmarks/seed_batch.py --jobs      # also whole jobs through the CLI
+    python benchmarks/seed_batch.py --ops --models hnn_torch mlp_torch   # ATen calls per step
 
 **Training** (default): for each (system, model), the same three seeds (each its own
 data, initial weights and minibatches, at the system's paper settings, ``--steps``
@@ -15,6 +16,13 @@ ratio (a) / (b).
 (each in a fresh process, caches warm: a warm-up run fills the dataset and JAX
 compilation caches), so data loading, compilation, evaluation and process start-up
 count too.
+
+**ATen calls** (``--ops``, torch models): the number of ATen operator calls per
+training step of one seed's fit and of the three seeds' batched fit (``torch.func.vmap``),
+counted by a ``TorchDispatchMode`` as the difference between a fit of ``2k`` and one of
+``k`` steps, and how many of them are views (``OpOverload.is_view``: no kernel, no data
+moved). On a GPU, where one step's arithmetic is small, each call's host-side dispatch
+is what a step costs; docs/SCALING.md, "GPUs", uses these counts.
 
 Everything runs on one core with one thread (``taskset`` the script, as the harness
 pins its jobs); the issue's target: three seeds in one job at least 2.5x the throughput
@@ -75,6 +83,56 @@ def training(system_name: str, model_name: str, steps: int, repeats: int
     return statistics.median(times["separate"]), statistics.median(times["batched"])
 
 
+def aten_calls(system_name: str, model_name: str, steps: int = 20
+               ) -> tuple[float, float, float, float]:
+    """ATen calls per training step, one seed's fit and the batched fit of ``SEEDS``,
+    and of those the views: ``(calls 1, calls batch, views 1, views batch)``."""
+    import collections
+
+    from torch.utils._python_dispatch import TorchDispatchMode
+
+    from hnnbench import _cache as cache
+    from hnnbench._config import compose, prepare_job
+    from hnnbench._contract import Dataset, TrainSettings
+    from hnnbench._job import _set_threads
+
+    class Count(TorchDispatchMode):
+        def __init__(self) -> None:
+            super().__init__()
+            self.calls: collections.Counter[bool] = collections.Counter()
+
+        def __torch_dispatch__(self, func: Any, types: Any, args: Any = (),
+                               kwargs: Any = None) -> Any:
+            self.calls[bool(getattr(func, "is_view", False))] += 1
+            return func(*args, **(kwargs or {}))
+
+    _set_threads(1)
+    job = prepare_job(compose([f"system={system_name}", f"model={model_name}"]))
+    system = job.system_cls(job.system_cfg)
+    datas = [cache.cached(system, s, "dataset", lambda s=s: system.dataset(s),
+                          Dataset.load)[0] for s in SEEDS]
+    protocol = TrainSettings.resolve(job.system_cfg, job.model_cfg)
+
+    def count(n_steps: int, batched: bool) -> collections.Counter[bool]:
+        train = TrainSettings(n_steps, protocol.batch_size, protocol.lr,
+                              protocol.weight_decay)
+        model = job.model_cls(job.model_cfg, system, "cpu")
+        with Count() as counter:
+            if batched:
+                model.fit_seeds(datas, train, list(SEEDS), lambda *_: None)
+            else:
+                model.fit(datas[0], train, SEEDS[0], lambda *_: None)
+        return counter.calls
+
+    out: list[float] = []
+    for batched in (False, True):
+        short, long = count(steps, batched), count(2 * steps, batched)
+        out.append(sum(long.values()) - sum(short.values()))
+        out.append(long[True] - short[True])
+    one, one_views, batch, batch_views = (v / steps for v in out)
+    return one, batch, one_views, batch_views
+
+
 def jobs(system_name: str, model_name: str, steps: int) -> tuple[float, float]:
     """Wall seconds of the CLI sweep of three seeds without and with seeds_per_job=3."""
     exe = str(Path(sys.executable).parent / "hnnbench")
@@ -101,7 +159,20 @@ def main() -> int:
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--jobs", action="store_true", help="also time whole CLI sweeps")
+    parser.add_argument("--ops", action="store_true",
+                        help="count ATen calls per step instead (torch models only)")
     args = parser.parse_args()
+
+    if args.ops:
+        print(f"| system | model | ATen calls per step, 1 seed | {len(SEEDS)} seeds batched "
+              "| of them views, 1 seed | batched |")
+        print("|---|---|---|---|---|---|")
+        for system_name in args.systems:
+            for model_name in (m for m in args.models if m.endswith("_torch")):
+                one, batch, one_views, batch_views = aten_calls(system_name, model_name)
+                print(f"| {system_name} | {model_name} | {one:.1f} | {batch:.1f} "
+                      f"| {one_views:.1f} | {batch_views:.1f} |", flush=True)
+        return 0
 
     rows: list[tuple[Any, ...]] = []
     for system_name in args.systems:

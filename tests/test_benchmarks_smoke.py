@@ -293,3 +293,20 @@ def test_gpu_benchmark_runs_its_parts_on_the_cpu(tmp_path):
         "gpu/spring-oracle": 0, "batch/oracle-separate": 0,
         "batch/oracle-seeds_per_job3": 0, "cpu/spring-oracle": 0}
     assert "XLA_FLAGS" in (tmp_path / "environment.txt").read_text()
+
+
+@pytest.mark.slow
+def test_seed_batch_counts_aten_calls_per_step():
+    """benchmarks/seed_batch.py --ops: ATen calls per step of one seed's fit and of the
+    batched fit, views counted apart (docs/SCALING.md, "GPUs", reads these counts)."""
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "seed_batch.py"), "--ops", "--systems",
+         "spring", "--models", "mlp_torch", "mlp_jax"],
+        capture_output=True, text=True, timeout=600, cwd=REPO,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (row,) = [line for line in proc.stdout.splitlines() if line.startswith("| spring |")]
+    one, batch, one_views, batch_views = (float(c) for c in row.strip("|").split("|")[2:])
+    assert 0 < one_views < one < batch and 0 < batch_views < batch, row
+    assert "mlp_jax" not in proc.stdout  # counted for torch models only
