@@ -47,9 +47,9 @@ TARGET = 2.5
 SEEDS = (0, 1, 2)
 
 
-def training(system_name: str, model_name: str, steps: int, repeats: int
-             ) -> tuple[float, float]:
-    """Median seconds of three separate fits and of one batched fit."""
+def _pair(system_name: str, model_name: str) -> tuple[Any, Any, list[Any], Any]:
+    """One thread; the composed job, its system, the datasets of ``SEEDS`` (from the
+    cache) and the protocol's training settings."""
     from hnnbench import _cache as cache
     from hnnbench._config import compose, prepare_job
     from hnnbench._contract import Dataset, TrainSettings
@@ -60,7 +60,15 @@ def training(system_name: str, model_name: str, steps: int, repeats: int
     system = job.system_cls(job.system_cfg)
     datas = [cache.cached(system, s, "dataset", lambda s=s: system.dataset(s),
                           Dataset.load)[0] for s in SEEDS]
-    protocol = TrainSettings.resolve(job.system_cfg, job.model_cfg)
+    return job, system, datas, TrainSettings.resolve(job.system_cfg, job.model_cfg)
+
+
+def training(system_name: str, model_name: str, steps: int, repeats: int
+             ) -> tuple[float, float]:
+    """Median seconds of three separate fits and of one batched fit."""
+    from hnnbench._contract import TrainSettings
+
+    job, system, datas, protocol = _pair(system_name, model_name)
     train = TrainSettings(steps, protocol.batch_size, protocol.lr, protocol.weight_decay)
 
     def separate() -> None:
@@ -91,10 +99,7 @@ def aten_calls(system_name: str, model_name: str, steps: int = 20
 
     from torch.utils._python_dispatch import TorchDispatchMode
 
-    from hnnbench import _cache as cache
-    from hnnbench._config import compose, prepare_job
-    from hnnbench._contract import Dataset, TrainSettings
-    from hnnbench._job import _set_threads
+    from hnnbench._contract import TrainSettings
 
     class Count(TorchDispatchMode):
         def __init__(self) -> None:
@@ -106,12 +111,7 @@ def aten_calls(system_name: str, model_name: str, steps: int = 20
             self.calls[bool(getattr(func, "is_view", False))] += 1
             return func(*args, **(kwargs or {}))
 
-    _set_threads(1)
-    job = prepare_job(compose([f"system={system_name}", f"model={model_name}"]))
-    system = job.system_cls(job.system_cfg)
-    datas = [cache.cached(system, s, "dataset", lambda s=s: system.dataset(s),
-                          Dataset.load)[0] for s in SEEDS]
-    protocol = TrainSettings.resolve(job.system_cfg, job.model_cfg)
+    job, system, datas, protocol = _pair(system_name, model_name)
 
     def count(n_steps: int, batched: bool) -> collections.Counter[bool]:
         train = TrainSettings(n_steps, protocol.batch_size, protocol.lr,

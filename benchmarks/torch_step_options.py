@@ -147,6 +147,23 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
 
     grads: dict[str, list[torch.Tensor]] = {}
 
+    def swapped(attr: str, replacement: Callable[..., Any],
+                loss: Callable[..., torch.Tensor]) -> Callable[..., torch.Tensor]:
+        """``loss`` with :mod:`hnnbench.neural.torch._backprop`'s ``attr`` replaced by
+        ``replacement`` while it runs."""
+        from hnnbench.neural.torch import _backprop
+
+        plain = getattr(_backprop, attr)
+
+        def patched(p: dict[str, torch.Tensor]) -> torch.Tensor:
+            setattr(_backprop, attr, replacement)
+            try:
+                return loss(p)
+            finally:
+                setattr(_backprop, attr, plain)
+
+        return patched
+
     def with_tanh(kernel: Callable[[torch.Tensor], torch.Tensor],
                   loss: Callable[..., torch.Tensor]) -> Callable[..., torch.Tensor]:
         """``loss`` with the hand-written backward's forward float32 ``tanh`` by
@@ -160,14 +177,7 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
                 return kernel(a)
             return plain(name, a)
 
-        def patched(p: dict[str, torch.Tensor]) -> torch.Tensor:
-            _backprop._act = act
-            try:
-                return loss(p)
-            finally:
-                _backprop._act = plain
-
-        return patched
+        return swapped("_act", act, loss)
 
     def with_fused_linear_tanh(loss: Callable[..., torch.Tensor]
                                ) -> Callable[..., torch.Tensor]:
@@ -186,14 +196,7 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
                 hs.append(fused(hs[-1], params[2 * k], params[2 * k + 1], "tanh", [], ""))
             return [None] * (len(params) // 2), hs
 
-        def patched(p: dict[str, torch.Tensor]) -> torch.Tensor:
-            _backprop._forward = forward
-            try:
-                return loss(p)
-            finally:
-                _backprop._forward = plain
-
-        return patched
+        return swapped("_forward", forward, loss)
 
     def optimizer_step(name: str, loss: Callable[..., torch.Tensor]) -> Step:
         params = fresh()
