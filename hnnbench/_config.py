@@ -18,10 +18,10 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 
 from hnnbench import _registry as registry
 from hnnbench._contract import Model, ModelConfig, System, SystemConfig
+from hnnbench._device import device_request
 from hnnbench._errors import ConfigError, HnnbenchError, UnknownNameError
 from hnnbench._metric import EvaluationConfig
 from hnnbench._record_schema import DEFAULT_TRACK, TRACKS
-from hnnbench.neural._backend import device_request
 
 __all__ = [
     "EvaluationConfig",

@@ -1,6 +1,6 @@
-"""The ``device`` setting, read the same way by both backends (hnnbench.neural._backend),
-and the JAX backend's GPU compilation setting. These run on a CPU; the GPU path itself was
-measured with benchmarks/gpu.py (docs/SCALING.md, "GPUs")."""
+"""The ``device`` setting, read the same way by the job's validation and both backends
+(hnnbench._device), and the JAX backend's GPU compilation setting. These run on a CPU;
+the GPU path itself was measured with benchmarks/gpu.py (docs/SCALING.md, "GPUs")."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import os
 
 import pytest
 
+from hnnbench._device import device_request, gpu_device
 from hnnbench._errors import ConfigError
-from hnnbench.neural._backend import device_request, gpu_device
 
 
 @pytest.mark.parametrize(

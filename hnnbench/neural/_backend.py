@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
-import re
 from collections.abc import Sequence
 from types import ModuleType
 from typing import Optional, Protocol
@@ -26,7 +25,7 @@ from typing import Optional, Protocol
 import numpy as np
 
 from hnnbench._contract import TrainSettings
-from hnnbench._errors import BackendMissingError, ConfigError, HnnbenchError
+from hnnbench._errors import BackendMissingError, HnnbenchError
 from hnnbench.neural._config import NeuralConfig
 from hnnbench.neural._embedding import Layout
 from hnnbench.neural._family import Family
@@ -34,8 +33,7 @@ from hnnbench.neural._loop import Trainer
 from hnnbench.neural._views import Problem
 
 __all__ = ["BACKENDS", "MIN_STEP_FRACTION", "Backend", "Inference", "Weights", "load_backend",
-           "device_request", "gpu_device", "map_plan", "missing_backend", "rollout_min_step",
-           "stall_text"]
+           "map_plan", "missing_backend", "rollout_min_step", "stall_text"]
 
 #: The stall rule of every neural rollout, in both backends (docs/METRICS.md,
 #: "Diverged"): when the adaptive solver's next step size falls below this fraction of
@@ -51,39 +49,6 @@ def rollout_min_step(t: np.ndarray) -> float:
     :data:`MIN_STEP_FRACTION` of its span), in ``t``'s units."""
     t = np.asarray(t, dtype=np.float64)
     return MIN_STEP_FRACTION * float(abs(t[-1] - t[0])) if t.size else 0.0
-
-
-_DEVICE = re.compile(r"(auto|cpu|cuda(?::(\d+))?)", re.ASCII)
-
-
-def device_request(requested: str) -> tuple[str, int]:
-    """A job's ``device`` setting, read the same way by the job's validation and by both
-    backends: ``auto`` -> ``("auto", 0)``, ``cpu`` -> ``("cpu", 0)``, ``cuda`` ->
-    ``("cuda", 0)``, ``cuda:N`` -> ``("cuda", N)``. Anything else is a
-    :class:`ConfigError` saying what is accepted."""
-    match = _DEVICE.fullmatch(str(requested))
-    if match is None:
-        raise ConfigError(
-            f"device={requested} is invalid: expected auto, cpu, cuda or cuda:N.")
-    text, index = match.group(1), match.group(2)
-    if text in ("auto", "cpu"):
-        return text, 0
-    return "cuda", int(index or 0)
-
-
-def gpu_device(requested: str, index: int, count: int, backend: str, install: str) -> None:
-    """Raise a :class:`ConfigError` unless GPU ``index`` is one of the ``count`` GPUs
-    ``backend`` sees (``install``: how to get a CUDA build of it)."""
-    if count == 0:
-        raise ConfigError(
-            f"device={requested} was requested but {backend} sees no CUDA GPU: use device=cpu "
-            f"or device=auto (or install a CUDA build of {backend}: {install})."
-        )
-    if index >= count:
-        raise ConfigError(
-            f"device={requested} was requested but {backend} sees only {count} GPU(s): "
-            f"use device=cuda:0..{count - 1}."
-        )
 
 
 def map_plan(t: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:

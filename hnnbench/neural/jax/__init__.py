@@ -64,11 +64,10 @@ import optax  # noqa: E402
 
 from hnnbench import _paths as paths  # noqa: E402
 from hnnbench._contract import TrainSettings  # noqa: E402
+from hnnbench._device import device_request, gpu_device  # noqa: E402
 from hnnbench._errors import RolloutDiverged  # noqa: E402
 from hnnbench.neural._backend import (  # noqa: E402
     Weights,
-    device_request,
-    gpu_device,
     map_plan,
     rollout_min_step,
     stall_text,

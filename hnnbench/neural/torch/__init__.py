@@ -17,11 +17,10 @@ import torch
 import torch.nn.functional as F
 
 from hnnbench._contract import TrainSettings
+from hnnbench._device import device_request, gpu_device
 from hnnbench._errors import RolloutDiverged
 from hnnbench.neural._backend import (
     Weights,
-    device_request,
-    gpu_device,
     map_plan,
     rollout_min_step,
 )
