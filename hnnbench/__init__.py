@@ -23,6 +23,9 @@ Importing hnnbench imports neither torch nor JAX (nor pandas).
 from hnnbench._claims import Claim, ClaimSet, Published
 from hnnbench._contract import (
     CLEAN_INPUTS,
+    ORACLE,
+    REFERENCES,
+    STANDING_STILL,
     Dataset,
     FitResult,
     Model,
@@ -89,6 +92,9 @@ __all__ = [
     "Categorical",
     "CheckRule",
     "CLEAN_INPUTS",
+    "ORACLE",
+    "REFERENCES",
+    "STANDING_STILL",
     "Claim",
     "ClaimSet",
     "ConfigError",

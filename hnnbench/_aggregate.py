@@ -5,7 +5,8 @@ interval, the probability that one family beats another, and performance profile
 
 Per (profile, system, metric) the *scale* runs from the baseline family's mean (the
 family that declares :attr:`hnnbench.neural.Family.baseline`; score 0) to the *floor*
-(score 1): the best mean of an unranked reference model on the system (the oracle), or,
+(score 1): the best mean of an unranked reference model on the system (the oracle; never
+standing still, which is a reference to beat), or,
 where none ran (measured data), the metric's noise floor (``CheckRule.floor``), and
 never below that noise floor. A run's score is ``1 - log W(floor, v) / log W(floor,
 base)`` with ``W`` the metric's :meth:`~hnnbench._metric.CheckRule.worsening`
@@ -34,6 +35,7 @@ from hnnbench import _registry as registry
 from hnnbench import _stats as stats
 from hnnbench._families import SCOPE_KEY, Families, family_order, key_of, scope_name, select
 from hnnbench._metric import CheckRule
+from hnnbench._record_schema import STANDING_STILL
 from hnnbench._table import metric_declarations
 
 __all__ = ["Aggregate", "aggregate", "headline_metrics", "profile_taus"]
@@ -106,6 +108,8 @@ class Aggregate:
 def _floor(rows: pd.DataFrame, metric: str, rule: CheckRule) -> tuple[float, str]:
     """The floor of one (system, metric) and where it comes from."""
     refs = rows[~rows["ranked"].fillna(True).astype(bool)] if "ranked" in rows else rows[:0]
+    if "reference" in refs:  # standing still is a reference to beat, never the floor
+        refs = refs[refs["reference"].fillna("").astype(str) != STANDING_STILL]
     values = pd.to_numeric(refs.get(f"{metric}_mean", pd.Series(dtype=float)),
                            errors="coerce")
     values = values[np.isfinite(values)]

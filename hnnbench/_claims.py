@@ -132,6 +132,16 @@ class ClaimSet:
     claims: tuple[Claim, ...]
     published: tuple[Published, ...] = ()
     note: str = ""
+    #: ``(system, metric, how)``: where hnnbench's definition of a published metric
+    #: differs from the source's, so that side-by-side magnitudes are read as what they
+    #: are (``metric`` ``"*"``: every metric of the system).
+    definitions: tuple[tuple[str, str, str], ...] = ()
+
+    def definition(self, system: str, metric: str) -> str:
+        """How our ``metric`` on ``system`` differs from the source's (``""``: the same
+        definition)."""
+        return "; ".join(how for s, m, how in self.definitions
+                         if s == system and m in (metric, "*"))
 
 
 @dataclass(frozen=True)

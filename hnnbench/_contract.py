@@ -31,12 +31,20 @@ import numpy as np
 from hnnbench._errors import ConfigError
 from hnnbench._kinematics import Kinematics
 from hnnbench._outputs import checked
+from hnnbench._record_schema import ORACLE, REFERENCES, STANDING_STILL
 from hnnbench._space import SearchSpace
 
 __all__ = [
     "CLEAN_INPUTS",
     "Dataset",
     "FitResult",
+    "LATE_FRACTION",
+    "ORACLE",
+    "REFERENCES",
+    "SELECTION_CRITERIA",
+    "STANDING_STILL",
+    "SELECTION_RULE",
+    "SELECTION_Z",
     "Selection",
     "Model",
     "ModelConfig",
@@ -214,10 +222,14 @@ class Split:
         return int(self.x.shape[0])
 
 
+#: The criteria a system may select checkpoints on (:attr:`System.selection`).
+SELECTION_CRITERIA = ("field", "rollout")
+
 #: ``Split.extras`` key of the noise-free inputs ``(N, D)`` behind noisy ``x``: a system
 #: that adds noise to its inputs stores them, and ``test_loss`` compares the model's
 #: field at them with the (clean) targets, so the test loss has no noise floor
-#: (docs/METRICS.md). Training and validation losses stay on the noisy inputs.
+#: (docs/METRICS.md); the validation criterion that selects checkpoints and the
+#: ``val_loss`` metric are taken there too. Training stays on the noisy inputs.
 CLEAN_INPUTS = "x_clean"
 
 
@@ -225,10 +237,12 @@ CLEAN_INPUTS = "x_clean"
 class Dataset:
     """A train/test split of points and targets, plus JSON-serialisable metadata.
 
-    ``valid`` is the validation split the job carves from a system's training data
-    before a model sees it (:func:`hnnbench._datasets.with_validation`, one rule for
-    every system); a system's ``dataset`` leaves it ``None``. Models select their
-    checkpoint on it, never on ``test``."""
+    ``valid`` is the validation split. A system's ``dataset`` usually leaves it
+    ``None`` and the job carves it from the training data before a model sees it
+    (:func:`hnnbench._datasets.with_validation`, one rule for every system); a system
+    whose seeds choose folds of one measured series gives its own (its ``meta``
+    ``"validation"`` says by which rule). Models select their checkpoint on it, never on
+    ``test``."""
 
     train: Split
     test: Split
@@ -343,6 +357,19 @@ class System(ABC):
             dataclass defaults; ``quick`` is the only other profile.
         order: position in listings and tables (lower first; ``None``: after the
             plugins that set one, by name).
+        selection: the criterion the training loop selects checkpoints on
+            (docs/METRICS.md, "Checkpoint selection"): ``"field"`` (the default), the
+            model's field against the targets at the validation inputs, at the clean
+            ones where the system adds noise (:data:`CLEAN_INPUTS`), in the system's
+            coordinates; ``"rollout"``, for data with no clean inputs behind its noise
+            (measured series): the position error of short rollouts from each window of
+            ``selection_steps + 1`` consecutive validation states, which averages the
+            measurement noise out. Pixel models select on their own objective.
+        selection_steps: the intervals of one rollout window (``selection="rollout"``).
+        reversal_in_distribution: whether the momentum-flipped states the
+            reversibility test starts from are like the training data; ``False`` where
+            every training trajectory turns one way (the n-body orbits), so the test
+            probes states the models never saw (the report says so beside the metric).
 
     Optional methods and properties a subclass may override: :meth:`vector_field`
     (where the dynamics are known), :meth:`kinematics` (for second-order models),
@@ -358,6 +385,9 @@ class System(ABC):
     conservative: ClassVar[bool] = True
     profiles: ClassVar[dict[str, dict[str, Any]]] = {}
     order: ClassVar[Optional[float]] = None
+    selection: ClassVar[str] = "field"
+    selection_steps: ClassVar[int] = 4
+    reversal_in_distribution: ClassVar[bool] = True
 
     def __init__(self, cfg: SystemConfig) -> None:
         self.cfg = cfg
@@ -443,6 +473,11 @@ class Model(ABC):
         order: position in listings and tables, as for :class:`System`.
         ranked: ``False`` for a reference that is not a competitor (the oracle): its
             rows are shown but never ranked or highlighted as best.
+        reference: the role of a trivial reference (:data:`REFERENCES`):
+            ``"zero_field"`` (standing still, a model that predicts no motion: a leader
+            must beat it to be marked best) or ``"true_field"`` (the oracle, the true
+            dynamics: every metric's floor);
+            ``None`` for a competitor. A reference is never ranked.
         search_space: what ``hnnbench tune`` may vary, ``{setting: distribution}``
             over fields of ``Config`` (:mod:`hnnbench._space`: ``LogUniform``,
             ``Uniform``, ``IntRange``, ``Categorical``); ``None`` (the default): the
@@ -463,6 +498,7 @@ class Model(ABC):
     weights_file: ClassVar[Optional[str]] = None
     order: ClassVar[Optional[float]] = None
     ranked: ClassVar[bool] = True
+    reference: ClassVar[Optional[str]] = None
     search_space: ClassVar[Optional[SearchSpace]] = None
     recipe: ClassVar[Optional[dict[str, Any]]] = None
 
@@ -583,19 +619,45 @@ class Model(ABC):
 HISTORY_STEP, HISTORY_TRAIN, HISTORY_VALID = "step", "train_loss", "val_loss"
 
 
+#: The rule of :class:`Selection` (the record's ``selection.rule``): the last checkpoint is
+#: scored unless an earlier one beats it on the validation criterion by more than
+#: :data:`SELECTION_Z` paired standard errors (docs/METRICS.md, "Checkpoint selection").
+SELECTION_RULE = ("the final checkpoint, unless an earlier one is lower on the criterion "
+                  "by more than 2 paired standard errors")
+#: How many paired standard errors an earlier checkpoint must win by to be scored.
+SELECTION_Z = 2.0
+#: The share of training whose criterion change says whether a run converged: the
+#: evaluation at or before ``(1 - LATE_FRACTION) * steps`` against the final one.
+LATE_FRACTION = 0.2
+
+
 @dataclass(frozen=True)
 class Selection:
-    """Which checkpoint of a training run is scored: the weights with the lowest
-    validation loss among the evaluations made every ``interval`` steps.
+    """Which checkpoint of a training run is scored, and what the validation criterion
+    says of it (docs/METRICS.md, "Checkpoint selection").
+
+    The criterion is evaluated every ``interval`` steps on the validation split
+    (``criterion`` names it: e.g. ``field_mse_clean``, the field's squared error at the
+    clean inputs; ``rollout_q_mse_4``, the position error of 4-interval rollouts). The
+    final checkpoint is scored unless the lowest earlier one beats it by more than
+    :data:`SELECTION_Z` paired standard errors (the checkpoints share the validation
+    points, so their difference is judged point by point).
 
     Attributes:
-        step: the optimizer step of the selected weights.
-        val_loss: their validation loss.
+        step: the optimizer step of the scored weights.
+        val_loss: the criterion's value there.
         evaluations: validation evaluations made (one per logging interval).
         first_step: the step of the first evaluation; ``step == first_step`` means the
             run did not improve after its first interval (:attr:`trained` is false).
         stopped: why training stopped before its last step (a non-finite loss after
             the selected checkpoint), else ``None``.
+        criterion: the criterion's name (``None``: unnamed, e.g. a plugin's own loop).
+        points: the validation points (or windows) the criterion averages.
+        best_step, best_value: the lowest-criterion checkpoint.
+        final_step, final_value: the last evaluated checkpoint.
+        final_se: the paired standard error of ``final - best`` (NaN: undefined).
+        late_step, late_value: the checkpoint at or before 80% of the steps.
+        late_se: the paired standard error of ``late - final``.
     """
 
     step: int
@@ -603,18 +665,51 @@ class Selection:
     evaluations: int
     first_step: int
     stopped: Optional[str] = None
+    criterion: Optional[str] = None
+    points: int = 0
+    best_step: Optional[int] = None
+    best_value: float = math.nan
+    final_step: Optional[int] = None
+    final_value: float = math.nan
+    final_se: float = math.nan
+    late_step: Optional[int] = None
+    late_value: float = math.nan
+    late_se: float = math.nan
 
     @property
     def trained(self) -> bool:
         """Whether the selected weights come after the first evaluation."""
         return self.step > self.first_step
 
+    @property
+    def converged(self) -> Optional[bool]:
+        """Whether the criterion stopped improving over the last :data:`LATE_FRACTION`
+        of training: ``late - final`` is at most :data:`SELECTION_Z` paired standard
+        errors (``None``: not measured, e.g. no late checkpoint or no standard error)."""
+        if self.late_step is None or self.final_step is None \
+                or self.late_step >= self.final_step:
+            return None
+        change, se = self.late_value - self.final_value, self.late_se
+        if not (math.isfinite(change) and math.isfinite(se)):
+            return None
+        return change <= SELECTION_Z * se
+
     def as_record(self) -> dict[str, Any]:
         """The record's ``selection`` field."""
-        return {"rule": "lowest validation loss over the evaluations", "step": self.step,
-                "validation_loss": self.val_loss, "evaluations": self.evaluations,
-                "first_step": self.first_step, "trained": self.trained,
-                "stopped": self.stopped}
+        num = float  # non-finite values: the record writer encodes them
+        out: dict[str, Any] = {
+            "rule": SELECTION_RULE, "criterion": self.criterion, "step": self.step,
+            "validation_loss": num(self.val_loss), "evaluations": self.evaluations,
+            "first_step": self.first_step, "trained": self.trained,
+            "stopped": self.stopped}
+        if self.best_step is not None:
+            out.update({
+                "points": self.points, "best_step": self.best_step,
+                "best_value": num(self.best_value), "final_step": self.final_step,
+                "final_value": num(self.final_value), "final_se": num(self.final_se),
+                "late_step": self.late_step, "late_value": num(self.late_value),
+                "late_se": num(self.late_se), "converged": self.converged})
+        return out
 
 
 @dataclass

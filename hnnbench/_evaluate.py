@@ -79,8 +79,11 @@ def evaluate(system: System, model: Model, data: Dataset, traj: Trajectories,
             values = metric.compute(ctx)
         except RolloutDiverged as err:
             result[metric.name] = {"mean": metric.worst(), "sem": math.nan}
-            if metric.required and diverged is None:
-                diverged = f"rollout diverged ({metric.name}): {err}"
+            if metric.decides_status:
+                if diverged is None:
+                    diverged = f"rollout diverged ({metric.name}): {err}"
+            else:  # a diagnostic: its value says it failed, the reason goes beside it
+                errors[metric.name] = f"rollout failed: {err}".splitlines()[0]
             continue
         except (KeyboardInterrupt, JobTimeout, ModelOutputError):
             raise  # a model that breaks its output contract fails the job, whatever asked
@@ -109,6 +112,8 @@ def evaluate(system: System, model: Model, data: Dataset, traj: Trajectories,
             # A metric that applies and computed a value: NaN there is no "not
             # applicable" (that is None), it is a model that produced NaN.
             result[metric.name]["mean"] = metric.worst() if math.isnan(mean) else mean
-            if diverged is None:
+            if not metric.decides_status:
+                errors[metric.name] = f"not finite ({mean})"
+            elif diverged is None:
                 diverged = f"{metric.name} is not finite ({mean})"
     return Evaluation(metrics=result, diverged=diverged, arrays=ctx.arrays, errors=errors)

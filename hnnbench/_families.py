@@ -22,7 +22,11 @@ backends are *twins*. Ranking twins as two competitors lets one family take rank
   is marked ``best`` when a one-sided sign test over shared seeds
   (:func:`hnnbench._stats.sign_test`) separates it from every other ranked family with a
   value at :data:`hnnbench._stats.ALPHA`; otherwise it and every family it is not
-  separated from are marked ``tied``.
+  separated from are marked ``tied``. On a metric declared
+  :attr:`~hnnbench.Metric.beat_reference` (rollout errors, skill, valid prediction
+  time), nothing is marked unless the leader's mean beats the standing-still reference
+  row's; where it does not, that row's cell is marked ``unbeaten`` ("no family beats
+  standing still"), and without such a row nothing is claimed.
 
 Nothing here names a family, model or backend: they come from the records.
 """
@@ -39,7 +43,7 @@ import pandas as pd
 from hnnbench import _registry as registry
 from hnnbench import _stats as stats
 from hnnbench._metric import CheckRule
-from hnnbench._record_schema import DEFAULT_TRACK, FAMILY_KEY
+from hnnbench._record_schema import DEFAULT_TRACK, FAMILY_KEY, STANDING_STILL
 from hnnbench._table import (
     board_metrics,
     leaderboard_frame,
@@ -49,6 +53,7 @@ from hnnbench._table import (
 
 __all__ = [
     "MARKS",
+    "UNBEATEN",
     "RANKING_KEY",
     "ROW_KEY",
     "SCOPE_KEY",
@@ -64,8 +69,11 @@ __all__ = [
     "twin_agreement",
 ]
 
-#: A cell's mark: separated from every other family, or not separated from the leader.
-MARKS = ("best", "tied")
+#: A cell's mark: separated from every other family, or not separated from the leader;
+#: on the standing-still reference's row, that no family's leader beats it on a metric
+#: that requires it (:attr:`hnnbench.Metric.beat_reference`).
+MARKS = ("best", "tied", "unbeaten")
+UNBEATEN = MARKS[2]
 #: The keys, all from :data:`~hnnbench._record_schema.FAMILY_KEY` (so that a field added
 #: there, e.g. a track, separates every ranking and aggregate): a family row; one
 #: ranking of families (one system); one aggregate across systems.
@@ -338,8 +346,10 @@ def mark_best(board: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
         pd.Series(True, index=board.index)
     runs = runs.assign(variant=_variant(runs))
     board["variant"] = _variant(board)
+    still_rows = _standing_still(board)
     for _, group in board[ranked].groupby(list(RANKING_KEY), dropna=False, sort=False):
         mine = select(runs, RANKING_KEY, key_of(group.iloc[0], RANKING_KEY))
+        still = select(still_rows, RANKING_KEY, key_of(group.iloc[0], RANKING_KEY))
         for metric in metrics:
             decl = declared[metric]
             means = pd.to_numeric(group[f"{metric}_mean"], errors="coerce")
@@ -351,6 +361,18 @@ def mark_best(board: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
                 continue
             sign = -1.0 if decl.better == "higher" else 1.0
             leader = min(eligible, key=lambda i: sign * float(means[i]))
+            if decl.beat_reference:
+                # Marked only where the leader beats standing still on this metric.
+                if still.empty:
+                    continue  # no reference row: nothing is claimed
+                floor = float(pd.to_numeric(still[f"{metric}_mean"],
+                                            errors="coerce").iloc[0]) \
+                    if f"{metric}_mean" in still else math.nan
+                if math.isfinite(floor) and not sign * float(means[leader]) < sign * floor:
+                    board.at[still.index[0], f"{metric}_mark"] = UNBEATEN
+                    continue
+                if not math.isfinite(floor):
+                    continue
             seeds = {i: _per_seed(mine[mine["family"] == board.at[i, "family"]], metric)
                      for i in cand}
             ps = {}
@@ -369,6 +391,14 @@ def mark_best(board: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
                 if p > stats.ALPHA:
                     board.at[i, f"{metric}_mark"] = "tied"
     return board
+
+
+def _standing_still(board: pd.DataFrame) -> pd.DataFrame:
+    """The rows of ``board`` that are the standing-still reference
+    (:data:`~hnnbench._record_schema.STANDING_STILL`)."""
+    if "reference" not in board:
+        return board[:0]
+    return board[board["reference"].fillna("").astype(str) == STANDING_STILL]
 
 
 # --------------------------------------------------------------------------- the view

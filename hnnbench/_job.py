@@ -463,6 +463,7 @@ def _execute(job: Job, cfg: DictConfig, seeds: list[int], dirs: dict[int, Path],
         record.update(system_version=system.version, model_version=job.model_cls.version,
                       backend=job.model_cls.backend, family=getattr(family, "name", None),
                       ranked=bool(getattr(job.model_cls, "ranked", True)),
+                      reference=getattr(job.model_cls, "reference", None),
                       plugins={"system": plugin_provenance("system", str(cfg.system.name)),
                                "model": plugin_provenance("model", str(cfg.model.name))})
     reason = job.model_cls.unsupported_reason(system)
@@ -492,8 +493,11 @@ def _execute(job: Job, cfg: DictConfig, seeds: list[int], dirs: dict[int, Path],
         traj, traj_path, _ = cache.cached(
             system, seed, "evaluation", functools.partial(system.evaluation, seed),
             Trajectories.load)
-        rule = datasets.validation_rule(data)
-        data = datasets.with_validation(data, seed)  # carved from train, never from test
+        if data.valid is None:
+            rule = datasets.validation_rule(data)
+            data = datasets.with_validation(data, seed)  # carved from train, not test
+        else:  # the system's own (a measured series' fold)
+            rule = str(data.meta.get("validation", "the system's own validation split"))
         assert data.valid is not None
         runs[seed]["timings"]["data_s"] = time.perf_counter() - t0
         runs[seed]["data"] = {

@@ -109,7 +109,10 @@ class Metric:
         check: the regression gate's tolerance.
         applies: ``System -> bool``; elsewhere the metric is NaN ("not applicable").
         required: a non-finite value makes the job ``diverged``; ``False`` for metrics
-            that probe failure modes on purpose (e.g. a long-horizon rollout).
+            that probe failure modes on purpose (e.g. a long-horizon rollout). Only a
+            ranked metric is ever required (:attr:`decides_status`): a diagnostic whose
+            rollout fails records :meth:`worst` and the reason in the record's
+            ``metric_errors``, and the run keeps its status.
         summary: shown in the end-of-sweep summary table.
         order: position in tables (lower first; then by name).
         reference: where its definition is documented.
@@ -133,6 +136,13 @@ class Metric:
             exceeds ``threshold``. For a metric a degenerate model would win, e.g. the
             energy error of a model that does not move (0 on a conservative system),
             eligible only where the rollout beats standing still.
+        beat_reference: a cell of this metric is marked (best or tied) only where its
+            leader's mean beats the standing-still reference's mean on it (the zero field,
+            :data:`~hnnbench.STANDING_STILL`, whose row must be on the board); where no
+            family does, the reference's cell says so (docs/STATISTICS.md, "The trivial
+            references"). For metrics on which standing still is a fair opponent
+            (rollout errors, skill, valid prediction time); an energy error, where it
+            scores 0 by construction, uses :attr:`best_requires` instead.
         headline: a headline verdict (ranked metrics only): the aggregate across systems
             on the README and the report page, its performance profile, and the ranks
             ``hnnbench check`` prints for a new model lead with it
@@ -159,6 +169,7 @@ class Metric:
     errors_fail_job: bool = False
     domain: tuple[float, float] = (-math.inf, math.inf)
     best_requires: Optional[tuple[str, float]] = None
+    beat_reference: bool = False
     headline: bool = False
     selects: bool = False
 
@@ -174,6 +185,12 @@ class Metric:
         if self.check.better != self.better:  # the metric's direction is the rule's
             object.__setattr__(self, "check", dataclasses.replace(self.check,
                                                                   better=self.better))
+
+    @property
+    def decides_status(self) -> bool:
+        """Whether a non-finite value of this metric makes the run ``diverged``: a
+        required, ranked metric (a diagnostic never sets a run's status)."""
+        return self.required and self.ranked
 
     def worst(self) -> float:
         """The value recorded when the model failed (diverged): the bad end of its

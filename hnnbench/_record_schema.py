@@ -56,8 +56,11 @@ __all__ = [
     "PROVENANCE_COLUMNS",
     "PROVENANCE_FIELDS",
     "RESERVED",
+    "ORACLE",
+    "REFERENCES",
     "SCHEMA_VERSION",
     "SCHEMA_VERSIONS",
+    "STANDING_STILL",
     "STATUSES",
     "SELECTED_ON",
     "STATUS_COLUMNS",
@@ -83,8 +86,8 @@ __all__ = [
 ]
 
 #: The version of the records this hnnbench writes, and the versions it reads.
-SCHEMA_VERSION = 2
-SCHEMA_VERSIONS = (1, 2)
+SCHEMA_VERSION = 3
+SCHEMA_VERSIONS = (1, 2, 3)
 #: A job's outcome.
 STATUSES = ("ok", "diverged", "failed", "skipped", "timeout")
 #: The benchmark's tracks (docs/TUNING.md): each system's shared protocol, an
@@ -92,6 +95,11 @@ STATUSES = ("ok", "diverged", "failed", "skipped", "timeout")
 #: without ``track`` (every record before 0.3's tracks) is of the protocol track.
 TRACKS = ("protocol", "tuned", "recipe")
 DEFAULT_TRACK = "protocol"
+#: The roles of a trivial reference model (``Model.reference``, the record's
+#: ``reference``): standing still, the zero field (``x̂(t) = x₀``), which every ranked
+#: leader must beat, and the oracle, the true field.
+REFERENCES = ("zero_field", "true_field")
+STANDING_STILL, ORACLE = REFERENCES
 #: What a tuned record's ``tuning`` says selection was made on (never test).
 SELECTED_ON = "validation"
 
@@ -126,6 +134,7 @@ _NONE = object()  # no initial value: the job supplies it
 #: record on write and in strict loading stays a few milliseconds.
 VALUE: Mapping[str, Any] = {"type": ["number", "null", "string"], "pattern": "^-?inf$"}
 _STRING_OR_NULL: Mapping[str, Any] = {"type": ["string", "null"]}
+_INT_OR_NULL: Mapping[str, Any] = {"type": ["integer", "null"], "minimum": 0}
 #: Where a plugin came from (``plugins.system``, ``plugins.model``).
 _PLUGIN: Mapping[str, Any] = {
     "type": "object", "required": ["name", "version", "distribution", "distribution_version"],
@@ -169,6 +178,10 @@ FIELDS: tuple[Field, ...] = (
     Field("family", _STRING_OR_NULL, "the model family (e.g. hnn), grouping backends"),
     Field("ranked", {"type": "boolean"},
           "false for references such as the oracle: shown, never ranked"),
+    Field("reference", {"enum": [None, *REFERENCES]},
+          "the role of a trivial reference (zero_field: standing still, which a leader "
+          "must beat; true_field: the oracle), null for a competitor; absent in records "
+          "before schema 3"),
     Field("plugins", {"type": "object", "required": ["system", "model"],
                       "properties": {"system": _PLUGIN, "model": _PLUGIN}},
           "the packages that provided the system and the model: each plugin's name, its "
@@ -206,15 +219,27 @@ FIELDS: tuple[Field, ...] = (
               "required": ["step", "validation_loss", "evaluations", "first_step",
                            "trained"],
               "properties": {"rule": {"type": "string"},
+                             "criterion": _STRING_OR_NULL,
                              "step": {"type": "integer", "minimum": 0},
                              "validation_loss": VALUE,
                              "evaluations": {"type": "integer", "minimum": 0},
                              "first_step": {"type": "integer", "minimum": 0},
                              "trained": {"type": "boolean"},
-                             "stopped": _STRING_OR_NULL}},
-          "the scored checkpoint of a model that selects on validation: its step, "
-          "validation loss, the evaluations made, the first one's step, whether it "
-          "trained past that (false: 'did not train'), and why training stopped early"),
+                             "stopped": _STRING_OR_NULL,
+                             "points": {"type": "integer", "minimum": 0},
+                             "best_step": _INT_OR_NULL, "best_value": VALUE,
+                             "final_step": _INT_OR_NULL, "final_value": VALUE,
+                             "final_se": VALUE,
+                             "late_step": _INT_OR_NULL, "late_value": VALUE,
+                             "late_se": VALUE,
+                             "converged": {"type": ["boolean", "null"]}}},
+          "the scored checkpoint of a model that selects on validation: the criterion "
+          "(schema 3; docs/METRICS.md, 'Checkpoint selection'), the scored step and its "
+          "criterion value (validation_loss), the evaluations made, the first one's step, "
+          "whether it trained past that (false: 'did not train'), why training stopped "
+          "early; and the lowest, final and late (80%) checkpoints' values with the paired "
+          "standard errors of final - lowest and late - final, and whether the criterion "
+          "stopped improving over the last 20% of steps (converged)"),
     Field("config", {"type": "object"}, "the fully resolved job config", REQUIRED),
     Field("overrides", {"type": ["array", "null"], "items": {"type": "string"}},
           "Hydra's overrides", WRITTEN),
@@ -244,6 +269,11 @@ FIELDS: tuple[Field, ...] = (
               "properties": {
                   "selected_on": {"enum": [SELECTED_ON]},
                   "objective": {"type": "string"},
+                  "criterion": {"type": "string"},
+                  "seeds_per_trial": {"type": "integer", "minimum": 1},
+                  "trial_seeds": {"type": "array", "items": {"type": "integer",
+                                                             "minimum": 0}},
+                  "protocol_trial": {"type": ["integer", "null"], "minimum": 0},
                   "trials": {"type": "integer", "minimum": 1},
                   "steps": {"type": "integer", "minimum": 1},
                   "space": {"type": "object"},
@@ -275,9 +305,9 @@ JOB_FIELDS = ("system", "model", "seed", "profile")
 TIMINGS = ("fit_s", "eval_s", "total_s", "cpu_s")
 #: Identity and status columns of a leaderboard, in order (``reason``: why runs of the
 #: pair were not ``ok``, from their records' ``error``).
-ID_COLUMNS = ("profile", "system", "model", "backend", "family", "ranked")
+ID_COLUMNS = ("profile", "system", "model", "backend", "family", "ranked", "reference")
 STATUS_COLUMNS = ("n_seeds", "seeds", *(f"n_{s}" for s in STATUSES), "n_untrained",
-                  "status", "reason")
+                  "n_unconverged", "status", "reason")
 #: What a leaderboard row is of (and its ``variant``, where runs differ in settings).
 BOARD_KEY = ("profile", "system", "model")
 #: What a family row is of (one competitor per family: its backends are twins; and its
@@ -296,12 +326,18 @@ DERIVED_COLUMNS = {
     "git_commit": "environment.git_commit",
     "machine": "environment.host, else environment.platform",
     "trained": "selection.trained (false: the run did not train; None: no selection)",
+    "reference": "the record's reference role (zero_field, true_field; records before "
+                 "schema 3: the installed model's), empty for a competitor",
+    "converged": "selection.converged (whether the criterion stopped improving over the "
+                 "last 20% of steps; None: not measured)",
 }
 #: The columns of a records frame that are not metrics or timings, in order: record
 #: fields, loader fields and :data:`DERIVED_COLUMNS`.
-FRAME_COLUMNS = ("system", "model", "variant", "track", "backend", "family", "ranked", "seed",
+FRAME_COLUMNS = ("system", "model", "variant", "track", "backend", "family", "ranked",
+                 "reference", "seed",
                  "profile", "status", "error", "steps", "device", *LOADER_FIELDS,
-                 "git_commit", "machine", "trained", "created_at", "tuning_cpu_s")
+                 "git_commit", "machine", "trained", "converged", "created_at",
+                 "tuning_cpu_s")
 #: Columns of a records frame that are not metrics.
 RESERVED = frozenset(FRAME_COLUMNS)
 #: Provenance a submitted record must carry (``a.b``: key ``b`` of field ``a``).

@@ -156,9 +156,11 @@ def records_frame(records: Iterable[dict[str, Any]],
             "track": track_of(rec),
             "tuning_cpu_s": tuning.get("cpu_s") if isinstance(tuning, dict) else None,
             "ranked": _ranked(rec),
+            "reference": _reference(rec),
+            "converged": _selection_field(rec, "converged"),
             "git_commit": env.get("git_commit"),
             "machine": env.get("host") or env.get("platform"),
-            "trained": _trained(rec),
+            "trained": _selection_field(rec, "trained"),
         }
         row: dict[str, Any] = {name: derived[name] if name in derived else rec.get(name)
                                for name in FRAME_COLUMNS}
@@ -171,11 +173,22 @@ def records_frame(records: Iterable[dict[str, Any]],
     return pd.DataFrame(rows)
 
 
-def _trained(rec: dict[str, Any]) -> Any:
-    """``selection.trained`` of a record: ``False`` for a run that did not train (its
-    kept checkpoint is its first evaluation), ``None`` where there is no selection."""
+def _selection_field(rec: dict[str, Any], key: str) -> Any:
+    """``selection.<key>`` of a record (``trained``: ``False`` for a run that did not
+    train; ``converged``: whether its criterion stopped improving over the last 20% of
+    steps), ``None`` where there is no selection or no such key."""
     selection = rec.get("selection")
-    return selection.get("trained") if isinstance(selection, dict) else None
+    return selection.get(key) if isinstance(selection, dict) else None
+
+
+def _reference(rec: dict[str, Any]) -> str:
+    """The record's reference role (``""`` for a competitor); records before schema 3
+    lack the field: the installed class says."""
+    if "reference" in rec:
+        return str(rec["reference"] or "")
+    info = registry.discover("model").get(str(rec.get("model")))
+    return str(getattr(info.cls, "reference", None) or "") if info is not None and info.ok \
+        else ""
 
 
 def _ranked(rec: dict[str, Any]) -> bool:
@@ -361,15 +374,21 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
         backends = [b for b in group["backend"].dropna().unique()] if "backend" in group else []
         families = [f for f in group["family"].dropna().unique()] if "family" in group else []
         ranked = bool(group["ranked"].fillna(True).all()) if "ranked" in group else True
+        roles = [r for r in group["reference"].fillna("").unique() if r] \
+            if "reference" in group else []
         row: dict[str, Any] = {
             "profile": profile, "system": system, "model": model, "variant": variant,
             "track": track,
             "backend": backends[0] if backends else "",
             "family": families[0] if families else "", "ranked": ranked,
+            "reference": roles[0] if roles else "",
             "n_seeds": len(group), "seeds": ";".join(str(s) for s in seeds),
             **{f"n_{s}": counts[s] for s in STATUSES},
             "n_untrained": int((group["trained"] == False).sum())  # noqa: E712
             if "trained" in group else 0,
+            # seeds whose criterion still fell over the last 20% of steps
+            "n_unconverged": int((group["converged"] == False).sum())  # noqa: E712
+            if "converged" in group else 0,
             "status": status_text(counts), "reason": reason_text(group),
         }
         use = group[group["status"] == "ok"]

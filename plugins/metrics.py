@@ -161,7 +161,7 @@ def _loss(split: str, clean: bool = False) -> Any:
 def _valid_loss(ctx: EvalContext) -> Any:
     """``None`` (undefined) for a dataset without a validation split (a model evaluated
     outside a job)."""
-    return None if ctx.data.valid is None else ctx.loss_values("valid")
+    return None if ctx.data.valid is None else ctx.loss_values("valid", clean=True)
 
 
 def _energy_mse(ctx: EvalContext) -> np.ndarray:
@@ -239,8 +239,10 @@ TRAIN_LOSS = Metric(
     errors_fail_job=True, domain=NONNEGATIVE)
 VAL_LOSS = Metric(
     "val_loss", "MSE of predicted vs target dx/dt on the validation set, carved from the "
-    "training data (noisy inputs as in training; pixels: the training objective); the "
-    "checkpoint is selected on it. The zero field scores the mean squared target",
+    "training data, at the clean inputs where the system adds noise (pixels: the training "
+    "objective); on every simulated state system the checkpoint selection criterion "
+    "(selection.criterion) at the scored checkpoint. The zero field scores the mean "
+    "squared target",
     _valid_loss, check=CheckRule(2, 1e-12), order=15,
     errors_fail_job=True, domain=NONNEGATIVE, selects=True)
 TEST_LOSS = Metric(
@@ -263,13 +265,13 @@ ROLLOUT_MSE = Metric(
     "zero field scores the mean squared displacement of the true trajectory from its "
     "start", _rollout_mse,
     check=CheckRule(3, 1e-8), order=40, figures=("heatmap", "data_efficiency"),
-    errors_fail_job=True, domain=NONNEGATIVE, headline=True)
+    errors_fail_job=True, beat_reference=True, domain=NONNEGATIVE, headline=True)
 ROLLOUT_SKILL = Metric(
     "rollout_skill", "Skill of the rollout over standing still: 1 - rollout error / the "
     "error of holding the initial state, per trajectory (angles modulo 2 pi). 1: exact; "
     "0: the zero field (no motion); negative: worse than not moving", _rollout_skill,
     better="higher", scale="linear", check=CheckRule(3, 0.0), order=45,
-    errors_fail_job=True, domain=(-math.inf, 1.0))
+    errors_fail_job=True, beat_reference=True, domain=(-math.inf, 1.0))
 REVERSIBILITY_ERROR = Metric(
     "reversibility_error", "Time-reversal test of the learned flow: mean |R Phi_T R Phi_T "
     "x0 - x0|^2 (R flips momenta; pixels: latent momenta). A diagnostic, never marked "
@@ -283,7 +285,7 @@ VALID_PREDICTION_TIME = Metric(
     "state takes to move threshold x its norm from its start", _vpt, better="higher",
     scale="linear",
     check=CheckRule(3, 0.0), order=60,
-    errors_fail_job=True, domain=NONNEGATIVE)
+    errors_fail_job=True, beat_reference=True, domain=NONNEGATIVE)
 VPT_CENSORED = Metric(
     "vpt_censored", "Share of evaluation trajectories whose valid prediction time reached "
     "the horizon (there it is a lower bound; the horizon caps valid_prediction_time). A "
@@ -297,7 +299,7 @@ VPT_LYAPUNOV = Metric(
     "valid_prediction_time for a degenerate model",
     _vpt_lyapunov, better="higher", scale="linear", check=CheckRule(3, 0.0),
     applies=_has_lyapunov_time, order=70,
-    errors_fail_job=True, domain=NONNEGATIVE)
+    errors_fail_job=True, beat_reference=True, domain=NONNEGATIVE)
 ENERGY_DRIFT_LONG = Metric(
     "energy_drift_long", f"Relative true-energy drift at the end of a rollout "
     f"{LONG_HORIZON_FACTOR}x the evaluation horizon (conservative systems). The zero "

@@ -1,6 +1,7 @@
 """Publish paper-profile sweeps as the committed leaderboard.
 
     python scripts/publish_results.py SWEEP_DIR [SWEEP_DIR ...] [--figure two_body_energy]
+        [--replace SYSTEM[,SYSTEM]]
 
 1. Copies every ``result.json`` of the sweeps into ``results/records/<system>/<model>/
    seed<k>/result.json``, and beside the lowest seed of each pair that has a rollout a
@@ -9,7 +10,9 @@
    figure_arrays``), so that a report merging a new sweep with ``results/records`` draws
    every model. Weights and full rollouts stay in the sweeps. Sweeps of different
    systems, run at different times or on different machines, merge there; a record
-   already present for the same job is replaced. ``results/records`` itself may be one
+   already present for the same job is replaced. ``--replace S`` re-publishes system
+   ``S``: its published protocol records that the directories do not hold (another
+   seed plan, a model gone) are removed in the same step. ``results/records`` itself may be one
    of the directories (a new model's sweep is published with it: docs/LEADERBOARD.md).
 2. ``hnnbench report`` over ``results/records`` (its records and figure rollouts) into
    ``results/``: leaderboard.{csv,md,html},
@@ -244,12 +247,32 @@ def published_jobs() -> set[tuple[str, str, str, int]]:
                    for p in RECORDS.glob("*/*/*/seed*/result.json")}
 
 
+def remove_jobs(jobs: set[tuple[str, str, str, int]]) -> int:
+    """Remove the published records (and figure rollouts) of ``jobs`` ((track, system,
+    model, seed)); returns how many."""
+    import shutil
+
+    for track, system, model, seed in jobs:
+        directory = record_dir({"system": system, "model": model, "seed": seed,
+                                "track": track, "path": "results/records"})
+        shutil.rmtree(directory)
+    for empty in sorted(RECORDS.rglob("*"), key=lambda p: len(p.parts), reverse=True):
+        if empty.is_dir() and not any(empty.iterdir()):
+            empty.rmdir()
+    return len(jobs)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("sweeps", type=Path, nargs="+",
                         help="sweep directories with result.json records and rollouts")
     parser.add_argument("--figure", default="heatmap_energy_mse",
                         help="figure embedded in README.md (a name under results/figures/)")
+    parser.add_argument("--replace", default="", metavar="SYSTEM[,SYSTEM]",
+                        help="replace every published protocol-track record of these "
+                             "systems by the records given (a re-publication): the "
+                             "published ones the directories do not hold are removed in "
+                             "the same step")
     args = parser.parse_args(argv)
 
     from hnnbench._errors import HnnbenchError
@@ -259,15 +282,33 @@ def main(argv: list[str] | None = None) -> int:
     from hnnbench._report.verdicts import aggregate_markdown
 
     recs = given_records(args.sweeps)
+    replaced = {s for s in args.replace.split(",") if s}
+    from hnnbench._record_schema import DEFAULT_TRACK, name_problem
+
+    for system in sorted(replaced):
+        problem = name_problem("system", system)
+        if problem:
+            print(f"publish: --replace {system}: {problem}", file=sys.stderr)
+            return 2
+        if not any(r["system"] == system and job_of(r)[0] == DEFAULT_TRACK for r in recs):
+            print(f"publish: --replace {system}: the directories given hold no protocol "
+                  f"record of {system}; refusing to remove its published records",
+                  file=sys.stderr)
+            return 2
     # Every record already published must be among those given (results/records itself
-    # may be given), so that the page and the records agree.
-    stale = published_jobs() - {job_of(r) for r in recs}
+    # may be given), so that the page and the records agree; the protocol records of a
+    # replaced system go.
+    given = {job_of(r) for r in recs}
+    superseded = {job for job in published_jobs() - given
+                  if job[0] == DEFAULT_TRACK and job[1] in replaced}
+    stale = published_jobs() - given - superseded
     if stale:
         print(f"publish: results/records holds jobs the directories given here do not "
               f"({sorted(stale)[:5]} ...): pass every sweep that was published, or "
               "results/records itself", file=sys.stderr)
         return 2
     copied = copy_records(args.sweeps, recs)
+    removed_records = remove_jobs(superseded)
     rollouts, rollout_bytes = copy_figure_rollouts(args.sweeps)
     published = sorted(p.parent.relative_to(RECORDS) for p in RECORDS.rglob("result.json"))
     try:
@@ -310,7 +351,8 @@ def main(argv: list[str] | None = None) -> int:
     import job_costs  # scripts/: the sweep's estimate reads the published job times
 
     job_costs.main([])
-    print(json.dumps({"copied_records": copied, "published_records": len(published),
+    print(json.dumps({"copied_records": copied, "removed_records": removed_records,
+                      "published_records": len(published),
                       "figure_rollouts": rollouts, "figure_rollout_bytes": rollout_bytes,
                       "systems": systems, "figures": len(report.figures),
                       "stale_figures_removed": [p.name for p in removed]}))

@@ -14,14 +14,22 @@ from hnnbench._datasets import MIN_VALID_TRAJECTORIES, VALID_FRACTION, with_vali
 from hnnbench.neural._loop import train
 
 
-class ScriptedTrainer:
-    """A trainer whose chunk losses are scripted per seed: ``valid[s][k]`` is seed
-    ``s``'s validation loss after chunk ``k`` (its training losses are 1.0, or NaN
-    where ``nan_train[s] == k``). ``weights`` is the chunk index each seed's kept
-    checkpoint was taken at."""
+#: Per-point offsets of the scripted criterion: the same at every checkpoint, so two
+#: checkpoints differ by the same amount at every point (paired standard error 0).
+OFFSETS = np.linspace(-0.05, 0.05, 20)
 
-    def __init__(self, valid: list[list[float]], nan_train: dict[int, int] | None = None):
+
+class ScriptedTrainer:
+    """A trainer whose chunk losses are scripted per seed: ``valid[s][k]`` is the mean
+    of seed ``s``'s validation criterion after chunk ``k`` (20 points, ``noise[s][k]``
+    times a fixed zero-mean pattern added to each chunk's points: the paired noise);
+    its training losses are 1.0, or NaN where ``nan_train[s] == k``. ``kept`` is the
+    chunk index each seed's kept checkpoint was taken at."""
+
+    def __init__(self, valid: list[list[float]], nan_train: dict[int, int] | None = None,
+                 noise: list[list[float]] | None = None):
         self.valid, self.nan_train = valid, nan_train or {}
+        self.noise = noise or [[0.0] * len(v) for v in valid]
         self.chunk = -1
         self.kept = [None] * len(valid)
 
@@ -31,7 +39,9 @@ class ScriptedTrainer:
         for s, k in self.nan_train.items():
             if k == self.chunk:
                 losses[s, 1] = math.nan
-        return losses, np.array([v[self.chunk] for v in self.valid])
+        pattern = np.resize([1.0, -1.0], OFFSETS.size)  # mean 0, paired with itself
+        return losses, np.array([v[self.chunk] + OFFSETS + n[self.chunk] * pattern
+                                 for v, n in zip(self.valid, self.noise, strict=True)])
 
     def keep(self, seeds):
         for s in np.flatnonzero(seeds):
@@ -76,6 +86,35 @@ def test_divergence_after_a_kept_checkpoint_keeps_it_and_says_why_training_stopp
     assert fit.selection is not None and fit.selection.step == 20
     assert fit.selection.stopped == "training loss became nan at step 22"
     assert trainer.kept == [1]
+
+
+def test_the_final_checkpoint_is_scored_unless_an_earlier_one_wins_by_two_paired_se():
+    # The lowest (1.0, after chunk 1) beats the final (1.1) by 0.1; paired noise of
+    # amplitude a at both checkpoints gives per-point differences 0.1 ± (a_f - a_b).
+    quiet = ScriptedTrainer([[3.0, 1.0, 2.0, 1.1]], noise=[[0, 0.0, 0, 0.01]])
+    (fit,) = run(quiet, 4)
+    assert fit.selection.step == 20 and quiet.kept == [1]  # 0.1 >> 2 SE
+    noisy = ScriptedTrainer([[3.0, 1.0, 2.0, 1.1]], noise=[[0, 0.0, 0, 1.0]])
+    (fit,) = run(noisy, 4)
+    sel = fit.selection
+    assert sel.final_se == pytest.approx(1.0 / math.sqrt(20 - 1))  # ±1 at 20 points
+    assert 0.1 < 2 * sel.final_se
+    assert sel.step == 40 and noisy.kept == [3]  # not resolved: the final one is scored
+    assert (sel.best_step, sel.final_step) == (20, 40)
+    assert sel.best_value == pytest.approx(1.0) and sel.final_value == pytest.approx(1.1)
+    assert sel.as_record()["rule"].startswith("the final checkpoint")
+
+
+def test_convergence_compares_the_late_checkpoint_with_the_final_one():
+    # 10 chunks of 10 steps: the late checkpoint is at step 80 (80 % of 100).
+    falling = ScriptedTrainer([[10 - k for k in range(10)]])
+    (fit,) = run(falling, 10)
+    sel = fit.selection
+    assert sel.late_step == 80 and sel.late_value == pytest.approx(3.0)
+    assert sel.converged is False  # fell by 2 with no paired noise
+    flat = ScriptedTrainer([[5, 4, 3, 2, 1, 1, 1, 1, 1, 1]], noise=[[0.0] * 9 + [0.01]])
+    (fit,) = run(flat, 10)
+    assert fit.selection.converged is True and fit.selection.as_record()["converged"] is True
 
 
 def test_each_seed_of_a_batch_is_selected_on_its_own_validation_loss():

@@ -127,32 +127,46 @@ def test_the_repeated_columns_and_the_derivatives(raw):
 # --------------------------------------------------------------------------- data
 
 
+def _rows(raw, split):
+    return np.searchsorted(raw[:, 1], split.t)
+
+
 def test_targets_are_the_files_velocities_and_accelerations(raw):
     ds = make().dataset(0)
-    np.testing.assert_array_equal(ds.train.dxdt[:, 2:], raw[:SPLIT_ROW, 8:10])
-    np.testing.assert_array_equal(ds.test.dxdt[:, 2:], raw[SPLIT_ROW:, 8:10])
-    np.testing.assert_array_equal(ds.train.dxdt[:, :2], raw[:SPLIT_ROW, 4:6])
-    np.testing.assert_array_equal(ds.train.x[:, 2:], raw[:SPLIT_ROW, 4:6])
+    for split in (ds.train, ds.valid, ds.test):
+        rows = _rows(raw, split)
+        np.testing.assert_array_equal(split.dxdt[:, 2:], raw[rows, 8:10])
+        np.testing.assert_array_equal(split.dxdt[:, :2], raw[rows, 4:6])
+        np.testing.assert_array_equal(split.x[:, 2:], raw[rows, 4:6])
     # angles wrapped into [-π, π) by whole turns
     theta = np.concatenate([ds.train.x, ds.test.x])[:, :2]
     assert np.all((theta >= -np.pi) & (theta < np.pi))
-    turns = (raw[:, 2:4] - theta) / (2 * np.pi)
+    turns = (raw[np.concatenate([_rows(raw, ds.train), _rows(raw, ds.test)]), 2:4]
+             - theta) / (2 * np.pi)
     np.testing.assert_allclose(turns, np.round(turns), atol=1e-9)
     unwrapped = make(wrap_angles=False).dataset(0)
-    np.testing.assert_array_equal(unwrapped.train.x[:, :2], raw[:SPLIT_ROW, 2:4])
+    np.testing.assert_array_equal(unwrapped.train.x[:, :2],
+                                  raw[_rows(raw, unwrapped.train), 2:4])
 
 
-def test_split_sizes_and_order(raw):
-    ds = make().dataset(0)
-    assert len(ds.train) == SPLIT_ROW and len(ds.test) == N_ROWS - SPLIT_ROW == 304
-    assert ds.meta["split_row"] == SPLIT_ROW and ds.meta["split_trial"] == 1
-    assert ds.train.t.max() < raw[SPLIT_ROW, 1] == ds.test.t.min()
-    np.testing.assert_array_equal(ds.train.traj, raw[:SPLIT_ROW, 0].astype(int))
-    assert set(ds.test.traj) == {1}
-    assert ds.meta["n_gaps"] == 85 and ds.meta["dt"] == pytest.approx(0.01, abs=1e-5)
-    assert ds.meta["sha256"] == SHA256
-    a, b = make().dataset(0), make().dataset(1)  # the seed is unused
-    np.testing.assert_array_equal(a.train.x, b.train.x)
+@pytest.mark.parametrize("seed", [0, 3])
+def test_fold_sizes_and_order(raw, seed):
+    ds = make().dataset(seed)
+    fold = (4 - seed) % 5
+    edges = [round(i * N_ROWS / 5) for i in range(6)]
+    test = _rows(raw, ds.test)
+    assert (test.min(), test.max() + 1) == (edges[fold], edges[fold + 1]) and len(test) == 304
+    valid = _rows(raw, ds.valid)
+    before = (fold - 1) % 5
+    assert (edges[before] + edges[before + 1]) // 2 + 25 <= valid.min()
+    train = _rows(raw, ds.train)
+    assert not set(train) & set(valid) and not set(train) & set(test)
+    # 25 rows (0.25 s) between every training or validation row and another segment
+    for rows, others in ((train, np.concatenate([valid, test])),
+                         (valid, np.concatenate([train, test]))):
+        assert np.abs(rows[:, None] - others[None, :]).min() > 25
+    np.testing.assert_array_equal(ds.train.traj, raw[train, 0].astype(int))
+    assert ds.meta["fold"] == fold and ds.meta["test_rows"] == [edges[fold], edges[fold + 1]]
 
 
 def test_srnn_windows_are_continuous_in_the_angles():
@@ -219,14 +233,14 @@ def test_energy_model_is_reproducible_and_sane(raw):
     assert system.energy_model() is model  # cached per instance
     again = make().energy_model()
     assert again == model  # deterministic: identical numbers from a fresh instance
-    assert fit_energy_model(raw[:SPLIT_ROW]) == model  # fitted on the training rows only
+    assert fit_energy_model(raw) == model  # fitted on every row: one model for all folds
     # the figures quoted in the docs
-    assert model.mass_ratio == pytest.approx(0.575, abs=0.001)
-    assert model.length_ratio == pytest.approx(0.897, abs=0.001)
-    assert model.g_over_l1 == pytest.approx(68.2, abs=0.1)  # l1 = 9.81 / 68.2 = 14 cm
-    np.testing.assert_allclose(model.relative_residual, [0.271, 0.251], atol=0.001)
+    assert model.mass_ratio == pytest.approx(0.567, abs=0.001)
+    assert model.length_ratio == pytest.approx(0.896, abs=0.001)
+    assert model.g_over_l1 == pytest.approx(67.6, abs=0.1)  # l1 = 9.81 / 67.6 = 14.5 cm
+    np.testing.assert_allclose(model.relative_residual, [0.275, 0.260], atol=0.001)
     assert all(0 < k < 0.2 for k in model.damping)
-    assert model.n_points == SPLIT_ROW
+    assert model.n_points == N_ROWS
     # energy: zero at rest, positive, periodic in the angles, and decaying on average
     x = np.concatenate([raw[:, 2:4], raw[:, 4:6]], axis=1)
     energy = system.energy(x)
@@ -269,7 +283,7 @@ def test_contract():
 @pytest.mark.parametrize(
     "overrides, key",
     [
-        ({"test_split": 0.0}, "test_split"),
+        ({"folds": 1}, "folds"),
         ({"eval_chunks": 0}, "eval_chunks"),
         ({"max_gap_factor": 1.0}, "max_gap_factor"),
         ({"url": "example.org/x.txt"}, "url"),
@@ -285,14 +299,14 @@ def test_validate(overrides, key):
 def test_protocol_profiles_cache_key_and_entry_point():
     cfg = RealDoublePendulumConfig()
     assert (cfg.steps, cfg.batch_size, cfg.weight_decay) == (2000, None, 1e-5)
-    assert (cfg.test_split, cfg.eval_chunks, cfg.wrap_angles) == (0.2, 10, True)
+    assert (cfg.folds, cfg.eval_chunks, cfg.wrap_angles) == (5, 10, True)
     assert cfg.url is None and cfg.data_path is None
     quick = RealDoublePendulum.profiles["quick"]
     assert set(quick) <= {f.name for f in dataclasses.fields(cfg)} and quick["steps"] <= 300
     key = cfg.data_fields()
     assert key["sha256"] == SHA256 and "data_path" not in key and "url" not in key
     assert RealDoublePendulumConfig(data_path="/elsewhere").data_fields() == key
-    assert RealDoublePendulum.version == "1" and "\n" not in RealDoublePendulum.description
+    assert RealDoublePendulum.version == "2" and "\n" not in RealDoublePendulum.description
     (ep,) = [e for e in entry_points(group="hnnbench.systems")
              if e.name == "real_double_pendulum"]
     assert ep.load() is RealDoublePendulum

@@ -95,21 +95,46 @@ def test_missing_data_is_a_data_error(monkeypatch, tmp_path):
         make().dataset(0)
 
 
-def test_dataset_shapes_and_split(raw):
-    ds = make().dataset(0)
-    # 555 forward differences, 10 span gaps, 1 spans the train/test boundary.
-    assert ds.meta["n_dropped_at_gaps"] == 10
-    assert ds.meta["n_dropped_at_split"] == 1
-    assert len(ds.train) + len(ds.test) == 555 - 10 - 1
-    assert ds.meta["split_row"] == 556 - round(556 * 0.2) == 445
-    assert len(ds.test) == 110 and len(ds.train) == 434
-    for split in (ds.train, ds.test):
+def _rows(raw, split):
+    """The file rows of a split's points (a point is at its row's time)."""
+    return np.searchsorted(raw[:, 1], split.t)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4])
+def test_the_seed_chooses_a_fold_and_no_point_crosses_an_edge(raw, seed):
+    system = make()
+    ds = system.dataset(seed)
+    fold = (5 - 1 - seed) % 5
+    edges = [round(i * 556 / 5) for i in range(6)]
+    assert ds.meta["fold"] == fold == system.fold(seed) and ds.meta["folds"] == 5
+    assert ds.valid is not None and "fold" in ds.meta["validation"]
+    role = np.full(556, -1)
+    for code, split in enumerate((ds.train, ds.valid, ds.test)):
         assert split.x.shape == split.dxdt.shape == (len(split), 2)
-        assert split.traj.shape == split.t.shape == (len(split),)
         assert np.all(np.isfinite(split.dxdt))
-    split_time = raw[445, 1]
-    assert ds.train.t.max() < split_time <= ds.test.t.min()
+        rows = _rows(raw, split)
+        assert np.all(role[rows] == -1)  # no row in two segments
+        role[rows] = code
+    test_rows = _rows(raw, ds.test)
+    assert edges[fold] <= test_rows.min() and test_rows.max() + 1 < edges[fold + 1]
+    before = (fold - 1) % 5
+    valid_rows = _rows(raw, ds.valid)
+    assert (edges[before] + edges[before + 1]) // 2 <= valid_rows.min()
+    assert valid_rows.max() < edges[before + 1]
+    # A point's forward difference stays in its segment, and every training or
+    # validation point keeps 2 rows (0.25 s at dt = 1/6) from any other segment.
+    for code, split in enumerate((ds.train, ds.valid)):
+        for row in _rows(raw, split):
+            near = role[max(0, row - 2):row + 4]
+            assert np.all((near == code) | (near == -1)), (code, row)
     assert ds.meta["sha256"] == SHA256 and ds.meta["data_file"] == str(SOURCE)
+
+
+def test_seed_zero_tests_on_the_papers_segment(raw):
+    ds = make().dataset(0)
+    assert ds.meta["test_rows"] == [445, 556] and len(ds.test) == 110
+    assert ds.train.t.max() < raw[445, 1] <= ds.test.t.min()
+    assert ds.valid is not None and ds.valid.t.max() < raw[445, 1]
 
 
 def test_forward_differences(raw):
@@ -129,10 +154,12 @@ def test_forward_differences(raw):
         assert dt.max() < 1.5 / 6
 
 
-def test_dataset_is_deterministic():
-    a, b = make().dataset(0), make().dataset(1)
-    np.testing.assert_array_equal(a.train.x, b.train.x)
-    np.testing.assert_array_equal(a.test.dxdt, b.test.dxdt)
+def test_dataset_is_deterministic_and_seeds_five_apart_share_a_fold():
+    a, b, c = make().dataset(0), make().dataset(0), make().dataset(5)
+    for other in (b, c):
+        np.testing.assert_array_equal(a.train.x, other.train.x)
+        np.testing.assert_array_equal(a.test.dxdt, other.test.dxdt)
+    assert not np.array_equal(make().dataset(1).test.x[:5], a.test.x[:5])
 
 
 def test_energy_formula():
@@ -163,8 +190,8 @@ def test_evaluation_chunks(raw):
 
 
 def test_evaluation_skips_gaps_in_the_test_segment(raw):
-    # With half the rows as test, the segment contains gaps; chunks avoid them.
-    traj = make(test_split=0.5, eval_chunks=8).evaluation(0)
+    # With half the rows as test (two folds), the segment contains gaps; chunks avoid them.
+    traj = make(folds=2, eval_chunks=8).evaluation(0)
     times = raw[:, 1]
     for start in traj.meta["chunk_start_times"]:
         row = int(np.searchsorted(times, start))
@@ -183,8 +210,9 @@ def test_single_chunk_and_too_many_chunks():
 @pytest.mark.parametrize(
     "overrides, key",
     [
-        ({"test_split": 0.0}, "test_split"),
-        ({"test_split": 1.0}, "test_split"),
+        ({"folds": 1}, "folds"),
+        ({"folds": 2.5}, "folds"),
+        ({"fold_gap_s": -1.0}, "fold_gap_s"),
         ({"eval_chunks": 0}, "eval_chunks"),
         ({"max_gap_factor": 1.0}, "max_gap_factor"),
         ({"url": "example.org/x.txt"}, "url"),
@@ -200,7 +228,7 @@ def test_validate(overrides, key):
 def test_paper_protocol_and_cache_key():
     cfg = RealPendulumConfig()
     assert (cfg.steps, cfg.batch_size, cfg.weight_decay) == (2000, None, 1e-5)
-    assert cfg.url is None and cfg.data_path is None and cfg.test_split == 0.2
+    assert cfg.url is None and cfg.data_path is None and cfg.folds == 5
     assert RealPendulum.profiles["quick"] == {"steps": 300}
     key = cfg.data_fields()
     assert key["sha256"] == SHA256

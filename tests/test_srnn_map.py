@@ -41,32 +41,23 @@ def trained():
 
 
 @pytest.mark.parametrize("window", [3, 5, 8])
-def test_validation_windows_keep_the_familys_length_whatever_the_training_window(window):
-    """``model.window`` sets the training windows; the validation windows always have the
-    family's declared length (5), so validation losses compare across windows."""
+def test_the_srnn_selects_on_the_systems_criterion_whatever_the_training_window(window):
+    """``model.window`` sets the training windows; checkpoints are selected on the
+    system's criterion, as for every family: on the noisy spring, the field at the clean
+    validation inputs."""
+    from hnnbench import CLEAN_INPUTS
     from hnnbench._datasets import with_validation
 
     system = Spring(SpringConfig(name="spring", n_traj=24))
+    data = with_validation(system.dataset(0), 0)
     model = SRNNJax(SRNNConfig(name="srnn", hidden=16, window=window), system, "cpu")
-    problem = model.view.problem(with_validation(system.dataset(0), 0),
-                                 *model.training_options())
-    (train_windows, train_dts), (valid_windows, valid_dts) = problem.train, problem.valid
+    problem = model.view.problem(data, *model.training_options())
+    train_windows, train_dts = problem.train
     assert train_windows.shape[1] == window and train_dts.shape[1] == window - 1
-    assert valid_windows.shape[1] == model.family.window == 5 and valid_dts.shape[1] == 4
-
-
-@pytest.mark.parametrize("window", [3, 5])
-def test_a_short_validation_split_gets_its_longest_windows_whatever_the_training_window(
-        window):
-    """10 trajectories of 30 points: the validation split keeps each one's last 3 points,
-    so its windows have 3 states (the longest it holds), for every training window."""
-    from hnnbench._datasets import with_validation
-
-    system = Spring(SpringConfig(name="spring", n_traj=10))
-    model = SRNNJax(SRNNConfig(name="srnn", hidden=16, window=window), system, "cpu")
-    problem = model.view.problem(with_validation(system.dataset(0), 0),
-                                 *model.training_options())
-    assert problem.train[0].shape[1] == window and problem.valid[0].shape[1] == 3
+    assert (problem.criterion, problem.criterion_name) == ("field", "field_mse_clean")
+    assert data.valid is not None
+    np.testing.assert_array_equal(problem.valid[0], data.valid.extras[CLEAN_INPUTS])
+    np.testing.assert_array_equal(problem.valid[1], data.valid.dxdt)
 
 
 def test_the_leapfrog_step_is_the_training_interval(trained):

@@ -81,12 +81,15 @@ def test_stratified_intervals_iqm_and_probability_of_improvement():
 
 def _marks(values: dict[str, list[float]], n_ok: dict[str, int] | None = None,
            better_metric: str = "energy_mse") -> pd.DataFrame:
-    """A family board (one system) with ``values`` per family and seed, marked."""
+    """A family board (one system) with ``values`` per family and seed, marked (the
+    family ``still`` is the standing-still reference)."""
     rows, runs = [], []
     for family, vals in values.items():
         seeds = list(range(len(vals)))
         rows.append({"profile": "paper", "system": "spring", "family": family,
-                     "variant": "", "ranked": family != "oracle", "n_seeds": len(vals),
+                     "variant": "", "ranked": family not in ("oracle", "still"),
+                     "reference": "zero_field" if family == "still" else "",
+                     "n_seeds": len(vals),
                      "n_ok": (n_ok or {}).get(family, len(vals)),
                      f"{better_metric}_mean": float(np.mean(vals))})
         runs += [{"profile": "paper", "system": "spring", "family": family, "variant": "",
@@ -111,9 +114,28 @@ def test_a_family_with_a_diverged_seed_never_leads_and_higher_can_be_better():
                     "mlp": [9, 9, 9, 9, 9]}, n_ok={"lnn": 4})
     assert board.loc["hnn", "energy_mse_mark"] == "tied"  # the leader: lnn beats it
     assert board.loc["lnn", "energy_mse_mark"] == "tied"  # ... on every seed: not separated
-    vpt = _marks({"hnn": [5, 6, 7, 8, 9], "mlp": [1, 2, 3, 4, 5]},
+    vpt = _marks({"hnn": [5, 6, 7, 8, 9], "mlp": [1, 2, 3, 4, 5], "still": [0.5] * 5},
                  better_metric="valid_prediction_time")
     assert vpt.loc["hnn", "valid_prediction_time_mark"] == "best"
+
+
+def test_a_rollout_cell_is_marked_only_where_its_leader_beats_standing_still():
+    beaten = {"hnn": [5, 6, 7, 8, 9], "mlp": [1, 2, 3, 4, 5]}
+    unbeaten = _marks({**beaten, "still": [10.0] * 5}, better_metric="valid_prediction_time")
+    assert unbeaten["valid_prediction_time_mark"].to_dict() == {
+        "hnn": "", "mlp": "", "still": "unbeaten"}  # "no family beats standing still"
+    mse = _marks({"hnn": [1, 2, 3, 4, 5], "mlp": [2, 3, 4, 5, 6], "still": [3.5] * 5},
+                 better_metric="rollout_mse")
+    assert mse["rollout_mse_mark"].to_dict() == {"hnn": "best", "mlp": "", "still": ""}
+    still_wins = _marks({"hnn": [1, 2, 3, 4, 5], "mlp": [2, 3, 4, 5, 6], "still": [2.9] * 5},
+                        better_metric="rollout_mse")
+    assert still_wins.loc["still", "rollout_mse_mark"] == "unbeaten"
+    # without a standing-still row nothing is claimed on such a metric
+    none = _marks(beaten, better_metric="valid_prediction_time")
+    assert set(none["valid_prediction_time_mark"]) == {""}
+    # an energy metric keeps its guard and needs no reference row
+    assert _marks({"hnn": [1, 2, 3, 4, 5], "mlp": [2, 3, 4, 5, 6]}).loc[
+        "hnn", "energy_mse_mark"] == "best"
 
 
 def test_an_unranked_metric_and_an_out_of_domain_value_are_never_marked():
@@ -130,16 +152,19 @@ def test_a_model_that_does_not_move_cannot_win_an_energy_metric():
     the others are ranked among themselves."""
     rows, runs = [], []
     table = {"still": ([0.0] * 5, -0.01), "hnn": ([1, 2, 3, 4, 5], 0.6),
-             "mlp": ([2, 3, 4, 5, 6], 0.2)}
+             "mlp": ([2, 3, 4, 5, 6], 0.2), "zero": ([0.0] * 5, 0.0)}
     for family, (vals, skill) in table.items():
         rows.append({"profile": "paper", "system": "spring", "family": family, "variant": "",
-                     "ranked": True, "n_seeds": 5, "n_ok": 5,
+                     "ranked": family != "zero",
+                     "reference": "zero_field" if family == "zero" else "",
+                     "n_seeds": 5, "n_ok": 5,
                      "energy_mse_mean": float(np.mean(vals)), "rollout_skill_mean": skill})
         runs += [{"profile": "paper", "system": "spring", "family": family, "variant": "",
                   "seed": k, "status": "ok", "energy_mse": v, "rollout_skill": skill}
                  for k, v in enumerate(vals)]
     board = mark_best(pd.DataFrame(rows), pd.DataFrame(runs)).set_index("family")
-    assert board["energy_mse_mark"].to_dict() == {"still": "", "hnn": "best", "mlp": ""}
+    assert board["energy_mse_mark"].to_dict() == {"still": "", "hnn": "best", "mlp": "",
+                                                  "zero": ""}
     assert board.loc["hnn", "rollout_skill_mark"] == "best"
     # without the guard's column (records from before it), nothing is left out
     plain = mark_best(pd.DataFrame(rows).drop(columns="rollout_skill_mean"),

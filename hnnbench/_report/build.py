@@ -18,6 +18,9 @@ Writes into ``out`` (default: the only sweep directory):
 - ``tracks.md`` (and ``tracks.csv`` when some row is of another track than the
   protocol): each track's verdict per system and headline metric, side by side, and
   where it changes (:func:`hnnbench._report.verdicts.tracks_frame`).
+- ``selection.csv``, ``selection.md``: what checkpoint selection resolved per system and
+  family: the criterion's paired noise against the differences between checkpoints,
+  and how many seeds converged (:mod:`hnnbench._report.selection`).
 - ``paper_comparison.md``: published values next to ours, and every claim.
 - ``figures/``: the registered figures (:mod:`hnnbench._report.figures`).
 - ``leaderboard.html``: one self-contained page with all of the above.
@@ -38,6 +41,7 @@ from hnnbench._report.figures import Made, main_profile_figure, make_figures
 from hnnbench._report.html import page
 from hnnbench._report.inputs import ReportError, load_sweeps, provenance
 from hnnbench._report.published import comparison_markdown
+from hnnbench._report.selection import selection_frame, selection_markdown
 from hnnbench._report.tables import leaderboard_markdown
 from hnnbench._report.verdicts import (
     Verdicts,
@@ -119,6 +123,12 @@ def write_report(sweep_dir: Path | str | Sequence[Path | str], out: Path | str |
     report.files["tracks_md"] = out / "tracks.md"
     R.atomic_write_text(report.files["tracks_md"], "# Tracks\n\n"
                         + tracks_markdown(tracks, tuning_costs(verdicts.families)) + "\n")
+    chosen = selection_frame(recs)
+    report.files["selection"] = out / "selection.csv"
+    R.atomic_write_text(report.files["selection"], chosen.to_csv(index=False))
+    report.files["selection_md"] = out / "selection.md"
+    R.atomic_write_text(report.files["selection_md"], "# Checkpoint selection\n\n"
+                        + selection_markdown(chosen))
     report.files["paper"] = out / "paper_comparison.md"
     R.atomic_write_text(report.files["paper"], comparison_markdown(board))
     report.files["html"] = out / "leaderboard.html"

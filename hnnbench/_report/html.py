@@ -17,7 +17,13 @@ from hnnbench import _stats as stats
 from hnnbench._report.figures import FIGURES, Made
 from hnnbench._report.inputs import provenance_lines
 from hnnbench._report.published import claims_frame, comparison_frame
-from hnnbench._report.tables import family_display, seed_line, twins_display, twins_line
+from hnnbench._report.tables import (
+    family_display,
+    reversal_note,
+    seed_line,
+    twins_display,
+    twins_line,
+)
 from hnnbench._report.verdicts import (
     Verdicts,
     aggregate_frame,
@@ -42,6 +48,7 @@ th[data-dir=asc]::after{content:" ▲"}th[data-dir=desc]::after{content:" ▼"}
 tr:nth-child(even) td{background:#fafafa}
 td.best,tr:nth-child(even) td.best{background:#d9f2d9;font-weight:bold}
 td.tied,tr:nth-child(even) td.tied{background:#eef8ee;font-style:italic}
+td.unbeaten,tr:nth-child(even) td.unbeaten{background:#f3e6cc}
 .wrap{overflow-x:auto}
 td.diverged,td.inf{color:#b00}td.reproduced{color:#070}td.notrep{color:#b00}
 td.notrun{color:#888}
@@ -206,10 +213,14 @@ def page(board: pd.DataFrame, figures: list[Made], prov: dict[str, list[str]],
         '<p class="note">One row per family: its primary twin\'s seeds (<code>seeds_from</code>); '
         "click a column header to sort. "
         f"{_inline_code(stats.best_rule().replace('**', '').replace('*', ''))} "
-        "Highlighted: best (bold) and tied (italics).</p>",
+        "Highlighted: best (bold) and tied (italics); a standing-still cell that no "
+        "family's leader beats is shaded.</p>",
         _table(shown, "board sortable", status_col="status",
                numbers=fams.board.reset_index(drop=True), marks=marks),
     ]
+    note = reversal_note(board)
+    if note:
+        parts.append(f'<p class="note">{_inline_code(note)}</p>')
     heatmaps = [m for m in figures if m.kind == "heatmap"]
     if heatmaps:
         parts.append("<h2>Which family wins where</h2>")

@@ -176,6 +176,7 @@ def comparison_frame(board: pd.DataFrame, claim_set: Optional[C.ClaimSet] = None
                     row[f"ours {role} ({backend})"] = ours_cell(board, profile, system, model,
                                                                 metric)
             row["source"] = first.source.split(" (")[0]
+            row["ours differs"] = claim_set.definition(system, metric) or "—"
             rows.append(row)
     return pd.DataFrame(rows)
 

@@ -8,6 +8,7 @@ from typing import Optional
 
 import pandas as pd
 
+from hnnbench import _registry as registry
 from hnnbench import _stats as stats
 from hnnbench._families import Families
 from hnnbench._report.inputs import provenance_lines
@@ -19,6 +20,8 @@ __all__ = ["TWIN_FLAG", "families_markdown", "family_display", "leaderboard_mark
 
 #: Appended to a family's cell where its twins disagree on that metric.
 TWIN_FLAG = "≠"
+#: Beside a standing-still cell that no family's leader beats (marks ``unbeaten``).
+UNBEATEN_FLAG = "(no family beats it)"
 #: The display columns of a family row before its metrics.
 FAMILY_IDS = ("system", "family", "seeds_from")
 
@@ -101,6 +104,9 @@ def _bold(shown: pd.DataFrame, marks: dict[tuple[int, str], str]) -> pd.DataFram
         flag = ""
         if text.endswith(f" {TWIN_FLAG}"):
             text, flag = text[: -len(TWIN_FLAG) - 1], f" {TWIN_FLAG}"
+        if mark == "unbeaten":  # the standing-still cell no family's leader beats
+            out.at[row, metric] = f"{text} {UNBEATEN_FLAG}{flag}"
+            continue
         wrap = "**" if mark == "best" else "*"
         out.at[row, metric] = f"{wrap}{text}{wrap}{flag}"
     return out
@@ -125,6 +131,25 @@ def families_markdown(fams: Families) -> str:
     return md_table(_bold(shown, marks))
 
 
+def reversal_note(board: pd.DataFrame) -> str:
+    """A line naming the systems on the board whose reversibility test starts from
+    states outside their training data (``System.reversal_in_distribution`` false),
+    or ``""``."""
+    if board.empty or "reversibility_error_mean" not in board:
+        return ""
+    systems = []
+    for name in dict.fromkeys(board["system"].astype(str)):
+        info = registry.discover("system").get(name)
+        if info is not None and info.ok and not getattr(info.cls, "reversal_in_distribution",
+                                                        True):
+            systems.append(md_code(name))
+    if not systems:
+        return ""
+    return (f"`reversibility_error` on {', '.join(systems)} is out of distribution: every "
+            "training orbit turns one way, so the momentum-flipped states it starts from "
+            "were never seen (a diagnostic, never ranked; docs/METRICS.md).")
+
+
 def leaderboard_markdown(board: pd.DataFrame, fams: Families,
                          prov: Optional[dict[str, list[str]]] = None,
                          figures: tuple[str, ...] = ()) -> str:
@@ -137,6 +162,9 @@ def leaderboard_markdown(board: pd.DataFrame, fams: Families,
               "One row per family: its primary twin's seeds (`seeds_from`: the twin with "
               "the most seeds); the other twins are a parity check. " + stats.best_rule(),
               "", families_markdown(fams)]
+    note = reversal_note(board)
+    if note:
+        lines += ["", note]
     for figure in figures:
         lines += ["", f"![{md_cell(figure)}](figures/{md_cell(figure)}.png)"]
     lines += ["", "## Twin agreement", "", twins_line(fams), ""]

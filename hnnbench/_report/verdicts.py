@@ -200,7 +200,7 @@ def marks_line(fams: Families, metrics: Optional[list[str]] = None,
         metrics = [m for m in headline_metrics() if f"{m}_mark" in board]
     if "variant" in board:
         board = board[board["variant"].fillna("").astype(str) == ""]
-    best = tied = 0
+    best = tied = unbeaten = 0
     for metric in metrics:
         if f"{metric}_mark" not in board:
             continue
@@ -208,6 +208,7 @@ def marks_line(fams: Families, metrics: Optional[list[str]] = None,
             marks = set(group[f"{metric}_mark"].fillna("").astype(str))
             best += "best" in marks
             tied += "tied" in marks and "best" not in marks
+            unbeaten += "unbeaten" in marks
     n = best + tied
     seeds = int(pd.to_numeric(board["n_seeds"], errors="coerce").min()) if len(board) else 0
     tail = ""
@@ -216,8 +217,10 @@ def marks_line(fams: Families, metrics: Optional[list[str]] = None,
                 f"{stats.MIN_SEPARABLE_SEEDS} shared seeds to separate anything "
                 f"(its smallest p with {seeds} is {0.5 ** seeds:.3g}).")
     names = ", ".join(md_code(m) for m in metrics)
+    still = (f" In {unbeaten} more, no family beats standing still (nothing marked)."
+             if unbeaten else "")
     return (f"Per system ({names}): {best} of {n} cells with a leader have a separated "
-            f"best (bold); in {tied} the leaders are tied (italics).{tail}")
+            f"best (bold); in {tied} the leaders are tied (italics).{still}{tail}")
 
 
 def left_out_lines(agg: Aggregate, key: Optional[Scope] = None) -> list[str]:
@@ -286,6 +289,8 @@ def _leaders(rows: pd.DataFrame, metric: str) -> str:
     if column not in rows:
         return ""
     marks = rows[column].fillna("").astype(str)
+    if (marks == "unbeaten").any():
+        return "no family beats standing still"
     best = rows.loc[marks == "best", "family"].astype(str).tolist()
     if best:
         return f"best: {best[0]}"

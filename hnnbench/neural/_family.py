@@ -50,11 +50,9 @@ class Family:
             ``"windows"``: trains on windows of consecutive observed states of each
             training trajectory (``window_loss``).
         window: states per window, first included (``data == "windows"``): the
-            default training window (a model's ``window`` setting may change it) and
-            the length of every validation window, whatever the training window (a
-            validation split too short for it gets its longest shorter windows), so
-            that the validation loss (the checkpoint selector's and a tuner's pruner's
-            yardstick) measures the same horizon for every setting.
+            default training window (a model's ``window`` setting may change it).
+            Checkpoints are selected on the system's validation criterion, as for
+            every family (docs/METRICS.md, "Checkpoint selection").
         observations: the system observations it runs on (``"state"``, ``"pixels"``).
         learned_energy: whether the implementation defines ``energy``.
         network_inputs: which part of the working coordinates ``z = (q, v)`` each

@@ -14,12 +14,17 @@ rest, identically for every backend and family:
   alone;
 - the loss history of each seed (training loss, and validation loss after each
   chunk) and progress reports;
-- checkpoint selection: after each chunk, a seed whose validation loss is finite and
-  below its best so far has its weights kept (``Trainer.keep``); ``fit`` ends with the
-  kept weights, and :class:`~hnnbench.Selection` says which step they are;
+- checkpoint selection (docs/METRICS.md, "Checkpoint selection"): after each chunk
+  the backend returns each seed's validation criterion per point or window (the
+  system's criterion, :attr:`hnnbench.System.selection`, the same for every family); a
+  seed whose criterion is finite and below its best so far has its weights kept
+  (``Trainer.keep``). At the end the last checkpoint is scored unless the lowest one
+  beats it by more than :data:`~hnnbench._contract.SELECTION_Z` paired standard
+  errors (the checkpoints share the points); :class:`~hnnbench.Selection` says which
+  step it is, and what the late (80 %) checkpoint says of convergence;
 - divergence: a seed whose training or validation loss becomes non-finite stops
   training at that chunk; it is *diverged* only if no checkpoint was kept before
-  (its validation loss was never finite), and otherwise keeps its selected checkpoint
+  (its validation loss was never finite), and otherwise keeps its lowest checkpoint
   (the reason it stopped is recorded). Training ends when every seed has stopped;
 - stopping early: a progress callback that returns ``True`` (a tuner's pruner) stops
   every seed after that chunk, each with its selected checkpoint and the reason
@@ -28,7 +33,7 @@ rest, identically for every backend and family:
 
 from __future__ import annotations
 
-import dataclasses
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Optional, Protocol
@@ -39,6 +44,8 @@ from hnnbench._contract import (
     HISTORY_STEP,
     HISTORY_TRAIN,
     HISTORY_VALID,
+    LATE_FRACTION,
+    SELECTION_Z,
     STOPPED_BY_CALLER,
     Progress,
     Selection,
@@ -73,11 +80,12 @@ class Trainer(Protocol):
                 or ``None``: the settings' constant ``lr`` at every step.
 
         Returns:
-            ``(losses, val_loss)``, array-likes of shape ``(S, length)`` (each step's
-            training loss, taken before its update) and ``(S,)`` (the validation loss
-            after the chunk). They may be device arrays still being computed: the loop
-            converts them with ``numpy.asarray`` after drawing the next chunk's
-            indices.
+            ``(losses, criterion)``, array-likes of shape ``(S, length)`` (each step's
+            training loss, taken before its update) and ``(S, V)`` (the validation
+            criterion after the chunk at each of its ``V`` points or windows; ``(S,)``
+            counts as one point: the paired standard errors are then undefined).
+            They may be device arrays still being computed: the loop converts them
+            with ``numpy.asarray`` after drawing the next chunk's indices.
         """
         ...
 
@@ -131,6 +139,50 @@ def lr_factors(schedule: str, steps: int) -> np.ndarray:
     return c + (1.0 - c) * np.sin(np.pi * (a + (1.0 - a) * f)) ** 2
 
 
+@dataclass
+class _Track:
+    """One seed's checkpoints on the criterion: the lowest so far, the late one (at or
+    before ``(1 - LATE_FRACTION)`` of the steps) and the last, each ``(step, values)``
+    with ``values`` the criterion per validation point."""
+
+    best: Optional[tuple[int, np.ndarray]] = None
+    late: Optional[tuple[int, np.ndarray]] = None
+    last: Optional[tuple[int, np.ndarray]] = None
+
+
+def paired_se(a: np.ndarray, b: np.ndarray) -> float:
+    """The standard error of ``mean(a - b)`` for per-point values of two checkpoints on
+    the same points (NaN for fewer than two points)."""
+    diff = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
+    if diff.size < 2 or not np.all(np.isfinite(diff)):
+        return math.nan
+    return float(np.std(diff, ddof=1) / math.sqrt(diff.size))
+
+
+def _selection(track: _Track, evaluations: int, first_step: int, criterion: Optional[str],
+               stopped: Optional[str], last_available: bool) -> tuple[Selection, bool]:
+    """The scored checkpoint of a seed (the rule of
+    :data:`~hnnbench._contract.SELECTION_RULE`) and whether it is the last one.
+    ``last_available``: the trainer still holds the last checkpoint's weights (not so
+    after a non-finite loss: then the lowest one is scored)."""
+    assert track.best is not None and track.last is not None
+    (best_step, best), (last_step, last) = track.best, track.last
+    best_value, last_value = float(np.mean(best)), float(np.mean(last))
+    final_se = paired_se(last, best)
+    earlier = best_step != last_step and (
+        not last_available or not math.isfinite(final_se)
+        or last_value - best_value > SELECTION_Z * final_se)
+    step, value = (best_step, best_value) if earlier else (last_step, last_value)
+    late_step, late_value, late_se = None, math.nan, math.nan
+    if track.late is not None:
+        late_step, late_values = track.late
+        late_value = float(np.mean(late_values))
+        late_se = paired_se(late_values, last)
+    return Selection(step, value, evaluations, first_step, stopped, criterion,
+                     int(np.size(last)), best_step, best_value, last_step, last_value,
+                     final_se, late_step, late_value, late_se), not earlier
+
+
 def train(
     trainer: Trainer,
     n_train: int,
@@ -139,10 +191,12 @@ def train(
     interval: int,
     progress: Progress,
     schedule: str = "constant",
+    criterion: Optional[str] = None,
 ) -> list[SeedFit]:
     """Train every seed of ``trainer`` for ``settings.steps`` steps, the learning rate
     following ``schedule`` (:func:`lr_factors`); one :class:`SeedFit` per seed, in
-    ``seeds`` order."""
+    ``seeds`` order. ``criterion``: the name of the validation criterion the trainer
+    returns (recorded in each :class:`~hnnbench.Selection`)."""
     rates = None if schedule == "constant" else settings.lr * lr_factors(schedule,
                                                                          settings.steps)
     batch = settings.batch_size
@@ -155,10 +209,11 @@ def train(
         return np.stack([stream.block(length) for stream in streams])
 
     fits = [SeedFit() for _ in seeds]
-    best = [np.inf] * len(seeds)
+    tracks = [_Track() for _ in seeds]
     stopped: list[Optional[str]] = [None] * len(seeds)
     first_step: Optional[int] = None
     lengths = chunk_lengths(settings.steps, interval)
+    late_at = settings.steps * (1.0 - LATE_FRACTION)
     step = 0
     indices = draw(lengths[0])
     for k, length in enumerate(lengths):
@@ -167,7 +222,8 @@ def train(
         if k + 1 < len(lengths):  # drawn while an asynchronous backend computes
             indices = draw(lengths[k + 1])
         losses = np.asarray(losses_out, dtype=np.float64).reshape(len(seeds), length)
-        valids = np.asarray(valid_out, dtype=np.float64).reshape(len(seeds))
+        points = np.asarray(valid_out, dtype=np.float64).reshape(len(seeds), -1)
+        valids = np.mean(points, axis=1)
         step += length
         first_step = step if first_step is None else first_step
         live, improved = [], np.zeros(len(seeds), dtype=bool)
@@ -181,9 +237,12 @@ def train(
             fit.history[HISTORY_VALID].append(valid_loss)
             if np.all(np.isfinite(losses[s])) and np.isfinite(valid_loss):
                 live.append(s)
-                if valid_loss < best[s]:
-                    best[s], improved[s] = valid_loss, True
-                    fit.selection = Selection(step, valid_loss, 0, first_step)
+                track = tracks[s]
+                track.last = (step, points[s].copy())
+                if step <= late_at:
+                    track.late = track.last
+                if track.best is None or valid_loss < float(np.mean(track.best[1])):
+                    track.best, improved[s] = track.last, True
                 continue
             bad = np.flatnonzero(~np.isfinite(losses[s]))
             at = step - length + 1 + int(bad[0]) if bad.size else step
@@ -201,11 +260,23 @@ def train(
             break
         if not live:
             break
+    final = np.zeros(len(seeds), dtype=bool)
     for s, fit in enumerate(fits):
         evaluations = len(fit.history[HISTORY_STEP])
-        if fit.selection is None:
+        if tracks[s].best is None:
             fit.diverged = stopped[s] or "the validation loss was never finite"
-        else:
-            fit.selection = dataclasses.replace(fit.selection, evaluations=evaluations,
-                                                stopped=stopped[s])
+            continue
+        assert first_step is not None
+        # The trainer's current weights are the last checkpoint's unless a loss became
+        # non-finite after it.
+        why = stopped[s]
+        available = why is None or why.startswith(STOPPED_BY_CALLER)
+        fit.selection, final[s] = _selection(tracks[s], evaluations, first_step, criterion,
+                                             stopped[s], available)
+    # Keep the last checkpoint where the rule scores it and it is not kept yet.
+    latest = np.array([final[s] and tracks[s].best is not None
+                       and tracks[s].best[0] != tracks[s].last[0]  # type: ignore[index]
+                       for s in range(len(seeds))])
+    if latest.any():
+        trainer.keep(latest)
     return fits

@@ -20,7 +20,7 @@ import importlib
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, ClassVar, Optional
+from typing import Any, ClassVar, Literal, Optional
 
 import numpy as np
 
@@ -198,8 +198,9 @@ class NeuralModel(Model):
     def _problems(self, data: Sequence[Dataset], seeds: Sequence[int]) -> list[Problem]:
         """Each seed's training problem; a dataset without a validation split (a fit
         outside a job) gets the job's one (:func:`hnnbench._datasets.with_validation`)."""
+        integrator: Literal["rk4", "map"] = "map" if self.rolls_out_by_map() else "rk4"
         return [self.view.problem(d if d.valid is not None else with_validation(d, seed),
-                                  *self.training_options())
+                                  *self.training_options(), integrator=integrator)
                 for d, seed in zip(data, seeds, strict=True)]
 
     def _train(self, problems: Sequence[Problem], settings: TrainSettings,
@@ -216,7 +217,7 @@ class NeuralModel(Model):
                                         self.layout())
         fits = run_training(trainer, problem.n, settings, seeds,
                             self.cfg.log_interval(settings.steps), progress,
-                            self.cfg.lr_schedule)
+                            self.cfg.lr_schedule, problem.criterion_name)
         if problems[0].kind == "windows":
             self.data_step = float(np.median(problems[0].train[1]))
         return fits, self._backend.weights(trainer)
@@ -261,6 +262,12 @@ class NeuralModel(Model):
         return model
 
     # -- inference ------------------------------------------------------------------
+    def rolls_out_by_map(self) -> bool:
+        """Whether the model rolls out with its family's own discrete map ``step``
+        (:meth:`map_step`) rather than the adaptive solver on its field; the rollout
+        selection criterion then uses the same map. ``False`` (the default)."""
+        return False
+
     def map_step(self) -> Optional[float]:
         """The step size (model time units) of the family's own discrete map when the
         model rolls out with it instead of the adaptive Dormand-Prince solver (e.g. the

@@ -19,11 +19,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, Optional
 
 import numpy as np
 
-from hnnbench._contract import Dataset, Split, System
+from hnnbench._contract import CLEAN_INPUTS, Dataset, Split, System
 from hnnbench._errors import ConfigError, UnsupportedPair
 from hnnbench._kinematics import Kinematics
 from hnnbench.neural._family import Family
@@ -50,8 +50,18 @@ CC_WEIGHT = 1.0
 DYNAMICS_WEIGHT = 0.1
 #: A time step outside [median / F, median * F] of its trajectory is a gap.
 WINDOW_GAP_FACTOR = 1.5
+#: Classical Runge-Kutta steps per observed interval when the rollout criterion
+#: (:attr:`hnnbench.System.selection` ``"rollout"``) integrates a family's field.
+CRITERION_RK4_SUBSTEPS = 4
 
 Kind = Literal["derivatives", "windows", "pixels"]
+#: How a backend scores the validation arrays of a :class:`Problem`, per point (or
+#: window): ``field`` (squared error of the field against the targets, mean over
+#: coordinates), ``field:weighted`` (the same after mapping the error to the system's
+#: coordinates by each point's matrix: second-order families), ``windows:rk4`` /
+#: ``windows:map`` (squared position error of rollouts over each window, by RK4 on the
+#: field or by the family's own map ``step``), ``pixels`` (the pixel objective per row).
+Criterion = Literal["field", "field:weighted", "windows:rk4", "windows:map", "pixels"]
 
 
 @dataclass(frozen=True)
@@ -68,6 +78,11 @@ class Problem:
             :data:`VALID_POINTS` validation rows).
         options: keyword arguments of the family's ``window_loss`` (hashable, e.g.
             ``(("substeps", 1),)``).
+        criterion: how the validation arrays are scored (:data:`Criterion`): the
+            selection criterion of the system (docs/METRICS.md, "Checkpoint
+            selection"), the same for every family.
+        criterion_name: its name in records (``selection.criterion``).
+        criterion_options: its keyword options (``(("substeps", k),)`` for windows).
         stacked: the arrays carry a leading seed axis (:meth:`stack`): each seed of a
             batch trains on its own data.
     """
@@ -76,6 +91,9 @@ class Problem:
     train: tuple[np.ndarray, ...]
     valid: tuple[np.ndarray, ...]
     options: tuple[tuple[str, Any], ...] = ()
+    criterion: Criterion = "field"
+    criterion_name: str = "field_mse"
+    criterion_options: tuple[tuple[str, Any], ...] = ()
 
     #: Whether the arrays hold one leading axis per seed (``S`` problems stacked).
     stacked: bool = False
@@ -91,7 +109,8 @@ class Problem:
         and options, and arrays of the same shapes."""
         first = problems[0]
         return all(
-            (other.kind, other.options) == (first.kind, first.options)
+            (other.kind, other.options, other.criterion, other.criterion_options)
+            == (first.kind, first.options, first.criterion, first.criterion_options)
             and len(other.train + other.valid) == len(first.train + first.valid)
             and all(a.shape == b.shape for a, b in zip(other.train + other.valid,
                                                        first.train + first.valid, strict=True))
@@ -114,17 +133,20 @@ class Problem:
                                                                 strict=True)),
                        tuple(np.stack(arrays) for arrays in zip(*(p.valid for p in problems),
                                                                 strict=True)),
-                       first.options, stacked=True)
+                       first.options, first.criterion, first.criterion_name,
+                       first.criterion_options, stacked=True)
 
 
 def trajectory_windows(split: Split, states: np.ndarray, length: int,
-                       wrapped: tuple[int, ...] = ()) -> tuple[np.ndarray, np.ndarray]:
+                       wrapped: tuple[int, ...] = (), stride: int = 1
+                       ) -> tuple[np.ndarray, np.ndarray]:
     """Windows of ``length`` consecutive samples of each trajectory.
 
     Rows of ``states`` (``(N, d)``, aligned with ``split``) are grouped by
     ``split.traj`` and ordered by ``split.t``; every run of ``length`` rows whose time
     steps all lie within :data:`WINDOW_GAP_FACTOR` of the trajectory's median step (so
-    no window spans a gap in measured data) is a window (overlapping, stride 1).
+    no window spans a gap in measured data) is a window, one starting every ``stride``
+    rows (1: overlapping windows; ``length - 1``: windows that share only their ends).
     Columns ``wrapped`` hold angles wrapped into ``[-π, π)``
     (:attr:`hnnbench.System.wrapped_angles`): within each window they are unwrapped
     (whole turns added from the second sample on), so that a window never asks for a
@@ -146,7 +168,7 @@ def trajectory_windows(split: Split, states: np.ndarray, length: int,
             continue
         median = float(np.median(steps))
         good = (steps > median / WINDOW_GAP_FACTOR) & (steps < median * WINDOW_GAP_FACTOR)
-        for start in range(len(rows) - length + 1):
+        for start in range(0, len(rows) - length + 1, stride):
             if np.all(good[start:start + length - 1]):
                 window = np.array(states[rows[start:start + length]], dtype=np.float64)
                 if wrapped:
@@ -194,44 +216,84 @@ class View:
         return zdot / self.time_unit
 
     def _pairs(self, split: Split) -> tuple[np.ndarray, np.ndarray]:
-        return split.x, split.dxdt
+        return self._pairs_at(split.x, split.dxdt)
+
+    def _pairs_at(self, x: np.ndarray, dxdt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(z, ż)`` in working coordinates of states ``x`` and their rates ``dxdt``."""
+        return np.asarray(x, dtype=np.float64), np.asarray(dxdt, dtype=np.float64)
+
+    def error_weights(self, z: np.ndarray) -> Optional[np.ndarray]:
+        """``(N, 2n, d)`` matrices taking an error of a working-coordinate rate at ``z``
+        to the error of the system's ``dx/dt`` (the tangent of :meth:`rate_out`, which
+        is affine in the rate); ``None`` where the working coordinates are the
+        system's."""
+        return None
 
     def problem(self, data: Dataset, window: int = 0,
-                options: tuple[tuple[str, Any], ...] = ()) -> Problem:
+                options: tuple[tuple[str, Any], ...] = (),
+                integrator: Literal["rk4", "map"] = "rk4") -> Problem:
         """The training problem of ``data`` for this family (``window``: states per
-        training window, 0 for the family's; ``options``: the family's loss options).
-        ``data`` must hold a validation split
-        (:func:`hnnbench._datasets.with_validation`). Validation windows have the
-        family's declared length (:attr:`Family.window`), or the longest shorter one
-        the validation split holds (a short split of few trajectories): a length set by
-        the data alone, never by ``window``, so the validation loss compares across
-        training windows."""
+        training window, 0 for the family's; ``options``: the family's loss options;
+        ``integrator``: how the family rolls out, for the rollout criterion: RK4 on its
+        field, or its own map ``step`` with ``options``' substeps). ``data`` must hold
+        a validation split (:func:`hnnbench._datasets.with_validation`). The validation
+        arrays are those of the system's selection criterion (:meth:`criterion`), the
+        same for every family."""
         valid = _validation(data)
+        arrays, kind, name, criterion_options = self.criterion(valid, integrator, options)
         if self.family.data == "windows":
             wrapped = tuple(self.system.wrapped_angles)
-
-            def windows_of(split: Split, length: int) -> tuple[np.ndarray, np.ndarray]:
-                z, _ = self._pairs(split)
-                return trajectory_windows(split, z, length, wrapped)
-
             length = window or self.family.window
-            train = windows_of(data.train, length)
+            z, _ = self._pairs(data.train)
+            train = trajectory_windows(data.train, z, length, wrapped)
             if train[0].shape[0] == 0:
                 raise UnsupportedPair(
                     f"the {self.system.name} training data has no {length} consecutive, "
                     "equally spaced samples of one trajectory, which the "
                     f"{self.family.name} family trains on (model.window={length}: a "
                     "shorter window may fit)")
-            for valid_length in range(self.family.window, 1, -1):
-                validation = windows_of(valid, valid_length)
-                if validation[0].shape[0]:
-                    return Problem("windows", train, validation, options)
-            raise UnsupportedPair(
-                f"the {self.system.name} validation data has no 2 consecutive, equally "
-                "spaced samples of one trajectory, which the "
-                f"{self.family.name} family's validation loss needs (more points per "
-                "trajectory, or more trajectories, would give some)")
-        return Problem("derivatives", self._pairs(data.train), self._pairs(valid))
+            return Problem("windows", train, arrays, options, kind, name, criterion_options)
+        return Problem("derivatives", self._pairs(data.train), arrays, options, kind, name,
+                       criterion_options)
+
+    def criterion(self, valid: Split, integrator: Literal["rk4", "map"] = "rk4",
+                  options: tuple[tuple[str, Any], ...] = ()
+                  ) -> tuple[tuple[np.ndarray, ...], Criterion, str,
+                             tuple[tuple[str, Any], ...]]:
+        """``(arrays, criterion, name, criterion options)``: the validation arrays of the
+        system's selection criterion (:attr:`hnnbench.System.selection`; docs/METRICS.md,
+        "Checkpoint selection").
+
+        ``field``: the inputs (the clean ones where the system adds noise) and targets
+        in working coordinates, and for second-order families each point's
+        :meth:`error_weights`, so every family's error is measured in the system's
+        ``dx/dt``. ``rollout``: windows of ``selection_steps + 1`` consecutive
+        validation states sharing only their ends, and their intervals; the error is
+        taken on the positions, which every family's coordinates share."""
+        if self.system.selection == "rollout":
+            steps = int(self.system.selection_steps)
+            z = self.to_model(valid.x)
+            wrapped = tuple(self.system.wrapped_angles)
+            for length in range(steps + 1, 1, -1):  # a short split: its longest windows
+                windows = trajectory_windows(valid, z, length, wrapped, stride=length - 1)
+                if windows[0].shape[0]:
+                    break
+            else:
+                raise UnsupportedPair(
+                    f"the {self.system.name} validation data has no 2 consecutive, equally "
+                    "spaced samples of one trajectory, which its rollout criterion needs")
+            if integrator == "map":
+                return windows, "windows:map", f"rollout_q_mse_{steps}", tuple(options)
+            return (windows, "windows:rk4", f"rollout_q_mse_{steps}",
+                    (("substeps", CRITERION_RK4_SUBSTEPS),))
+        clean = CLEAN_INPUTS in valid.extras
+        x = valid.extras[CLEAN_INPUTS] if clean else valid.x
+        z, zdot = self._pairs_at(x, valid.dxdt)
+        name = "field_mse_clean" if clean else "field_mse"
+        weights = self.error_weights(z)
+        if weights is None:
+            return (z, zdot), "field", name, ()
+        return (z, zdot, weights), "field:weighted", name, ()
 
 
 def _validation(data: Dataset) -> Split:
@@ -262,9 +324,18 @@ class VelocityView(View):
     def rate_out(self, z: np.ndarray, zdot: np.ndarray) -> np.ndarray:
         return self.kinematics.canonical_rate(z, zdot)
 
-    def _pairs(self, split: Split) -> tuple[np.ndarray, np.ndarray]:
-        return (self.kinematics.to_velocity(split.x),
-                self.kinematics.velocity_rate(split.x, split.dxdt))
+    def _pairs_at(self, x: np.ndarray, dxdt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.kinematics.to_velocity(x), self.kinematics.velocity_rate(x, dxdt)
+
+    def error_weights(self, z: np.ndarray) -> Optional[np.ndarray]:
+        z = np.asarray(z, dtype=np.float64)
+        base = self.kinematics.canonical_rate(z, np.zeros_like(z))
+        columns = []
+        for j in range(z.shape[-1]):
+            unit = np.zeros_like(z)
+            unit[..., j] = 1.0
+            columns.append(self.kinematics.canonical_rate(z, unit) - base)
+        return np.stack(columns, axis=-1)
 
 
 class PixelView(View):
@@ -303,7 +374,11 @@ class PixelView(View):
         return np.asarray(x), np.asarray(x_next)
 
     def problem(self, data: Dataset, window: int = 0,
-                options: tuple[tuple[str, Any], ...] = ()) -> Problem:
+                options: tuple[tuple[str, Any], ...] = (),
+                integrator: Literal["rk4", "map"] = "rk4") -> Problem:
+        """The 2019 objective's pairs; the validation criterion is the same objective
+        per row (pixel frames are rendered, not measured: there is no input noise to
+        average out) on at most :data:`VALID_POINTS` validation rows."""
         self.set_frame_dt(data)
         train = self.pairs(data.train.x, data.train.dxdt, data.train.extras)
         valid = _validation(data)
@@ -311,7 +386,7 @@ class PixelView(View):
                                     min(len(valid), VALID_POINTS)).astype(int))
         valid_pairs = self.pairs(valid.x[sub], valid.dxdt[sub],
                                  {k: v[sub] for k, v in valid.extras.items()})
-        return Problem("pixels", train, valid_pairs)
+        return Problem("pixels", train, valid_pairs, (), "pixels", "pixel_objective")
 
 
 def view_for(family: Family, system: System) -> View:

@@ -91,6 +91,26 @@ GREYDANUS_2019 = ClaimSet(
                "three_body: HNN energy MSE >= 100x below baseline", source=README_2019),
     ),
     published=_table1(),
+    definitions=(
+        *((s, "test_loss", "at the clean inputs behind the noisy ones (the paper's at the "
+                          "noisy inputs: a noise floor of about 0.04 for every model)")
+          for s in ("spring", "pendulum")),
+        *((s, "energy_mse", "15 trajectories rolled out by adaptive Dormand-Prince (rtol = "
+                           "atol = 1e-9), the system's true energy (the paper: RK45 at "
+                           "rtol 1e-12, and q² + p² on the pendulum)")
+          for s in ("spring", "pendulum")),
+        ("two_body", "energy_mse", "15 fresh orbits, Dormand-Prince at rtol = atol = 1e-9 "
+                                   "over t in [0, 25]; REBOUND IAS15 truth"),
+        ("three_body", "energy_mse", "15 fresh orbits, Dormand-Prince at rtol = atol = 1e-9 "
+                                     "over t in [0, 3]; REBOUND IAS15 truth"),
+        ("real_pendulum", "*", "the mean over 10 seeds covers 5 folds of the series (seed "
+                               "0: the paper's last-20 % test segment; docs/DATA.md, "
+                               "'Folds of a measured series')"),
+        ("real_pendulum", "energy_mse", "over 5 chunks of each fold's test segment, "
+                                        "Dormand-Prince at rtol = atol = 1e-9"),
+        ("pixel_pendulum", "energy_mse", "latents mapped to (q, p) by an affine probe "
+                                         "fitted on the training set"),
+    ),
 )
 
 #: How Cranmer et al. (2020) trained the LNN, which the protocol track does not run

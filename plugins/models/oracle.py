@@ -7,6 +7,7 @@ from typing import Optional
 import numpy as np
 
 from hnnbench import (
+    ORACLE,
     Dataset,
     FitResult,
     Model,
@@ -26,6 +27,7 @@ class Oracle(Model):
     backend = "numpy"
     order = 100
     ranked = False
+    reference = ORACLE
     description = "True vector field (no training): the floor of every metric"
 
     @classmethod

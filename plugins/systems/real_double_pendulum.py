@@ -21,8 +21,10 @@ Protocol:
   ``wrap_angles`` (default) the angles of the data points are wrapped into ``[-π, π)``.
 - Targets: ``dx/dt = (ω1, ω2, α1, α2)``, the file's own angular velocities and measured
   accelerations (every row is a point: no differencing, so gaps cost nothing).
-- Split: the first ``1 - test_split`` of the rows in time order are the training segment
-  (all of trial 0 and the start of trial 1), the last ``test_split`` the test segment.
+- Split: by the folds of the measured pendulum (:mod:`hnnbench_plugins.systems.
+  real_pendulum`): ``folds`` blocks of rows in time order, the seed's fold tests on one
+  (seed 0: the last, as before), the later half of the block before it validates, rows
+  within ``fold_gap_s`` of an edge on the training or validation side are dropped.
 - Evaluation: the test segment is cut into ``eval_chunks`` contiguous chunks of equal
   length that cross no gap and no trial boundary; each is one trajectory (its first
   measured state the initial state, its measured states the reference). With
@@ -30,8 +32,9 @@ Protocol:
   state lies in ``[-π, π)``; the chunk stays continuous.
 - Energy: the energy of an ideal double pendulum (point masses on massless rods) whose
   parameters ``m2/m1``, ``l2/l1``, ``g/l1`` (and two linear damping rates) are fitted by
-  least squares to the measured accelerations of the training segment
-  (:func:`fit_energy_model`), in units of ``m1 l1²`` (1/s²). The true vector field is
+  least squares to the measured accelerations of the whole series
+  (:func:`fit_energy_model`), in units of ``m1 l1²`` (1/s²). It is the metric's model of
+  the device (no model sees it), so it is one for every fold. The true vector field is
   unknown (no :meth:`vector_field`: the oracle is skipped).
 - ``time_reversible = False``, ``conservative = False``: the device is damped (the
   fitted energy decays by about 3% per second).
@@ -91,14 +94,13 @@ FIT_START = (1.0, 1.0, 50.0, 0.0, 0.0)
 
 @dataclass
 class RealDoublePendulumConfig(RealPendulumConfig):
-    """Settings: 2000 full-batch steps, weight decay 1e-5, last 20% of the rows test.
+    """Settings: 2000 full-batch steps, weight decay 1e-5, five folds (seed 0 tests on the
+    last fifth of the rows).
 
     The location fields (``data_path``, ``url``, ``download_timeout_s``) and the other
     checks are the measured pendulum's.
     """
 
-    #: Fraction of the rows, at the end of the sequence, that forms the test segment.
-    test_split: float = 0.2
     #: A sampling interval above this many median intervals is a gap (chunks avoid it).
     max_gap_factor: float = 1.5
     #: Number of contiguous chunks of the test segment used as evaluation trajectories.
@@ -212,8 +214,7 @@ def fit_energy_model(table: np.ndarray) -> EnergyModel:
     if not (result.success and mu > 0 and lam > 0 and g > 0):
         raise DataError(
             f"The energy model of {FILENAME} did not fit (m2/m1={mu:.3g}, l2/l1={lam:.3g}, "
-            f"g/l1={g:.3g}): the file is not the original, or the training segment is "
-            "too short; use the original file or a smaller system.test_split."
+            f"g/l1={g:.3g}): the file is not the original; use the original file."
         )
     rms = np.sqrt(np.mean((predicted_accelerations(result.x, theta, omega) - alpha) ** 2, 0))
     return EnergyModel(
@@ -276,7 +277,7 @@ class RealDoublePendulum(MeasuredTableSystem):
     data_expected_rows = "about 1500"
     order = 100
     cfg: RealDoublePendulumConfig
-    version = "1"
+    version = "2"  # 2: seeds choose folds of the series; energy model fitted to all rows
     description = "Measured double pendulum, Schmidt & Lipson 2009, state (theta1, theta2, w1, w2)"
 
     def __init__(self, cfg: SystemConfig) -> None:
@@ -309,7 +310,7 @@ class RealDoublePendulum(MeasuredTableSystem):
         """The energy model fitted to the training segment (once per instance)."""
         if self._energy_model is None:
             s = self._structure()
-            self._energy_model = fit_energy_model(s["table"][: s["split_row"]])
+            self._energy_model = fit_energy_model(s["table"])
         return self._energy_model
 
     # ------------------------------------------------------------------ data
@@ -322,21 +323,24 @@ class RealDoublePendulum(MeasuredTableSystem):
         return states
 
     def dataset(self, seed: int) -> Dataset:
-        """The measured states and derivatives (``seed`` is unused)."""
+        """The measured states and derivatives of ``seed``'s fold (train, validation and
+        test segments)."""
         s = self._structure()
-        table, split_row = s["table"], s["split_row"]
+        table = s["table"]
+        seg = self._segments(s, seed)
         x = self._states(table)
         dxdt = np.concatenate([table[:, OMEGA], table[:, ALPHA]], axis=1)
 
-        def split(rows: slice) -> Split:
+        def split(code: int) -> Split:
+            rows = np.flatnonzero(seg["role"] == code)
             return Split(
                 x=x[rows].copy(), dxdt=dxdt[rows].copy(),
                 traj=table[rows, 0].astype(np.int64), t=table[rows, 1].copy(),
             )
 
+        train, valid, test = split(0), split(1), split(2)
         return Dataset(
-            train=split(slice(0, split_row)),
-            test=split(slice(split_row, None)),
+            train=train, test=test, valid=valid,
             meta={
                 "data_file": str(s["path"]),
                 "sha256": SHA256,
@@ -346,19 +350,23 @@ class RealDoublePendulum(MeasuredTableSystem):
                          "velocities (not canonical momenta)",
                 "targets": "(omega1, omega2, alpha1, alpha2) from the file",
                 "wrap_angles": self.cfg.wrap_angles,
-                "split_row": split_row,
-                "split_time": float(table[split_row, 1]),
-                "split_trial": int(table[split_row, 0]),
-                "n_train": split_row,
-                "n_test": s["n_rows"] - split_row,
+                "fold": seg["fold"],
+                "folds": self.cfg.folds,
+                "validation": seg["rule"],
+                "test_rows": list(seg["test"]),
+                "valid_rows": list(seg["valid"]),
+                "n_train": len(train),
+                "n_valid": len(valid),
+                "n_test": len(test),
                 "n_gaps": int(s["gap"].sum()),
+                "n_dropped_at_edges": int((seg["role"] == -1).sum()),
             },
         )
 
     def evaluation(self, seed: int) -> Trajectories:
-        """``eval_chunks`` gap-free chunks of the measured test segment (``seed`` unused)."""
+        """``eval_chunks`` gap-free chunks of ``seed``'s measured test segment."""
         s = self._structure()
-        starts, length, grid = self._chunks(s)
+        starts, length, grid = self._chunks(s, seed)
         table = s["table"]
         states = np.stack(
             [np.concatenate([table[b : b + length, THETA], table[b : b + length, OMEGA]], 1)
@@ -378,9 +386,10 @@ def _main() -> None:
     cfg = RealDoublePendulumConfig(name="real_double_pendulum")
     system = RealDoublePendulum(cfg)
     s = system._structure()
-    table, split_row = s["table"], s["split_row"]
+    table = s["table"]
+    start, stop = system._segments(s, 0)["test"]
     model = system.energy_model()
-    test = table[split_row:]
+    test = table[start:stop]
     test_rms = np.sqrt(np.mean(
         (predicted_accelerations(
             np.array([model.mass_ratio, model.length_ratio, model.g_over_l1, *model.damping]),
@@ -405,7 +414,7 @@ def _main() -> None:
     traj = system.evaluation(0)
     report = {
         "structure": {"rows": s["n_rows"], "dt": s["dt"], "gaps": int(s["gap"].sum()),
-                      "split_row": split_row, "split_time": float(table[split_row, 1])},
+                      "test_rows": [start, stop], "split_time": float(table[start, 1])},
         "ranges": ranges,
         "derivatives": derivative_consistency(table, cfg.max_gap_factor),
         "energy_model": {**model.__dict__, "coefficients": model.coefficients,

@@ -16,10 +16,17 @@ Protocol:
   dt, attached to ``x[i]``. A difference is dropped when it would span a gap (dt larger
   than ``max_gap_factor`` times the median dt, 10 of the 555 in the file), a trial
   boundary, or the train/test boundary; the last row has no forward difference.
-- Split: the first ``1 - test_split`` of the rows (in time order) are the training
-  segment, the last ``test_split`` the test segment; every point uses rows of one
-  segment only.
+- Split, by folds (docs/DATA.md, "Folds of a measured series"): the rows, in time order,
+  are cut into ``folds`` equal blocks. The seed chooses the fold: fold
+  ``k = (folds - 1 - seed) mod folds``, so seed 0 tests on the last block (the paper's
+  test segment) and seeds 0-9 visit every fold twice. Block ``k`` is the test segment,
+  the later half of the block before it (cyclically) the validation segment, the rest
+  trains. At every edge between two segments, the rows within ``fold_gap_s`` seconds
+  on the training or validation side are dropped, so that neighbouring, correlated
+  samples never sit on both sides; every point uses rows of one segment only.
 - Energy: modelled as ``2.4 (1 - cos q) + p^2``. The true vector field is unknown.
+- Selection: on short rollouts over the validation segment (``selection =
+  "rollout"``: the data has no clean inputs behind its measurement noise).
 - Evaluation: the test segment is cut into ``eval_chunks`` contiguous, gap-free chunks of
   equal length (the paper's "5 splits"), so each metric gets a standard error. Each chunk
   is one trajectory: its first measured state is the initial state and its measured
@@ -32,6 +39,7 @@ Protocol:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar, Optional
@@ -48,7 +56,6 @@ from hnnbench import (
     System,
     SystemConfig,
     Trajectories,
-    TrajectorySplit,
     identity_kinematics,
     locate,
 )
@@ -65,7 +72,8 @@ ENERGY_A = 2.4
 
 @dataclass
 class RealPendulumConfig(SystemConfig):
-    """Paper settings: 2000 full-batch steps, weight decay 1e-5, last 20% tests."""
+    """Paper settings: 2000 full-batch steps, weight decay 1e-5; one fifth of the series
+    tests (seed 0: the last fifth, as the paper)."""
 
     #: The data file, or a directory holding it (None: $HNNBENCH_DATA_DIR, then cache).
     data_path: Optional[str] = None
@@ -74,8 +82,11 @@ class RealPendulumConfig(SystemConfig):
     url: Optional[str] = None
     #: Network timeout of the download, in seconds.
     download_timeout_s: float = 30.0
-    #: Fraction of the rows, at the end of the sequence, that forms the test segment.
-    test_split: float = 0.2
+    #: Blocks the series is cut into; the seed's fold tests on one of them.
+    folds: int = 5
+    #: Seconds of rows dropped beside each edge between segments (training or
+    #: validation side).
+    fold_gap_s: float = 0.25
     #: A sampling interval above this many median intervals is a gap (not differenced).
     max_gap_factor: float = 1.5
     #: Number of contiguous chunks of the test segment used as evaluation trajectories.
@@ -97,10 +108,15 @@ class RealPendulumConfig(SystemConfig):
 
     def validate(self) -> None:
         super().validate()
-        if not 0.0 < self.test_split < 1.0:
+        if isinstance(self.folds, bool) or not isinstance(self.folds, int) or self.folds < 2:
             raise ConfigError(
-                f"system.test_split={self.test_split} is invalid: expected a fraction "
-                "strictly between 0 and 1, e.g. system.test_split=0.2."
+                f"system.folds={self.folds} is invalid: expected an integer >= 2, e.g. "
+                "system.folds=5."
+            )
+        if not (self.fold_gap_s >= 0 and math.isfinite(self.fold_gap_s)):
+            raise ConfigError(
+                f"system.fold_gap_s={self.fold_gap_s} is invalid: expected a number of "
+                "seconds >= 0, e.g. system.fold_gap_s=0.25."
             )
         if not self.max_gap_factor > 1.0:
             raise ConfigError(
@@ -203,8 +219,9 @@ class MeasuredTableSystem(System):
     row per sample: ``trial, t, ...`` (the real pendulum, the real double pendulum).
 
     It locates and verifies the file (:func:`hnnbench.locate`), finds its sampling
-    interval, gaps and train/test boundary (:meth:`_structure`), and cuts the test
-    segment into gap-free evaluation chunks (:meth:`_chunks`). A subclass sets
+    interval and gaps (:meth:`_structure`), assigns rows to the training, validation and
+    test segments of a seed's fold (:meth:`_segments`), and cuts the test segment into
+    gap-free evaluation chunks (:meth:`_chunks`). A subclass sets
     ``data_file``, ``data_sha256``, ``data_columns`` (and, for the parser's messages,
     ``data_column_labels`` and ``data_expected_rows``), read by :meth:`parse`
     (:func:`parse_table`); its config has the fields of :class:`RealPendulumConfig`.
@@ -219,6 +236,8 @@ class MeasuredTableSystem(System):
     # A measured device loses energy (damping) and is not time-reversible.
     time_reversible = False
     conservative = False
+    # No clean inputs behind the measurement noise: select on short rollouts.
+    selection = "rollout"
     profiles = {"quick": {"steps": 300}}
 
     def __init__(self, cfg: SystemConfig) -> None:
@@ -258,33 +277,65 @@ class MeasuredTableSystem(System):
         gap = same_trial & (steps > self.cfg.max_gap_factor * dt)
         # contiguous[i]: rows i and i+1 are consecutive samples of one trial.
         contiguous = same_trial & ~gap
-        # The last round(n * test_split) rows, in time order, form the test segment.
-        split_row, _ = TrajectorySplit(self.cfg.test_split, test_from="last").sizes(n)
-        if not 2 <= split_row <= n - 2:
+        if n < 4 * self.cfg.folds:
             raise ConfigError(
-                f"system.test_split={self.cfg.test_split} leaves an empty train or test "
-                f"segment of the {n} rows: choose a fraction nearer 0.2."
+                f"system.folds={self.cfg.folds} is too many for the {n} rows of {path}: "
+                "each block needs a few rows. Use fewer folds."
             )
         return {
             "path": path, "table": table, "dt": dt, "n_rows": n, "gap": gap,
-            "trial_boundary": ~same_trial, "contiguous": contiguous, "split_row": split_row,
+            "trial_boundary": ~same_trial, "contiguous": contiguous,
         }
 
-    def _chunks(self, s: dict[str, Any]) -> tuple[list[int], int, dict[str, Any]]:
-        """The evaluation chunks of the test segment: ``eval_chunks`` runs of equal
-        length, each inside one gap-free run of rows, as long as that count allows.
+    def fold(self, seed: int) -> int:
+        """The fold of ``seed``: ``(folds - 1 - seed) mod folds`` (seed 0: the last block,
+        the paper's test segment)."""
+        return (self.cfg.folds - 1 - int(seed)) % self.cfg.folds
+
+    def _segments(self, s: dict[str, Any], seed: int) -> dict[str, Any]:
+        """Which rows of the series train, validate and test under ``seed``'s fold.
+
+        Returns ``role`` ``(n,)`` (0 train, 1 validation, 2 test, -1 dropped at an edge),
+        the test block ``(start, stop)`` and the rule in words (the dataset's meta)."""
+        n, folds = s["n_rows"], self.cfg.folds
+        k = self.fold(seed)
+        edges = [round(i * n / folds) for i in range(folds + 1)]
+        role = np.zeros(n, dtype=np.int64)
+        test = (edges[k], edges[k + 1])
+        role[test[0]:test[1]] = 2
+        before = (k - 1) % folds
+        valid = ((edges[before] + edges[before + 1]) // 2, edges[before + 1])
+        role[valid[0]:valid[1]] = 1
+        gap = int(math.ceil(self.cfg.fold_gap_s / s["dt"] - 1e-9))
+        out = role.copy()
+        for edge in np.flatnonzero(role[1:] != role[:-1]) + 1:  # rows edge-1 | edge
+            for side in (np.arange(edge - gap, edge), np.arange(edge, edge + gap)):
+                side = side[(side >= 0) & (side < n)]
+                out[side[role[side] != 2]] = -1
+        rule = (f"fold {k} of {folds} (seed {seed}): rows {test[0]}-{test[1] - 1} test, rows "
+                f"{valid[0]}-{valid[1] - 1} validate (the later half of the block before), "
+                f"the rest train; {gap} rows ({self.cfg.fold_gap_s:g} s) dropped beside "
+                "each edge on the training or validation side")
+        return {"role": out, "fold": k, "test": test, "valid": valid, "gap_rows": gap,
+                "rule": rule}
+
+    def _chunks(self, s: dict[str, Any], seed: int
+                ) -> tuple[list[int], int, dict[str, Any]]:
+        """The evaluation chunks of ``seed``'s test segment: ``eval_chunks`` runs of
+        equal length, each inside one gap-free run of rows, as long as that count allows.
 
         Returns ``(start rows, chunk length, grid)``, where ``grid`` holds ``t``, the
         first chunk's time grid ``(length,)``, and the chunk-layout entries of the
         evaluation's meta.
         """
-        table, contiguous, split_row = s["table"], s["contiguous"], s["split_row"]
-        n_rows, n_chunks = s["n_rows"], self.cfg.eval_chunks
+        table, contiguous = s["table"], s["contiguous"]
+        n_chunks = self.cfg.eval_chunks
+        first, stop = self._segments(s, seed)["test"]
         # Gap-free runs of rows inside the test segment, as (start, stop) row ranges.
         runs: list[tuple[int, int]] = []
-        start = split_row
-        for row in range(split_row, n_rows):
-            if row == n_rows - 1 or not contiguous[row]:
+        start = first
+        for row in range(first, stop):
+            if row == stop - 1 or not contiguous[row]:
                 runs.append((start, row + 1))
                 start = row + 1
         lengths = np.array([stop - begin for begin, stop in runs])
@@ -297,7 +348,7 @@ class MeasuredTableSystem(System):
         if length < 2:
             raise ConfigError(
                 f"system.eval_chunks={n_chunks} is too many: the test segment "
-                f"({n_rows - split_row} rows, {len(runs)} gap-free runs) cannot give "
+                f"({stop - first} rows, {len(runs)} gap-free runs) cannot give "
                 f"{n_chunks} chunks of at least 2 points. Use fewer chunks."
             )
         starts = [b + k * length for b, stop in runs for k in range((stop - b) // length)]
@@ -312,8 +363,9 @@ class MeasuredTableSystem(System):
             "chunk_points": length,
             "chunk_start_times": [float(t[b]) for b in starts],
             "horizon": float(grids[0, -1]),
-            "test_rows": n_rows - split_row,
-            "unused_test_rows": n_rows - split_row - len(starts) * length,
+            "fold": self.fold(seed),
+            "test_rows": stop - first,
+            "unused_test_rows": stop - first - len(starts) * length,
             "max_grid_deviation": float(np.max(np.abs(grids - grids[0]))),
         }
         return starts, length, {"t": grids[0].copy(), "meta": meta}
@@ -326,7 +378,7 @@ class RealPendulum(MeasuredTableSystem):
     data_file, data_sha256, data_columns = FILENAME, SHA256, COLUMNS
     order = 30
     cfg: RealPendulumConfig
-    version = "1"
+    version = "2"  # 2: seeds choose folds of the series (test, validation), selection
     description = "Measured pendulum, Schmidt & Lipson 2009, E = 2.4(1 - cos q) + p^2 (task 3)"
 
     @property
@@ -350,26 +402,28 @@ class RealPendulum(MeasuredTableSystem):
     # ------------------------------------------------------------------ data
 
     def dataset(self, seed: int) -> Dataset:
-        """The measured points and forward-difference targets (``seed`` is unused)."""
+        """The measured points and forward-difference targets of ``seed``'s fold: train,
+        validation and test segments (the module docstring)."""
         s = self._structure()
-        table, contiguous, split_row = s["table"], s["contiguous"], s["split_row"]
+        table, contiguous = s["table"], s["contiguous"]
+        seg = self._segments(s, seed)
+        role = seg["role"]
         x = table[:, 2:4]
         t = table[:, 1]
         dxdt = (x[1:] - x[:-1]) / np.diff(t)[:, None]  # (n - 1, 2), attached to x[:-1]
-        i = np.arange(len(dxdt))
-        across_split = i == split_row - 1
-        train_idx = np.flatnonzero(contiguous & (i < split_row - 1))
-        test_idx = np.flatnonzero(contiguous & (i >= split_row))
+        # A point's forward difference stays inside its segment and crosses no gap.
+        same = contiguous & (role[:-1] == role[1:])
 
-        def split(idx: np.ndarray) -> Split:
+        def split(code: int) -> Split:
+            idx = np.flatnonzero(same & (role[:-1] == code))
             return Split(
                 x=x[idx].copy(), dxdt=dxdt[idx].copy(),
                 traj=table[idx, 0].astype(np.int64), t=t[idx].copy(),
             )
 
+        train, valid, test = split(0), split(1), split(2)
         return Dataset(
-            train=split(train_idx),
-            test=split(test_idx),
+            train=train, test=test, valid=valid,
             meta={
                 "data_file": str(s["path"]),
                 "sha256": SHA256,
@@ -377,21 +431,24 @@ class RealPendulum(MeasuredTableSystem):
                 "dt": s["dt"],
                 "state": "(q, p) = (theta, omega)",
                 "targets": "forward differences over the measured dt",
-                "split_row": split_row,
-                "split_time": float(t[split_row]),
-                "n_train": int(len(train_idx)),
-                "n_test": int(len(test_idx)),
+                "fold": seg["fold"],
+                "folds": self.cfg.folds,
+                "validation": seg["rule"],
+                "test_rows": list(seg["test"]),
+                "valid_rows": list(seg["valid"]),
+                "n_train": len(train),
+                "n_valid": len(valid),
+                "n_test": len(test),
                 "n_gaps": int(s["gap"].sum()),
-                "n_dropped_at_gaps": int(s["gap"].sum()),
+                "n_dropped_at_edges": int((role == -1).sum()),
                 "n_dropped_at_trial_boundaries": int(s["trial_boundary"].sum()),
-                "n_dropped_at_split": int(contiguous[across_split].sum()),
                 "max_gap_factor": self.cfg.max_gap_factor,
             },
         )
 
     def evaluation(self, seed: int) -> Trajectories:
-        """``eval_chunks`` gap-free chunks of the measured test segment (``seed`` unused)."""
+        """``eval_chunks`` gap-free chunks of ``seed``'s measured test segment."""
         s = self._structure()
-        starts, length, grid = self._chunks(s)
+        starts, length, grid = self._chunks(s, seed)
         states = np.stack([s["table"][b : b + length, 2:4] for b in starts])
         return Trajectories(t=grid["t"], states=states, dt=s["dt"], meta=grid["meta"])

@@ -81,6 +81,7 @@ from hnnbench.neural.jax._nets import (  # noqa: E402
     nets_from_weights,
     nets_to_weights,
     pixel_objective,
+    pixel_objective_rows,
     symplectic,
 )
 
@@ -186,6 +187,49 @@ def _loss(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], sta
     return pixel_objective(impl.field, nets, *arrays)
 
 
+def rk4_step(field: Callable[..., jax.Array]) -> Callable[..., jax.Array]:
+    """The classical Runge-Kutta step ``(nets, z, h) -> z'`` of ``field`` (``h``
+    broadcasts against ``z``: a ``(M, 1)`` column of step sizes)."""
+    def step(nets: Any, z: jax.Array, h: jax.Array) -> jax.Array:
+        k1 = field(nets, z)
+        k2 = field(nets, z + 0.5 * h * k1)
+        k3 = field(nets, z + 0.5 * h * k2)
+        k4 = field(nets, z + h * k3)
+        return z + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+    return step
+
+
+def criterion_values(criterion: str, impl: ModuleType,
+                     options: tuple[tuple[str, Any], ...], nets: Any,
+                     *arrays: jax.Array) -> jax.Array:
+    """The validation criterion of one seed per point or window, ``(V,)``
+    (:data:`hnnbench.neural._views.Criterion`; docs/METRICS.md, "Checkpoint
+    selection")."""
+    if criterion.startswith("field"):
+        z, zdot = arrays[:2]
+        error = impl.field(nets, z) - zdot
+        if criterion == "field:weighted":  # to the system's dx/dt, point by point
+            error = jnp.einsum("vij,vj->vi", arrays[2], error)
+        return jnp.mean(error ** 2, axis=1)
+    if criterion.startswith("windows"):
+        windows, dts = arrays
+        substeps = int(dict(options).get("substeps", 1))
+        step = impl.step if criterion == "windows:map" else rk4_step(impl.field)
+        n = windows.shape[-1] // 2
+
+        def interval(z: jax.Array, dt: jax.Array) -> tuple[jax.Array, jax.Array]:
+            h = (dt / substeps)[:, None]
+            for _ in range(substeps):
+                z = step(nets, z, h)
+            return z, z
+
+        _, predicted = jax.lax.scan(interval, windows[:, 0], jnp.swapaxes(dts, 0, 1))
+        error = jnp.swapaxes(predicted, 0, 1)[..., :n] - windows[:, 1:, :n]
+        return jnp.mean(error ** 2, axis=(1, 2))
+    return pixel_objective_rows(impl.field, nets, *arrays)
+
+
 def scan_steps(
     loss_fn: Callable[..., jax.Array], optimizer: Any, params: Any, opt_state: Any,
     idx: Optional[jax.Array], arrays: tuple[jax.Array, ...], lrs: jax.Array, length: int,
@@ -211,12 +255,13 @@ def scan_steps(
 
 
 def _chunk(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], static: Any,
-           length: int, params: Any,
+           criterion: tuple[str, tuple[tuple[str, Any], ...]], length: int, params: Any,
            opt_state: Any, idx: Optional[jax.Array], train: tuple[jax.Array, ...],
            valid: tuple[jax.Array, ...], lrs: jax.Array, weight_decay: jax.Array
            ) -> tuple[Any, Any, jax.Array, jax.Array]:
     """One chunk of ``length`` steps at the ``(length,)`` learning rates ``lrs``, then
-    the validation loss. ``lrs`` and ``weight_decay`` are traced, so one executable
+    the validation criterion per point (:func:`criterion_values`; ``criterion`` is its
+    kind and options). ``lrs`` and ``weight_decay`` are traced, so one executable
     serves every learning rate and schedule."""
     optimizer = adam_direction(weight_decay)
 
@@ -225,26 +270,30 @@ def _chunk(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], st
 
     params, opt_state, losses = scan_steps(loss_fn, optimizer, params, opt_state, idx, train,
                                            lrs, length)
-    return params, opt_state, losses, loss_fn(params, *valid)
+    values = criterion_values(criterion[0], impl, criterion[1], eqx.combine(params, static),
+                              *valid)
+    return params, opt_state, losses, values
 
 
 def _batched_chunk(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...],
-                   static: Any, length: int, stacked: bool, params: Any, opt_state: Any,
+                   static: Any, criterion: tuple[str, tuple[tuple[str, Any], ...]],
+                   length: int, stacked: bool, params: Any, opt_state: Any,
                    idx: Optional[jax.Array], train: tuple[jax.Array, ...],
                    valid: tuple[jax.Array, ...], lrs: jax.Array, weight_decay: jax.Array
                    ) -> tuple[Any, Any, jax.Array, jax.Array]:
     """:func:`_chunk` for stacked seeds: ``vmap`` over params, optimizer state, indices
     and, when ``stacked``, each seed's own data (hyperparameters shared)."""
     def one(p: Any, o: Any, i: Optional[jax.Array], tr: Any, te: Any) -> Any:
-        return _chunk(kind, impl, options, static, length, p, o, i, tr, te, lrs, weight_decay)
+        return _chunk(kind, impl, options, static, criterion, length, p, o, i, tr, te, lrs,
+                      weight_decay)
 
     data = 0 if stacked else None
     return jax.vmap(one, in_axes=(0, 0, None if idx is None else 0, data, data))(
         params, opt_state, idx, train, valid)
 
 
-_CHUNKS = {False: jax.jit(_chunk, static_argnums=(0, 1, 2, 3, 4)),
-           True: jax.jit(_batched_chunk, static_argnums=(0, 1, 2, 3, 4, 5))}
+_CHUNKS = {False: jax.jit(_chunk, static_argnums=(0, 1, 2, 3, 4, 5)),
+           True: jax.jit(_batched_chunk, static_argnums=(0, 1, 2, 3, 4, 5, 6))}
 #: Compiled chunks of this process, keyed by loss, layout, length, argument shapes and
 #: device: a sweep reuses them across seeds.
 _COMPILED: dict[Any, Any] = {}
@@ -297,7 +346,8 @@ class JaxTrainer:
         self.lr = settings.lr
         self.weight_decay = backend.array(settings.weight_decay)
         kind = f"{problem.kind}:l1" if cfg.loss == "l1" else problem.kind
-        self.statics = (kind, impl, problem.options, self.static)
+        self.statics = (kind, impl, problem.options, self.static,
+                        (problem.criterion, problem.criterion_options))
 
     def run_chunk(self, indices: Optional[np.ndarray], length: int,
                   lrs: Optional[np.ndarray]) -> tuple[Any, Any]:

@@ -30,6 +30,7 @@ __all__ = [
     "nets_from_weights",
     "nets_to_weights",
     "pixel_objective",
+    "pixel_objective_rows",
     "symplectic",
 ]
 
@@ -167,6 +168,20 @@ def nets_to_weights(nets: Nets, index: Optional[int] = None) -> dict[str, np.nda
                 assert layer.bias is not None
                 out[f"autoencoder.{half}.{i}.bias"] = get(layer.bias)
     return out
+
+
+def pixel_objective_rows(field: Callable[[Any, jax.Array], jax.Array], nets: Nets,
+                         x: jax.Array, x_next: jax.Array) -> jax.Array:
+    """:func:`pixel_objective` of each pair, ``(N,)`` (each term's mean over its row):
+    their mean is the objective, up to rounding."""
+    ae = nets.autoencoder
+    assert ae is not None
+    z, z_next = jax.vmap(ae.encode)(x), jax.vmap(ae.encode)(x_next)
+    n = z.shape[1] // 2
+    reconstruction = jnp.mean((jax.vmap(ae.decode)(z) - x) ** 2, axis=1)
+    canonical = jnp.mean((z[:, n:] - (z_next[:, :n] - z[:, :n])) ** 2, axis=1)
+    dynamics = jnp.mean((z_next - (z + field(nets, z))) ** 2, axis=1)
+    return reconstruction + CC_WEIGHT * canonical + DYNAMICS_WEIGHT * dynamics
 
 
 def pixel_objective(field: Callable[[Any, jax.Array], jax.Array], nets: Nets,

@@ -36,6 +36,7 @@ from hnnbench.neural.torch._nets import (
     TrainingMLP,
     input_hessian,
     pixel_objective,
+    pixel_objective_rows,
     symplectic,
 )
 from hnnbench.neural.torch._ode import SolverGaveUp, dopri5
@@ -90,6 +91,58 @@ def make_loss(impl: ModuleType, kind: str, layout: Layout, cfg: NeuralConfig,
     return {"derivatives": derivatives, "windows": windows, "pixels": pixels}[kind]
 
 
+def rk4_step(field: Callable[..., torch.Tensor]) -> Callable[..., torch.Tensor]:
+    """The classical Runge-Kutta step ``(nets, z, h) -> z'`` of ``field`` (``h``
+    broadcasts against ``z``: a ``(M, 1)`` column of step sizes)."""
+    def step(nets: Any, z: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
+        k1 = field(nets, z)
+        k2 = field(nets, z + 0.5 * h * k1)
+        k3 = field(nets, z + 0.5 * h * k2)
+        k4 = field(nets, z + h * k3)
+        return z + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+    return step
+
+
+def make_criterion(impl: ModuleType, criterion: str, layout: Layout, cfg: NeuralConfig,
+                   options: tuple[tuple[str, Any], ...] = ()
+                   ) -> Callable[..., torch.Tensor]:
+    """``values(params, *arrays) -> (V,)``: the validation criterion of one seed per point
+    or window (:data:`hnnbench.neural._views.Criterion`; docs/METRICS.md, "Checkpoint
+    selection"), as the JAX backend computes it."""
+
+    def nets_of(params: Params) -> dict[str, MLP]:
+        return networks(params, layout, cfg, TrainingMLP.view)
+
+    def field(params: Params, *arrays: torch.Tensor) -> torch.Tensor:
+        z, zdot = arrays[:2]
+        error = impl.field(nets_of(params), z) - zdot
+        if criterion == "field:weighted":  # to the system's dx/dt, point by point
+            error = torch.einsum("vij,vj->vi", arrays[2], error)
+        return torch.mean(error ** 2, dim=1)
+
+    def windows(params: Params, windows: torch.Tensor, dts: torch.Tensor) -> torch.Tensor:
+        nets = nets_of(params)
+        substeps = int(dict(options).get("substeps", 1))
+        step = impl.step if criterion == "windows:map" else rk4_step(impl.field)
+        n = windows.shape[-1] // 2
+        z, predicted = windows[:, 0], []
+        for k in range(dts.shape[1]):
+            h = (dts[:, k] / substeps)[:, None]
+            for _ in range(substeps):
+                z = step(nets, z, h)
+            predicted.append(z)
+        error = torch.stack(predicted, dim=1)[..., :n] - windows[:, 1:, :n]
+        return torch.mean(error ** 2, dim=(1, 2))
+
+    def pixels(params: Params, x: torch.Tensor, x_next: torch.Tensor) -> torch.Tensor:
+        return pixel_objective_rows(impl.field, nets_of(params), Autoencoder(params), x,
+                                    x_next)
+
+    return pixels if criterion == "pixels" else (
+        windows if criterion.startswith("windows") else field)
+
+
 class FusedAdam:
     """``torch.optim.Adam(params, lr, weight_decay=weight_decay, fused=True)``, called
     directly: the same fused kernel (one per parameter tensor for the whole update) and
@@ -139,6 +192,8 @@ class TorchTrainer:
         dev, dtype = backend.device, backend.dtype
         self.seeds = len(initial)
         self.loss = make_loss(impl, problem.kind, layout, backend.cfg, problem.options)
+        self.criterion = make_criterion(impl, problem.criterion, layout, backend.cfg,
+                                        problem.criterion_options)
 
         def tensor(a: np.ndarray) -> torch.Tensor:
             return torch.as_tensor(np.ascontiguousarray(a), device=dev).to(dtype)
@@ -155,12 +210,15 @@ class TorchTrainer:
         self.device = dev
         self.kept: Optional[Params] = None  # the selected checkpoint (Trainer.keep)
 
-    def _losses(self, arrays: tuple[torch.Tensor, ...], per_seed_rows: bool) -> torch.Tensor:
-        """Each seed's loss ``(S,)`` (a scalar when ``S == 1``)."""
+    def _losses(self, arrays: tuple[torch.Tensor, ...], per_seed_rows: bool,
+                fn: Optional[Callable[..., torch.Tensor]] = None) -> torch.Tensor:
+        """Each seed's loss ``(S,)`` (a scalar when ``S == 1``), or of ``fn`` (the
+        criterion: ``(S, V)``, or ``(V,)`` for one seed)."""
+        fn = self.loss if fn is None else fn
         if self.seeds == 1:
-            return self.loss(self.params, *arrays)
+            return fn(self.params, *arrays)
         dims = (0, *([0 if per_seed_rows else None] * len(arrays)))
-        return torch.func.vmap(self.loss, in_dims=dims)(self.params, *arrays)
+        return torch.func.vmap(fn, in_dims=dims)(self.params, *arrays)
 
     def _rows(self, indices: np.ndarray) -> tuple[torch.Tensor, ...]:
         """The minibatch of one step: ``indices`` ``(S, B)`` into each seed's data."""
@@ -186,9 +244,9 @@ class TorchTrainer:
             self.adam.step(loss if self.seeds == 1 else loss.sum())
             losses.append(loss.detach())
         with torch.no_grad():
-            valid = self._losses(self.valid, self.stacked)
+            valid = self._losses(self.valid, self.stacked, self.criterion)
         out = torch.stack(losses).reshape(length, self.seeds).T
-        return out.cpu().numpy(), valid.reshape(self.seeds).cpu().numpy()
+        return out.cpu().numpy(), valid.reshape(self.seeds, -1).cpu().numpy()
 
     def keep(self, seeds: np.ndarray) -> None:
         with torch.no_grad():

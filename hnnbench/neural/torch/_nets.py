@@ -34,6 +34,7 @@ __all__ = [
     "activation_grad",
     "input_hessian",
     "pixel_objective",
+    "pixel_objective_rows",
     "symplectic",
 ]
 
@@ -358,4 +359,17 @@ def pixel_objective(field: Callable[[Any, torch.Tensor], torch.Tensor], nets: An
     reconstruction = torch.mean((ae.decode(z) - x) ** 2)
     canonical = torch.mean((z[:, n:] - (z_next[:, :n] - z[:, :n])) ** 2)
     dynamics = torch.mean((z_next - (z + field(nets, z))) ** 2)
+    return reconstruction + CC_WEIGHT * canonical + DYNAMICS_WEIGHT * dynamics
+
+
+def pixel_objective_rows(field: Callable[[Any, torch.Tensor], torch.Tensor], nets: Any,
+                         ae: Autoencoder, x: torch.Tensor, x_next: torch.Tensor
+                         ) -> torch.Tensor:
+    """:func:`pixel_objective` of each pair, ``(N,)`` (each term's mean over its row):
+    their mean is the objective, up to rounding."""
+    z, z_next = ae.encode(x), ae.encode(x_next)
+    n = z.shape[1] // 2
+    reconstruction = torch.mean((ae.decode(z) - x) ** 2, dim=1)
+    canonical = torch.mean((z[:, n:] - (z_next[:, :n] - z[:, :n])) ** 2, dim=1)
+    dynamics = torch.mean((z_next - (z + field(nets, z))) ** 2, dim=1)
     return reconstruction + CC_WEIGHT * canonical + DYNAMICS_WEIGHT * dynamics

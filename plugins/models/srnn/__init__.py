@@ -5,10 +5,10 @@ A separable Hamiltonian ``H(q, p) = T(p) + V(q)`` from two scalar networks, trai
 observed states of a training trajectory, ``substeps`` leapfrog steps per observed
 interval (each interval's own measured time step) predict the next states, and the
 loss is their mean squared error against the observations. No ``dx/dt`` target is
-used. The validation loss is the same error on windows of the validation split, 5
-states long (the family's declared window; a validation split too short for them gets
-its longest shorter ones) whatever ``model.window`` trains on, so that checkpoints and
-tuned settings are compared over one horizon. Leapfrog
+used. Checkpoints are selected on the system's validation criterion like every
+family's (docs/METRICS.md, "Checkpoint selection"): the learned field ``(∂T/∂p,
+−∂V/∂q)`` at the validation inputs, or, on measured data, short rollouts by the same
+leapfrog map it trains through and rolls out with. Leapfrog
 (Störmer-Verlet) is symplectic for separable ``H``:
 
     p ← p − (h/2) ∇V(q);   q ← q + h ∇T(p);   p ← p − (h/2) ∇V(q)
@@ -56,8 +56,7 @@ SRNN = Family(
     learned_energy=True,
     network_inputs={"T": "p", "V": "q"},
     # The window changes the training loss (the error over a longer horizon), not the
-    # validation loss, whose windows keep the family's length (``window`` above): the
-    # checkpoint selector and the tuner's pruner compare one horizon across settings.
+    # validation criterion, which is the system's (the same for every setting).
     search_space={**SHARED_SPACE, "window": IntRange(3, 8)},
     recipe={"hidden": 512, "layers": 4, "activation": "tanh", "lr": 3e-4,
             "weight_decay": 0.0, "batch_size": 32, "window": 5, "substeps": 1},
@@ -101,10 +100,13 @@ class _SRNN(NeuralModel):
     def training_options(self) -> tuple[int, tuple[tuple[str, Any], ...]]:
         return self.cfg.window, (("substeps", int(self.cfg.substeps)),)
 
+    def rolls_out_by_map(self) -> bool:
+        return self.cfg.integrator == "leapfrog"
+
     def map_step(self) -> Optional[float]:
         """The leapfrog step of training (``data_step / substeps``) under
         ``integrator=leapfrog``; ``None`` (the adaptive solver) under ``dopri5``."""
-        if self.cfg.integrator != "leapfrog":
+        if not self.rolls_out_by_map():
             return None
         if self.data_step is None:
             raise RuntimeError(f"{self.name}: the leapfrog step is known after fit() or "
