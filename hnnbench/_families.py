@@ -19,10 +19,13 @@ backends are *twins*. Ranking twins as two competitors lets one family take rank
   the *leader* is the best mean among the ranked families whose every seed is ``ok``; for a
   metric with :attr:`~hnnbench.Metric.best_requires`, a family that fails the guard (a
   rollout no better than standing still, on an energy metric) takes no part. It
-  is marked ``best`` when a one-sided sign test over shared seeds
-  (:func:`hnnbench._stats.sign_test`) separates it from every other ranked family with a
-  value at :data:`hnnbench._stats.ALPHA`; otherwise it and every family it is not
-  separated from are marked ``tied``. On a metric declared
+  is marked ``best`` when two-sided sign tests over shared seeds, Holm-adjusted
+  (:func:`hnnbench._stats.leader_test`), separate it from every other ranked family
+  with a value at :data:`hnnbench._stats.ALPHA`; otherwise it and every family it is not
+  separated from are marked ``tied``. Where the shared seeds are too few for any outcome
+  to separate, the leader's cell says so (``too_few_seeds``) and nothing else is
+  marked. The leader's row carries its paired effect over the runner-up
+  (:data:`EFFECT_SUFFIXES`). On a metric declared
   :attr:`~hnnbench.Metric.beat_reference` (rollout errors, skill, valid prediction
   time), nothing is marked unless the leader's mean beats the standing-still reference
   row's; where it does not, that row's cell is marked ``unbeaten`` ("no family beats
@@ -38,6 +41,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
+import numpy as np
 import pandas as pd
 
 from hnnbench import _registry as registry
@@ -52,7 +56,10 @@ from hnnbench._table import (
 )
 
 __all__ = [
+    "EFFECT_SUFFIXES",
+    "simulate_marks",
     "MARKS",
+    "TOO_FEW",
     "UNBEATEN",
     "RANKING_KEY",
     "ROW_KEY",
@@ -72,8 +79,14 @@ __all__ = [
 #: A cell's mark: separated from every other family, or not separated from the leader;
 #: on the standing-still reference's row, that no family's leader beats it on a metric
 #: that requires it (:attr:`hnnbench.Metric.beat_reference`).
-MARKS = ("best", "tied", "unbeaten")
-UNBEATEN = MARKS[2]
+#: On the leader's row, where its shared seeds are too few for the leader test to
+#: separate anything whatever they show: "too few seeds to separate".
+MARKS = ("best", "tied", "unbeaten", "too_few_seeds")
+UNBEATEN, TOO_FEW = MARKS[2], MARKS[3]
+#: The leader's paired effect over the runner-up (:func:`hnnbench._stats.paired_effect`):
+#: ``<metric>_effect`` (median over shared seeds), its interval, and
+#: ``<metric>_effect_vs`` (the runner-up family).
+EFFECT_SUFFIXES = ("_effect", "_effect_low", "_effect_high")
 #: The keys, all from :data:`~hnnbench._record_schema.FAMILY_KEY` (so that a field added
 #: there, e.g. a track, separates every ranking and aggregate): a family row; one
 #: ranking of families (one system); one aggregate across systems.
@@ -338,6 +351,9 @@ def mark_best(board: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
     for m in metrics:
         board[f"{m}_mark"] = ""
         board[f"{m}_p"] = math.nan
+        for suffix in EFFECT_SUFFIXES:
+            board[f"{m}{suffix}"] = math.nan
+        board[f"{m}_effect_vs"] = ""
     if board.empty:
         return board
     ranked = board["ranked"].fillna(True).astype(bool) if "ranked" in board else \
@@ -347,9 +363,12 @@ def mark_best(board: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
     runs = runs.assign(variant=_variant(runs))
     board["variant"] = _variant(board)
     still_rows = _standing_still(board)
+    runs_of = _by_key(runs, RANKING_KEY)
+    still_of = _by_key(still_rows, RANKING_KEY)
     for _, group in board[ranked].groupby(list(RANKING_KEY), dropna=False, sort=False):
-        mine = select(runs, RANKING_KEY, key_of(group.iloc[0], RANKING_KEY))
-        still = select(still_rows, RANKING_KEY, key_of(group.iloc[0], RANKING_KEY))
+        key = key_of(group.iloc[0], RANKING_KEY)
+        mine = runs_of.get(key, runs[:0])
+        still = still_of.get(key, still_rows[:0])
         for metric in metrics:
             decl = declared[metric]
             means = pd.to_numeric(group[f"{metric}_mean"], errors="coerce")
@@ -375,22 +394,89 @@ def mark_best(board: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
                     continue
             seeds = {i: _per_seed(mine[mine["family"] == board.at[i, "family"]], metric)
                      for i in cand}
-            ps = {}
-            for i in cand:
-                if i == leader:
-                    continue
-                shared = sorted(set(seeds[leader]) & set(seeds[i]))
-                p, _, _ = stats.sign_test([seeds[leader][s] for s in shared],
-                                          [seeds[i][s] for s in shared], decl.better)
-                ps[i] = p
-            separated = all(p <= stats.ALPHA for p in ps.values())
-            board.at[leader, f"{metric}_mark"] = "best" if separated else "tied"
+            others = [i for i in cand if i != leader]
+            shared = {i: sorted(set(seeds[leader]) & set(seeds[i])) for i in others}
+            fewest = min(len(v) for v in shared.values())
+            if fewest < stats.min_separable_seeds(comparisons=len(others)):
+                # no outcome of these seeds could separate anything: say so, claim nothing
+                board.at[leader, f"{metric}_mark"] = TOO_FEW
+                continue
+            ps, separated = _holm(seeds, leader, others, shared, decl.better)
+            board.at[leader, f"{metric}_mark"] = "best" if all(separated.values()) \
+                else "tied"
             board.at[leader, f"{metric}_p"] = max(ps.values())
-            for i, p in ps.items():
-                board.at[i, f"{metric}_p"] = p
-                if p > stats.ALPHA:
+            for i in others:
+                board.at[i, f"{metric}_p"] = ps[i]
+                if not separated[i]:
                     board.at[i, f"{metric}_mark"] = "tied"
+            runner = min(others, key=lambda i: sign * float(means[i])
+                         if math.isfinite(float(means[i])) else math.inf)
+            effect = stats.paired_effect([seeds[leader][s] for s in shared[runner]],
+                                         [seeds[runner][s] for s in shared[runner]],
+                                         decl.better, decl.scale)
+            board.at[leader, f"{metric}_effect"], board.at[leader, f"{metric}_effect_low"], \
+                board.at[leader, f"{metric}_effect_high"] = effect[:3]
+            board.at[leader, f"{metric}_effect_vs"] = str(board.at[runner, "family"])
     return board
+
+
+def _holm(seeds: dict[Any, dict[int, float]], leader: Any, others: list[Any],
+          shared: dict[Any, list[int]], better: str) -> tuple[dict[Any, float],
+                                                               dict[Any, bool]]:
+    """:func:`hnnbench._stats.leader_test` of the leader against ``others``, each on the
+    seeds it shares with the leader: ``({other: Holm-adjusted p}, {other: separated})``."""
+    raw = {}
+    for i in others:
+        p, _, n = stats.sign_test([seeds[leader][s] for s in shared[i]],
+                                  [seeds[i][s] for s in shared[i]], better)
+        raw[i] = min(1.0, 2.0 * p) if n else 1.0
+    adjusted, separated = stats.holm(list(raw.values()))
+    return dict(zip(others, adjusted, strict=True)), dict(zip(others, separated, strict=True))
+
+
+def simulate_marks(families: int, seeds: int, draws: int, effect: float = 0.0,
+                   metric: str = "energy_mse", seed: int = 0) -> dict[str, float]:
+    """How :func:`mark_best` marks ``draws`` simulated cells of ``families`` families over
+    ``seeds`` paired seeds (docs/STATISTICS.md, "The leader test, simulated").
+
+    Every family's value at seed ``s`` is ``exp(u_s + e)``, with ``u_s ~ N(0, 1)`` shared
+    by the families at that seed (seeds pair) and ``e ~ N(0, 1)`` its own; the first
+    family's ``e`` is shifted by ``effect`` in its favour (``effect = 0``: identical
+    families). Returns the share of draws with a ``best`` mark (``"any_best"``: under
+    ``effect = 0`` the false-best rate), with the first family best (``"power"``), and
+    with ``too_few_seeds`` (``"too_few"``)."""
+    declared = metric_declarations()[metric]
+    sign = 1.0 if declared.better == "lower" else -1.0
+    rng = np.random.default_rng(seed)
+    rows, runs = [], []
+    names = [f"f{j}" for j in range(families)]
+    for d in range(draws):
+        shared = rng.normal(size=seeds)
+        for j, name in enumerate(names):
+            own = rng.normal(size=seeds) - (sign * effect if j == 0 else 0.0)
+            values = np.exp(shared + own)
+            rows.append({"profile": "sim", "system": f"d{d}", "family": name, "variant": "",
+                         "ranked": True, "n_seeds": seeds, "n_ok": seeds,
+                         f"{metric}_mean": float(np.mean(values))})
+            runs += [{"profile": "sim", "system": f"d{d}", "family": name, "variant": "",
+                      "seed": k, "status": "ok", metric: float(v)}
+                     for k, v in enumerate(values)]
+    board = mark_best(pd.DataFrame(rows), pd.DataFrame(runs))
+    marks = board[f"{metric}_mark"].astype(str)
+    best = board[marks == "best"]
+    return {"any_best": len(best) / draws,
+            "power": float((best["family"] == names[0]).sum()) / draws,
+            "too_few": float((marks == TOO_FEW).sum()) / draws}
+
+
+def _by_key(frame: pd.DataFrame, keys: Sequence[str]) -> dict[tuple[str, ...],
+                                                               pd.DataFrame]:
+    """``frame``'s rows grouped by their :func:`key_of` ``keys`` (one pass, not a filter
+    per group)."""
+    if frame.empty:
+        return {}
+    labels = pd.Series([key_of(r, keys) for r in frame.to_dict("records")], index=frame.index)
+    return {k: frame.loc[idx] for k, idx in labels.groupby(labels).groups.items()}
 
 
 def _standing_still(board: pd.DataFrame) -> pd.DataFrame:

@@ -143,6 +143,10 @@ class Metric:
             references"). For metrics on which standing still is a fair opponent
             (rollout errors, skill, valid prediction time); an energy error, where it
             scores 0 by construction, uses :attr:`best_requires` instead.
+        evidence: metrics computed from one and the same evidence share a name here
+            (the rollout metrics: ``"rollout"``); a report counts their agreeing verdicts
+            on one system as one finding, not several (docs/STATISTICS.md). ``""``: its
+            own.
         headline: a headline verdict (ranked metrics only): the aggregate across systems
             on the README and the report page, its performance profile, and the ranks
             ``hnnbench check`` prints for a new model lead with it
@@ -170,6 +174,7 @@ class Metric:
     domain: tuple[float, float] = (-math.inf, math.inf)
     best_requires: Optional[tuple[str, float]] = None
     beat_reference: bool = False
+    evidence: str = ""
     headline: bool = False
     selects: bool = False
 

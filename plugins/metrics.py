@@ -265,13 +265,14 @@ ROLLOUT_MSE = Metric(
     "zero field scores the mean squared displacement of the true trajectory from its "
     "start", _rollout_mse,
     check=CheckRule(3, 1e-8), order=40, figures=("heatmap", "data_efficiency"),
-    errors_fail_job=True, beat_reference=True, domain=NONNEGATIVE, headline=True)
+    errors_fail_job=True, beat_reference=True, evidence="rollout", domain=NONNEGATIVE,
+    headline=True)
 ROLLOUT_SKILL = Metric(
     "rollout_skill", "Skill of the rollout over standing still: 1 - rollout error / the "
     "error of holding the initial state, per trajectory (angles modulo 2 pi). 1: exact; "
     "0: the zero field (no motion); negative: worse than not moving", _rollout_skill,
     better="higher", scale="linear", check=CheckRule(3, 0.0), order=45,
-    errors_fail_job=True, beat_reference=True, domain=(-math.inf, 1.0))
+    errors_fail_job=True, beat_reference=True, evidence="rollout", domain=(-math.inf, 1.0))
 REVERSIBILITY_ERROR = Metric(
     "reversibility_error", "Time-reversal test of the learned flow: mean |R Phi_T R Phi_T "
     "x0 - x0|^2 (R flips momenta; pixels: latent momenta). A diagnostic, never marked "
@@ -285,7 +286,7 @@ VALID_PREDICTION_TIME = Metric(
     "state takes to move threshold x its norm from its start", _vpt, better="higher",
     scale="linear",
     check=CheckRule(3, 0.0), order=60,
-    errors_fail_job=True, beat_reference=True, domain=NONNEGATIVE)
+    errors_fail_job=True, beat_reference=True, evidence="rollout", domain=NONNEGATIVE)
 VPT_CENSORED = Metric(
     "vpt_censored", "Share of evaluation trajectories whose valid prediction time reached "
     "the horizon (there it is a lower bound; the horizon caps valid_prediction_time). A "
@@ -299,7 +300,7 @@ VPT_LYAPUNOV = Metric(
     "valid_prediction_time for a degenerate model",
     _vpt_lyapunov, better="higher", scale="linear", check=CheckRule(3, 0.0),
     applies=_has_lyapunov_time, order=70,
-    errors_fail_job=True, beat_reference=True, domain=NONNEGATIVE)
+    errors_fail_job=True, beat_reference=True, evidence="rollout", domain=NONNEGATIVE)
 ENERGY_DRIFT_LONG = Metric(
     "energy_drift_long", f"Relative true-energy drift at the end of a rollout "
     f"{LONG_HORIZON_FACTOR}x the evaluation horizon (conservative systems). The zero "

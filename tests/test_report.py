@@ -217,10 +217,10 @@ def test_a_training_set_size_sweep_draws_the_data_efficiency_figure(tmp_path):
 
 
 def test_the_family_table_marks_best_only_when_separated(tmp_path):
-    """Five paired seeds, each better: bold; two: the leaders are tied (italics). The
-    oracle is shown, never marked."""
+    """Ten paired seeds, each better: bold, with its effect over the runner-up; two: too
+    few seeds to separate, nothing marked. The oracle is shown, never marked."""
     pairs = (("spring", "mlp_torch"), ("spring", "hnn_torch"), ("spring", "oracle"))
-    for seeds, wrap in (((0, 1, 2, 3, 4), "**"), ((0, 1), "*")):
+    for seeds, wrap in ((tuple(range(10)), "**"), ((0, 1), "")):
         sweep = make_sweep(tmp_path / str(len(seeds)), pairs=pairs, seeds=seeds,
                            rollout=False)
         assert report.main([str(sweep), "--no-figures"]) == 0
@@ -231,7 +231,12 @@ def test_the_family_table_marks_best_only_when_separated(tmp_path):
         oracle = next(ln for ln in md.splitlines() if "| oracle " in ln)
         assert "*" not in oracle
         families = pd.read_csv(sweep / "families.csv").set_index("family")
-        assert families.loc["hnn", "energy_mse_mark"] == ("best" if wrap == "**" else "tied")
+        assert families.loc["hnn", "energy_mse_mark"] == (
+            "best" if wrap == "**" else "too_few_seeds")
+        if wrap:  # the median paired effect over the runner-up, beside the leader
+            assert "** ×" in hnn and families.loc["hnn", "energy_mse_effect_vs"] == "mlp"
+            assert families.loc["hnn", "energy_mse_effect_low"] <= \
+                families.loc["hnn", "energy_mse_effect"]
 
 
 def test_reasons_and_cpu_seconds_are_in_every_table(tmp_path):

@@ -140,9 +140,9 @@ def test_the_aggregate_speaks_of_the_protocol_even_where_only_another_track_has_
 
 
 def test_a_track_that_cannot_separate_its_leaders_changes_no_verdict(tmp_path):
-    """Three recipe seeds tie the HNN and the MLP (no sign test separates 3 seeds); the
-    protocol's best, the HNN, is among them: no change of verdict, even where the MLP's
-    mean moved ahead (said apart, as a difference of means)."""
+    """Three recipe seeds cannot separate the HNN and the MLP ("too few seeds to
+    separate"); the protocol's best, the HNN, is among them: no change of verdict, even
+    where the MLP's mean moved ahead (said apart, as a difference of means)."""
     protocol = make_sweep(tmp_path / "protocol", pairs=PAIRS, seeds=SEEDS)
     recipe = make_sweep(tmp_path / "recipe", pairs=PAIRS, seeds=(0, 1, 2))
     _as_track(recipe, "recipe")
@@ -151,14 +151,15 @@ def test_a_track_that_cannot_separate_its_leaders_changes_no_verdict(tmp_path):
     tracks = pd.read_csv(report.files["tracks"], keep_default_na=False)
     rows = tracks[tracks["metric"] == "energy_mse"].set_index("system")
     assert rows.loc["spring", "protocol"] == "best: hnn"
-    assert rows.loc["spring", "recipe"].startswith("tied: ") and \
+    assert rows.loc["spring", "recipe"].startswith("too few seeds to separate: ") and \
         "hnn" in rows.loc["spring", "recipe"]
     assert not rows.loc["spring", "changes"]
     # 3 seeds tie everyone: no separated change, but the best mean moved to the MLP
-    assert rows.loc["pendulum", "recipe"] == "tied: mlp, hnn"  # the best mean first
+    assert rows.loc["pendulum", "recipe"] == "too few seeds to separate: mlp, hnn"
     assert not rows.loc["pendulum", "changes"] and rows.loc["pendulum", "mean_changes"]
     assert not rows.loc["spring", "mean_changes"]
     text = report.files["tracks_md"].read_text()
     assert "never separates its leaders" in text and "No verdict changes" in text
-    assert "- `pendulum`, `energy_mse`: protocol best: hnn; recipe tied: mlp, hnn." in \
+    assert "- `pendulum`, `energy_mse`: protocol best: hnn; recipe too few seeds to " \
+        "separate: mlp, hnn." in \
         text.split("Where only the best mean moves")[1]

@@ -30,7 +30,34 @@ def test_the_sign_test_is_exact_and_counts_ties_and_gaps_against_the_leader():
     assert S.sign_test([3, 4], [1, 2], better="higher") == (0.25, 2, 2)
     assert S.sign_test([1, 1], [math.inf, math.inf])[1] == 2  # a diverged rollout loses
     assert S.sign_test([], []) == (1.0, 0, 0)
-    assert S.MIN_SEPARABLE_SEEDS == 5 and S.min_separable_seeds(0.01) == 7
+    # two-sided: with n seeds p >= 2 x 0.5^n, so 6 seeds (0.031) for one comparison,
+    # and Holm's first threshold alpha/m for m comparisons: 8 seeds for five others
+    assert S.MIN_SEPARABLE_SEEDS == 6 and S.min_separable_seeds(0.01) == 8
+    assert S.min_separable_seeds(comparisons=5) == 8
+
+
+def test_holm_and_the_leader_test():
+    adjusted, rejected = S.holm([0.01, 0.04, 0.03])
+    assert adjusted == pytest.approx([0.03, 0.06, 0.06]) and rejected == [True, False, False]
+    ten = list(range(10))
+    ps, separated = S.leader_test(ten, [[v + 1 for v in ten], [v + 2 for v in ten]])
+    assert ps == pytest.approx([2 * 2 / 1024] * 2) and separated == [True, True]
+    nine = [v + 1 for v in ten[:9]] + [-5]  # the other better on one seed of ten
+    ps, separated = S.leader_test(ten, [nine])
+    assert ps[0] == pytest.approx(2 * 11 / 1024) and separated == [True]
+    assert S.leader_test(ten[:5], [[v + 1 for v in ten[:5]]])[1] == [False]  # 0.0625
+
+
+def test_the_paired_effect_is_a_median_with_an_order_statistic_interval():
+    leader = [1.0] * 10
+    other = [10.0] * 9 + [1000.0]
+    median, low, high, coverage = S.paired_effect(leader, other)
+    assert median == pytest.approx(1.0) and low == pytest.approx(1.0)  # log10 ratio
+    assert high == pytest.approx(1.0) and coverage >= 0.95  # x_(2), x_(9) of 10
+    assert S.paired_effect([0.9, 0.8], [0.5, 0.6], "higher", "linear")[0] == pytest.approx(0.3)
+    diverged = S.paired_effect([1.0, 1.0, math.inf], [2.0, math.inf, 2.0])
+    assert sorted(S.paired_effect([1.0, 1.0, math.inf], [2.0, math.inf, 2.0])[:1]) == \
+        [pytest.approx(math.log10(2))] and diverged[1] == -math.inf and diverged[2] == math.inf
 
 
 def test_cell_intervals_none_for_one_seed_or_inf_and_degenerate_when_equal():
@@ -98,51 +125,59 @@ def _marks(values: dict[str, list[float]], n_ok: dict[str, int] | None = None,
     return mark_best(pd.DataFrame(rows), pd.DataFrame(runs)).set_index("family")
 
 
-def test_best_needs_five_paired_seeds_each_better():
-    five = _marks({"hnn": [1, 2, 3, 4, 5], "mlp": [2, 3, 4, 5, 6], "oracle": [0] * 5})
-    assert five.loc["hnn", "energy_mse_mark"] == "best"
-    assert five.loc["hnn", "energy_mse_p"] == pytest.approx(1 / 32)
-    assert five.loc["mlp", "energy_mse_mark"] == "" and five.loc["oracle", "energy_mse_mark"] == ""
-    three = _marks({"hnn": [1, 2, 3], "mlp": [20, 30, 40]})
-    assert list(three["energy_mse_mark"]) == ["tied", "tied"]  # 3 seeds cannot separate
-    one_loss = _marks({"hnn": [1, 2, 3, 4, 5], "mlp": [2, 3, 4, 5, 4.5], "lnn": [9] * 5})
-    assert one_loss["energy_mse_mark"].to_dict() == {"hnn": "tied", "mlp": "tied", "lnn": ""}
+TEN = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]
+
+
+def _up(values: list[float], by: float) -> list[float]:
+    return [v + by for v in values]
+
+
+def test_best_needs_enough_paired_seeds_each_better():
+    ten = _marks({"hnn": TEN, "mlp": _up(TEN, 1), "oracle": [0] * 10})
+    assert ten.loc["hnn", "energy_mse_mark"] == "best"
+    assert ten.loc["hnn", "energy_mse_p"] == pytest.approx(2 / 1024)  # two-sided
+    assert ten.loc["mlp", "energy_mse_mark"] == "" and ten.loc["oracle", "energy_mse_mark"] == ""
+    assert ten.loc["hnn", "energy_mse_effect_vs"] == "mlp"
+    assert ten.loc["hnn", "energy_mse_effect"] > 0
+    five = _marks({"hnn": [1, 2, 3, 4, 5], "mlp": [20, 30, 40, 50, 60]})
+    # 5 seeds can never separate two-sided: the leader's cell says so, nothing is marked
+    assert five["energy_mse_mark"].to_dict() == {"hnn": "too_few_seeds", "mlp": ""}
+    two_losses = _marks({"hnn": TEN, "mlp": _up(TEN, 1)[:8] + [0.5, 0.5], "lnn": [99] * 10})
+    assert two_losses["energy_mse_mark"].to_dict() == {"hnn": "tied", "mlp": "tied", "lnn": ""}
 
 
 def test_a_family_with_a_diverged_seed_never_leads_and_higher_can_be_better():
-    board = _marks({"lnn": [0.1, 0.1, 0.1, 0.1, 0.1], "hnn": [1, 2, 3, 4, 5],
-                    "mlp": [9, 9, 9, 9, 9]}, n_ok={"lnn": 4})
+    board = _marks({"lnn": [0.1] * 10, "hnn": TEN, "mlp": [99] * 10}, n_ok={"lnn": 9})
     assert board.loc["hnn", "energy_mse_mark"] == "tied"  # the leader: lnn beats it
     assert board.loc["lnn", "energy_mse_mark"] == "tied"  # ... on every seed: not separated
-    vpt = _marks({"hnn": [5, 6, 7, 8, 9], "mlp": [1, 2, 3, 4, 5], "still": [0.5] * 5},
+    vpt = _marks({"hnn": _up(TEN, 4), "mlp": TEN, "still": [0.5] * 10},
                  better_metric="valid_prediction_time")
     assert vpt.loc["hnn", "valid_prediction_time_mark"] == "best"
 
 
 def test_a_rollout_cell_is_marked_only_where_its_leader_beats_standing_still():
-    beaten = {"hnn": [5, 6, 7, 8, 9], "mlp": [1, 2, 3, 4, 5]}
-    unbeaten = _marks({**beaten, "still": [10.0] * 5}, better_metric="valid_prediction_time")
+    beaten = {"hnn": _up(TEN, 4), "mlp": TEN}
+    unbeaten = _marks({**beaten, "still": [20.0] * 10},
+                      better_metric="valid_prediction_time")
     assert unbeaten["valid_prediction_time_mark"].to_dict() == {
         "hnn": "", "mlp": "", "still": "unbeaten"}  # "no family beats standing still"
-    mse = _marks({"hnn": [1, 2, 3, 4, 5], "mlp": [2, 3, 4, 5, 6], "still": [3.5] * 5},
+    mse = _marks({"hnn": TEN, "mlp": _up(TEN, 1), "still": [6.0] * 10},
                  better_metric="rollout_mse")
     assert mse["rollout_mse_mark"].to_dict() == {"hnn": "best", "mlp": "", "still": ""}
-    still_wins = _marks({"hnn": [1, 2, 3, 4, 5], "mlp": [2, 3, 4, 5, 6], "still": [2.9] * 5},
+    still_wins = _marks({"hnn": TEN, "mlp": _up(TEN, 1), "still": [5.4] * 10},
                         better_metric="rollout_mse")
     assert still_wins.loc["still", "rollout_mse_mark"] == "unbeaten"
     # without a standing-still row nothing is claimed on such a metric
     none = _marks(beaten, better_metric="valid_prediction_time")
     assert set(none["valid_prediction_time_mark"]) == {""}
     # an energy metric keeps its guard and needs no reference row
-    assert _marks({"hnn": [1, 2, 3, 4, 5], "mlp": [2, 3, 4, 5, 6]}).loc[
-        "hnn", "energy_mse_mark"] == "best"
+    assert _marks({"hnn": TEN, "mlp": _up(TEN, 1)}).loc["hnn", "energy_mse_mark"] == "best"
 
 
 def test_an_unranked_metric_and_an_out_of_domain_value_are_never_marked():
-    board = _marks({"hnn": [1, 2, 3, 4, 5], "mlp": [2, 3, 4, 5, 6]},
-                   better_metric="reversibility_error")
+    board = _marks({"hnn": TEN, "mlp": _up(TEN, 1)}, better_metric="reversibility_error")
     assert "reversibility_error_mark" not in board  # a diagnostic, never a verdict
-    negative = _marks({"mlp": [-5.0] * 5, "hnn": [1, 2, 3, 4, 5], "dhnn": [2, 3, 4, 5, 6]})
+    negative = _marks({"mlp": [-5.0] * 10, "hnn": TEN, "dhnn": _up(TEN, 1)})
     assert negative["energy_mse_mark"].to_dict() == {"mlp": "", "hnn": "best", "dhnn": ""}
 
 
@@ -151,13 +186,13 @@ def test_a_model_that_does_not_move_cannot_win_an_energy_metric():
     no better than standing still (energy MSE 0 on a conservative system) takes no part;
     the others are ranked among themselves."""
     rows, runs = [], []
-    table = {"still": ([0.0] * 5, -0.01), "hnn": ([1, 2, 3, 4, 5], 0.6),
-             "mlp": ([2, 3, 4, 5, 6], 0.2), "zero": ([0.0] * 5, 0.0)}
+    table = {"still": ([0.0] * 10, -0.01), "hnn": (TEN, 0.6),
+             "mlp": (_up(TEN, 1), 0.2), "zero": ([0.0] * 10, 0.0)}
     for family, (vals, skill) in table.items():
         rows.append({"profile": "paper", "system": "spring", "family": family, "variant": "",
                      "ranked": family != "zero",
                      "reference": "zero_field" if family == "zero" else "",
-                     "n_seeds": 5, "n_ok": 5,
+                     "n_seeds": 10, "n_ok": 10,
                      "energy_mse_mean": float(np.mean(vals)), "rollout_skill_mean": skill})
         runs += [{"profile": "paper", "system": "spring", "family": family, "variant": "",
                   "seed": k, "status": "ok", "energy_mse": v, "rollout_skill": skill}
@@ -174,11 +209,11 @@ def test_a_model_that_does_not_move_cannot_win_an_energy_metric():
 
 @pytest.fixture(scope="module")
 def twin_sweep(tmp_path_factory):
-    """spring: JAX twins with seeds 0-4, torch twins with 0-2 (the lead's protocol), the
+    """spring: JAX twins with seeds 0-9, torch twins with 0-2 (the lead's protocol), the
     oracle; hnn_torch's seed 2 a hundred times off its twin's energy MSE."""
     root = tmp_path_factory.mktemp("twins")
     make_sweep(root, pairs=(("spring", "mlp_jax"), ("spring", "hnn_jax"),
-                            ("spring", "oracle")), seeds=(0, 1, 2, 3, 4), rollout=False)
+                            ("spring", "oracle")), seeds=tuple(range(10)), rollout=False)
     make_sweep(root, pairs=(("spring", "mlp_torch"),), seeds=(0, 1, 2), rollout=False)
     for seed in (0, 1, 2):
         values = seed_metrics("spring", "hnn_torch", seed)
@@ -192,10 +227,10 @@ def test_one_row_per_family_on_the_twin_with_most_seeds(twin_sweep):
     fams = families(records_frame(twin_sweep))
     board = fams.board.set_index("family")
     assert list(board.index) == ["mlp", "hnn", "oracle"]  # registry order
-    assert board.loc["hnn", "seeds_from"] == "hnn_jax" and board.loc["hnn", "n_seeds"] == 5
+    assert board.loc["hnn", "seeds_from"] == "hnn_jax" and board.loc["hnn", "n_seeds"] == 10
     assert board.loc["hnn", "models"] == "hnn_torch;hnn_jax"
-    assert board.loc["hnn", "seeds"] == "0;1;2;3;4"
-    # hnn beats mlp on each of 5 paired seeds: separated; mlp's twins agree.
+    assert board.loc["hnn", "seeds"] == "0;1;2;3;4;5;6;7;8;9"
+    # hnn beats mlp on each of 10 paired seeds: separated; mlp's twins agree.
     assert board.loc["hnn", "energy_mse_mark"] == "best"
     assert board.loc["mlp", "twins"] == "mlp_torch agrees (3 seeds)"
     assert board.loc["hnn", "twins_disagree"] == "energy_mse"

@@ -123,6 +123,9 @@ def _table(frame: pd.DataFrame, cls: str = "", status_col: Optional[str] = None,
                 classes.append("inf")
             if marks and (i, col) in marks:
                 classes.append(marks[(i, col)])
+                effect = marks.get((i, f"{col}:effect"))
+                if effect:  # the leader's median paired effect over the runner-up
+                    value = f"{value} {effect}"
             attrs = f' class="{" ".join(classes)}"' if classes else ""
             if numbers is not None and f"{col}_mean" in numbers.columns:
                 attrs += f' data-v="{_sort_value(numbers.iloc[i][f"{col}_mean"])}"'
@@ -214,7 +217,7 @@ def page(board: pd.DataFrame, figures: list[Made], prov: dict[str, list[str]],
         "click a column header to sort. "
         f"{_inline_code(stats.best_rule().replace('**', '').replace('*', ''))} "
         "Highlighted: best (bold) and tied (italics); a standing-still cell that no "
-        "family's leader beats is shaded.</p>",
+        "family's leader improves on is shaded.</p>",
         _table(shown, "board sortable", status_col="status",
                numbers=fams.board.reset_index(drop=True), marks=marks),
     ]

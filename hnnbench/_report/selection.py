@@ -65,7 +65,7 @@ def selection_frame(records: Sequence[dict[str, Any]]) -> pd.DataFrame:
         sel = rec.get("selection")
         if not isinstance(sel, dict) or not sel.get("criterion") or rec.get("status") != "ok":
             continue
-        key = (str(rec.get("profile", "")), str(rec.get("track") or DEFAULT_TRACK),
+        key: tuple[str, ...] = (str(rec.get("profile", "")), str(rec.get("track") or DEFAULT_TRACK),
                str(rec.get("system", "")), str(rec.get("family") or rec.get("model", "")))
         names[key] = str(sel["criterion"])
         final, best = _num(sel.get("final_value")), _num(sel.get("best_value"))

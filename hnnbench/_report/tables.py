@@ -4,6 +4,7 @@ display frames shared with the HTML page."""
 
 from __future__ import annotations
 
+import math
 from typing import Optional
 
 import pandas as pd
@@ -13,7 +14,7 @@ from hnnbench import _stats as stats
 from hnnbench._families import Families
 from hnnbench._report.inputs import provenance_lines
 from hnnbench._report.markdown import md_cell, md_code
-from hnnbench._table import display_frame, short_reason
+from hnnbench._table import display_frame, metric_declarations, short_reason
 
 __all__ = ["TWIN_FLAG", "families_markdown", "family_display", "leaderboard_markdown",
            "md_table", "seed_line", "twins_display", "twins_line"]
@@ -62,12 +63,19 @@ def family_display(fams: Families) -> tuple[pd.DataFrame, dict[tuple[int, str], 
     board = fams.board.reset_index(drop=True)
     shown = display_frame(board, ids=FAMILY_IDS)
     marks: dict[tuple[int, str], str] = {}
+    declared = metric_declarations()
     for metric in [c[: -len("_mark")] for c in board.columns if c.endswith("_mark")]:
         if metric not in shown.columns:
             continue
         for i, mark in enumerate(board[f"{metric}_mark"].fillna("").astype(str)):
-            if mark:
+            if mark in ("best", "tied", "unbeaten"):
                 marks[(i, metric)] = mark
+        if f"{metric}_effect" in board and metric in declared:
+            for i, value in enumerate(pd.to_numeric(board[f"{metric}_effect"],
+                                                    errors="coerce")):
+                if not math.isnan(value):
+                    marks[(i, f"{metric}:effect")] = effect_text(value,
+                                                                 declared[metric].scale)
     if "twins_disagree" in board:
         for i, flagged in enumerate(board["twins_disagree"].fillna("").astype(str)):
             for metric in flagged.split(";"):
@@ -97,8 +105,22 @@ def twins_display(fams: Families) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def effect_text(value: float, scale: str) -> str:
+    """A leader's median paired effect over the runner-up in words: ``×12`` (a log10
+    ratio, as a factor) or ``+0.31`` (a difference), ``×inf`` where the runner-up
+    diverged on most seeds."""
+    if scale == "log":
+        if math.isinf(value):
+            return "×inf" if value > 0 else "×0"
+        factor = 10.0 ** value
+        return f"×{factor:.2g}" if factor < 100 else f"×{factor:.1e}"
+    return f"{value:+.2g}"
+
+
 def _bold(shown: pd.DataFrame, marks: dict[tuple[int, str], str]) -> pd.DataFrame:
     out = shown.copy()
+    effects = {key: text for key, text in marks.items() if key[1].endswith(":effect")}
+    marks = {key: mark for key, mark in marks.items() if key not in effects}
     for (row, metric), mark in marks.items():
         text = str(out.at[row, metric])
         flag = ""
@@ -108,7 +130,8 @@ def _bold(shown: pd.DataFrame, marks: dict[tuple[int, str], str]) -> pd.DataFram
             out.at[row, metric] = f"{text} {UNBEATEN_FLAG}{flag}"
             continue
         wrap = "**" if mark == "best" else "*"
-        out.at[row, metric] = f"{wrap}{text}{wrap}{flag}"
+        effect = effects.get((row, f"{metric}:effect"))
+        out.at[row, metric] = f"{wrap}{text}{wrap}{' ' + effect if effect else ''}{flag}"
     return out
 
 

@@ -15,12 +15,13 @@ from hnnbench._aggregate import Aggregate, aggregate, headline_metrics
 from hnnbench._families import RANKING_KEY, SCOPE_KEY, Families, families, scope_name
 from hnnbench._record_schema import DEFAULT_TRACK, TRACKS
 from hnnbench._report.markdown import md_code, md_text
-from hnnbench._report.tables import md_table
+from hnnbench._report.tables import effect_text, md_table
 from hnnbench._table import metric_declarations, records_frame
 
 __all__ = ["Verdicts", "aggregate_frame", "aggregate_markdown", "build_verdicts",
-           "left_out_lines", "main_key", "main_scope", "marks_line", "scope_label",
-           "scope_line", "scopes",
+           "findings_lines", "left_out_lines", "main_key", "main_scope", "marks_line",
+           "order_lines",
+           "rank_frame", "rank_left_out_lines", "scope_label", "scope_line", "scopes",
            "supported_lines", "tracks_frame", "tracks_markdown", "tuning_costs"]
 
 
@@ -130,6 +131,69 @@ def scope_label(frame: pd.DataFrame) -> str:
     return scope_name(tuple(_scope_values(frame).iloc[0]))
 
 
+def rank_frame(agg: Aggregate, metrics: Optional[list[str]] = None,
+               key: Optional[Scope] = None) -> pd.DataFrame:
+    """The headline across systems, free of any normalisation: one row per family, its
+    mean rank [interval] of each of ``metrics`` (default: the headline metrics that have
+    one) over the systems every family ran, in the main scope (:func:`main_scope`)."""
+    ranks = main_scope(agg.ranks, key)
+    if ranks.empty:
+        return pd.DataFrame()
+    if metrics is None:
+        metrics = [m for m in headline_metrics() if (ranks["metric"] == m).any()]
+    rows = []
+    for family in dict.fromkeys(ranks["family"]):
+        row: dict[str, str] = {"family": str(family)}
+        for metric in metrics:
+            sel = ranks[(ranks["family"] == family) & (ranks["metric"] == metric)]
+            if sel.empty:
+                row[f"{metric} rank"] = "—"
+                continue
+            r = sel.iloc[0]
+            row[f"{metric} rank"] = (f"{_interval(r['mean_rank'], r['rank_low'], r['rank_high'])}"
+                                     f" (of {int(r['n_families'])}, {int(r['n_systems'])} sys)")
+        rows.append(row)
+    frame = pd.DataFrame(rows)
+    first = f"{metrics[0]} rank" if metrics else None
+    if first is not None and first in frame:
+        order = main_scope(agg.ranks, key)
+        order = order[order["metric"] == metrics[0]].set_index("family")["mean_rank"]
+        frame = frame.assign(_r=[order.get(f, math.inf) for f in frame["family"]]) \
+            .sort_values("_r", kind="stable").drop(columns="_r")
+    return frame.reset_index(drop=True)
+
+
+def rank_left_out_lines(agg: Aggregate, key: Optional[Scope] = None) -> list[str]:
+    """One line per headline metric whose mean rank leaves systems out (some family did
+    not run them): which."""
+    ranks = main_scope(agg.ranks, key)
+    lines = []
+    for metric in [m for m in headline_metrics() if (ranks["metric"] == m).any()]:
+        left = ranks[ranks["metric"] == metric]["left_out"].fillna("").astype(str).iloc[0]
+        if left:
+            names = ", ".join(md_text(x) for x in left.split(";"))
+            lines.append(f"The {md_code(metric)} ranks leave out {names}: not every family "
+                         "ran there (pairs that both ran them count in P(A > B)).")
+    return lines
+
+
+def order_lines(agg: Aggregate, key: Optional[Scope] = None) -> list[str]:
+    """How the secondary view's order (IQM of normalised scores) moves under a second
+    floor, per metric of the main scope."""
+    label = scope_label(main_scope(agg.ranks if not agg.ranks.empty else agg.iqm, key))
+    lines = []
+    for (scope, metric), (main, alt) in agg.orders.items():
+        if scope != label or metric not in headline_metrics():
+            continue
+        moves = [f"{md_text(f)} {main.index(f) + 1} -> {alt.index(f) + 1}"
+                 for f in main if f in alt and main.index(f) != alt.index(f)]
+        said = ", ".join(moves) if moves else "no family moves"
+        lines.append(f"{md_code(metric)}: with the floor at half the best family's mean on "
+                     f"each system instead, the IQM order is {', '.join(map(md_text, alt))} "
+                     f"({said}).")
+    return lines
+
+
 def aggregate_frame(agg: Aggregate, metrics: Optional[list[str]] = None,
                     key: Optional[Scope] = None) -> pd.DataFrame:
     """One row per family: the IQM [interval] of each of ``metrics`` (default: the
@@ -171,6 +235,14 @@ def supported_lines(agg: Aggregate, metrics: Optional[list[str]] = None,
         sel = poi[poi["metric"] == metric]
         iqm = iqm_all[iqm_all["metric"] == metric]
         ranked = list(iqm.sort_values("iqm", ascending=False)["family"]) or order
+        if "claimable" in sel and not sel["claimable"].fillna(False).astype(bool).any():
+            fewest = int(pd.to_numeric(sel["min_seeds"], errors="coerce").min())
+            lines.append(f"- {md_code(metric)}: too few seeds to separate (as few as "
+                         f"{fewest} per system; a claim needs "
+                         f"{stats.MIN_SEPARABLE_SEEDS}).")
+            continue
+        if "claimable" in sel:
+            sel = sel[sel["claimable"].fillna(False).astype(bool)]
         beats = []
         for family in ranked:
             wins = sel[(sel["family"] == family) & (sel["p_low"] > 0.5)]
@@ -213,14 +285,56 @@ def marks_line(fams: Families, metrics: Optional[list[str]] = None,
     seeds = int(pd.to_numeric(board["n_seeds"], errors="coerce").min()) if len(board) else 0
     tail = ""
     if seeds < stats.MIN_SEPARABLE_SEEDS:
-        tail = (f" Rows rest on as few as {seeds} seed(s): the sign test needs "
-                f"{stats.MIN_SEPARABLE_SEEDS} shared seeds to separate anything "
-                f"(its smallest p with {seeds} is {0.5 ** seeds:.3g}).")
+        tail = (f" Rows rest on as few as {seeds} seed(s): too few seeds to separate "
+                f"(the two-sided sign test needs {stats.MIN_SEPARABLE_SEEDS} shared seeds; "
+                f"its smallest p with {seeds} is {min(1.0, 2 * 0.5 ** seeds):.3g}).")
     names = ", ".join(md_code(m) for m in metrics)
     still = (f" In {unbeaten} more, no family beats standing still (nothing marked)."
              if unbeaten else "")
     return (f"Per system ({names}): {best} of {n} cells with a leader have a separated "
             f"best (bold); in {tied} the leaders are tied (italics).{still}{tail}")
+
+
+def findings_lines(fams: Families, key: Optional[Scope] = None) -> list[str]:
+    """One bullet per system with a separated best (the main scope): each best family and
+    its median paired effect over the runner-up [interval], metrics declared on the same
+    evidence (:attr:`hnnbench.Metric.evidence`: the rollout metrics) that agree counted
+    as one finding."""
+    board = main_scope(fams.board, key)
+    if board.empty:
+        return []
+    if "variant" in board:
+        board = board[board["variant"].fillna("").astype(str) == ""]
+    declared = metric_declarations()
+    metrics = [m[: -len("_mark")] for m in board.columns if m.endswith("_mark")
+               and m[: -len("_mark")] in declared]
+    lines = []
+    for system, group in board.groupby("system", sort=False):
+        said: dict[tuple[str, str], list[str]] = {}
+        for metric in metrics:
+            best = group[group[f"{metric}_mark"].fillna("").astype(str) == "best"]
+            if best.empty:
+                continue
+            r = best.iloc[0]
+            decl = declared[metric]
+            effect = ""
+            if f"{metric}_effect" in r and not pd.isna(r[f"{metric}_effect"]):
+                effect = (f" ({effect_text(r[f'{metric}_effect'], decl.scale)} "
+                          f"[{effect_text(r[f'{metric}_effect_low'], decl.scale)}, "
+                          f"{effect_text(r[f'{metric}_effect_high'], decl.scale)}] over "
+                          f"{md_text(r[f'{metric}_effect_vs'])})")
+            group_key = (str(r["family"]), decl.evidence or metric)
+            said.setdefault(group_key, []).append(f"{md_code(metric)}{effect}")
+        if not said:
+            continue
+        parts = []
+        for (family, evidence), items in said.items():
+            joint = " and ".join(items) if len(items) < 3 else \
+                ", ".join(items[:-1]) + f" and {items[-1]}"
+            one = f" (one {evidence} finding)" if len(items) > 1 else ""
+            parts.append(f"{md_text(family)} on {joint}{one}")
+        lines.append(f"- {md_code(str(system))}: best: " + "; ".join(parts) + ".")
+    return lines
 
 
 def left_out_lines(agg: Aggregate, key: Optional[Scope] = None) -> list[str]:
@@ -247,17 +361,31 @@ def aggregate_markdown(verdicts: Verdicts, figure: Optional[str] = None,
     scope = scope_line(verdicts)
     if scope:
         lines += [scope, ""]
-    table = aggregate_frame(agg, key=key) if not agg.empty else pd.DataFrame()
-    if table.empty:
+    ranks = rank_frame(agg, key=key) if not agg.ranks.empty else pd.DataFrame()
+    table = aggregate_frame(agg, key=key) if not agg.iqm.empty else pd.DataFrame()
+    if ranks.empty and table.empty:
         why = agg.note if agg.empty else "no (system, metric) of this scope is normalised"
         lines += [f"No aggregate: {md_text(why or 'nothing to aggregate')}.", ""]
         lines += [*left_out_lines(agg, key)] + [""] * bool(left_out_lines(agg, key))
         lines += [marks_line(verdicts.families, key=key), ""]
         return "\n".join(lines)
-    lines += [stats.aggregate_rule(md_text(agg.baseline or "the baseline")), ""]
-    lines += [md_table(table), ""]
+    if not ranks.empty:
+        lines += [stats.rank_rule(), "", md_table(ranks), ""]
+        lines += [*rank_left_out_lines(agg, key)] + [""] * bool(rank_left_out_lines(agg, key))
     lines += ["What the intervals support:", "", *supported_lines(agg, key=key),
               f"- {marks_line(verdicts.families, key=key)}", ""]
+    found = findings_lines(verdicts.families, key)
+    if found:
+        lines += ["Separated bests per system, with the leader's median paired effect over "
+                  "the runner-up [interval] (×: a factor on a log-scale metric, +: a "
+                  "difference):", "", *found, ""]
+    if not table.empty:
+        lines += ["A second view, which depends on a choice of scale: "
+                  + stats.aggregate_rule(md_text(agg.baseline or "the baseline")), "",
+                  md_table(table), ""]
+        moves = order_lines(agg, key)
+        if moves:
+            lines += ["How its order hangs on the floor: " + " ".join(moves), ""]
     left = left_out_lines(agg, key)
     if left:
         lines += [*left, ""]
@@ -294,7 +422,10 @@ def _leaders(rows: pd.DataFrame, metric: str) -> str:
     best = rows.loc[marks == "best", "family"].astype(str).tolist()
     if best:
         return f"best: {best[0]}"
-    tied_rows = rows[marks == "tied"]
+    few = (marks == "too_few_seeds").any()
+    tied_rows = rows[marks == "tied"] if not few else \
+        rows[pd.to_numeric(rows.get(f"{metric}_mean"), errors="coerce").notna()
+             & rows["ranked"].fillna(True).astype(bool)]
     mean = f"{metric}_mean"
     if mean in tied_rows and len(tied_rows):  # the best mean first
         declared = metric_declarations().get(metric)
@@ -302,6 +433,8 @@ def _leaders(rows: pd.DataFrame, metric: str) -> str:
         tied_rows = tied_rows.assign(_m=pd.to_numeric(tied_rows[mean], errors="coerce"))
         tied_rows = tied_rows.sort_values("_m", ascending=not higher, kind="stable")
     tied = tied_rows["family"].astype(str).tolist()
+    if few:  # no outcome of so few seeds could separate: every family, best mean first
+        return f"too few seeds to separate: {', '.join(tied)}"
     return f"tied: {', '.join(tied)}" if tied else ""
 
 
@@ -338,7 +471,7 @@ def tracks_frame(fams: Families, metrics: Optional[list[str]] = None) -> pd.Data
             continue
         for metric in metrics:
             verdicts = {t: _leaders(group[group["track"] == t], metric) for t in present}
-            said = [v for v in verdicts.values() if v]
+            said = [v for v in verdicts.values() if ": " in v]  # those naming families
             leaders = [_leader_set(v) for v in said]
             changes = any(not (a & b) for i, a in enumerate(leaders) for b in leaders[i + 1:])
             firsts = {v.partition(": ")[2].split(",")[0].strip() for v in said}
@@ -389,9 +522,11 @@ def tracks_markdown(frame: pd.DataFrame, costs: Optional[pd.DataFrame] = None) -
               if c not in ("profile", "system", "metric", "changes", "mean_changes")]
     lines += ["Each cell names the best family, or the families tied for the lead with the "
               "best mean first. A verdict changes between two tracks where their leaders "
-              "have no family in common. A track of 3 seeds never separates its leaders "
-              "(the sign test needs 5 paired seeds: docs/STATISTICS.md), and the recipe "
-              "track ranks only the families that declare a recipe.", ""]
+              f"have no family in common. A track of fewer than "
+              f"{stats.MIN_SEPARABLE_SEEDS} seeds never separates its leaders (\"too few "
+              "seeds to separate\": the two-sided sign test with Holm's correction, "
+              "docs/STATISTICS.md), and the recipe track ranks only the families that "
+              "declare a recipe.", ""]
 
     def said(r: pd.Series) -> str:
         return "; ".join(f"{t} {md_text(str(r[t]))}" for t in tracks if r[t])
