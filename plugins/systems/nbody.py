@@ -194,7 +194,8 @@ class NBodyConfig(SystemConfig):
 
 @dataclass
 class TwoBodyConfig(NBodyConfig):
-    """Paper settings: 1000 orbits x 50 points over [0, 20]; body 1 in [0.5, 1.5]^2."""
+    """Paper settings: 1000 orbits x 50 points over [0, 20]; body 1 in [0.5, 1.5]^2;
+    20000 steps (the paper: 10000)."""
 
     n_bodies: int = 2
     init: str = "2019"
@@ -207,7 +208,10 @@ class TwoBodyConfig(NBodyConfig):
     test_split: float = 0.2
     eval_t_end: float = 25.0
     eval_n_points: int = 500
-    steps: int = 10000
+    #: Twice the paper's 10000: a pilot (two seeds of every family) found most families'
+    #: validation criterion still falling over the last 20 % of 10000 steps (docs/
+    #: SYSTEMS_NBODY.md, "Training budget"); raised for every family alike.
+    steps: int = 20000
     batch_size: int = 200
     weight_decay: float = 0.0
 
