@@ -374,7 +374,7 @@ def test_near_collisions_are_redrawn(monkeypatch):
 def test_paper_defaults_and_profiles():
     two, three = TwoBodyConfig(), ThreeBodyConfig()
     assert (two.n_bodies, two.n_orbits, two.n_points, two.t_end) == (2, 1000, 50, 20.0)
-    assert (two.steps, two.batch_size, two.weight_decay) == (10000, 200, 0.0)
+    assert (two.steps, two.batch_size, two.weight_decay) == (20000, 200, 0.0)  # 2x the paper
     assert (two.eval_n_orbits, two.eval_t_end, two.eval_n_points) == (15, 25.0, 500)
     assert (three.n_bodies, three.n_orbits, three.n_points, three.t_end) == (3, 5000, 20, 5.0)
     assert (three.steps, three.batch_size, three.weight_decay) == (10000, 600, 1e-4)
