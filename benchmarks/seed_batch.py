@@ -1,18 +1,19 @@
 """Seeds trained as one batch against seeds trained one after the other.
 
     python benchmarks/seed_batch.py [--systems two_body real_pendulum] [--steps 1000]
+    python benchmarks/seed_batch.py --seeds 10  # the six JAX twins, 10 seeds (the default)
     python benchmarks/seed_batch.py --jobs      # also whole jobs through the CLI
     python benchmarks/seed_batch.py --ops --models hnn_torch mlp_torch   # ATen calls per step
 
-**Training** (default): for each (system, model), the same three seeds (each its own
-data, initial weights and minibatches, at the system's paper settings, ``--steps``
-steps) are trained (a) by three ``Model.fit`` calls in a row and (b) by one
-``Model.fit_seeds`` call, the batch. Both run once untimed first (JAX compilation, torch
+**Training** (default): for each (system, model), the same ``--seeds`` seeds (10 by
+default, the protocol's seed plan; each its own data, initial weights and minibatches,
+at the system's paper settings, ``--steps`` steps) are trained (a) by that many
+``Model.fit`` calls in a row and (b) by one ``Model.fit_seeds`` call, the batch. Both run once untimed first (JAX compilation, torch
 warm-up), then ``--repeats`` timed rounds, interleaved; the medians give the throughput
 ratio (a) / (b).
 
 **Jobs** (``--jobs``): the whole command a user runs,
-``hnnbench -m system=S model=M seed=0,1,2`` against the same with ``seeds_per_job=3``
+``hnnbench -m system=S model=M seed=0,...,N-1`` against the same with ``seeds_per_job=N``
 (each in a fresh process, caches warm: a warm-up run fills the dataset and JAX
 compilation caches), so data loading, compilation, evaluation and process start-up
 count too.
@@ -44,7 +45,10 @@ from typing import Any
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 TARGET = 2.5
-SEEDS = (0, 1, 2)
+#: The seeds of one pair (``--seeds`` sets it).
+SEEDS: tuple[int, ...] = tuple(range(10))
+#: The JAX twin of every family (the default ``--models``).
+JAX_TWINS = ("mlp_jax", "hnn_jax", "dhnn_jax", "lnn_jax", "so_mlp_jax", "srnn_jax")
 
 
 def _pair(system_name: str, model_name: str) -> tuple[Any, Any, list[Any], Any]:
@@ -65,7 +69,7 @@ def _pair(system_name: str, model_name: str) -> tuple[Any, Any, list[Any], Any]:
 
 def training(system_name: str, model_name: str, steps: int, repeats: int
              ) -> tuple[float, float]:
-    """Median seconds of three separate fits and of one batched fit."""
+    """Median seconds of separate fits of :data:`SEEDS` and of one batched fit."""
     from hnnbench._contract import TrainSettings
 
     job, system, datas, protocol = _pair(system_name, model_name)
@@ -134,16 +138,18 @@ def aten_calls(system_name: str, model_name: str, steps: int = 20
 
 
 def jobs(system_name: str, model_name: str, steps: int) -> tuple[float, float]:
-    """Wall seconds of the CLI sweep of three seeds without and with seeds_per_job=3."""
+    """Wall seconds of the CLI sweep of :data:`SEEDS` without and with them as one job
+    (``seeds_per_job``)."""
     exe = str(Path(sys.executable).parent / "hnnbench")
-    common = ["-m", f"system={system_name}", f"model={model_name}", "seed=0,1,2",
-              f"system.steps={steps}", "device=cpu", "save_model=false"]
+    common = ["-m", f"system={system_name}", f"model={model_name}",
+              f"seed={','.join(map(str, SEEDS))}", f"system.steps={steps}", "device=cpu",
+              "save_model=false"]
     env = {**os.environ, "HNNBENCH_PROGRESS": "off"}
     out: list[float] = []
     with tempfile.TemporaryDirectory() as tmp:
         subprocess.run([exe, *common, f"hydra.sweep.dir={tmp}/warm"], check=True,
                        capture_output=True, env=env)
-        for i, extra in enumerate(([], ["seeds_per_job=3"])):
+        for i, extra in enumerate(([], [f"seeds_per_job={len(SEEDS)}"])):
             start = time.perf_counter()
             subprocess.run([exe, *common, *extra, f"hydra.sweep.dir={tmp}/run{i}"], check=True,
                            capture_output=True, env=env)
@@ -154,14 +160,17 @@ def jobs(system_name: str, model_name: str, steps: int) -> tuple[float, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--systems", nargs="+", default=["two_body", "real_pendulum"])
-    parser.add_argument("--models", nargs="+",
-                        default=["mlp_jax", "hnn_jax", "mlp_torch", "hnn_torch"])
+    parser.add_argument("--models", nargs="+", default=list(JAX_TWINS))
+    parser.add_argument("--seeds", type=int, default=len(SEEDS),
+                        help="seeds of one pair: separate fits against one batch of them")
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--jobs", action="store_true", help="also time whole CLI sweeps")
     parser.add_argument("--ops", action="store_true",
                         help="count ATen calls per step instead (torch models only)")
     args = parser.parse_args()
+    global SEEDS
+    SEEDS = tuple(range(args.seeds))
 
     if args.ops:
         print(f"| system | model | ATen calls per step, 1 seed | {len(SEEDS)} seeds batched "
@@ -183,10 +192,11 @@ def main() -> int:
                 row += jobs(system_name, model_name, args.steps)
             rows.append(row)
             print(f"  measured {system_name} x {model_name}", file=sys.stderr, flush=True)
-    head = "| system | model | 3 fits s | 1 batched fit s | training ratio |"
+    n = len(SEEDS)
+    head = f"| system | model | {n} fits s | 1 batched fit s | training ratio |"
     rule = "|---|---|---|---|---|"
     if args.jobs:
-        head += " 3 jobs s | 1 batched job s | job ratio |"
+        head += f" {n} jobs s | 1 batched job s | job ratio |"
         rule += "---|---|---|"
     print(f"\n{len(SEEDS)} seeds, {args.steps} steps each, paper batch sizes; one core\n")
     print(head)
