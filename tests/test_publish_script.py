@@ -102,8 +102,8 @@ def test_a_new_model_published_with_the_records_keeps_every_figure_and_page(tree
     from hnnbench._report.figures import N_TRAJ_SHOWN, runs_for_figures
     from hnnbench._table import leaderboard
 
-    first = tmp_path / "first"  # the protocol: JAX twins seeds 0-4, torch twins 0-2
-    for model, seeds in (("mlp_jax", 5), ("hnn_jax", 5), ("oracle", 5), ("mlp_torch", 3),
+    first = tmp_path / "first"  # the protocol: JAX twins seeds 0-9, torch twins 0-2
+    for model, seeds in (("mlp_jax", 10), ("hnn_jax", 10), ("oracle", 10), ("mlp_torch", 3),
                          ("hnn_torch", 3)):
         for seed in range(seeds):
             write_run(first, "spring", model, seed, profile="paper")
@@ -114,9 +114,9 @@ def test_a_new_model_published_with_the_records_keeps_every_figure_and_page(tree
                                           ("hnn_jax", "hnn_torch", "mlp_jax", "mlp_torch",
                                            "oracle")]
     families = pd.read_csv(tree / "results" / "families.csv").set_index("family")
-    assert families.loc["hnn", "seeds_from"] == "hnn_jax" and families.loc["hnn", "n_seeds"] == 5
+    assert families.loc["hnn", "seeds_from"] == "hnn_jax" and families.loc["hnn", "n_seeds"] == 10
     assert families.loc["hnn", "twins"] == "hnn_torch agrees (3 seeds)"
-    assert families.loc["hnn", "energy_mse_mark"] == "best"  # better on each of 5 seeds
+    assert families.loc["hnn", "energy_mse_mark"] == "best"  # better on each of 10 seeds
     board = pd.read_csv(tree / "results" / "leaderboard.csv")
     assert {"energy_mse_ci_low", "energy_mse_ci_high", "cpu_s_mean", "reason"} <= set(board)
     aggregate = pd.read_csv(tree / "results" / "aggregate.csv")
@@ -156,3 +156,26 @@ def test_publishing_without_the_published_records_is_refused(tree, tmp_path):
     write_run(new, "spring", "dhnn_jax", 0, profile="paper", rollout=False)
     assert publish_results.main([str(new)]) == 2  # results/records holds hnn_jax: pass it too
     assert not (tree / "results" / "records" / "spring" / "dhnn_jax").exists()
+
+
+def test_a_system_is_replaced_in_one_step(tree, tmp_path):
+    """--replace S: a re-publication of S removes S's published protocol records that
+    the directories given do not hold (another seed plan, a model gone), and nothing
+    else; without records of S in the directories it refuses."""
+    first = tmp_path / "first"
+    for model, seeds in (("hnn_jax", 3), ("mlp_jax", 3)):
+        for seed in range(seeds):
+            write_run(first, "spring", model, seed, profile="paper", rollout=False)
+    write_run(first, "pendulum", "hnn_jax", 0, profile="paper", rollout=False)
+    assert publish_results.copy_records([first]) == 7
+    published = tree / "results" / "records"
+    again = tmp_path / "again"
+    write_run(again, "spring", "hnn_jax", 0, profile="paper", rollout=False)
+    write_run(again, "spring", "mlp_jax", 0, profile="paper", rollout=False)
+    assert publish_results.main([str(again)]) == 2  # the published records not given
+    assert publish_results.main([str(again), "--replace", "pendulum"]) == 2
+    assert publish_results.main([str(again), str(published / "pendulum"),
+                                 "--replace", "spring"]) == 0
+    kept = {(p.parts[-4], p.parts[-3], p.parts[-2]) for p in published.rglob("result.json")}
+    assert kept == {("spring", "hnn_jax", "seed0"), ("spring", "mlp_jax", "seed0"),
+                    ("pendulum", "hnn_jax", "seed0")}
