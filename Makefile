@@ -1,5 +1,5 @@
 # hnnbench: `make benchmark` runs the whole benchmark, `make test` runs the tests.
-# Both set up .venv first (scripts/setup.sh; idempotent).
+# Both set up .venv first (scripts/maintainer/setup.sh; idempotent).
 SHELL := /bin/bash
 VENV := .venv/bin
 # The measured-pendulum data: $HNNBENCH_DATA_DIR, else ../shared/... beside the clone.
@@ -10,7 +10,7 @@ JOBS ?= $(shell env -u OMP_NUM_THREADS nproc 2>/dev/null || echo 1)
 # What `make benchmark` sweeps, e.g. SYSTEMS=spring,pendulum MODELS=hnn_jax,mlp_jax.
 SYSTEMS ?= all
 MODELS ?= all
-# Seeds of `make benchmark` (the committed leaderboard is built by scripts/paper_sweep.sh:
+# Seeds of `make benchmark` (the committed leaderboard is built by scripts/maintainer/paper_sweep.sh:
 # seeds 0-4 of the JAX twins and the oracle, 0-2 of the torch twins).
 SEEDS ?= 0
 PYTEST_ARGS ?=
@@ -20,7 +20,7 @@ PYTEST_ARGS ?=
 	ci-reference guard-reference
 
 setup:
-	@scripts/setup.sh
+	@scripts/maintainer/setup.sh
 
 # Every system x every model, paper settings, seed(s) $(SEEDS); one joblib worker per core.
 # The records are the same as a serial run's (tests/test_launchers.py).
@@ -48,7 +48,7 @@ ci-reference: setup
 	  hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS) hydra.sweep.dir=$(GATE_DIR)/torch
 	$(VENV)/hnnbench check $(GATE_DIR)/jax $(GATE_DIR)/torch \
 	  --reference results/reference/quick.csv --update
-	$(VENV)/python scripts/job_costs.py
+	$(VENV)/python scripts/maintainer/job_costs.py
 
 # The reproduction guard's reference (tests/test_reproduction_guard.py).
 guard-reference: setup
@@ -60,7 +60,7 @@ test: setup
 	$(VENV)/lint-imports
 	$(VENV)/python -m pytest $(PYTEST_ARGS)
 
-# Real one-node Slurm and Ray clusters on this machine (scripts/cluster/, as root:
+# Real one-node Slurm and Ray clusters on this machine (scripts/maintainer/cluster/, as root:
 # installs slurm/munge/MariaDB with apt-get, ray + hydra-ray-launcher into .venv/ray-site).
 # `make test` runs them too (pytest selects every marker).
 test-distributed: setup

@@ -932,7 +932,7 @@ def update_hint(result: CheckResult, reference: Path) -> str:
     the sweep did not run; ``--update`` only where it is safe, i.e. the sweep covers
     every pair of the reference and its records are valid (it would otherwise drop
     rows, or write bad ones); never for a published leaderboard (a ``leaderboard.csv``
-    next to a ``records/`` directory: scripts/publish_results.py rebuilds that)."""
+    next to a ``records/`` directory: scripts/maintainer/publish_results.py rebuilds that)."""
     kinds = {f.check for f in result.regressions}
     if kinds == {"missing"}:
         return (" Every regression is a reference pair this sweep did not run: pass "
@@ -940,7 +940,7 @@ def update_hint(result: CheckResult, reference: Path) -> str:
     published = reference.name == "leaderboard.csv" and (reference.parent / "records").is_dir()
     if published:
         return (" The reference is a published leaderboard: it is rebuilt from records by "
-                "scripts/publish_results.py (docs/LEADERBOARD.md), never by --update.")
+                "scripts/maintainer/publish_results.py (docs/LEADERBOARD.md), never by --update.")
     missing = sum(f.check == "missing" for f in result.regressions)
     if missing:
         return (f" Rewriting the reference from this sweep would not be safe: it would drop "

@@ -2,7 +2,7 @@
 
 ``hnnbench/resources/job_costs.csv`` holds one row per ``(profile, system, model)``:
 the median wall time in seconds of one job (one seed, one core) over the runs it was
-taken from, and where they come from. ``scripts/job_costs.py`` writes it from the
+taken from, and where they come from. ``scripts/maintainer/job_costs.py`` writes it from the
 published records (``results/records``, the paper profile) and the quick profile's CI
 reference (``results/reference/quick.csv``); nobody edits it by hand.
 
@@ -32,7 +32,7 @@ __all__ = ["COLUMNS", "COSTS_FILE", "JobKey", "SweepProgress", "duration_text", 
 
 #: The resource file of job costs (``hnnbench/resources``).
 COSTS_FILE = "job_costs.csv"
-#: Its columns (one declaration; scripts/job_costs.py writes them).
+#: Its columns (one declaration; scripts/maintainer/job_costs.py writes them).
 COLUMNS = ("profile", "system", "model", "seconds", "n_runs", "source")
 
 #: ``(profile, system, model)``.

@@ -6,7 +6,7 @@ record has it, the value a job's record starts with, and what it means. Everythi
 else about the record takes its names from here:
 
 - the JSON Schema (:func:`json_schema`; the shipped ``hnnbench/resources/
-  record.schema.json`` is written from it by ``python scripts/record_schema.py --write``,
+  record.schema.json`` is written from it by ``python scripts/maintainer/record_schema.py --write``,
   and tests/test_records_schema.py fails when the two disagree);
 - a new record (:func:`new_record`, which ``hnnbench._job`` builds every record from);
 - the quick check a loaded record must pass (:func:`shape_problems`; the full schema
@@ -468,7 +468,7 @@ def json_schema() -> dict[str, Any]:
 
 
 #: The shipped JSON Schema, written from :func:`json_schema` by
-#: ``python scripts/record_schema.py --write``.
+#: ``python scripts/maintainer/record_schema.py --write``.
 SCHEMA_FILE = Path(__file__).resolve().parent / "resources" / "record.schema.json"
 
 

@@ -371,7 +371,7 @@ def test_update_is_suggested_only_where_it_is_safe(family_reference, tmp_path, c
     shutil.copy(family_reference, published / "leaderboard.csv")
     assert check.main([str(whole), "--reference", str(published / "leaderboard.csv")]) == 1
     out = capsys.readouterr().out
-    assert "scripts/publish_results.py" in out and "rewrite the reference" not in out
+    assert "scripts/maintainer/publish_results.py" in out and "rewrite the reference" not in out
 
 
 def test_a_reference_interval_column_must_hold_numbers(family_reference, tmp_path):

@@ -13,7 +13,6 @@ from hnnbench._contract import Dataset, Split, TrainSettings
 from hnnbench._datasets import MIN_VALID_TRAJECTORIES, VALID_FRACTION, with_validation
 from hnnbench.neural._loop import train
 
-
 #: Per-point offsets of the scripted criterion: the same at every checkpoint, so two
 #: checkpoints differ by the same amount at every point (paired standard error 0).
 OFFSETS = np.linspace(-0.05, 0.05, 20)

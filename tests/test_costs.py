@@ -15,7 +15,8 @@ from hnnbench import _costs as costs
 
 
 def test_the_committed_job_costs_are_what_the_script_writes():
-    proc = subprocess.run([sys.executable, str(REPO / "scripts" / "job_costs.py"), "--check"],
+    script = REPO / "scripts" / "maintainer" / "job_costs.py"
+    proc = subprocess.run([sys.executable, str(script), "--check"],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     table = costs.load_costs()
@@ -30,7 +31,7 @@ def test_the_committed_job_costs_are_what_the_script_writes():
 def test_the_job_costs_are_the_protocol_tracks_own(tmp_path, monkeypatch):
     """A tuned or recipe record, or a variant, trains other settings: its time is no
     protocol job's."""
-    monkeypatch.syspath_prepend(str(REPO / "scripts"))
+    monkeypatch.syspath_prepend(str(REPO / "scripts" / "maintainer"))
     import job_costs
 
     def write(track, seed, total, *extra):

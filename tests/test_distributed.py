@@ -1,5 +1,5 @@
 """Real clusters on this machine: a one-node Slurm cluster (munge, slurmdbd, slurmctld,
-slurmd) and a local Ray head, brought up by scripts/cluster/ (installing what is
+slurmd) and a local Ray head, brought up by scripts/maintainer/cluster/ (installing what is
 missing), and one small sweep through each launcher, whose records must equal the basic
 launcher's bit for bit (as in tests/test_launchers.py). Also: a Slurm task cancelled
 mid-run (``scancel``) is finished by re-running the sweep, nothing lost, nothing redone.
@@ -25,7 +25,7 @@ from conftest import REPO, hnnbench, sweep_records
 
 pytestmark = [pytest.mark.distributed, pytest.mark.slow]
 
-CLUSTER = REPO / "scripts" / "cluster"
+CLUSTER = REPO / "scripts" / "maintainer" / "cluster"
 #: spring x two JAX models x two seeds: 4 jobs, about 10-20 s each on one core.
 SWEEP = ("-m", "system=spring", "model=hnn_jax,mlp_jax", "profile=quick", "seed=0,1",
          "system.steps=100", "system.eval_t_end=5")
@@ -36,7 +36,7 @@ PARTITION = os.environ.get("HNNBENCH_SLURM_PARTITION", "local")
 SLURM = ("hydra/launcher=submitit_slurm", f"hydra.launcher.partition={PARTITION}",
          "hydra.launcher.timeout_min=15", "hydra.launcher.cpus_per_task=1",
          "hydra.launcher.mem_gb=2", "hydra.launcher.array_parallelism=2")
-#: Ray stays on the loopback address (scripts/cluster/ray.sh).
+#: Ray stays on the loopback address (scripts/maintainer/cluster/ray.sh).
 RAY_ENV = {"RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0", "RAY_USAGE_STATS_ENABLED": "0"}
 
 
@@ -55,8 +55,8 @@ def _last_lines(proc: subprocess.CompletedProcess[str], n: int = 5) -> str:
 def slurm_cluster() -> Any:
     """A one-node Slurm cluster on localhost; stopped afterwards if this started it."""
     if not hasattr(os, "geteuid") or os.geteuid() != 0:
-        pytest.skip("Slurm cluster: needs root (scripts/cluster/slurm.sh installs packages "
-                    "and starts system daemons)")
+        pytest.skip("Slurm cluster: needs root (scripts/maintainer/cluster/slurm.sh installs "
+                    "packages and starts system daemons)")
     if not shutil.which("sbatch") and not shutil.which("apt-get"):
         pytest.skip("Slurm cluster: slurm is not installed and there is no apt-get to install it")
     was_up = _script("slurm.sh", "status").stdout.count(": running") == 5
@@ -134,13 +134,13 @@ def basic(tmp_path_factory: pytest.TempPathFactory) -> Sweep:
 
 
 def _assert_same_as_basic(basic: Sweep, other: Sweep) -> None:
-    """``other``'s records equal ``basic``'s: ``scripts/compare_records.py --rtol 0``
+    """``other``'s records equal ``basic``'s: ``scripts/maintainer/compare_records.py --rtol 0``
     over the metrics, and the data hashes, training curves and weights bit for bit."""
     a, b = basic.records(), other.records()
     assert set(a) == set(b) == KEYS, (set(a), set(b))
-    proc = subprocess.run([sys.executable, str(REPO / "scripts" / "compare_records.py"),
-                           str(basic.dir), str(other.dir), "--rtol", "0",
-                           "--ignore", "command"],
+    script = REPO / "scripts" / "maintainer" / "compare_records.py"
+    proc = subprocess.run([sys.executable, str(script), str(basic.dir), str(other.dir),
+                           "--rtol", "0", "--ignore", "command"],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
     for key in KEYS:
@@ -211,7 +211,7 @@ def test_scancel_mid_run_then_rerun_finishes_every_job_once(slurm_cluster: str,
                 text = log.read_text() if state == "RUNNING" and log.exists() else ""
                 # Mid-run: the task's job has started and written no record yet. At
                 # once: a job takes 15-30 s here, and a cancelled task has KillWait (5 s,
-                # scripts/cluster/slurm.sh) between SIGTERM, which submitit ignores, and
+                # scripts/maintainer/cluster/slurm.sh) between SIGTERM, which submitit ignores, and
                 # SIGKILL, in which it could still finish.
                 started = re.search(r"(\w+) x (\w+) seed=(\d+): start", text)
                 if started:
@@ -268,7 +268,7 @@ def test_scancel_mid_run_then_rerun_finishes_every_job_once(slurm_cluster: str,
 
 def test_ray_sweep_on_a_running_head_equals_the_basic_sweep(ray_head: tuple[str, str],
                                                             basic: Sweep, tmp_path: Path) -> None:
-    """``hydra/launcher=ray`` connecting to the head started by scripts/cluster/ray.sh.
+    """``hydra/launcher=ray`` connecting to the head started by scripts/maintainer/cluster/ray.sh.
     Ray's workers are started by the head, not by ``hnnbench``, so they see neither the
     command's environment nor its launch context: the cache directory travels in Ray's
     ``runtime_env`` and ``pin_cpu=true`` pins each job to one core, as the command's

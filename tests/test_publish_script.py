@@ -1,4 +1,4 @@
-"""scripts/publish_results.py: how sweeps become the committed records."""
+"""scripts/maintainer/publish_results.py: how sweeps become the committed records."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 from conftest import REPO
 from report_fixtures import write_run
 
-sys.path.insert(0, str(REPO / "scripts"))
+sys.path.insert(0, str(REPO / "scripts" / "maintainer"))
 import publish_results  # noqa: E402
 
 

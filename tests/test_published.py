@@ -19,7 +19,7 @@ from hnnbench._table import leaderboard, records_frame
 
 RESULTS = REPO / "results"
 RECORDS = RESULTS / "records"
-sys.path.insert(0, str(REPO / "scripts"))
+sys.path.insert(0, str(REPO / "scripts" / "maintainer"))
 from publish_results import table_and_provenance  # noqa: E402
 
 
@@ -114,7 +114,7 @@ def test_every_published_system_has_every_model_with_its_seeds(board):
                          if ln.startswith(f"- Partly published: `{system}` lacks ")), "")
             assert all(m in line for m in missing), (system, missing, line)
     assert set(board["profile"]) == {"paper"}
-    # Seeds 0..n-1 (scripts/paper_sweep.sh): at least 5 of the JAX twins and the
+    # Seeds 0..n-1 (scripts/maintainer/paper_sweep.sh): at least 5 of the JAX twins and the
     # reference (the family rows rest on them: a sign test over fewer cannot separate at
     # 5%), at least 3 of the torch twins (the twin-parity check) and of a recipe row; a
     # tuned row, at least 5 (docs/TUNING.md: the selected settings on seeds 0 to 4).

@@ -33,7 +33,7 @@ def test_the_shipped_schema_is_written_from_the_definition():
     assert shipped == S.SCHEMA_FILE
     assert shipped.read_text(encoding="utf-8") == S.schema_text(), (
         "hnnbench/resources/record.schema.json differs from hnnbench/_record_schema.py: "
-        "run python scripts/record_schema.py --write")
+        "run python scripts/maintainer/record_schema.py --write")
     schema = records.schema()
     assert schema == S.json_schema()
     assert list(schema["properties"]) == [f.name for f in S.FIELDS]

@@ -1,4 +1,4 @@
-"""scripts/run_2019_code.py: calls the original's train.py per seed and model, parses it.
+"""scripts/analysis/run_2019_code.py: calls the original's train.py per seed and model, parses it.
 
 The original repository cannot be fetched in CI, so a stand-in ``train.py`` with the
 original's command line and final print format takes its place; what is tested is this
@@ -31,7 +31,7 @@ print("Final test loss {:.4e} +/- {:.4e}".format(scale * (a.seed + 2) * 1e-6, 1e
 
 def _script():
     spec = importlib.util.spec_from_file_location(
-        "run_2019_code", ROOT / "scripts/run_2019_code.py"
+        "run_2019_code", ROOT / "scripts/analysis/run_2019_code.py"
     )
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)

@@ -22,7 +22,7 @@ pytest.importorskip("jax")
 
 from hnnbench_plugins.models.hnn import HNNJax  # noqa: E402
 from hnnbench_plugins.models.lnn import LNNJax, LNNTorch  # noqa: E402
-from hnnbench_plugins.models.srnn import SRNNConfig, SRNNJax, SRNNTorch  # noqa: E402
+from hnnbench_plugins.models.srnn import SRNNJax, SRNNTorch  # noqa: E402
 from hnnbench_plugins.systems.double_pendulum import (  # noqa: E402
     DoublePendulum,
     DoublePendulumConfig,

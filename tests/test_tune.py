@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import REPO
 
 import hnnbench
 from hnnbench import _registry as registry
@@ -445,7 +446,7 @@ def test_tune_gives_every_model_the_same_budget_and_selects_on_validation(tmp_pa
     assert "tuned" in ref.read_text().splitlines()[1]
 
     # the cost estimate and the tracks table read the same directory
-    scripts = Path(__file__).resolve().parents[1] / "scripts"
+    scripts = REPO / "scripts" / "analysis"
     costs = subprocess.run([sys.executable, str(scripts / "tuning_costs.py"), str(out),
                             "--trials", "5", "--steps", "100"],
                            capture_output=True, text=True, timeout=600)

@@ -34,7 +34,7 @@ from hnnbench._report.figures import make_figures
 from hnnbench._report.markdown import md_cell, md_code, md_text
 from hnnbench._report.tables import md_table
 
-sys.path.insert(0, str(REPO / "scripts"))
+sys.path.insert(0, str(REPO / "scripts" / "maintainer"))
 import publish_results  # noqa: E402
 
 MARKER = "<!-- leaderboard:end -->"

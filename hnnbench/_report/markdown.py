@@ -6,7 +6,7 @@ plugin through :func:`md_text`: whatever a name, a variant, a command line or a 
 says, it stays inside its cell or line. A line break never starts a new row or line, a
 ``|`` never opens a cell, a backtick never opens or closes a code span, a ``<`` never
 starts raw HTML, and so no text can hold an HTML comment such as the README's
-``<!-- leaderboard:begin -->`` markers (scripts/publish_results.py).
+``<!-- leaderboard:begin -->`` markers (scripts/maintainer/publish_results.py).
 
 Plain text (names, numbers, ``<=``, ``±``) is written as it is.
 """

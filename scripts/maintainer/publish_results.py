@@ -1,6 +1,7 @@
 """Publish paper-profile sweeps as the committed leaderboard.
 
-    python scripts/publish_results.py SWEEP_DIR [SWEEP_DIR ...] [--figure two_body_energy]
+    python scripts/maintainer/publish_results.py SWEEP_DIR [SWEEP_DIR ...] \
+        [--figure two_body_energy]
         [--replace SYSTEM[,SYSTEM]]
 
 1. Copies every ``result.json`` of the sweeps into ``results/records/<system>/<model>/
@@ -44,7 +45,7 @@ import json
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "results"
 RECORDS = RESULTS / "records"
 BEGIN, END = "<!-- {name}:begin -->", "<!-- {name}:end -->"

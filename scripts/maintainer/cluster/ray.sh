@@ -2,12 +2,12 @@
 # A real local Ray cluster (one head node on 127.0.0.1) for tests/test_distributed.py
 # and for trying the Ray launcher by hand (docs/SCALING.md).
 #
-#   scripts/cluster/ray.sh up       install ray + hydra-ray-launcher if missing, start a head
+#   scripts/maintainer/cluster/ray.sh up       install ray + hydra-ray-launcher if missing, start a head
 #                                   node unless one answers; prints its address
-#   scripts/cluster/ray.sh down     stop it (`ray stop`)
-#   scripts/cluster/ray.sh status   `ray status`
-#   scripts/cluster/ray.sh install  only the packages
-#   scripts/cluster/ray.sh site     print the directory to put on PYTHONPATH
+#   scripts/maintainer/cluster/ray.sh down     stop it (`ray stop`)
+#   scripts/maintainer/cluster/ray.sh status   `ray status`
+#   scripts/maintainer/cluster/ray.sh install  only the packages
+#   scripts/maintainer/cluster/ray.sh site     print the directory to put on PYTHONPATH
 #
 #   VENV            the virtualenv whose python runs everything (default: .venv here)
 #   RAY_SITE        where ray and the plugin are installed (default $VENV/ray-site)
@@ -26,7 +26,7 @@
 #   every other command and test run from it.
 # Idempotent: `up` with everything in place returns in a few seconds.
 set -euo pipefail
-cd "$(dirname "$0")/../.."
+cd "$(dirname "$0")/../../.."
 VENV=${VENV:-.venv}
 PY=$VENV/bin/python
 SITE=$(realpath -m "${RAY_SITE:-$VENV/ray-site}")

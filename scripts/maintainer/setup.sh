@@ -7,7 +7,7 @@
 #               for the newest CUDA build; a change of TORCH_SPEC upgrades torch.
 #   PYTHON      interpreter used to create the venv (default python3)
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."
 PYTHON=${PYTHON:-python3}
 TORCH_SPEC=${TORCH_SPEC:-torch==2.13.0}
 stamp=.venv/.hnnbench-setup

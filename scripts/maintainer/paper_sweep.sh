@@ -6,14 +6,14 @@
 #     twin-parity check.
 # Each system gets two sweep directories, ROOT/<system>/jax and ROOT/<system>/torch;
 # re-running the same command skips every finished job (docs/SCALING.md). Publish with
-#   .venv/bin/python scripts/publish_results.py ROOT/SYSTEM/jax ROOT/SYSTEM/torch results/records
+#   .venv/bin/python scripts/maintainer/publish_results.py ROOT/SYSTEM/jax ROOT/SYSTEM/torch results/records
 # (only sweeps not yet published next to results/records: a job given twice is refused)
 #
-#   scripts/paper_sweep.sh SYSTEM[,SYSTEM...] [ROOT]      ROOT default: results/runs/paper
-#   JOBS=2 JAX_SEEDS=5 TORCH_SEEDS=3 scripts/paper_sweep.sh spring
+#   scripts/maintainer/paper_sweep.sh SYSTEM[,SYSTEM...] [ROOT]      ROOT default: results/runs/paper
+#   JOBS=2 JAX_SEEDS=5 TORCH_SEEDS=3 scripts/maintainer/paper_sweep.sh spring
 set -euo pipefail
-cd "$(dirname "$0")/.."
-systems=${1:?usage: scripts/paper_sweep.sh SYSTEM[,SYSTEM...] [ROOT]}
+cd "$(dirname "$0")/../.."
+systems=${1:?usage: scripts/maintainer/paper_sweep.sh SYSTEM[,SYSTEM...] [ROOT]}
 root=${2:-results/runs/paper}
 jobs=${JOBS:-$(env -u OMP_NUM_THREADS nproc 2>/dev/null || echo 1)}
 export HNNBENCH_DATA_DIR="${HNNBENCH_DATA_DIR:-$(cd .. && pwd)/shared/data/schmidt-lipson-2009}"

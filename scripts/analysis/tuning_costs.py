@@ -14,7 +14,7 @@ It is an estimate: no pruning is assumed (successive halving stops most trials a
 or 1/3 of the steps, so the tuning costs less), the per-step cost of the space's mean
 draw stands for every trial, and CPU seconds are one core's.
 
-    python scripts/tuning_costs.py results/runs/tuned_cost --trials 20 --seeds 3
+    python scripts/analysis/tuning_costs.py results/runs/tuned_cost --trials 20 --seeds 3
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 RECORDS = REPO / "results" / "records"
 
 

@@ -9,10 +9,10 @@ sweep's estimate and ETA).
 - quick profile: ``total_s_mean`` of results/reference/quick.csv (the CI gate's seed-0
   sweep).
 
-    python scripts/job_costs.py            # rewrite the file
-    python scripts/job_costs.py --check    # exit 1 when the file is not what it writes
+    python scripts/maintainer/job_costs.py            # rewrite the file
+    python scripts/maintainer/job_costs.py --check    # exit 1 when the file is not what it writes
 
-scripts/publish_results.py and ``make ci-reference`` run it after they write results.
+scripts/maintainer/publish_results.py and ``make ci-reference`` run it after they write results.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 RECORDS = REPO / "results" / "records"
 QUICK = REPO / "results" / "reference" / "quick.csv"
 
@@ -89,8 +89,8 @@ def main(argv: list[str] | None = None) -> int:
     text = render()
     if args.check:
         if not out_path.exists() or out_path.read_text("utf-8") != text:
-            print(f"{out_path.relative_to(REPO)} is out of date: run python scripts/job_costs.py",
-                  file=sys.stderr)
+            print(f"{out_path.relative_to(REPO)} is out of date: run python "
+                  "scripts/maintainer/job_costs.py", file=sys.stderr)
             return 1
         return 0
     out_path.write_text(text, encoding="utf-8")

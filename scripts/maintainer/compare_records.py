@@ -1,7 +1,8 @@
 """Compare two sweeps record by record: every field that says what a job computed, and
 the arrays and weights beside each record.
 
-    python scripts/compare_records.py BEFORE AFTER [--rtol 0] [--metrics a,b] [--metrics-only]
+    python scripts/maintainer/compare_records.py BEFORE AFTER [--rtol 0] [--metrics a,b]
+        [--metrics-only] [--ignore FIELD]
 
 Records are matched on (track, system, model, seed, tuner trial, variant overrides).
 For each pair it compares, and prints every difference it finds:

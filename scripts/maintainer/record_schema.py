@@ -1,6 +1,6 @@
 """Write or check the shipped JSON Schema of the run record.
 
-    python scripts/record_schema.py [--write | --check]
+    python scripts/maintainer/record_schema.py [--write | --check]
 
 The record is defined in ``hnnbench/_record_schema.py``; the JSON Schema
 ``hnnbench/resources/record.schema.json`` is made from that definition. With no option
@@ -24,7 +24,7 @@ def main(argv: list[str]) -> int:
     elif argv == ["--check"]:
         if SCHEMA_FILE.read_text(encoding="utf-8") != text:
             print(f"{SCHEMA_FILE} differs from hnnbench/_record_schema.py: run "
-                  "python scripts/record_schema.py --write", file=sys.stderr)
+                  "python scripts/maintainer/record_schema.py --write", file=sys.stderr)
             return 1
     elif not argv:
         sys.stdout.write(text)

@@ -1,6 +1,6 @@
 """Run the authors' own 2019 n-body experiments side by side with hnnbench's rows.
 
-    python scripts/run_2019_code.py --repo PATH [--experiment 2body|3body]
+    python scripts/analysis/run_2019_code.py --repo PATH [--experiment 2body|3body]
         [--seeds 0 1 2] [--python PYTHON] [--workdir DIR] [--threads 1]
 
 ``PATH`` is a checkout of https://github.com/greydanus/hamiltonian-nn (untouched; this
@@ -37,7 +37,7 @@ from pathlib import Path
 
 from hnnbench._registry import claim_sets
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SYSTEM = {"2body": "two_body", "3body": "three_body"}
 FINAL = re.compile(r"Final (train|test) loss ([0-9.eE+-]+) \+/- ([0-9.eE+-]+)")
 HNNBENCH_MODEL = {"hnn": "hnn_torch", "baseline": "mlp_torch"}

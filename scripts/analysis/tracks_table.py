@@ -2,7 +2,7 @@
 a column per track, and a line per system saying whether the family with the lowest
 (or highest) mean changes between the tracks.
 
-    python scripts/tracks_table.py results/records results/runs/tuned_paper/final \\
+    python scripts/analysis/tracks_table.py results/records results/runs/tuned_paper/final \\
         --metric test_loss --metric energy_mse
 
 Reads the records with ``hnnbench.load`` (several directories merge; the protocol's and

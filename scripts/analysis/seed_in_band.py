@@ -1,7 +1,8 @@
 """Does a new run of one seed land inside a committed leaderboard's mean ± k std?
 
-    python scripts/seed_in_band.py SWEEP [SWEEP ...] --leaderboard results/leaderboard.csv \
-        [--k 3] [--metrics train_loss,test_loss,energy_mse,rollout_mse]
+    python scripts/analysis/seed_in_band.py SWEEP [SWEEP ...] \
+        --leaderboard results/leaderboard.csv [--k 3] \
+        [--metrics train_loss,test_loss,energy_mse,rollout_mse]
 
 For every ``ok`` record of the sweeps whose (profile, system, model) has a row in the
 leaderboard, each metric is one cell: inside when |value - mean| <= k * std (a

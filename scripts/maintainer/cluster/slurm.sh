@@ -2,11 +2,11 @@
 # A real one-node Slurm cluster on this machine, for tests/test_distributed.py and for
 # trying the submitit_slurm launcher by hand (docs/SCALING.md).
 #
-#   scripts/cluster/slurm.sh up       install what is missing, write the config, start
+#   scripts/maintainer/cluster/slurm.sh up       install what is missing, write the config, start
 #                                     what is not running, wait until the node is idle
-#   scripts/cluster/slurm.sh down     stop the daemons this script started (pid files)
-#   scripts/cluster/slurm.sh status   print the daemons' state and `sinfo`
-#   scripts/cluster/slurm.sh install  only the Debian packages
+#   scripts/maintainer/cluster/slurm.sh down     stop the daemons this script started (pid files)
+#   scripts/maintainer/cluster/slurm.sh status   print the daemons' state and `sinfo`
+#   scripts/maintainer/cluster/slurm.sh install  only the Debian packages
 #
 # Needs root and apt-get (Debian/Ubuntu). Works in a container without systemd: every
 # daemon is started directly, and the config uses no cgroups (proctrack/linuxproc,
@@ -24,7 +24,7 @@ set -euo pipefail
 
 PARTITION=${HNNBENCH_SLURM_PARTITION:-local}
 CLUSTER=hnnbench
-MARK="# written by hnnbench scripts/cluster/slurm.sh"
+MARK="# written by hnnbench scripts/maintainer/cluster/slurm.sh"
 CONF_DIR=/etc/slurm
 RUN=/run/slurm
 LOG=/var/log/slurm

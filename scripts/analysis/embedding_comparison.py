@@ -12,7 +12,7 @@ between its ``embedding`` markers.
         model=mlp_jax,hnn_jax,dhnn_jax,lnn_jax,so_mlp_jax seed=0 model.angle_embedding=$e \\
         hydra/launcher=joblib hydra.launcher.n_jobs=2 hydra.sweep.dir=runs/embedding/$e
     done
-    python scripts/embedding_comparison.py runs/embedding [--write]
+    python scripts/analysis/embedding_comparison.py runs/embedding [--write]
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import math
 import sys
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 DOC = REPO / "docs" / "MODELS.md"
 BEGIN, END = "<!-- embedding:begin -->", "<!-- embedding:end -->"
 EMBEDDINGS = ("cos_sin", "wrap", "none")

@@ -2,9 +2,9 @@
 wall time (``timings.total_s``) and CPU time (``timings.cpu_s``, where the record has
 it), as a Markdown table.
 
-    python scripts/job_hours.py                        # results/records, paper profile
-    python scripts/job_hours.py results/runs/<sweep> --profile quick
-    python scripts/job_hours.py --track recipe         # another track's records ('any': all)
+    python scripts/analysis/job_hours.py                  # results/records, paper profile
+    python scripts/analysis/job_hours.py results/runs/<sweep> --profile quick
+    python scripts/analysis/job_hours.py --track recipe   # another track's records ('any': all)
 
 benchmarks/README.md quotes it for the paper sweeps, the old protocol's and the
 re-published one (its first table, "Issue 29's figures"). A record
@@ -22,7 +22,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Optional
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def load(directories: Sequence[Path], profile: Optional[str],
