@@ -50,15 +50,16 @@ SEEDS = (0, 1, 2)
 def _pair(system_name: str, model_name: str) -> tuple[Any, Any, list[Any], Any]:
     """One thread; the composed job, its system, the datasets of ``SEEDS`` (from the
     cache) and the protocol's training settings."""
-    from hnnbench import _cache as cache
-    from hnnbench._config import compose, prepare_job
-    from hnnbench._contract import Dataset, TrainSettings
-    from hnnbench._job import _set_threads
+    from hnnbench._contracts.plugin import Dataset, TrainSettings
+    from hnnbench._running import dataset_cache
+    from hnnbench._running.compose import compose
+    from hnnbench._running.config import prepare_job
+    from hnnbench._running.job import _set_threads
 
     _set_threads(1)
     job = prepare_job(compose([f"system={system_name}", f"model={model_name}"]))
     system = job.system_cls(job.system_cfg)
-    datas = [cache.cached(system, s, "dataset", lambda s=s: system.dataset(s),
+    datas = [dataset_cache.cached(system, s, "dataset", lambda s=s: system.dataset(s),
                           Dataset.load)[0] for s in SEEDS]
     return job, system, datas, TrainSettings.resolve(job.system_cfg, job.model_cfg)
 
@@ -66,7 +67,7 @@ def _pair(system_name: str, model_name: str) -> tuple[Any, Any, list[Any], Any]:
 def training(system_name: str, model_name: str, steps: int, repeats: int
              ) -> tuple[float, float]:
     """Median seconds of three separate fits and of one batched fit."""
-    from hnnbench._contract import TrainSettings
+    from hnnbench._contracts.plugin import TrainSettings
 
     job, system, datas, protocol = _pair(system_name, model_name)
     train = TrainSettings(steps, protocol.batch_size, protocol.lr, protocol.weight_decay)
@@ -99,7 +100,7 @@ def aten_calls(system_name: str, model_name: str, steps: int = 20
 
     from torch.utils._python_dispatch import TorchDispatchMode
 
-    from hnnbench._contract import TrainSettings
+    from hnnbench._contracts.plugin import TrainSettings
 
     class Count(TorchDispatchMode):
         def __init__(self) -> None:

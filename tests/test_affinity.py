@@ -1,4 +1,4 @@
-"""One core per launcher worker (hnnbench._affinity), with real processes and locks."""
+"""One core per launcher worker (hnnbench._running.affinity), with real processes and locks."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ import textwrap
 import pytest
 from conftest import compose_job as compose
 
-from hnnbench import _affinity as affinity
-from hnnbench._job import run_job
+from hnnbench._running import affinity
+from hnnbench._running.job import run_job
 
 pytestmark = pytest.mark.skipif(
     not hasattr(os, "sched_setaffinity") or len(os.sched_getaffinity(0)) < 2,
@@ -25,7 +25,7 @@ CHILD = textwrap.dedent(
     """
     import os, sys, threading
     from pathlib import Path
-    from hnnbench._affinity import claim_core
+    from hnnbench._running.affinity import claim_core
     stop = threading.Event()
     early = threading.Thread(target=stop.wait)
     early.start()
@@ -123,13 +123,13 @@ def test_which_jobs_pin(monkeypatch, tmp_path, cli, overrides, pinned):
     else:
         monkeypatch.delenv(affinity.CLI_ENV, raising=False)
     cfg = compose(["system=spring", "model=oracle", "profile=quick", *overrides])
-    rec = run_job(cfg, tmp_path / "job")
+    rec = run_job(cfg, tmp_path / "job")[0].record
     assert rec["status"] == "ok", rec["error"]
     assert (rec.get("cpu_pin") == 7) is pinned and bool(claims) is pinned
 
 
 def test_the_cli_flag_does_not_outlive_an_in_process_run(monkeypatch, capsys):
-    from hnnbench._cli import run
+    from hnnbench._entry.command import run
 
     monkeypatch.delenv(affinity.CLI_ENV, raising=False)
     assert run(["--cfg", "job", "system=spring", "model=oracle"]) == 0

@@ -12,7 +12,7 @@ from conftest import hnnbench as cli
 from report_fixtures import make_sweep
 
 import hnnbench
-from hnnbench._report import write_report
+from hnnbench._results.report import write_report
 
 QUICK = dict(profile="quick", device="cpu", system__eval_n_traj=3, system__steps=40)
 
@@ -37,20 +37,20 @@ def test_run_writes_the_record_the_cli_writes(tmp_path):
     script = "\n".join([
         "import json, sys, hnnbench",
         f"rec = hnnbench.run('spring', 'hnn_jax', seed=1, out=sys.argv[1], **{QUICK!r})",
-        "print('RECORD ' + json.dumps(hnnbench._records.encode(rec)))",
+        "print('RECORD ' + json.dumps(hnnbench._record.codec.encode(rec)))",
     ])
     api = subprocess.run([sys.executable, "-c", script, str(tmp_path / "api")],
                          capture_output=True, text=True, timeout=600)
     assert api.returncode == 0, api.stderr[-2000:]
     line = next(ln for ln in api.stdout.splitlines() if ln.startswith("RECORD "))
-    rec = hnnbench._records.decode(json.loads(line.removeprefix("RECORD ")))
+    rec = hnnbench._record.codec.decode(json.loads(line.removeprefix("RECORD ")))
     assert rec["status"] == "ok"
     proc = cli("system=spring", "model=hnn_jax", "seed=1", "profile=quick", "device=cpu",
                "system.eval_n_traj=3", "system.steps=40", f"hydra.run.dir={tmp_path / 'cli'}")
     assert proc.returncode == 0, proc.stderr[-2000:]
     on_disk = [json.loads((tmp_path / d / "result.json").read_text()) for d in ("api", "cli")]
-    assert _same(_metrics(rec), _metrics(hnnbench._records.decode(on_disk[0])))
-    assert _same(*(_metrics(hnnbench._records.decode(r)) for r in on_disk))
+    assert _same(_metrics(rec), _metrics(hnnbench._record.codec.decode(on_disk[0])))
+    assert _same(*(_metrics(hnnbench._record.codec.decode(r)) for r in on_disk))
     assert on_disk[0]["config"] == on_disk[1]["config"]
     assert on_disk[0]["command"].startswith("hnnbench system=spring model=hnn_jax seed=1")
 
@@ -65,8 +65,8 @@ def test_sweep_with_a_bad_model_raises_the_typed_one_line_error(tmp_path):
 
 
 def test_overrides_become_hydra_values():
-    from hnnbench._sweep import hydra_value
-    from hnnbench._user_api import _settings
+    from hnnbench._entry.api import _settings
+    from hnnbench._sweeping.overrides import hydra_value
 
     typed, raw = _settings({"model__steps": 5, "device": "cpu", "save_model": False,
                             "cache_dir": None, "model__hidden": "100,200"})
@@ -84,7 +84,7 @@ def test_load_and_leaderboard_read_records_back(tmp_path):
     assert len(frame) == 10 and {"system", "model", "seed", "energy_mse"} <= set(frame.columns)
     board = hnnbench.leaderboard(frame)
     assert len(board) == 5 and (board["n_seeds"] == 2).all()
-    assert board.equals(hnnbench.leaderboard(hnnbench._records.load(sweep).records))
+    assert board.equals(hnnbench.leaderboard(hnnbench._record.loader.load(sweep).records))
     with pytest.raises(hnnbench.HnnbenchError, match="does not exist"):
         hnnbench.load(tmp_path / "nope")
 

@@ -21,9 +21,9 @@ import jax.numpy as jnp  # noqa: E402
 import optax  # noqa: E402
 import torch  # noqa: E402
 
-from hnnbench._contract import Dataset, TrainSettings  # noqa: E402
-from hnnbench._datasets import with_validation  # noqa: E402
-from hnnbench._errors import RolloutDiverged  # noqa: E402
+from hnnbench._contracts.datasets import with_validation  # noqa: E402
+from hnnbench._contracts.errors import RolloutDiverged  # noqa: E402
+from hnnbench._contracts.plugin import Dataset, TrainSettings  # noqa: E402
 from hnnbench.neural import NeuralConfig
 from hnnbench_plugins.models.dhnn import DHNNJax, DHNNTorch  # noqa: E402
 from hnnbench_plugins.models.hnn import HNNJax, HNNTorch  # noqa: E402

@@ -251,7 +251,7 @@ def test_gpu_summaries_are_what_their_committed_records_give(run, tmp_path):
     """benchmarks/README.md's GPU figures: each committed summary.md is what
     ``gpu.py --summarize`` prints from the records beside it (and results/records), and
     every GPU record validates against the record schema."""
-    from hnnbench._record_schema import shape_problems
+    from hnnbench._record.validation import shape_problems
 
     copy = tmp_path / run
     shutil.copytree(GPU_RUNS / run, copy)

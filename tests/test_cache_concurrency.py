@@ -20,8 +20,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from hnnbench import _cache as cache
-from hnnbench._contract import Dataset, Trajectories
+from hnnbench._contracts.plugin import Dataset, Trajectories
+from hnnbench._running import dataset_cache
 
 #: The entries raced for, one race each: (kind, seed).
 RACES = (("dataset", 0), ("evaluation", 0), ("dataset", 1))
@@ -78,7 +78,7 @@ def _race_worker(root: str, start: Any, building: Any, results: Any) -> None:
                 return system.dataset(seed) if kind == "dataset" else system.evaluation(seed)
 
             start.wait(timeout=TIMEOUT_S)
-            value, path, hit = cache.cached(system, seed, kind, build, loader, Path(root))
+            value, path, hit = dataset_cache.cached(system, seed, kind, build, loader, Path(root))
             results.put((os.getpid(), kind, seed, hit, str(path), _digest(value)))
     except BaseException:  # noqa: BLE001 - reported to the parent, which fails the test
         results.put((os.getpid(), "error", traceback.format_exc()))
@@ -150,7 +150,7 @@ def test_two_processes_store_the_same_entry_at_once(tmp_path: Path) -> None:
         assert _digest(loader(Path(path))) == digest
         # A later lookup is a hit and returns it too.
         system = _spring()
-        value, again, hit = cache.cached(system, seed, kind, lambda: pytest.fail("rebuilt"),
+        value, again, hit = dataset_cache.cached(system, seed, kind, lambda: pytest.fail("rebuilt"),
                                          loader, root)
         assert hit and str(again) == path and _digest(value) == digest
 

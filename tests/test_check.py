@@ -10,9 +10,9 @@ import pytest
 from conftest import assert_one_line_error, hnnbench
 from report_fixtures import make_sweep, scale_metric, set_status
 
-from hnnbench import _check as check
-from hnnbench._report import load_sweep
-from hnnbench._table import leaderboard
+from hnnbench._results import check
+from hnnbench._results.leaderboard import leaderboard
+from hnnbench._results.report import load_sweep
 
 
 @pytest.fixture()
@@ -195,7 +195,8 @@ def test_rules_override(ref_sweep, tmp_path, capsys):
 
 
 def test_builtin_rules_cover_every_summary_metric():
-    from hnnbench._table import TIMINGS, summary_metrics
+    from hnnbench._contracts.names import TIMINGS
+    from hnnbench._results.leaderboard import summary_metrics
 
     default, metrics = check.load_rules()
     assert set(summary_metrics()) | set(TIMINGS) <= set(metrics)

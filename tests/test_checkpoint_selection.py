@@ -1,6 +1,6 @@
 """Checkpoint selection in the training loop written once for every backend
 (hnnbench.neural._loop.train), and the validation split it selects on
-(hnnbench._datasets.with_validation)."""
+(hnnbench._contracts.datasets.with_validation)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from hnnbench._contract import Dataset, Split, TrainSettings
-from hnnbench._datasets import MIN_VALID_TRAJECTORIES, VALID_FRACTION, with_validation
+from hnnbench._contracts.datasets import MIN_VALID_TRAJECTORIES, VALID_FRACTION, with_validation
+from hnnbench._contracts.plugin import Dataset, Split, TrainSettings
 from hnnbench.neural._loop import train
 
 #: Per-point offsets of the scripted criterion: the same at every checkpoint, so two

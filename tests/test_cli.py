@@ -7,7 +7,7 @@ import json
 import pytest
 from conftest import assert_one_line_error, hnnbench
 
-from hnnbench._sweep import plan
+from hnnbench._sweeping.plan import plan
 
 
 def test_list_names_builtins():

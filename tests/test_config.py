@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 from conftest import compose_job as compose
 
-from hnnbench._config import prepare_job
-from hnnbench._contract import TrainSettings
-from hnnbench._errors import ConfigError
+from hnnbench._contracts.errors import ConfigError
+from hnnbench._contracts.plugin import TrainSettings
+from hnnbench._running.config import prepare_job
 
 
 def test_defaults_are_paper_settings():
@@ -69,8 +69,8 @@ def test_bad_overrides_fail_at_compose(override, needle):
 
 
 def test_job_directory_names_leave_out_exactly_the_run_only_keys():
-    from hnnbench._records import RUN_ONLY_KEYS
-    from hnnbench._table import NON_VARIANT_KEYS
+    from hnnbench._results.leaderboard import NON_VARIANT_KEYS
+    from hnnbench._running.config import RUN_ONLY_KEYS
 
     cfg = compose([], return_hydra_config=True)
     excluded = set(cfg.hydra.job.config.override_dirname.exclude_keys)

@@ -1,4 +1,4 @@
-"""The sweep's estimate and ETA (hnnbench._costs) and the job-cost table it reads."""
+"""The sweep's estimate and ETA (hnnbench._sweeping.eta) and the job-cost table it reads."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from pathlib import Path
 
 from conftest import REPO
 
-from hnnbench import _costs as costs
+from hnnbench._sweeping import eta
 
 
 def test_the_committed_job_costs_are_what_the_script_writes():
@@ -19,7 +19,7 @@ def test_the_committed_job_costs_are_what_the_script_writes():
     proc = subprocess.run([sys.executable, str(script), "--check"],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
-    table = costs.load_costs()
+    table = eta.load_costs()
     records = (json.loads(path.read_text("utf-8"))
                for path in (REPO / "results" / "records").rglob("result.json"))
     published = {(rec["system"], rec["model"]) for rec in records if not rec.get("variant")}
@@ -55,32 +55,32 @@ def test_the_job_costs_are_the_protocol_tracks_own(tmp_path, monkeypatch):
 def test_a_broken_cost_file_gives_no_estimate(tmp_path):
     bad = tmp_path / "costs.csv"
     bad.write_text("profile,system\nx,y\n")
-    assert costs.load_costs(bad) == {}
-    assert costs.load_costs(tmp_path / "missing.csv") == {}
+    assert eta.load_costs(bad) == {}
+    assert eta.load_costs(tmp_path / "missing.csv") == {}
 
 
 def test_job_key_and_durations():
-    assert costs.job_key(["system=spring", "model=hnn_jax", "seed=1"], "paper") == (
+    assert eta.job_key(["system=spring", "model=hnn_jax", "seed=1"], "paper") == (
         "paper", "spring", "hnn_jax")
-    assert costs.job_key(["profile=quick", "system=a", "model=b"], "paper") == ("quick", "a", "b")
-    assert costs.job_key(["seed=1"], "paper") is None
+    assert eta.job_key(["profile=quick", "system=a", "model=b"], "paper") == ("quick", "a", "b")
+    assert eta.job_key(["seed=1"], "paper") is None
     # the published costs are the protocol's: a recipe job's is not known
-    assert costs.job_key(["system=a", "model=b", "track=recipe"], "paper") is None
-    assert costs.job_key(["system=a", "model=b", "track=protocol"], "paper") == (
+    assert eta.job_key(["system=a", "model=b", "track=recipe"], "paper") is None
+    assert eta.job_key(["system=a", "model=b", "track=protocol"], "paper") == (
         "paper", "a", "b")
-    assert [costs.duration_text(s) for s in (3, 600, 3 * 3600 + 300)] == [
+    assert [eta.duration_text(s) for s in (3, 600, 3 * 3600 + 300)] == [
         "3 s", "10 min", "3 h 05 min"]
-    assert costs.duration_text(80 * 60) == "80 min"
+    assert eta.duration_text(80 * 60) == "80 min"
 
 
 def test_estimate_line_counts_what_is_known():
     table = {("paper", "s", "a"): 3600.0, ("paper", "s", "b"): 1800.0}
     keys = [("paper", "s", "a"), ("paper", "s", "b"), ("paper", "s", "c"), None]
-    line = costs.estimate_line(keys, table, workers=2)
+    line = eta.estimate_line(keys, table, workers=2)
     assert line is not None
     assert "took 1 h 30 min of job time (about 45 min on 2 workers)" in line
     assert "2 job(s) have no published run" in line
-    assert costs.estimate_line([("paper", "s", "c")], table, workers=2) is None
+    assert eta.estimate_line([("paper", "s", "c")], table, workers=2) is None
 
 
 def _record(directory: Path, job: str) -> None:
@@ -95,7 +95,7 @@ def test_progress_counts_new_records_and_scales_the_eta(tmp_path):
     table = {("paper", "s", "a"): 10.0, ("paper", "s", "b"): 30.0}
     _record(tmp_path, "s/a/seed0")  # kept from an earlier run
     out = io.StringIO()
-    progress = costs.SweepProgress(tmp_path, default_profile="paper", costs=table,
+    progress = eta.SweepProgress(tmp_path, default_profile="paper", costs=table,
                                    every_s=0.05, out=out)
     jobs = [["system=s", f"model={m}", f"seed={k}"] for m in ("a", "b") for k in (0, 1)]
     progress.add(jobs)
@@ -117,7 +117,7 @@ def test_progress_counts_the_jobs_of_another_track(tmp_path):
     so the ETA is the mean time per finished job)."""
     table = {("paper", "s", "a"): 10.0}
     out = io.StringIO()
-    progress = costs.SweepProgress(tmp_path, default_profile="paper", costs=table,
+    progress = eta.SweepProgress(tmp_path, default_profile="paper", costs=table,
                                    every_s=0.05, out=out)
     progress.add([["system=s", "model=a", "track=recipe", f"seed={k}"] for k in (0, 1)])
     _record(tmp_path, "s/a/seed0")
@@ -140,7 +140,7 @@ def test_progress_calls_on_new_when_records_arrive_and_survives_its_errors(tmp_p
         raise OSError("disk full")
 
     out = io.StringIO()
-    progress = costs.SweepProgress(tmp_path, default_profile="paper", costs={},
+    progress = eta.SweepProgress(tmp_path, default_profile="paper", costs={},
                                    every_s=0.02, out=out, on_new=on_new, on_new_every_s=0.0)
     progress.add([["system=s", "model=a", "seed=0"], ["system=s", "model=a", "seed=1"]])
     time.sleep(0.2)
@@ -169,6 +169,6 @@ def test_a_sweep_prints_its_estimate_and_progress(tmp_path):
 
 
 def test_a_jobs_directory_whatever_its_track():
-    assert costs.job_directory(["system=s", "model=m", "+seed=3", "track=tuned"]) == "s/m/seed3"
-    assert costs.job_directory(["system=s", "model=m"]) == "s/m/seed0"  # the default seed
-    assert costs.job_directory(["seed=1"]) is None
+    assert eta.job_directory(["system=s", "model=m", "+seed=3", "track=tuned"]) == "s/m/seed3"
+    assert eta.job_directory(["system=s", "model=m"]) == "s/m/seed0"  # the default seed
+    assert eta.job_directory(["seed=1"]) is None

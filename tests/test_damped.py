@@ -8,9 +8,9 @@ from importlib.metadata import entry_points
 import numpy as np
 import pytest
 
-from hnnbench._errors import ConfigError
-from hnnbench._integrate import solve_batch
-from hnnbench._kinematics import LinearKinematics
+from hnnbench._contracts.errors import ConfigError
+from hnnbench._contracts.integrate import solve_batch
+from hnnbench._contracts.kinematics import LinearKinematics
 from hnnbench_plugins.systems.damped import (
     DEFAULT_DAMPING,
     DampedPendulum,

@@ -16,8 +16,8 @@ from pathlib import Path
 import pytest
 from conftest import shared_data_dir
 
-from hnnbench import _data as data
-from hnnbench._errors import DataError
+from hnnbench._contracts import data_files as data
+from hnnbench._contracts.errors import DataError
 
 FILENAME = "real_pend_h_1.txt"
 SHA256 = "45d92988198b89a5933f5a53e67aa819d06937516f71a462ac09e1307d8b3411"
@@ -175,7 +175,7 @@ def test_download_times_out_instead_of_hanging(tmp_path):
 
 def test_module_imports_no_backend():
     code = (
-        "import sys, hnnbench._data; "
+        "import sys, hnnbench._contracts.data_files; "
         "bad = [m for m in ('torch', 'jax') if m in sys.modules]; "
         "assert not bad, bad"
     )

@@ -1,4 +1,4 @@
-"""The dataset helper for systems (hnnbench._datasets): seed streams, the trajectory split
+"""The dataset helper for systems (hnnbench._contracts.datasets): seed streams, the trajectory split
 rule and trajectory_dataset."""
 
 from __future__ import annotations

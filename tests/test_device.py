@@ -1,5 +1,5 @@
 """The ``device`` setting, read the same way by the job's validation and both backends
-(hnnbench._device), and the JAX backend's GPU compilation setting. These run on a CPU;
+(hnnbench._contracts.device), and the JAX backend's GPU compilation setting. These run on a CPU;
 the GPU path itself was measured with benchmarks/gpu.py (docs/SCALING.md, "GPUs")."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import os
 
 import pytest
 
-from hnnbench._device import device_request, gpu_device
-from hnnbench._errors import ConfigError
+from hnnbench._contracts.device import device_request, gpu_device
+from hnnbench._contracts.errors import ConfigError
 
 
 @pytest.mark.parametrize(
@@ -24,7 +24,7 @@ def test_device_request_accepts_the_documented_spellings(text, expected):
 @pytest.mark.parametrize(
     "text", ["tpu", "gpu", "CUDA", " cpu", "cuda:x", "cuda:-1", "cuda:", "cuda:²", "cpu:0", ""])
 def test_device_request_rejects_anything_else_in_one_line(text):
-    """As the job's validation does (hnnbench._config.validate_run calls it)."""
+    """As the job's validation does (hnnbench._running.config.validate_run calls it)."""
     with pytest.raises(ConfigError, match="expected auto, cpu, cuda or cuda:N") as err:
         device_request(text)
     assert "\n" not in str(err.value)

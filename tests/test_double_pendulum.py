@@ -9,8 +9,8 @@ from importlib.metadata import entry_points
 import numpy as np
 import pytest
 
-from hnnbench._errors import ConfigError
-from hnnbench._kinematics import MassMatrixKinematics
+from hnnbench._contracts.errors import ConfigError
+from hnnbench._contracts.kinematics import MassMatrixKinematics
 from hnnbench_plugins.systems import double_pendulum as dp
 from hnnbench_plugins.systems.double_pendulum import (
     LYAPUNOV_TIME,

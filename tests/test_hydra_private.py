@@ -1,4 +1,4 @@
-"""Pins the private Hydra API that hnnbench/_hydra.py wraps (the only module that
+"""Pins the private Hydra API that hnnbench/hydra_private.py wraps (the only module that
 touches it). A Hydra upgrade that moves or changes these fails here, by name."""
 
 from __future__ import annotations
@@ -8,13 +8,12 @@ import os
 
 import pytest
 
-from hnnbench import _hydra
-from hnnbench import _launch as launch
-from hnnbench._errors import HnnbenchError
+from hnnbench._contracts.errors import HnnbenchError
+from hnnbench._running import hydra_private, launch_context
 
 
 def test_args_parser_is_hydras_with_its_flags():
-    parser = _hydra.args_parser()
+    parser = hydra_private.args_parser()
     ns = parser.parse_intermixed_args(["-m", "seed=0,1", "--config-dir", "/tmp", "a=b"])
     assert ns.multirun is True
     assert ns.config_dir == "/tmp"
@@ -28,13 +27,13 @@ def test_run_and_report_is_the_hook_hydra_main_reports_through():
     import hydra._internal.utils as hydra_utils
 
     original = hydra_utils.run_and_report
-    with _hydra.one_line_errors(lambda err: f"one line: {err}"):
+    with hydra_private.one_line_errors(lambda err: f"one line: {err}"):
         assert hydra_utils.run_and_report is not original
         with pytest.raises(HnnbenchError, match="^one line: boom$"):
             hydra_utils.run_and_report(lambda: (_ for _ in ()).throw(ValueError("boom")))
         assert hydra_utils.run_and_report(lambda: 3) == 3
     assert hydra_utils.run_and_report is original
-    with _hydra.one_line_errors(str, enabled=False):
+    with hydra_private.one_line_errors(str, enabled=False):
         assert hydra_utils.run_and_report is original
 
 
@@ -49,7 +48,7 @@ def test_hydra_main_reports_composition_errors_through_run_and_report(tmp_path, 
     monkeypatch.setattr(sys, "argv", ["hnnbench"])
     app = hydra.main(version_base="1.3", config_path=str(tmp_path), config_name="config")(
         lambda cfg: None)
-    with _hydra.one_line_errors(lambda err: "composition failed"):
+    with hydra_private.one_line_errors(lambda err: "composition failed"):
         with pytest.raises(HnnbenchError, match="^composition failed$"):
             app()
     with pytest.raises(SystemExit):  # Hydra's own reporting, unpatched
@@ -66,30 +65,30 @@ def test_group_lister_sees_an_extra_search_path(tmp_path):
     GlobalHydra.instance().clear()
     with initialize_config_module("hnnbench_conf", version_base="1.3"):
         loader = GlobalHydra.instance().config_loader()
-        groups, options = _hydra.group_lister(loader, [])
+        groups, options = hydra_private.group_lister(loader, [])
         assert "launcher" in groups("hydra")
         assert "basic" in options("hydra/launcher")
         assert "my_cluster" not in options("hydra/launcher")
-        groups, options = _hydra.group_lister(loader, [f"file://{tmp_path}"])
+        groups, options = hydra_private.group_lister(loader, [f"file://{tmp_path}"])
         assert "my_cluster" in options("hydra/launcher") and "basic" in options("hydra/launcher")
     GlobalHydra.instance().clear()
 
 
 def test_launch_context_is_set_for_a_command_and_restored(monkeypatch):
-    monkeypatch.delenv(launch.ENV, raising=False)
-    assert launch.current() is None
-    ctx = launch.LaunchContext(command="hnnbench -m x=1", n_jobs=3, cli_pid=42)
-    with launch.launched(ctx):
-        assert launch.current() == ctx
-        inner = launch.LaunchContext(command="hnnbench y=2")
-        with launch.launched(inner):
-            assert launch.current() == inner
-        assert launch.current() == ctx
-    assert launch.current() is None
-    monkeypatch.setenv(launch.ENV, "not json")  # set by hand: still "started by the CLI"
-    assert launch.current() == launch.LaunchContext()
-    monkeypatch.setenv(launch.ENV, json.dumps({"n_jobs": 5}))
-    assert launch.current() == launch.LaunchContext(n_jobs=5)
+    monkeypatch.delenv(launch_context.ENV, raising=False)
+    assert launch_context.current() is None
+    ctx = launch_context.LaunchContext(command="hnnbench -m x=1", n_jobs=3, cli_pid=42)
+    with launch_context.launched(ctx):
+        assert launch_context.current() == ctx
+        inner = launch_context.LaunchContext(command="hnnbench y=2")
+        with launch_context.launched(inner):
+            assert launch_context.current() == inner
+        assert launch_context.current() == ctx
+    assert launch_context.current() is None
+    monkeypatch.setenv(launch_context.ENV, "not json")  # set by hand: still "started by the CLI"
+    assert launch_context.current() == launch_context.LaunchContext()
+    monkeypatch.setenv(launch_context.ENV, json.dumps({"n_jobs": 5}))
+    assert launch_context.current() == launch_context.LaunchContext(n_jobs=5)
 
 
 def test_a_job_is_abandoned_only_when_its_command_on_this_host_has_gone(monkeypatch):
@@ -97,17 +96,18 @@ def test_a_job_is_abandoned_only_when_its_command_on_this_host_has_gone(monkeypa
     import subprocess
     import sys
 
-    monkeypatch.delenv(launch.ENV, raising=False)
-    assert not launch.abandoned()  # not started by a command
+    monkeypatch.delenv(launch_context.ENV, raising=False)
+    assert not launch_context.abandoned()  # not started by a command
     gone = subprocess.Popen([sys.executable, "-c", "pass"])
     gone.wait()  # reaped: its pid names no process now
     here = socket.gethostname()
-    with launch.launched(launch.LaunchContext(cli_pid=gone.pid, host=here)):
-        assert launch.abandoned()
-    with launch.launched(launch.LaunchContext(cli_pid=gone.pid, host=here + "-other")):
-        assert not launch.abandoned()  # another host's pid says nothing here
-    with launch.launched(launch.LaunchContext(cli_pid=gone.pid)):
-        assert not launch.abandoned()  # host unknown
+    with launch_context.launched(launch_context.LaunchContext(cli_pid=gone.pid, host=here)):
+        assert launch_context.abandoned()
+    other = launch_context.LaunchContext(cli_pid=gone.pid, host=here + "-other")
+    with launch_context.launched(other):
+        assert not launch_context.abandoned()  # another host's pid says nothing here
+    with launch_context.launched(launch_context.LaunchContext(cli_pid=gone.pid)):
+        assert not launch_context.abandoned()  # host unknown
     for alive in (os.getpid(), os.getppid()):
-        with launch.launched(launch.LaunchContext(cli_pid=alive, host=here)):
-            assert not launch.abandoned()
+        with launch_context.launched(launch_context.LaunchContext(cli_pid=alive, host=here)):
+            assert not launch_context.abandoned()

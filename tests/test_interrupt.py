@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from hnnbench import _records as records
+from hnnbench import _record as records
 
 pytestmark = pytest.mark.slow
 

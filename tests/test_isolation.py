@@ -22,9 +22,13 @@ import pytest
 from conftest import hnnbench, install_test_package
 
 import hnnbench as hb
-from hnnbench import _cli, _job, _registry, _sweep
-from hnnbench._config import compose
-from hnnbench._errors import ConfigError, HnnbenchError, JobTimeout
+from hnnbench import _registry
+from hnnbench._contracts.errors import ConfigError, HnnbenchError, JobTimeout
+from hnnbench._entry import command
+from hnnbench._running import job
+from hnnbench._running.compose import compose
+from hnnbench._sweeping.lock import LOCK_NAME, sweep_lock
+from hnnbench._sweeping.plan import plan
 
 QUICK = ("profile=quick",)
 
@@ -140,11 +144,11 @@ def test_a_config_raising_at_job_start_fails_in_one_line_naming_the_plugin(regis
         Config = PickyConfig
 
     registered("model", "picky_model", Picky)
-    status = _cli.run(["system=spring", "model=picky_model", "model.hidden=7", *QUICK,
+    status = command.run(["system=spring", "model=picky_model", "model.hidden=7", *QUICK,
                        f"hydra.run.dir={tmp_path / 'run'}"])
     assert status == 2
     cfg = compose(["system=spring", "model=picky_model", "model.hidden=7", *QUICK])
-    record = _job.run_job(cfg, tmp_path / "job")
+    record = job.run_job(cfg, tmp_path / "job")[0].record
     assert record["status"] == "failed"
     assert "picky_model" in record["error"] and "SystemExit: seven" in record["error"]
 
@@ -187,7 +191,7 @@ def test_a_sweep_whose_every_job_failed_exits_nonzero(registered, tmp_path, caps
             sys.exit(4)
 
     registered("model", "exits_inproc", Exits)
-    status = _cli.run(["-m", "system=spring", "model=exits_inproc", "seed=0,1", *QUICK,
+    status = command.run(["-m", "system=spring", "model=exits_inproc", "seed=0,1", *QUICK,
                        f"hydra.sweep.dir={tmp_path / 'sweep'}"])
     err = capsys.readouterr().err
     assert status == 1
@@ -199,20 +203,20 @@ def test_resumed_sweep_reports_kept_and_other_settings_fail(tmp_path, capsys):
     sweep = tmp_path / "sweep"
     args = ["-m", "system=spring", "model=oracle", "seed=0", *QUICK,
             f"hydra.sweep.dir={sweep}"]
-    assert _cli.run(args) == 0
+    assert command.run(args) == 0
     assert _last_line(capsys.readouterr().err) == "hnnbench: 1 job(s): 1 ok"
-    assert _cli.run([*args[:-2], "seed=0,1", *args[-2:]]) == 0
+    assert command.run([*args[:-2], "seed=0,1", *args[-2:]]) == 0
     out, err = capsys.readouterr()
     assert _last_line(err) == "hnnbench: 1 job(s): 1 ok; 1 kept from an earlier run"
     assert "this run: 1 jobs: 1 ok; 1 kept from an earlier run" in out
     # other settings into the same job directory: not the earlier record's "ok"
     paper = [a for a in args if a != "profile=quick"]
-    assert _cli.run(paper) == 1
+    assert command.run(paper) == 1
     out, err = capsys.readouterr()
     assert _last_line(err).startswith("hnnbench: 1 failed of 1 job(s)")
     assert "this run: 1 jobs: 1 failed; 2 records in the directory in all" in out
     # other settings in a job directory of their own: the earlier ones are not this run's
-    assert _cli.run([*args, "system.eval_n_traj=3"]) == 0
+    assert command.run([*args, "system.eval_n_traj=3"]) == 0
     out, err = capsys.readouterr()
     assert "this run: 1 jobs: 1 ok; 3 records in the directory in all" in out
 
@@ -234,13 +238,13 @@ def test_time_limit_restores_an_outer_timer():
     previous = signal.signal(signal.SIGALRM, lambda *a: fired.append(1))
     try:
         signal.setitimer(signal.ITIMER_REAL, 30.0)
-        with pytest.raises(JobTimeout), _job.time_limit(0.2):
+        with pytest.raises(JobTimeout), job.time_limit(0.2):
             while True:
                 pass
         remaining, _ = signal.getitimer(signal.ITIMER_REAL)
         assert 25 < remaining <= 30
         assert signal.getsignal(signal.SIGALRM) is not None and not fired
-        with _job.time_limit(0) as limited:
+        with job.time_limit(0) as limited:
             assert not limited
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
@@ -249,7 +253,7 @@ def test_time_limit_restores_an_outer_timer():
 
 def test_timeout_s_is_validated():
     with pytest.raises(ConfigError, match=r"timeout_s=-1(\.0)? is invalid"):
-        _sweep.plan(["system=spring", "model=oracle", "timeout_s=-1"])
+        plan(["system=spring", "model=oracle", "timeout_s=-1"])
     cfg = compose(["system=spring", "model=oracle"])
     assert cfg.timeout_s == 21600
     assert compose(["system=spring", "model=oracle", *QUICK]).timeout_s == 1200
@@ -266,12 +270,12 @@ def test_a_metric_that_raises(registered, tmp_path, monkeypatch):
     registered("metric", "boom_metric", hb.Metric(name="boom_metric", description="x",
                                                   compute=boom))
     cfg = compose(["system=spring", "model=oracle", *QUICK])
-    record = _job.run_job(cfg, tmp_path / "a")
+    record = job.run_job(cfg, tmp_path / "a")[0].record
     assert record["status"] == "ok"
     assert record["metric_errors"] == {"boom_metric": "SystemExit: metric exits"}
     registered("metric", "boom_fatal", hb.Metric(name="boom_fatal", description="x",
                                                  compute=boom, errors_fail_job=True))
-    record = _job.run_job(cfg, tmp_path / "b")
+    record = job.run_job(cfg, tmp_path / "b")[0].record
     assert record["status"] == "failed" and record["error"] == "SystemExit: metric exits"
 
 
@@ -286,7 +290,7 @@ def test_a_second_sweep_into_a_busy_directory_fails_naming_the_holder(bad_env, t
         cwd=tmp_path, env={**os.environ, **bad_env}, stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL, start_new_session=True)
     try:
-        lock = sweep / _sweep.LOCK_NAME
+        lock = sweep / LOCK_NAME
         deadline = time.monotonic() + 120
         while not (lock.is_file() and lock.read_text().strip()):
             assert first.poll() is None and time.monotonic() < deadline
@@ -309,13 +313,13 @@ def test_a_second_sweep_into_a_busy_directory_fails_naming_the_holder(bad_env, t
 
 
 def test_the_lock_is_held_for_the_sweep_and_released(tmp_path):
-    with _sweep.sweep_lock(tmp_path, "hnnbench -m x"):
-        holder = json.loads((tmp_path / _sweep.LOCK_NAME).read_text())
+    with sweep_lock(tmp_path, "hnnbench -m x"):
+        holder = json.loads((tmp_path / LOCK_NAME).read_text())
         assert holder["pid"] == os.getpid() and holder["command"] == "hnnbench -m x"
         with pytest.raises(HnnbenchError, match=f"pid {os.getpid()} on .*: hnnbench -m x"), \
-                _sweep.sweep_lock(tmp_path):
+                sweep_lock(tmp_path):
             pass
-    with _sweep.sweep_lock(tmp_path):
+    with sweep_lock(tmp_path):
         pass
 
 
@@ -333,8 +337,8 @@ def test_experimental_rerun_is_refused_and_never_unpickled(tmp_path, capsys):
 
     payload.write_bytes(pickle.dumps(Evil()))
     with pytest.raises(ConfigError, match="unpickles the file"):
-        _sweep.plan(["--experimental-rerun", str(payload)])
-    assert _cli.run(["--experimental-rerun", str(payload)]) == 2
+        plan(["--experimental-rerun", str(payload)])
+    assert command.run(["--experimental-rerun", str(payload)]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "hnnbench check DIR --rerun" in err
     assert not marker.exists()

@@ -15,8 +15,8 @@ pytest.importorskip("equinox")
 pytest.importorskip("optax")
 pytest.importorskip("diffrax")
 
-from hnnbench._contract import Dataset, TrainSettings  # noqa: E402
-from hnnbench._errors import ConfigError, RolloutDiverged  # noqa: E402
+from hnnbench._contracts.errors import ConfigError, RolloutDiverged  # noqa: E402
+from hnnbench._contracts.plugin import Dataset, TrainSettings  # noqa: E402
 from hnnbench.neural import NeuralConfig
 from hnnbench.neural._init import mlp_shapes  # noqa: E402
 from hnnbench.neural.jax import _gpus  # noqa: E402
@@ -275,7 +275,7 @@ def test_auto_and_invalid_device(spring):
 def test_missing_jax_gives_install_hint():
     code = (
         "import sys; sys.modules['jax'] = None\n"
-        "from hnnbench._errors import BackendMissingError\n"
+        "from hnnbench._contracts.errors import BackendMissingError\n"
         "from hnnbench.neural import NeuralConfig\n"
         "from hnnbench_plugins.models.mlp import MLPJax\n"
         "from hnnbench_plugins.systems.spring import Spring, SpringConfig\n"

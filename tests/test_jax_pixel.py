@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hnnbench._contract import TrainSettings
-from hnnbench._datasets import with_validation
+from hnnbench._contracts.datasets import with_validation
+from hnnbench._contracts.plugin import TrainSettings
 from hnnbench_plugins.systems.pixel_pendulum import PixelPendulum, PixelPendulumConfig
 
 pytest.importorskip("jax")
@@ -107,12 +107,12 @@ def test_jax_pixel_save_load_round_trip(tiny, tmp_path, name):
 def test_jax_pixel_end_to_end(tmp_path):
     from conftest import compose_job as compose
 
-    from hnnbench._job import run_job
+    from hnnbench._running.job import run_job
 
     # the fixture's data, network and chunk shapes: the compiled steps and solver are reused
     overrides = ["system=pixel_pendulum", "model=hnn_jax", "profile=quick", "system.steps=21",
                  "system.n_traj=10", "system.n_frames=8", "system.eval_n_traj=3",
                  "system.eval_n_points=6", "system.batch_size=16", "model.hidden=16",
                  "model.log_every=3", "device=cpu"]
-    record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)
+    record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)[0].record
     assert record["status"] == "ok", record

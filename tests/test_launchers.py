@@ -28,11 +28,11 @@ pytestmark = pytest.mark.slow
 SWEEP = ("-m", "system=spring,pendulum", "model=mlp_torch,hnn_torch,hnn_jax", "profile=quick",
          "seed=0", "system.steps=100", "system.eval_t_end=5")
 #: hnn_jax is in because XLA's results depend on its thread count: every launcher's jobs
-#: pin their process to one core (hnnbench._affinity), so XLA runs one thread everywhere.
+#: pin their process to one core (hnnbench._running.affinity), so XLA runs one thread everywhere.
 KEYS = {(s, m, 0) for s in ("spring", "pendulum") for m in ("mlp_torch", "hnn_torch", "hnn_jax")}
 N = len(KEYS)
 #: Relative tolerance of the metric comparison: none. Every job evaluates on arrays
-#: as loaded from the dataset cache, whoever built them (hnnbench._cache.cached).
+#: as loaded from the dataset cache, whoever built them (hnnbench._running.dataset_cache.cached).
 RTOL = 0.0
 LAUNCHERS: dict[str, tuple[str, ...]] = {
     "basic": (),
@@ -96,7 +96,7 @@ def test_sweep_completes_with_summary(sweeps: Sweeps, launcher: str) -> None:
         assert rec["status"] == "ok", (launcher, key, rec["error"])
         assert set(rec["timings"]) >= {"data_s", "fit_s", "eval_s", "total_s", "cpu_s"}
         assert rec["timings"]["cpu_s"] > 0
-    # Every launcher's jobs pin their process to a core (hnnbench._affinity).
+    # Every launcher's jobs pin their process to a core (hnnbench._running.affinity).
     pins = {rec.get("cpu_pin") for rec in recs.values()}
     if hasattr(os, "sched_getaffinity") and len(os.sched_getaffinity(0)) > 1:
         assert None not in pins and pins <= set(os.sched_getaffinity(0)), pins
@@ -132,7 +132,7 @@ def test_launchers_reproduce_the_basic_sweep(sweeps: Sweeps, launcher: str) -> N
     Two things make that hold: every job evaluates on arrays as loaded from the dataset
     cache, whichever job built them (a freshly built array can be a transposed view, and
     numpy sums in memory order), and every job's process is pinned to one core, so XLA
-    runs one thread whatever the launcher (hnnbench._affinity).
+    runs one thread whatever the launcher (hnnbench._running.affinity).
     """
     _assert_same_records(sweeps, launcher, KEYS)
 
@@ -249,7 +249,7 @@ def _grow_by(megabytes: int, limit_mb: str | None) -> int:
     default)."""
     import time
 
-    from hnnbench._sweep import WORKER_GROWTH_ENV, set_worker_growth
+    from hnnbench._sweeping.loky import WORKER_GROWTH_ENV, set_worker_growth
 
     if limit_mb is not None:
         os.environ[WORKER_GROWTH_ENV] = limit_mb
@@ -289,13 +289,13 @@ def test_a_joblib_worker_is_not_replaced_for_the_memory_a_few_jobs_keep(limit_mb
                                              ("lots", 2_000_000_000)])
 def test_the_worker_growth_setting_is_read_in_megabytes_and_a_bad_one_is_one_line(
         monkeypatch, caplog, text, limit):
-    from hnnbench import _sweep
+    from hnnbench._sweeping import loky
 
-    monkeypatch.setenv(_sweep.WORKER_GROWTH_ENV, text)
-    monkeypatch.setattr(_sweep, "_growth_warned", False)
-    assert _sweep.worker_growth() == limit
-    assert _sweep.worker_growth() == limit
-    warned = [r.getMessage() for r in caplog.records if _sweep.WORKER_GROWTH_ENV in r.getMessage()]
+    monkeypatch.setenv(loky.WORKER_GROWTH_ENV, text)
+    monkeypatch.setattr(loky, "_growth_warned", False)
+    assert loky.worker_growth() == limit
+    assert loky.worker_growth() == limit
+    warned = [r.getMessage() for r in caplog.records if loky.WORKER_GROWTH_ENV in r.getMessage()]
     assert len(warned) == (text not in ("", "300"))  # once, however many jobs ask
     if warned:
         assert "expected a whole number of megabytes" in warned[0]

@@ -1,14 +1,15 @@
-"""The core's structure: layers that import only downward (import-linter, run by
-``make test`` too), no import cycle, a core that names no built-in plugin, one sweep
-path whose jobs each compose their config once, and the 0.2 module names as shims."""
+"""The core's structure: one folder per layer, layers that import only downward
+(import-linter, run by ``make test`` too), no import cycle, a core that names no
+built-in plugin, and one sweep path whose jobs each compose and validate their config
+once."""
 
 from __future__ import annotations
 
 import ast
+import os
 import shutil
 import subprocess
 import sys
-import warnings
 from pathlib import Path
 
 import pytest
@@ -30,11 +31,33 @@ def test_the_layer_and_cycle_contracts_hold():
     assert "2 kept, 0 broken" in proc.stdout
 
 
+#: hnnbench/'s entries besides the layers' packages.
+NOT_LAYERS = {"__init__.py", "py.typed", "resources", "__pycache__"}
+
+
+def test_every_module_is_in_a_layer_folder():
+    """``ls hnnbench`` shows the layers: each folder is one layer of the contract (or
+    ``neural``, the public namespace beside the registry), and no module sits loose."""
+    import tomllib
+
+    config = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["importlinter"]
+    (layers,) = [c["layers"] for c in config["contracts"] if c["type"] == "layers"]
+    declared = {name.strip() for layer in layers for name in layer.split("|")}
+    present = {p.name for p in (REPO / "hnnbench").iterdir()} - NOT_LAYERS
+    assert present == declared, (present ^ declared)
+    assert all((REPO / "hnnbench" / name).is_dir() for name in present)
+
+
 @pytest.mark.parametrize("module, planted, broken", [
     # a contract (metric) importing an entry point, inside a function
-    ("_metric.py", "def _planted():\n    from hnnbench import _cli  # noqa\n", "Layers"),
+    ("_contracts/metric.py",
+     "def _planted():\n    from hnnbench._entry import command  # noqa\n", "Layers"),
+    # the record importing the job that writes it: running is above the record
+    ("_record/store.py",
+     "def _planted():\n    from hnnbench._running import job  # noqa\n", "Layers"),
     # two running modules importing each other: a cycle within a layer
-    ("_records.py", "def _planted():\n    from hnnbench import _job  # noqa\n", "cycles"),
+    ("_running/dataset_cache.py",
+     "def _planted():\n    from hnnbench._running import job  # noqa\n", "cycles"),
 ])
 def test_a_planted_import_breaks_a_contract(module, planted, broken, tmp_path):
     """The contracts are not vacuous: an upward import, or a cycle, fails them."""
@@ -78,11 +101,11 @@ def test_the_core_names_no_builtin_plugin():
     claim set (examples in docstrings are fine); the shipped config chooses none."""
     names = _builtin_names()
     assert {"spring", "hnn_torch", "test_loss", "energy_mse"} <= names
-    from hnnbench._contract import HISTORY_TRAIN, HISTORY_VALID
+    from hnnbench._contracts.plugin import HISTORY_TRAIN, HISTORY_VALID
 
     # The training log's column names, declared once in the plugin contract, coincide
     # with two loss metrics' names (records keep them): the one allowed place.
-    allowed = {("_contract.py", HISTORY_TRAIN), ("_contract.py", HISTORY_VALID)}
+    allowed = {("plugin.py", HISTORY_TRAIN), ("plugin.py", HISTORY_VALID)}
     found = []
     for path in sorted((REPO / "hnnbench").rglob("*.py")):
         for line, text in _code_strings(path):
@@ -106,18 +129,24 @@ def test_a_command_without_a_plugin_is_one_line(tmp_path):
     assert_one_line_error(hnnbench("system=spring", cwd=tmp_path), "no model chosen")
 
 
-def test_a_job_composes_its_config_once(tmp_path, monkeypatch):
-    """A sweep of N jobs composes N job configs plus a constant (the plan's, Hydra's
-    mode probe, the sweep's base), never N per validation pass; the plugins' configs
-    are registered once per profile."""
+def test_a_job_composes_and_validates_its_config_once(tmp_path, monkeypatch):
+    """A sweep of N jobs composes N job configs plus a constant (the plan's check of the
+    command line, Hydra's mode probe, the sweep's base), never N per validation pass,
+    and validates each job's config once (the plan's validation is the in-process job's);
+    the plugins' configs are registered once per profile; under the basic launcher the
+    launch context is never put into the environment."""
     from hydra._internal import config_loader_impl
 
     from hnnbench import _registry as registry
-    from hnnbench import _sweep
+    from hnnbench._running import config, launch_context
+    from hnnbench._sweeping.execution import execute
 
-    counts = {"compose": 0, "plugin_configs": 0}
+    counts = {"compose": 0, "plugin_configs": 0, "validate": 0}
     compose = config_loader_impl.ConfigLoaderImpl.load_configuration
     defaults = registry.config_defaults
+    validate = config.validate_run
+    exported = launch_context.exported
+    environments: list[object] = []
 
     def counting_compose(self, *args, **kwargs):
         counts["compose"] += 1
@@ -127,19 +156,32 @@ def test_a_job_composes_its_config_once(tmp_path, monkeypatch):
         counts["plugin_configs"] += 1
         return defaults(*args, **kwargs)
 
+    def counting_validate(*args, **kwargs):
+        counts["validate"] += 1
+        return validate(*args, **kwargs)
+
+    def spying_export(context):
+        environments.append(context)
+        return exported(context)
+
     monkeypatch.setattr(config_loader_impl.ConfigLoaderImpl, "load_configuration",
                         counting_compose)
     monkeypatch.setattr(registry, "config_defaults", counting_defaults)
+    monkeypatch.setattr(config, "validate_run", counting_validate)
+    monkeypatch.setattr(launch_context, "exported", spying_export)
     registry.refresh()
-    result = _sweep.execute(["-m", "system=spring", "model=oracle", "seed=0,1,2,3",
-                             "profile=quick", "pin_cpu=false", f"hydra.sweep.dir={tmp_path}"])
+    argv = ["-m", "system=spring", "model=oracle", "seed=0,1,2,3", "profile=quick",
+            "pin_cpu=false", f"hydra.sweep.dir={tmp_path}"]
+    result = execute(argv)
     assert len(result.records) == 4 and not any(result.kept)
     assert counts["compose"] == 4 + 3, counts
+    assert counts["validate"] == 4, counts
     n_plugins = len(registry.available("system")) + len(registry.available("model"))
     assert counts["plugin_configs"] == n_plugins, counts
+    assert environments == [None]
+    assert launch_context.ENV not in os.environ
     # The same sweep again: every job kept, and said so.
-    again = _sweep.execute(["-m", "system=spring", "model=oracle", "seed=0,1,2,3",
-                            "profile=quick", "pin_cpu=false", f"hydra.sweep.dir={tmp_path}"])
+    again = execute(argv)
     assert sorted(r["seed"] for r in again.records) == [0, 1, 2, 3] and all(again.kept)
 
 
@@ -148,37 +190,22 @@ def test_a_swept_group_takes_overrides_of_its_keys(tmp_path):
     chosen by default, ``system.eval_t_end=2`` would not compose there. The plan pins
     the swept group to its first value for that config, and every job still gets its
     own value and the override (its directory named as before)."""
-    from hnnbench import _sweep
+    from hnnbench._sweeping.execution import execute
+    from hnnbench._sweeping.plan import plan
 
     argv = ["-m", "system=spring,pendulum", "model=oracle", "profile=quick", "seed=0",
             "system.eval_t_end=2", "pin_cpu=false", f"hydra.sweep.dir={tmp_path}"]
-    checked = _sweep.plan(argv)
+    checked = plan(argv)
     assert checked.pinned == {"system=spring": "system=spring,pendulum"}
     assert "system=spring" in checked.hydra_argv and "system=spring,pendulum" in checked.argv
-    result = _sweep.execute(argv)
+    result = execute(argv)
     got = {(r["system"], r["config"]["system"]["eval_t_end"]) for r in result.records}
     assert got == {("spring", 2), ("pendulum", 2)}, got
     for system in ("spring", "pendulum"):
         assert (tmp_path / system / "oracle" / "seed0" / "system.eval_t_end=2"
                 / "result.json").is_file()
     # Nothing is pinned where nothing needs it.
-    assert not _sweep.plan(["-m", "system=spring,pendulum", "model=oracle"]).pinned
-
-
-def test_old_module_names_still_import_with_a_warning():
-    import hnnbench
-
-    for old, name in (("api", "System"), ("metric", "Metric"), ("records", "RECORD_NAME"),
-                      ("neural.model", "NeuralModel")):
-        sys.modules.pop(f"hnnbench.{old}", None)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            module = __import__(f"hnnbench.{old}", fromlist=[name])
-            value = getattr(module, name)
-        assert value is not None
-        assert any(issubclass(w.category, DeprecationWarning) and f"hnnbench.{old}"
-                   in str(w.message) for w in caught), old
-    assert hnnbench.System.__module__ == "hnnbench._contract"
+    assert not plan(["-m", "system=spring,pendulum", "model=oracle"]).pinned
 
 
 def test_plugins_import_only_the_public_surface():
@@ -205,13 +232,13 @@ def test_without_torch_model_all_runs_every_jax_model_and_the_oracle(tmp_path):
             "        if name.split('.')[0] == 'torch':\n"
             "            raise ModuleNotFoundError(f'No module named {name!r}', name=name)\n"
             "sys.meta_path.insert(0, NoTorch())\n"
-            "from hnnbench._cli import run\n"
+            "from hnnbench._entry.command import run\n"
             "sys.exit(run(sys.argv[1:]))\n")
     proc = subprocess.run(
         [sys.executable, "-c", code, "-m", "system=spring", "model=all", "profile=quick",
          f"hydra.sweep.dir={tmp_path}"], capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    from hnnbench._records import load_records
+    from hnnbench._record.loader import load_records
 
     models = {r["model"]: r["status"] for r in load_records(tmp_path)}
     assert models and not any(m.endswith("_torch") for m in models), models

@@ -10,9 +10,10 @@ import pytest
 
 NO_BACKEND = """
 import sys
-from hnnbench import _cli as cli, _registry as registry
-from hnnbench._config import compose
-from hnnbench._config import prepare_job
+from hnnbench import _registry as registry
+from hnnbench._entry import command as cli
+from hnnbench._running.compose import compose
+from hnnbench._running.config import prepare_job
 cli.cmd_list([])
 for model in registry.available("model"):
     prepare_job(compose(["system=spring", f"model={model}"]))
@@ -22,11 +23,11 @@ print("IMPORTED", "torch" in sys.modules, "jax" in sys.modules)
 
 JOB = """
 import sys, pathlib
-from hnnbench._config import compose
-from hnnbench._job import run_job
+from hnnbench._running.compose import compose
+from hnnbench._running.job import run_job
 overrides = ["system=spring", "model={model}", "profile=quick", "system.steps=10",
              "device=cpu", "save_model=false", "system.eval_n_points=10"]
-record = run_job(compose(overrides), pathlib.Path(sys.argv[1]), overrides=overrides)
+record = run_job(compose(overrides), pathlib.Path(sys.argv[1]), overrides=overrides)[0].record
 print("IMPORTED", record["status"], "torch" in sys.modules, "jax" in sys.modules)
 """
 
@@ -47,7 +48,7 @@ def test_reporting_imports_no_backend(tmp_path):
     from report_fixtures import make_sweep
 
     sweep = make_sweep(tmp_path / "sweep")
-    code = ("import sys\nfrom hnnbench._report import write_report\n"
+    code = ("import sys\nfrom hnnbench._results.report import write_report\n"
             f"write_report({str(sweep)!r}, {str(tmp_path / 'out')!r})\n"
             "print('IMPORTED', 'torch' in sys.modules, 'jax' in sys.modules)\n")
     assert _imported(code) == ["False", "False"]

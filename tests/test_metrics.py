@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from hnnbench._integrate import solve_batch
+from hnnbench._contracts.integrate import solve_batch
 from hnnbench_plugins import metrics as M
 
 
@@ -51,9 +51,9 @@ def test_reference_solver_closes_a_spring_period():
 
 
 def test_a_metric_that_raises_is_recorded_unless_it_declares_errors_fail_job():
-    from hnnbench._contract import Trajectories
-    from hnnbench._evaluate import evaluate
-    from hnnbench._metric import Metric
+    from hnnbench._contracts.metric import Metric
+    from hnnbench._contracts.plugin import Trajectories
+    from hnnbench._running.evaluation import evaluate
 
     def broken(ctx):
         raise ValueError("a bug")

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import rebound
 
-from hnnbench._errors import ConfigError, DataError
+from hnnbench._contracts.errors import ConfigError, DataError
 from hnnbench_plugins.systems import nbody
 from hnnbench_plugins.systems.nbody import (
     NBody,

@@ -1,5 +1,5 @@
 """Model outputs are checked against their documented shapes and dtypes before the
-evaluation uses them (hnnbench._outputs): a rollout of the wrong shape used to broadcast
+evaluation uses them (hnnbench._contracts.outputs): a rollout of the wrong shape used to broadcast
 against the true trajectories and score; now the job is ``failed`` with one line naming
 the method, the expected and the actual shape."""
 
@@ -10,11 +10,11 @@ import pytest
 
 import hnnbench
 from hnnbench import _registry as registry
-from hnnbench._config import compose
-from hnnbench._errors import ModelOutputError
-from hnnbench._job import run_job
-from hnnbench._metric import EvalContext, EvaluationConfig
-from hnnbench._outputs import checked, checked_scalar
+from hnnbench._contracts.errors import ModelOutputError
+from hnnbench._contracts.metric import EvalContext, EvaluationConfig
+from hnnbench._contracts.outputs import checked, checked_scalar
+from hnnbench._running.compose import compose
+from hnnbench._running.job import run_job
 
 
 class _Truth(hnnbench.Model):
@@ -55,7 +55,7 @@ def one_step_model():
 def test_a_rollout_of_the_wrong_shape_fails_the_job_in_one_line(one_step_model, tmp_path):
     overrides = ["system=spring", f"model={one_step_model}", "profile=quick",
                  "save_model=false", "pin_cpu=false"]
-    record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)
+    record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)[0].record
     assert record["status"] == "failed", record
     error = record["error"]
     assert "\n" not in error and "traceback" not in record

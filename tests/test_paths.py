@@ -1,4 +1,4 @@
-"""hnnbench._paths: the cache root and data directories (override > environment >
+"""hnnbench._contracts.paths: the cache root and data directories (override > environment >
 default), the overrides reaching every cache, and the one SHA-256 helper."""
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ import platformdirs
 import pytest
 from conftest import shared_data_dir
 
-from hnnbench import _cache as cache
-from hnnbench import _data as data
-from hnnbench import _paths as paths
+from hnnbench._contracts import data_files as data
+from hnnbench._contracts import paths
+from hnnbench._running import dataset_cache
 
 FILENAME = "real_pend_h_1.txt"
 SHA256 = "45d92988198b89a5933f5a53e67aa819d06937516f71a462ac09e1307d8b3411"
@@ -59,9 +59,9 @@ def test_cache_layout_follows_the_root(tmp_path):
         assert paths.dataset_cache_dir() == tmp_path / "datasets"
         assert paths.data_cache_dir() == data.cache_dir() == tmp_path / "data"
         assert paths.jax_compilation_cache_dir() == tmp_path / "jax-compilation"
-        assert cache.cache_root() == tmp_path
-        assert cache.cache_root(str(tmp_path / "x")) == tmp_path / "x"  # one call only
-    assert cache.cache_root() == paths.cache_root()
+        assert dataset_cache.cache_root() == tmp_path
+        assert dataset_cache.cache_root(str(tmp_path / "x")) == tmp_path / "x"  # one call only
+    assert dataset_cache.cache_root() == paths.cache_root()
 
 
 def test_override_none_or_blank_changes_nothing(monkeypatch, tmp_path):
@@ -123,7 +123,7 @@ def test_sha256_file_equals_hashlib(tmp_path, size):
     expected = hashlib.sha256(blob).hexdigest()
     assert paths.sha256_file(path) == paths.sha256_file(str(path)) == expected
     # One helper, whichever module a caller reaches it through.
-    assert cache.file_sha256 is paths.sha256_file and data.sha256_file is paths.sha256_file
+    assert dataset_cache.file_sha256 is paths.sha256_file and data.sha256_file is paths.sha256_file
 
 
 # ------------------------------------------------------------------ overrides reach caches
@@ -147,13 +147,14 @@ def test_override_reaches_dataset_cache(monkeypatch, tmp_path):
     monkeypatch.setenv(paths.CACHE_ENV, str(tmp_path / "env"))
     system = SimpleNamespace(name="fake", version=1, cfg=SimpleNamespace(data_fields=dict))
     with paths.cache_root_override(tmp_path / "job"):
-        value, path, hit = cache.cached(system, 0, "dataset", lambda: _Blob(b"x"), _Blob.load)
+        value, path, hit = dataset_cache.cached(system, 0, "dataset", lambda: _Blob(b"x"),
+                                                _Blob.load)
     assert not hit and value.payload == b"x"
     assert path.parent == tmp_path / "job" / "datasets" / "fake"
     assert not (tmp_path / "env").exists()
     # An explicit root still wins over the ambient one (the concurrency test passes one).
     with paths.cache_root_override(tmp_path / "job"):
-        _, path, hit = cache.cached(system, 0, "dataset", lambda: _Blob(b"y"), _Blob.load,
+        _, path, hit = dataset_cache.cached(system, 0, "dataset", lambda: _Blob(b"y"), _Blob.load,
                                     tmp_path / "root")
     assert not hit and path.parent == tmp_path / "root" / "datasets" / "fake"
 
@@ -186,7 +187,7 @@ def test_job_settings_reach_data_and_dataset_caches(tmp_path, tmp_path_factory):
     """A job's cache_dir and data_dir settings move every cache it uses."""
     from conftest import compose_job as compose
 
-    from hnnbench._job import run_job
+    from hnnbench._running.job import run_job
 
     site = _fakeplug.install(tmp_path_factory.mktemp("fakeplug"))
     _fakeplug.activate(site)
@@ -194,7 +195,7 @@ def test_job_settings_reach_data_and_dataset_caches(tmp_path, tmp_path_factory):
         job_cache = tmp_path / "job-cache"
         cfg = compose(["profile=quick", "system=real_pendulum", "model=crash_model",
                        f"cache_dir={job_cache}", f"data_dir={SOURCE.parent}"])
-        record = run_job(cfg, tmp_path / "job")
+        record = run_job(cfg, tmp_path / "job")[0].record
     finally:
         _fakeplug.deactivate(site)
     # The data were found through data_dir and cached under cache_dir; then the model
@@ -211,7 +212,7 @@ def test_paths_and_data_import_nothing_heavy():
     pooch or requests (pooch is imported on the first download)."""
     code = (
         "import sys, hnnbench; before = set(sys.modules); "
-        "import hnnbench._paths, hnnbench._data; "
+        "import hnnbench._contracts.paths, hnnbench._contracts.data_files; "
         "new = {m.split('.')[0] for m in set(sys.modules) - before}; "
         "bad = new & {'numpy', 'torch', 'jax', 'pooch', 'requests', 'platformdirs'}; "
         "assert not bad, bad"

@@ -7,9 +7,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hnnbench._contract import TrainSettings
-from hnnbench._datasets import with_validation
-from hnnbench._errors import ConfigError
+from hnnbench._contracts.datasets import with_validation
+from hnnbench._contracts.errors import ConfigError
+from hnnbench._contracts.plugin import TrainSettings
 from hnnbench_plugins.systems.pendulum import Pendulum, PendulumConfig
 from hnnbench_plugins.systems.pixel_pendulum import (
     PixelPendulum,

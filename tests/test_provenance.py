@@ -1,5 +1,5 @@
 """``hnnbench check`` verifies what a record says about itself instead of reading it
-(hnnbench._provenance, issue #28): the variant comes from the stored config against the
+(hnnbench._results.provenance, issue #28): the variant comes from the stored config against the
 profile's defaults, ``--rerun`` ignores the record's run-only settings and compares the
 data hashes with the canonical ones, plugin versions and packages are compared with the
 installed ones (null is a mismatch), and metric or timing keys named like a table column
@@ -15,22 +15,23 @@ from pathlib import Path
 
 import pytest
 
-from hnnbench import _check as check
-from hnnbench import _records as records
+from hnnbench import _record as records
 from hnnbench import _registry as registry
-from hnnbench._cache import cached
-from hnnbench._config import compose, prepare_job
-from hnnbench._contract import Dataset
-from hnnbench._errors import HnnbenchError
-from hnnbench._job import run_job
-from hnnbench._paths import sha256_file
+from hnnbench._contracts.errors import HnnbenchError
+from hnnbench._contracts.paths import sha256_file
+from hnnbench._contracts.plugin import Dataset
+from hnnbench._results import check
+from hnnbench._running.compose import compose
+from hnnbench._running.config import prepare_job
+from hnnbench._running.dataset_cache import cached
+from hnnbench._running.job import run_job
 
 JOB = ["system=spring", "model=oracle", "profile=quick"]
 
 
 def _run(directory: Path, *extra: str) -> dict:
     overrides = [*JOB, "pin_cpu=false", *extra]
-    record = run_job(compose(overrides), directory, overrides=overrides)
+    record = run_job(compose(overrides), directory, overrides=overrides)[0].record
     assert record["status"] == "ok", record.get("error")
     return record
 
@@ -140,7 +141,7 @@ def test_a_trained_model_of_another_width_is_not_the_main_row(tmp_path, capsys):
     """The issue's case on a trained model: config.model.hidden changed, no override."""
     job = ["system=spring", "model=mlp_torch", "profile=quick", "pin_cpu=false"]
     directory = tmp_path / "sweep" / "spring" / "mlp_torch" / "seed0"
-    assert run_job(compose(job), directory, overrides=job)["status"] == "ok"
+    assert run_job(compose(job), directory, overrides=job)[0].record["status"] == "ok"
     reference = _reference(tmp_path / "sweep", tmp_path)
     path = _edit(tmp_path / "sweep", lambda r: r["config"]["model"].update(hidden=32))
     capsys.readouterr()

@@ -98,9 +98,9 @@ def tree(tmp_path, monkeypatch):
 def test_a_new_model_published_with_the_records_keeps_every_figure_and_page(tree, tmp_path):
     """docs/LEADERBOARD.md, followed literally: the published records (with their small
     figure rollouts) and a new model's sweep, published together."""
-    from hnnbench import _records as records
-    from hnnbench._report.figures import N_TRAJ_SHOWN, runs_for_figures
-    from hnnbench._table import leaderboard
+    from hnnbench import _record as records
+    from hnnbench._results.leaderboard import leaderboard
+    from hnnbench._results.report.figures import N_TRAJ_SHOWN, runs_for_figures
 
     first = tmp_path / "first"  # the protocol: JAX twins seeds 0-4, torch twins 0-2
     for model, seeds in (("mlp_jax", 5), ("hnn_jax", 5), ("oracle", 5), ("mlp_torch", 3),

@@ -12,10 +12,10 @@ import pandas as pd
 import pytest
 from conftest import REPO, hnnbench
 
-from hnnbench import _records as records
-from hnnbench._families import families
-from hnnbench._registry import available
-from hnnbench._table import leaderboard, records_frame
+from hnnbench import _record as records
+from hnnbench._registry.groups import available
+from hnnbench._results.families import families
+from hnnbench._results.leaderboard import leaderboard, records_frame
 
 RESULTS = REPO / "results"
 RECORDS = RESULTS / "records"
@@ -93,7 +93,7 @@ def test_the_family_table_and_the_aggregate_are_those_of_the_committed_records(r
 
 def test_the_readme_sets_the_tracks_of_the_committed_records_side_by_side(rebuilt,
                                                                          committed):
-    from hnnbench._report.verdicts import tracks_frame, tracks_markdown, tuning_costs
+    from hnnbench._results.report.verdicts import tracks_frame, tracks_markdown, tuning_costs
 
     fams = families(records_frame(committed), rebuilt)
     expected = tracks_markdown(tracks_frame(fams), tuning_costs(fams)).strip()
@@ -185,8 +185,8 @@ def test_every_tuned_system_has_every_family_on_equal_budgets(committed):
     tuned rows, every ranked family of the protocol track has them, each family's study
     had the same trials of the same steps, selected on validation, and each family's
     seeds 0 to 4 share the one selected configuration; at least five such systems."""
-    from hnnbench._check import budget_findings
-    from hnnbench._record_schema import track_of
+    from hnnbench._record.tracks import track_of
+    from hnnbench._results.check.records import budget_findings
 
     tuned = [r for r in committed if track_of(r) == "tuned"]
     assert budget_findings(tuned) == []

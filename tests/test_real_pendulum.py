@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from conftest import shared_data_dir
 
-from hnnbench._errors import ConfigError, DataError
+from hnnbench._contracts.errors import ConfigError, DataError
 from hnnbench_plugins.systems.real_pendulum import (
     FILENAME,
     SHA256,

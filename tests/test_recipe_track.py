@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from hnnbench import ConfigError
-from hnnbench._config import compose, track_of_overrides
-from hnnbench._contract import TrainSettings
-from hnnbench._registry import config_defaults
+from hnnbench._contracts.plugin import TrainSettings
+from hnnbench._registry.groups import config_defaults
+from hnnbench._running.compose import compose, track_of_overrides
 from hnnbench.neural._loop import ONE_CYCLE_FLOOR, ONE_CYCLE_START, lr_factors
 from hnnbench_plugins.models.lnn import RECIPE, paper_init_arrays
 
@@ -131,7 +131,7 @@ def test_a_third_party_recipe_is_checked_and_listed():
 
     import hnnbench
     from hnnbench import _registry as registry
-    from hnnbench._cli import cmd_list
+    from hnnbench._entry.command import cmd_list
 
     class WithRecipe(Unrun):
         recipe = {"lr": 3e-3, "steps": 500}
@@ -169,7 +169,7 @@ def test_a_recipe_record_is_the_main_row_of_its_track_and_passes_check(tmp_path)
     (``hnnbench check`` and the publish script compare a record with its track's
     defaults)."""
     import hnnbench
-    from hnnbench._provenance import config_variant
+    from hnnbench._results.provenance import config_variant
 
     pytest.importorskip("jax")
     rec = hnnbench.run("damped_spring", "dhnn_jax", seed=0, profile="quick",

@@ -9,7 +9,7 @@ import json
 from conftest import assert_one_line_error, hnnbench
 from report_fixtures import make_sweep
 
-from hnnbench import _records as records
+from hnnbench import _record as records
 
 
 def _reject_constant(name: str) -> None:

@@ -1,6 +1,6 @@
-"""The record, defined once (hnnbench._record_schema): the shipped JSON Schema, a job's
+"""The record, defined once (hnnbench._record.fields): the shipped JSON Schema, a job's
 new record, the table and gate names come from the definition; a record is checked on
-write; one loader (hnnbench._records.load), strict or not, serves every reader, so
+write; one loader (hnnbench._record.loader.load), strict or not, serves every reader, so
 hnnbench.sweep() and hnnbench.load() read the same records."""
 
 from __future__ import annotations
@@ -14,14 +14,14 @@ from conftest import REPO
 from report_fixtures import write_run
 
 import hnnbench
-from hnnbench import _check as check
-from hnnbench import _record_schema as S
-from hnnbench import _records as records
-from hnnbench._table import leaderboard, records_frame
+from hnnbench import _record as records
+from hnnbench._contracts import names
+from hnnbench._results import check
+from hnnbench._results.leaderboard import leaderboard, records_frame
 
 
 def _record(**changes):
-    rec = S.new_record(system="spring", model="oracle", seed=0, profile="quick", config={},
+    rec = records.new_record(system="spring", model="oracle", seed=0, profile="quick", config={},
                        overrides=["system=spring"], command=None, rerun_command=None,
                        environment=records.environment(), created_at=records.now_iso())
     rec.update(changes)
@@ -30,30 +30,30 @@ def _record(**changes):
 
 def test_the_shipped_schema_is_written_from_the_definition():
     shipped = REPO / "hnnbench" / "resources" / "record.schema.json"
-    assert shipped == S.SCHEMA_FILE
-    assert shipped.read_text(encoding="utf-8") == S.schema_text(), (
-        "hnnbench/resources/record.schema.json differs from hnnbench/_record_schema.py: "
+    assert shipped == records.SCHEMA_FILE
+    assert shipped.read_text(encoding="utf-8") == records.schema_text(), (
+        "hnnbench/resources/record.schema.json differs from hnnbench/_record/fields.py: "
         "run python scripts/maintainer/record_schema.py --write")
     schema = records.schema()
-    assert schema == S.json_schema()
-    assert list(schema["properties"]) == [f.name for f in S.FIELDS]
-    assert schema["required"] == [f.name for f in S.FIELDS if f.presence == S.REQUIRED]
+    assert schema == records.json_schema()
+    assert list(schema["properties"]) == [f.name for f in records.FIELDS]
+    assert schema["required"] == [f.name for f in records.FIELDS if f.presence == records.REQUIRED]
 
 
 def test_a_new_record_holds_every_field_a_job_writes_in_order():
     rec = _record()
-    assert list(rec) == [f.name for f in S.FIELDS if f.written]
-    assert rec["schema_version"] == S.SCHEMA_VERSION and rec["status"] == "failed"
+    assert list(rec) == [f.name for f in records.FIELDS if f.written]
+    assert rec["schema_version"] == records.SCHEMA_VERSION and rec["status"] == "failed"
     assert rec["metrics"] == {} and _record()["metrics"] is not rec["metrics"]
     assert records.validate(rec) == []
     with pytest.raises(TypeError, match="history"):
-        S.new_record(history={})
+        records.new_record(history={})
     with pytest.raises(TypeError, match="no value for system"):
-        S.new_record()
+        records.new_record()
 
 
 def test_every_field_of_the_committed_records_is_declared():
-    declared = {f.name for f in S.FIELDS} | set(S.LOADER_FIELDS)
+    declared = {f.name for f in records.FIELDS} | set(names.LOADER_FIELDS)
     recs = records.load(REPO / "results" / "records").records
     assert recs
     for rec in recs:
@@ -63,12 +63,12 @@ def test_every_field_of_the_committed_records_is_declared():
 def test_tables_and_gate_take_their_names_from_the_definition(tmp_path):
     write_run(tmp_path, "spring", "oracle", 0, rollout=False)
     frame = records_frame(records.load(tmp_path).records)
-    assert list(frame.columns[:len(S.FRAME_COLUMNS)]) == list(S.FRAME_COLUMNS)
-    assert S.RESERVED == frozenset(S.FRAME_COLUMNS)
-    assert check.KEY == S.BOARD_KEY and check.REQUIRED_COLUMNS[:3] == S.BOARD_KEY
+    assert list(frame.columns[:len(names.FRAME_COLUMNS)]) == list(names.FRAME_COLUMNS)
+    assert names.RESERVED == frozenset(names.FRAME_COLUMNS)
+    assert check.KEY == names.BOARD_KEY and check.REQUIRED_COLUMNS[:3] == names.BOARD_KEY
     board = leaderboard(records.load(tmp_path).records)
-    assert list(board.columns[:len(S.ID_COLUMNS)]) == list(S.ID_COLUMNS)
-    for name in S.PROVENANCE_FIELDS:
+    assert list(board.columns[:len(names.ID_COLUMNS)]) == list(names.ID_COLUMNS)
+    for name in records.PROVENANCE_FIELDS:
         rec = records.load(tmp_path).records[0]
         top, _, key = name.partition(".")
         if key:
@@ -95,13 +95,13 @@ def test_write_refuses_a_record_that_does_not_conform_naming_the_field(tmp_path)
 
 
 def test_the_quick_check_names_the_field():
-    assert S.shape_problems(_record()) == []
-    assert S.shape_problems({k: v for k, v in _record().items() if k != "seed"}) == [
+    assert records.shape_problems(_record()) == []
+    assert records.shape_problems({k: v for k, v in _record().items() if k != "seed"}) == [
         "'seed' is a required property"]
-    assert S.shape_problems(_record(seed=True)) == ["seed: True is not of type 'integer'"]
-    assert S.shape_problems(_record(metrics={"energy_mse": 3})) == [
+    assert records.shape_problems(_record(seed=True)) == ["seed: True is not of type 'integer'"]
+    assert records.shape_problems(_record(metrics={"energy_mse": 3})) == [
         "metrics.energy_mse: 3 is not of type 'object'"]
-    assert S.shape_problems(_record(status="finished"))[0].startswith("status: 'finished'")
+    assert records.shape_problems(_record(status="finished"))[0].startswith("status: 'finished'")
 
 
 def test_schema_version_1_records_still_load_strictly(tmp_path):

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from hnnbench import _registry as registry
-from hnnbench._errors import HnnbenchError, UnknownNameError
+from hnnbench._contracts.errors import HnnbenchError, UnknownNameError
 
 
 def test_builtins_are_entry_points():
@@ -63,8 +63,8 @@ def test_broken_plugin_is_reported_and_others_work(tmp_path, monkeypatch):
 def test_core_import_does_not_import_backends():
     import subprocess
 
-    code = ("import sys, hnnbench, hnnbench._registry, hnnbench._config, hnnbench._job, "
-            "hnnbench._evaluate, hnnbench._cli; "
+    code = ("import sys, hnnbench, hnnbench._registry, hnnbench._running.config, "
+            "hnnbench._running.job, hnnbench._running.evaluation, hnnbench._entry.command; "
             "print(sorted(m for m in ('torch', 'jax') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
@@ -77,8 +77,8 @@ def test_core_import_does_not_import_backends():
 def test_a_metric_cannot_take_a_table_column_name(name, why, monkeypatch):
     """Metrics share the records frame and the leaderboard with identity, status and
     timing columns: a colliding name is refused at registration, with the reason."""
-    from hnnbench._errors import ConfigError
-    from hnnbench._metric import Metric
+    from hnnbench._contracts.errors import ConfigError
+    from hnnbench._contracts.metric import Metric
 
     monkeypatch.setattr(registry.METRICS, "_registered", {})
     metric = Metric(name, "a test metric", lambda ctx: None)

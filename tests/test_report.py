@@ -12,11 +12,11 @@ import pytest
 from conftest import assert_one_line_error, hnnbench
 from report_fixtures import INF, make_sweep, seed_metrics, set_status, write_run
 
-from hnnbench import _claims as C
-from hnnbench import _records as records
+from hnnbench import _record as records
 from hnnbench import _registry as registry
-from hnnbench import _report as report
-from hnnbench._table import format_value, leaderboard
+from hnnbench._contracts import claims
+from hnnbench._results import report
+from hnnbench._results.leaderboard import format_value, leaderboard
 
 METRICS = ("train_loss", "test_loss", "energy_mse", "rollout_mse", "reversibility_error",
            "time_reversal_error", "valid_prediction_time")
@@ -124,7 +124,7 @@ def test_figures_drawn_in_several_processes_are_the_serial_ones(tmp_path, monkey
     """The system figures drawn by forked processes (the end of a sweep on several
     cores) are the ones one process draws: the same files, byte for byte, in the same
     order; and the pool did draw them (no fallback to one process)."""
-    from hnnbench._report import figures
+    from hnnbench._results.report import figures
 
     sweep = make_sweep(tmp_path / "sweep")
     recs = report.load_sweep(sweep)
@@ -145,7 +145,7 @@ def test_no_fork_for_figures_once_jax_has_started(monkeypatch):
     import sys as _sys
     import types
 
-    from hnnbench._report import figures
+    from hnnbench._results.report import figures
 
     monkeypatch.delitem(_sys.modules, "jax", raising=False)
     assert not figures._jax_started()
@@ -194,7 +194,7 @@ def test_diverged_pair_is_shown_as_diverged_with_inf_never_dropped(tmp_path):
 def test_a_training_set_size_sweep_draws_the_data_efficiency_figure(tmp_path):
     """`system.n_traj=10,25,50` gives one figure per system: each declared data-efficiency
     metric against n_traj, one line per model, one point per size."""
-    from hnnbench._report.figures import sweep_figures
+    from hnnbench._results.report.figures import sweep_figures
 
     sweep = tmp_path / "s"
     for n in (10, 25, 50):
@@ -284,7 +284,7 @@ def test_every_claim_holds_on_the_papers_own_numbers():
     assert {c.id for c in registry.all_claims() if c.id in results} == set(results)
     assert {c.id for cs in registry.claim_sets() if cs.published for c in cs.claims} == set(results)
     for res in results.values():
-        assert res.outcome == C.REPRODUCED, (res.claim.text, res.ratio)
+        assert res.outcome == claims.REPRODUCED, (res.claim.text, res.ratio)
 
 
 def test_paper_comparison_shows_every_table1_cell(built):
@@ -314,29 +314,29 @@ def test_claims_are_evaluated_per_backend_pair():
         ("spring", "mlp_jax", "energy_mse"): 1e-2, ("spring", "hnn_jax", "energy_mse"): 1e-3,
     }
     claim = next(c for c in registry.all_claims() if c.id == "spring.energy_mse.hnn_100x_lower")
-    res = {r.backend: r for r in C.evaluate_claims(_lookup(values), [claim],
+    res = {r.backend: r for r in claims.evaluate_claims(_lookup(values), [claim],
                                                   registry.family_models())}
-    assert res["torch"].outcome == C.REPRODUCED and res["torch"].ratio == pytest.approx(1000)
-    assert res["jax"].outcome == C.NOT_REPRODUCED and res["jax"].ratio == pytest.approx(10)
+    assert res["torch"].outcome == claims.REPRODUCED and res["torch"].ratio == pytest.approx(1000)
+    assert res["jax"].outcome == claims.NOT_REPRODUCED and res["jax"].ratio == pytest.approx(10)
     assert "need >= 100x" in res["jax"].numbers()
     # No pair at all: one "not run" entry.
-    (none,) = C.evaluate_claims(_lookup({}), [claim], registry.family_models())
-    assert none.outcome == C.NOT_RUN and none.backend == "-"
+    (none,) = claims.evaluate_claims(_lookup({}), [claim], registry.family_models())
+    assert none.outcome == claims.NOT_RUN and none.backend == "-"
 
 
 @pytest.mark.parametrize(
     "claim_id, baseline, hnn, outcome",
     [
-        ("spring.energy_mse.hnn_100x_lower", INF, 1e-5, C.REPRODUCED),  # baseline diverged
-        ("spring.energy_mse.hnn_100x_lower", 1e-2, INF, C.NOT_REPRODUCED),
-        ("spring.energy_mse.hnn_100x_lower", math.nan, 1e-5, C.NOT_RUN),  # all failed
-        ("spring.test_loss.similar", 0.037, 0.07, C.REPRODUCED),
-        ("spring.test_loss.similar", 0.037, 0.08, C.NOT_REPRODUCED),
-        ("spring.test_loss.similar", INF, 0.037, C.NOT_REPRODUCED),
-        ("real_pendulum.test_loss.baseline_lower", 2e-3, 6e-3, C.REPRODUCED),
-        ("real_pendulum.test_loss.baseline_lower", 6e-3, 6e-3, C.NOT_REPRODUCED),
-        ("pendulum.energy_mse.hnn_lower", 4e-2, 2.5e-2, C.REPRODUCED),
-        ("pendulum.energy_mse.hnn_lower", 2e-2, 2.5e-2, C.NOT_REPRODUCED),
+        ("spring.energy_mse.hnn_100x_lower", INF, 1e-5, claims.REPRODUCED),  # baseline diverged
+        ("spring.energy_mse.hnn_100x_lower", 1e-2, INF, claims.NOT_REPRODUCED),
+        ("spring.energy_mse.hnn_100x_lower", math.nan, 1e-5, claims.NOT_RUN),  # all failed
+        ("spring.test_loss.similar", 0.037, 0.07, claims.REPRODUCED),
+        ("spring.test_loss.similar", 0.037, 0.08, claims.NOT_REPRODUCED),
+        ("spring.test_loss.similar", INF, 0.037, claims.NOT_REPRODUCED),
+        ("real_pendulum.test_loss.baseline_lower", 2e-3, 6e-3, claims.REPRODUCED),
+        ("real_pendulum.test_loss.baseline_lower", 6e-3, 6e-3, claims.NOT_REPRODUCED),
+        ("pendulum.energy_mse.hnn_lower", 4e-2, 2.5e-2, claims.REPRODUCED),
+        ("pendulum.energy_mse.hnn_lower", 2e-2, 2.5e-2, claims.NOT_REPRODUCED),
     ],
 )
 def test_claim_judgement(claim_id, baseline, hnn, outcome):
@@ -347,11 +347,11 @@ def test_claim_judgement(claim_id, baseline, hnn, outcome):
 def test_claims_on_a_leaderboard(sweep):
     board = leaderboard(report.load_sweep(sweep))
     results = {r.claim.id: r for r in report.claim_results(board) if r.backend == "torch"}
-    assert results["spring.energy_mse.hnn_100x_lower"].outcome == C.REPRODUCED
-    assert results["spring.test_loss.similar"].outcome == C.REPRODUCED
-    assert results["pendulum.energy_mse.hnn_lower"].outcome == C.REPRODUCED
+    assert results["spring.energy_mse.hnn_100x_lower"].outcome == claims.REPRODUCED
+    assert results["spring.test_loss.similar"].outcome == claims.REPRODUCED
+    assert results["pendulum.energy_mse.hnn_lower"].outcome == claims.REPRODUCED
     everything = report.claim_results(board)
-    assert {r.outcome for r in everything if r.claim.system == "two_body"} == {C.NOT_RUN}
+    assert {r.outcome for r in everything if r.claim.system == "two_body"} == {claims.NOT_RUN}
 
 
 def test_on_sweep_end_writes_the_report_into_the_sweep(tmp_path, capsys):
@@ -366,12 +366,12 @@ def test_on_sweep_end_writes_the_report_into_the_sweep(tmp_path, capsys):
 
 
 def test_a_running_sweep_gets_a_leaderboard_of_its_finished_pairs(tmp_path):
-    """The sweeper's rewrite while jobs finish (hnnbench._sweep._partial_report): the
+    """The sweeper's rewrite while jobs finish (hnnbench._sweeping.sweeper._partial_report): the
     tables of the records so far, no figures (those come at the end)."""
-    from hnnbench import _sweep
+    from hnnbench._sweeping import sweeper
 
     sweep = make_sweep(tmp_path / "s", pairs=(("spring", "hnn_torch"),), seeds=(0,))
-    _sweep._partial_report(sweep)
+    sweeper._partial_report(sweep)
     board = pd.read_csv(sweep / "leaderboard.csv")
     assert list(board["model"]) == ["hnn_torch"]
     assert (sweep / "leaderboard.md").exists() and not (sweep / "figures").exists()
@@ -413,9 +413,9 @@ def test_a_claim_on_a_model_that_did_not_train_is_not_tested_and_a_recipe_is_nam
     whose source used its own recipe says the protocol track did not run it."""
     import pandas as pd
 
-    from hnnbench._report.published import board_untrained
+    from hnnbench._results.report.published import board_untrained
 
-    claim = C.Claim(id="c", system="spring", metric="energy_mse", relation="lower",
+    claim = claims.Claim(id="c", system="spring", metric="energy_mse", relation="lower",
                     families=("mlp", "hnn"), lower="hnn", factor=10, text="t", source="s",
                     recipe="the paper's recipe")
     values = {("spring", "mlp_jax", "energy_mse"): 1e-1, ("spring", "hnn_jax", "energy_mse"): 1.0}
@@ -426,19 +426,19 @@ def test_a_claim_on_a_model_that_did_not_train_is_not_tested_and_a_recipe_is_nam
          "n_untrained": 2},
     ])
     pairs = {"jax": {"mlp": "mlp_jax", "hnn": "hnn_jax"}}
-    (res,) = C.evaluate_claims(_lookup(values), [claim], pairs, board_untrained(board))
-    assert res.outcome == C.NOT_TRAINED
+    (res,) = claims.evaluate_claims(_lookup(values), [claim], pairs, board_untrained(board))
+    assert res.outcome == claims.NOT_TRAINED
     assert "hnn_jax did not train on 3 of 5 seeds" in res.numbers()
     assert "the paper's recipe not run" in res.note
     board.loc[0, "n_untrained"] = 2  # 2 of 5: trained; judged on the values
-    (res,) = C.evaluate_claims(_lookup(values), [claim], pairs, board_untrained(board))
-    assert res.outcome == C.NOT_REPRODUCED and "recipe not run" in res.note
+    (res,) = claims.evaluate_claims(_lookup(values), [claim], pairs, board_untrained(board))
+    assert res.outcome == claims.NOT_REPRODUCED and "recipe not run" in res.note
 
 
 def test_a_long_figure_title_is_wrapped_to_the_figure_width():
     from matplotlib.figure import Figure
 
-    from hnnbench._report.figures import _fit_suptitle
+    from hnnbench._results.report.figures import _fit_suptitle
 
     fig = Figure(figsize=(5.0, 3.0))
     fig.subplots(1, 1)

@@ -21,20 +21,20 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from omegaconf import OmegaConf
 
-from hnnbench import _records as records
+from hnnbench import _record as records
 from hnnbench import _registry as registry
-from hnnbench._cli import run as cli_run
-from hnnbench._config import prepare_job
-from hnnbench._errors import HnnbenchError
-from hnnbench._job import run_job
-from hnnbench._record_schema import new_record
-from hnnbench._sweep import plan
+from hnnbench._contracts.errors import HnnbenchError
+from hnnbench._entry.command import run as cli_run
+from hnnbench._record.fields import new_record
+from hnnbench._running.config import prepare_job
+from hnnbench._running.job import run_job
+from hnnbench._sweeping.plan import plan
 
 QUICK = ["profile=quick", "system.steps=20"]
 
 
 def run_inprocess(argv: list[str]) -> tuple[int, str, str]:
-    """``hnnbench._cli.run(argv)`` with stdout and stderr captured."""
+    """``hnnbench._entry.command.run(argv)`` with stdout and stderr captured."""
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         code = cli_run(with_pair(argv))
@@ -209,9 +209,9 @@ def test_subcommand_import_problems_are_one_line(monkeypatch):
     real = importlib.import_module
 
     def broken(name, *args, **kwargs):
-        if name == "hnnbench._report":
+        if name == "hnnbench._results.report.cli":
             raise RuntimeError("numpy.core.multiarray failed to import\nsecond line")
-        if name == "hnnbench._check":
+        if name == "hnnbench._results.check.command":
             raise ModuleNotFoundError("No module named 'pandas'", name="pandas")
         return real(name, *args, **kwargs)
 
@@ -225,13 +225,13 @@ def test_subcommand_import_problems_are_one_line(monkeypatch):
 def test_subcommand_errors_are_one_line(monkeypatch):
     import types
 
-    module = types.ModuleType("hnnbench._report")
+    module = types.ModuleType("hnnbench._results.report.cli")
 
     def main(args):
         raise HnnbenchError("Sweep directory\n  nowhere does not exist")
 
     module.main = main  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "hnnbench._report", module)
+    monkeypatch.setitem(sys.modules, "hnnbench._results.report.cli", module)
     code, _, err = run_inprocess(["report", "nowhere"])
     assert_clean(code, err, "Sweep directory nowhere does not exist")
     module.main = lambda args: {}["bug"]  # type: ignore[attr-defined]
@@ -248,7 +248,7 @@ def test_hnnbench_error_is_always_one_line():
 
 def _job(tmp_path: Path, name: str, *overrides: str, rerun: bool = False) -> dict:
     cfg = compose([*QUICK, *overrides] + (["rerun=true"] if rerun else []))
-    return run_job(cfg, tmp_path / name, overrides=[*QUICK, *overrides])
+    return run_job(cfg, tmp_path / name, overrides=[*QUICK, *overrides])[0].record
 
 
 def test_nan_model_is_diverged_with_inf_metrics(fake_plugins, tmp_path):
@@ -295,11 +295,11 @@ def test_bad_config_at_job_start_is_failed_not_raised(tmp_path):
     # A launcher hands the job its config; validation at job start records the problem.
     cfg = compose(QUICK)
     cfg.seed = -3
-    rec = run_job(cfg, tmp_path / "bad")
+    rec = run_job(cfg, tmp_path / "bad")[0].record
     assert rec["status"] == "failed" and "seed=-3 is invalid" in rec["error"]
     cfg = compose(QUICK)
     OmegaConf.update(cfg, "system.t_end", "${nowhere}")
-    rec = run_job(cfg, tmp_path / "interp")
+    rec = run_job(cfg, tmp_path / "interp")[0].record
     assert rec["status"] == "failed" and "nowhere" in rec["error"]
 
 
@@ -348,7 +348,7 @@ def test_torn_record_and_stale_temp_files(tmp_path):
         path.write_text("garbage")
     assert records.read_record(job / "result.json") is None
     assert records.load(tmp_path).records == []
-    rec = run_job(compose([*QUICK, "model=oracle"]), job)
+    rec = run_job(compose([*QUICK, "model=oracle"]), job)[0].record
     assert rec["status"] == "ok"
     assert records.read_record(job / "result.json")["created_at"] == rec["created_at"]
     assert not [p for p in job.iterdir() if ".tmp" in p.name]
@@ -379,8 +379,8 @@ def test_records_serialise_numpy_and_non_finite(tmp_path):
 
 
 def test_cache_write_is_atomic(tmp_path, monkeypatch):
-    from hnnbench import _cache as cache
-    from hnnbench._contract import Dataset
+    from hnnbench._contracts.plugin import Dataset
+    from hnnbench._running import dataset_cache
 
     cfg = compose(QUICK)
     job = prepare_job(cfg)
@@ -391,10 +391,10 @@ def test_cache_write_is_atomic(tmp_path, monkeypatch):
         calls.append(1)
         return system.dataset(0)
 
-    data, path, hit = cache.cached(system, 0, "dataset", build, Dataset.load, tmp_path)
+    data, path, hit = dataset_cache.cached(system, 0, "dataset", build, Dataset.load, tmp_path)
     assert not hit and path.exists()
     path.write_bytes(path.read_bytes()[:100])  # torn entry (e.g. an old non-atomic write)
-    again, path2, hit = cache.cached(system, 0, "dataset", build, Dataset.load, tmp_path)
+    again, path2, hit = dataset_cache.cached(system, 0, "dataset", build, Dataset.load, tmp_path)
     assert path2 == path and not hit and len(calls) == 2  # rebuilt, not fatal
     np.testing.assert_array_equal(again.train.x, data.train.x)
     assert not [p for p in path.parent.iterdir() if ".tmp" in p.name]

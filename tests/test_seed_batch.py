@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from conftest import hnnbench
 
-from hnnbench._contract import Dataset, TrainSettings
-from hnnbench._job import seed_directory
+from hnnbench._contracts.plugin import Dataset, TrainSettings
+from hnnbench._running.job import seed_directory
 from hnnbench_plugins.systems.spring import Spring, SpringConfig
 
 pytest.importorskip("torch")
@@ -36,7 +36,7 @@ def spring_data() -> tuple[Spring, list[Dataset]]:
 
 @pytest.mark.parametrize("name", ["hnn_jax", "mlp_torch"])
 def test_a_diverging_seed_leaves_the_batch_unaffected(name, spring_data):
-    from hnnbench._registry import get_class
+    from hnnbench._registry.groups import get_class
 
     system, datas = spring_data
     cls = get_class("model", name)

@@ -12,9 +12,9 @@ import pytest
 import hnnbench
 from hnnbench import CLEAN_INPUTS, RolloutDiverged
 from hnnbench import _registry as registry
-from hnnbench._config import compose
-from hnnbench._datasets import with_validation
-from hnnbench._job import run_job
+from hnnbench._contracts.datasets import with_validation
+from hnnbench._running.compose import compose
+from hnnbench._running.job import run_job
 from hnnbench.neural import _views as views
 
 pytest.importorskip("torch")
@@ -157,7 +157,7 @@ def stalling_model():
 def test_a_failing_diagnostic_leaves_the_run_ok(stalling_model, tmp_path):
     overrides = ["system=spring", f"model={stalling_model}", "profile=quick",
                  "save_model=false", "pin_cpu=false"]
-    record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)
+    record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)[0].record
     assert record["status"] == "ok", record.get("error")
     assert record["metrics"]["reversibility_error"]["mean"] == math.inf
     assert record["metric_errors"]["reversibility_error"].startswith("rollout failed:")

@@ -8,8 +8,8 @@ from importlib.metadata import entry_points
 import numpy as np
 import pytest
 
-from hnnbench._errors import ConfigError
-from hnnbench._kinematics import LinearKinematics
+from hnnbench._contracts.errors import ConfigError
+from hnnbench._contracts.kinematics import LinearKinematics
 from hnnbench_plugins.systems import spring_chain as sc
 from hnnbench_plugins.systems.spring_chain import SpringChain, SpringChainConfig
 

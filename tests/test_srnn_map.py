@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hnnbench._contract import TrainSettings
+from hnnbench._contracts.plugin import TrainSettings
 from hnnbench.neural._backend import map_plan
 
 pytest.importorskip("torch")
@@ -46,7 +46,7 @@ def test_the_srnn_selects_on_the_systems_criterion_whatever_the_training_window(
     system's criterion, as for every family: on the noisy spring, the field at the clean
     validation inputs."""
     from hnnbench import CLEAN_INPUTS
-    from hnnbench._datasets import with_validation
+    from hnnbench._contracts.datasets import with_validation
 
     system = Spring(SpringConfig(name="spring", n_traj=24))
     data = with_validation(system.dataset(0), 0)

@@ -73,7 +73,7 @@ def test_a_stalling_lnn_job_is_diverged_in_seconds(model, tmp_path):
     torch twin took 513 s when it ran to the step budget; it now trains.)"""
     from conftest import hnnbench
 
-    from hnnbench._records import read_record
+    from hnnbench._record.store import read_record
 
     pytest.importorskip("torch" if model.endswith("torch") else "jax")
     proc = hnnbench("system=real_double_pendulum", f"model={model}", "profile=quick",
@@ -107,8 +107,8 @@ def test_the_state_bound_marks_a_blow_up_diverged_and_spares_a_drift(rate, diver
     """The same rule for every model and backend (``EvalContext.roll``): over the
     spring's horizon of 20, e^{0.2 t} (x55) stays inside 100x the data's largest norm,
     e^{t} does not, and is diverged with the time it left the bound."""
-    from hnnbench._errors import RolloutDiverged
-    from hnnbench._metric import STATE_BOUND, EvalContext, EvaluationConfig
+    from hnnbench._contracts.errors import RolloutDiverged
+    from hnnbench._contracts.metric import STATE_BOUND, EvalContext, EvaluationConfig
     from hnnbench_plugins.systems.spring import Spring, SpringConfig
 
     system = Spring(SpringConfig(name="spring", n_traj=10, eval_n_traj=3))
@@ -126,7 +126,7 @@ def test_the_state_bound_marks_a_blow_up_diverged_and_spares_a_drift(rate, diver
 
 def test_angles_are_left_out_of_the_state_bound():
     """A double-pendulum angle that keeps turning (q1 = 50 t) is no blow-up."""
-    from hnnbench._metric import EvalContext, EvaluationConfig
+    from hnnbench._contracts.metric import EvalContext, EvaluationConfig
     from hnnbench_plugins.systems.double_pendulum import DoublePendulum, DoublePendulumConfig
 
     system = DoublePendulum(DoublePendulumConfig(name="double_pendulum", n_traj=4,

@@ -9,7 +9,7 @@ from conftest import QUICK_ORACLE_BOUND
 from conftest import compose_job as compose
 
 from hnnbench import _registry as registry
-from hnnbench._job import run_job
+from hnnbench._running.job import run_job
 
 SIMULATED = ["double_pendulum", "damped_spring", "damped_pendulum", "spring_chain"]
 #: Energy and rollout MSE bounds by profile.
@@ -20,7 +20,7 @@ BOUND = {"paper": 1e-10, "quick": QUICK_ORACLE_BOUND}
 @pytest.mark.parametrize("system", SIMULATED)
 def test_oracle_reproduces_the_energy(tmp_path, system, profile):
     overrides = [f"system={system}", "model=oracle", f"profile={profile}"]
-    record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)
+    record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)[0].record
     assert record["status"] == "ok", record["error"]
     metrics = record["metrics"]
     assert metrics["energy_mse"]["mean"] < BOUND[profile]
@@ -30,7 +30,7 @@ def test_oracle_reproduces_the_energy(tmp_path, system, profile):
 
 def test_the_oracle_is_skipped_on_measured_data(tmp_path):
     overrides = ["system=real_double_pendulum", "model=oracle", "profile=quick"]
-    record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)
+    record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)[0].record
     assert record["status"] == "skipped"
     assert "no known vector field" in record["error"]
 
@@ -61,7 +61,7 @@ def test_the_oracle_passes_the_time_reversal_test(tmp_path):
             "evaluation.rtol=1e-9",
             "evaluation.atol=1e-9",
         ]
-        record = run_job(compose(overrides), tmp_path / name, overrides=overrides)
+        record = run_job(compose(overrides), tmp_path / name, overrides=overrides)[0].record
         if record["status"] == "skipped":  # no known field (measured data, pixels)
             assert record["error"], name
             continue

@@ -13,7 +13,7 @@ import pytest
 from conftest import compose_job as compose
 from threadpoolctl import threadpool_info, threadpool_limits
 
-from hnnbench._job import run_job
+from hnnbench._running.job import run_job
 
 
 def _blas_threads() -> set[int]:
@@ -29,7 +29,7 @@ def test_a_job_caps_the_blas_pool_numpy_loaded(tmp_path, threads, expected):
         assert _blas_threads() == {3}
         cfg = compose(["system=spring", "model=oracle", "profile=quick",
                        f"threads={threads}", "pin_cpu=false"])
-        rec = run_job(cfg, tmp_path / "job")
+        rec = run_job(cfg, tmp_path / "job")[0].record
         assert rec["status"] == "ok", rec["error"]
         assert _blas_threads() == {expected}  # threads=0 leaves the pools alone
 

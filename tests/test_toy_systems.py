@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from conftest import compose_job as compose
 
-from hnnbench._config import prepare_job
-from hnnbench._errors import ConfigError
+from hnnbench._contracts.errors import ConfigError
+from hnnbench._running.config import prepare_job
 from hnnbench_plugins.systems.pendulum import Pendulum, PendulumConfig
 from hnnbench_plugins.systems.spring import Spring, SpringConfig
 

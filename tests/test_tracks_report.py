@@ -8,9 +8,9 @@ from pathlib import Path
 import pandas as pd
 from report_fixtures import make_sweep, scale_metric
 
-from hnnbench import _records as records
-from hnnbench._report import write_report
-from hnnbench._report.figures import main_profile_figure
+from hnnbench import _record as records
+from hnnbench._results.report import write_report
+from hnnbench._results.report.figures import main_profile_figure
 
 PAIRS = (("spring", "mlp_torch"), ("spring", "hnn_torch"), ("pendulum", "mlp_torch"),
          ("pendulum", "hnn_torch"))
@@ -84,7 +84,7 @@ def test_a_report_draws_each_track_apart_and_speaks_of_the_protocol(tmp_path):
     (the README embeds them) and the tuned track gets its own, and the per-system marks,
     the aggregate's left-out lines and the paper comparison's seed line speak of the
     protocol's rows only."""
-    from hnnbench._report.verdicts import left_out_lines, marks_line
+    from hnnbench._results.report.verdicts import left_out_lines, marks_line
 
     pairs = PAIRS[:2]
     protocol = make_sweep(tmp_path / "protocol", pairs=pairs, seeds=SEEDS)

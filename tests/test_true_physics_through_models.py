@@ -26,7 +26,7 @@ import pytest
 from conftest import compose_job
 
 from hnnbench import _registry as registry
-from hnnbench._config import prepare_job
+from hnnbench._running.config import prepare_job
 from hnnbench_plugins.systems import double_pendulum as dp_module
 from hnnbench_plugins.systems import nbody as nbody_module
 

@@ -19,18 +19,10 @@ from conftest import REPO
 
 import hnnbench
 from hnnbench import _registry as registry
-from hnnbench._check import budget_findings, compare
-from hnnbench._config import compose, prepare_job
-from hnnbench._contract import STOPPED_BY_CALLER, TrainSettings
-from hnnbench._errors import ConfigError, UnknownNameError
-from hnnbench._record_schema import (
-    DEFAULT_TRACK,
-    json_schema,
-    track_of,
-    track_problem,
-    tuned_settings,
-)
-from hnnbench._space import (
+from hnnbench._contracts.errors import ConfigError, UnknownNameError
+from hnnbench._contracts.names import DEFAULT_TRACK
+from hnnbench._contracts.plugin import STOPPED_BY_CALLER, TrainSettings
+from hnnbench._contracts.space import (
     Categorical,
     IntRange,
     LogUniform,
@@ -39,7 +31,13 @@ from hnnbench._space import (
     space_json,
     space_problem,
 )
-from hnnbench._table import leaderboard, records_frame
+from hnnbench._record.fields import json_schema
+from hnnbench._record.tracks import track_of, track_problem, tuned_settings
+from hnnbench._results.check.compare import compare
+from hnnbench._results.check.records import budget_findings
+from hnnbench._results.leaderboard import leaderboard, records_frame
+from hnnbench._running.compose import compose
+from hnnbench._running.config import prepare_job
 from hnnbench.neural import SHARED_SPACE, NeuralConfig
 from hnnbench.neural._loop import train
 from tests.conftest import assert_one_line_error
@@ -119,7 +117,7 @@ def test_a_third_party_model_declares_a_space_and_list_shows_it(tmp_path):
         import contextlib
         import io
 
-        from hnnbench._cli import cmd_list
+        from hnnbench._entry.command import cmd_list
 
         out = io.StringIO()
         with contextlib.redirect_stdout(out):
@@ -206,7 +204,8 @@ def test_a_loss_changing_knob_turns_the_pruner_off_and_the_srnn_window_does_not(
     declared ``changes_training_loss`` turns it off; the SRNN's window changes only the
     training windows (its validation windows keep the family's length), so its study
     is pruned like every other family's."""
-    from hnnbench._tune import Tuner, TuneRequest
+    from hnnbench._tuning.request import TuneRequest
+    from hnnbench._tuning.tuner import Tuner
 
     tuner = Tuner(TuneRequest(system="spring", models=["srnn_jax"], trials=2))
     flagged = {"window": IntRange(3, 8, changes_training_loss=True)}
@@ -296,8 +295,8 @@ def test_a_tuned_record_that_does_not_hold_together_is_a_problem(change, needle)
 
 
 def test_tracks_are_separate_rows_never_ranked_together():
-    from hnnbench._families import families
-    from hnnbench._table import records_frame
+    from hnnbench._results.families import families
+    from hnnbench._results.leaderboard import records_frame
 
     recs = [_record("hnn_jax", s, None, 1.0) for s in (0, 1)]
     recs += [_record("mlp_jax", s, None, 2.0) for s in (0, 1)]
@@ -323,9 +322,9 @@ def test_tracks_are_separate_rows_never_ranked_together():
 
 
 def test_the_tracks_table_says_what_each_familys_tuning_cost():
-    from hnnbench._families import families
-    from hnnbench._report.verdicts import tracks_frame, tracks_markdown, tuning_costs
-    from hnnbench._table import records_frame
+    from hnnbench._results.families import families
+    from hnnbench._results.leaderboard import records_frame
+    from hnnbench._results.report.verdicts import tracks_frame, tracks_markdown, tuning_costs
 
     recs = [_record("hnn_jax", s, None, 1.0) for s in (0, 1)]
     recs += [_record("hnn_jax", s, "tuned", 0.5, cpu=1234.4) for s in (0, 1)]
@@ -460,21 +459,22 @@ def test_tune_gives_every_model_the_same_budget_and_selects_on_validation(tmp_pa
 
 @pytest.mark.slow
 def test_an_interrupted_trial_runs_its_settings_again(tmp_path):
-    from hnnbench import _tune
+    from hnnbench._tuning import tuner as tuning
+    from hnnbench._tuning.request import TuneRequest
 
     out = tmp_path / "tuned"
-    request = _tune.TuneRequest(system="spring", models=["mlp_jax"], trials=2, seeds=[0],
-                                profile="quick", out=out, steps=20, pruner="none",
-                                overrides=["pin_cpu=false"])
-    tuner = _tune.Tuner(request)
+    request = TuneRequest(system="spring", models=["mlp_jax"], trials=2, seeds=[0],
+                          profile="quick", out=out, steps=20, pruner="none",
+                          overrides=["pin_cpu=false"])
+    tuner = tuning.Tuner(request)
     space = registry.discover("model")["mlp_jax"].search_space
     study = tuner._open("mlp_jax", space, 20)
     # a trial left running by a killed process (no record written)
-    left = study.ask({n: _tune._distribution(d) for n, d in space.items()})
+    left = study.ask({n: tuning._distribution(d) for n, d in space.items()})
     params = dict(left.params)
-    studies = _tune.run_tuning(request)
+    studies = tuning.run_tuning(request)
     trials = studies[0].trials
     assert len(trials) == 2 and all(t["state"] == "complete" for t in trials)
     assert trials[0]["number"] == 1  # the replay, with the interrupted trial's settings
-    assert trials[0]["settings"] == _tune._settings(space, params)
+    assert trials[0]["settings"] == tuning._settings(space, params)
     assert trials[1]["settings"] != trials[0]["settings"]  # not the same first draw again

@@ -23,16 +23,17 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from report_fixtures import write_run
 
-from hnnbench import _check as check
-from hnnbench import _record_schema as S
-from hnnbench import _records as R
+from hnnbench import _record as records
 from hnnbench import _registry as registry
-from hnnbench._errors import ConfigError, UnsafePathError
-from hnnbench._paths import safe_join
-from hnnbench._report import write_report
-from hnnbench._report.figures import make_figures
-from hnnbench._report.markdown import md_cell, md_code, md_text
-from hnnbench._report.tables import md_table
+from hnnbench._contracts import names
+from hnnbench._contracts.errors import ConfigError, UnsafePathError
+from hnnbench._contracts.paths import safe_join
+from hnnbench._record import store
+from hnnbench._results import check
+from hnnbench._results.report import write_report
+from hnnbench._results.report.figures import make_figures
+from hnnbench._results.report.markdown import md_cell, md_code, md_text
+from hnnbench._results.report.tables import md_table
 
 sys.path.insert(0, str(REPO / "scripts" / "maintainer"))
 import publish_results  # noqa: E402
@@ -45,15 +46,15 @@ def real(tmp_path_factory):
     """A real record (a composed config, the installed plugins' provenance) with its
     rollout, written once: ``(record as JSON data, rollout bytes)``."""
     job = write_run(tmp_path_factory.mktemp("real"), "spring", "oracle", 0, profile="paper")
-    return (json.loads((job / R.RECORD_NAME).read_text()),
-            (job / R.ROLLOUT_NAME).read_bytes())
+    return (json.loads((job / records.RECORD_NAME).read_text()),
+            (job / records.ROLLOUT_NAME).read_bytes())
 
 
 def _put(root: Path, rel: str, data, rollout: bytes | None = None) -> Path:
     """Write ``data`` (JSON data, or raw text/bytes) as ``root/rel/result.json``."""
     directory = root / rel
     directory.mkdir(parents=True, exist_ok=True)
-    path = directory / R.RECORD_NAME
+    path = directory / records.RECORD_NAME
     if isinstance(data, bytes):
         path.write_bytes(data)
     elif isinstance(data, str):
@@ -61,7 +62,7 @@ def _put(root: Path, rel: str, data, rollout: bytes | None = None) -> Path:
     else:
         path.write_text(json.dumps(data))
     if rollout is not None:
-        (directory / R.ROLLOUT_NAME).write_bytes(rollout)
+        (directory / records.ROLLOUT_NAME).write_bytes(rollout)
     return path
 
 
@@ -96,19 +97,19 @@ def test_a_name_that_is_not_a_name_is_refused_by_every_load(real, tmp_path, fiel
     path = _put(tmp_path, "job", _crafted(real, **{field: name}))
     good = _put(tmp_path, "good", real[0])
     for strict in (False, True):
-        loaded = R.load(tmp_path, strict=strict)
+        loaded = records.load(tmp_path, strict=strict)
         assert [r["path"] for r in loaded.records] == [str(good.parent)]
         reason = _reasons(loaded)[path]
         assert reason.startswith(f"invalid record: {field}: ") and _one_line(reason), reason
-    assert S.name_problem(field, name)
+    assert names.name_problem(field, name)
 
 
 def test_every_installed_plugin_name_is_a_name():
     for kind in ("system", "model", "metric", "claims"):
         for name in registry.discover(kind):  # type: ignore[arg-type]
-            assert S.name_problem(kind, name) is None, (kind, name)
+            assert names.name_problem(kind, name) is None, (kind, name)
     for profile in registry.PROFILES:
-        assert S.name_problem("profile", profile) is None
+        assert names.name_problem("profile", profile) is None
 
 
 def test_report_writes_nothing_outside_out(real, tmp_path, caplog):
@@ -239,8 +240,8 @@ def test_a_metric_outside_its_declared_domain_is_refused_by_strict_loading(
     rec = _crafted(real)
     rec["metrics"][metric] = {"mean": mean, "sem": sem}
     path = _put(tmp_path, "job", rec)
-    assert len(R.load(tmp_path).records) == 1  # usable (the report shows it)
-    loaded = R.load(tmp_path, strict=True)
+    assert len(records.load(tmp_path).records) == 1  # usable (the report shows it)
+    loaded = records.load(tmp_path, strict=True)
     if ok:
         assert loaded.problems == [], loaded.problems
         return
@@ -269,17 +270,17 @@ def test_the_builtin_metrics_declare_their_domain():
 ])
 def test_a_malformed_or_future_created_at_is_refused(real, tmp_path, created_at, why):
     path = _put(tmp_path, "job", _crafted(real, created_at=created_at))
-    reason = _reasons(R.load(tmp_path, strict=True))[path]
+    reason = _reasons(records.load(tmp_path, strict=True))[path]
     assert "created_at" in reason and why in reason and _one_line(reason), reason
     if why != "in the future":  # the schema's format is enforced on write too
-        with pytest.raises(R.InvalidRecord, match="created_at"):
-            R.write_record(tmp_path / "w", _crafted(real, created_at=created_at))
+        with pytest.raises(records.InvalidRecord, match="created_at"):
+            records.write_record(tmp_path / "w", _crafted(real, created_at=created_at))
 
 
 def test_the_committed_records_all_load_strictly():
-    records = REPO / "results" / "records"
-    loaded = R.load(records, strict=True)
-    on_disk = len(list(records.rglob("result.json")))
+    published = REPO / "results" / "records"
+    loaded = records.load(published, strict=True)
+    on_disk = len(list(published.rglob("result.json")))
     assert loaded.problems == [] and len(loaded.records) == on_disk > 0
 
 
@@ -305,12 +306,12 @@ def test_malformed_records_are_named_and_the_rest_of_report_and_check_goes_on(
     }
     paths = {key: _put(sweep, key, data) for key, data in bad.items()}
     for strict in (False, True):
-        loaded = R.load(sweep, strict=strict)
+        loaded = records.load(sweep, strict=strict)
         assert [r["path"] for r in loaded.records] == [str(good.parent)]
         reasons = _reasons(loaded)
         assert set(reasons) == set(paths.values())
         assert all(_one_line(r) for r in reasons.values()), reasons
-    reasons = _reasons(R.load(sweep))
+    reasons = _reasons(records.load(sweep))
     assert "metrics: " in reasons[paths["metrics_list"]]
     assert "metrics.energy_mse: " in reasons[paths["metric_list"]]
     assert "metrics.energy_mse.mean: " in reasons[paths["mean_text"]]
@@ -318,7 +319,7 @@ def test_malformed_records_are_named_and_the_rest_of_report_and_check_goes_on(
         assert "nested deeper than 32 levels" in reasons[paths[key]], key
     report = write_report(sweep, tmp_path / "out")
     assert len(report.records) == 1 and len(report.unreadable) == len(bad)
-    recs, problems = R.load(sweep, strict=True)
+    recs, problems = records.load(sweep, strict=True)
     findings = check.validate_records(recs, problems)
     assert {f.model for f in findings} == {str(p) for p in paths.values()}
 
@@ -329,7 +330,7 @@ def test_a_large_record_is_refused_by_size_at_once_and_a_long_history_is_fast(
     path = _put(tmp_path / "big", "job", big)
     assert path.stat().st_size > 4_000_000
     start = time.perf_counter()
-    reason = _reasons(R.load(tmp_path / "big", strict=True))[path]
+    reason = _reasons(records.load(tmp_path / "big", strict=True))[path]
     assert time.perf_counter() - start < 2.0
     assert "over the limit of 2097152" in reason and _one_line(reason)
 
@@ -338,9 +339,9 @@ def test_a_large_record_is_refused_by_size_at_once_and_a_long_history_is_fast(
                                    "train_loss": [0.1 + i * 1e-7 for i in range(n)],
                                    "test_loss": [0.2 + i * 1e-7 for i in range(n)]})
     path = _put(tmp_path / "long", "job", long)
-    assert 1_500_000 < path.stat().st_size <= S.MAX_RECORD_BYTES
+    assert 1_500_000 < path.stat().st_size <= records.MAX_RECORD_BYTES
     start = time.perf_counter()
-    loaded = R.load(tmp_path / "long", strict=True)
+    loaded = records.load(tmp_path / "long", strict=True)
     elapsed = time.perf_counter() - start
     assert loaded.problems == [] and len(loaded.records) == 1
     assert elapsed < 1.0, elapsed
@@ -350,20 +351,20 @@ def test_a_large_record_is_refused_by_size_at_once_and_a_long_history_is_fast(
 def test_a_symlink_to_an_endless_file_or_a_pipe_is_not_read(real, tmp_path):
     good = _put(tmp_path, "good", real[0])
     (tmp_path / "zero").mkdir()
-    (tmp_path / "zero" / R.RECORD_NAME).symlink_to("/dev/zero")
+    (tmp_path / "zero" / records.RECORD_NAME).symlink_to("/dev/zero")
     (tmp_path / "inside").mkdir()
     (tmp_path / "inside" / "real.json").write_text(json.dumps(real[0]))
-    (tmp_path / "inside" / R.RECORD_NAME).symlink_to(tmp_path / "inside" / "real.json")
+    (tmp_path / "inside" / records.RECORD_NAME).symlink_to(tmp_path / "inside" / "real.json")
     (tmp_path / "fifo").mkdir()
-    os.mkfifo(tmp_path / "fifo" / R.RECORD_NAME)
+    os.mkfifo(tmp_path / "fifo" / records.RECORD_NAME)
     start = time.perf_counter()
-    loaded = R.load(tmp_path, strict=True)
+    loaded = records.load(tmp_path, strict=True)
     assert time.perf_counter() - start < 5.0
     assert [r["path"] for r in loaded.records] == [str(good.parent)]
     reasons = _reasons(loaded)
-    assert "symbolic link" in reasons[tmp_path / "zero" / R.RECORD_NAME]
-    assert "symbolic link" in reasons[tmp_path / "inside" / R.RECORD_NAME]
-    assert "not a regular file" in reasons[tmp_path / "fifo" / R.RECORD_NAME]
+    assert "symbolic link" in reasons[tmp_path / "zero" / records.RECORD_NAME]
+    assert "symbolic link" in reasons[tmp_path / "inside" / records.RECORD_NAME]
+    assert "not a regular file" in reasons[tmp_path / "fifo" / records.RECORD_NAME]
 
 
 def _npz(**arrays) -> bytes:
@@ -377,8 +378,8 @@ def test_a_rollout_is_read_bounded(real, tmp_path, monkeypatch, caplog):
     bomb = tmp_path / "bomb.npz"
     bomb.write_bytes(_npz(states_true=np.zeros(2_000_000)))
     assert bomb.stat().st_size < 100_000
-    with pytest.raises(R.UnsafeFile, match="decompressed, over the limit"):
-        R.load_arrays(bomb, limit=8_000_000)
+    with pytest.raises(records.UnsafeFile, match="decompressed, over the limit"):
+        records.load_arrays(bomb, limit=8_000_000)
     # a header that declares far more data than its member holds
     lying = tmp_path / "lying.npz"
     with zipfile.ZipFile(lying, "w") as zf:
@@ -386,15 +387,15 @@ def test_a_rollout_is_read_bounded(real, tmp_path, monkeypatch, caplog):
         np.lib.format.write_array(buf, np.zeros(4))
         raw = buf.getvalue().replace(b"(4,)", b"(4000000000000,)".ljust(4))
         zf.writestr("t.npy", raw)
-    with pytest.raises(R.UnsafeFile, match="declares"):
-        R.load_arrays(lying)
+    with pytest.raises(records.UnsafeFile, match="declares"):
+        records.load_arrays(lying)
     # objects are never unpickled
     objects = tmp_path / "objects.npz"
     objects.write_bytes(_npz(t=np.array([{"a": 1}], dtype=object)))
-    with pytest.raises(R.UnsafeFile, match="holds objects"):
-        R.load_arrays(objects)
+    with pytest.raises(records.UnsafeFile, match="holds objects"):
+        records.load_arrays(objects)
     # the report: a bomb beside a record draws no figure, and the report goes on
-    monkeypatch.setattr(R, "MAX_ROLLOUT_BYTES", 8_000_000)
+    monkeypatch.setattr(store, "MAX_ROLLOUT_BYTES", 8_000_000)
     sweep = tmp_path / "sweep"
     _put(sweep, "job", real[0], bomb.read_bytes())
     report = write_report(sweep, tmp_path / "out")
@@ -403,7 +404,7 @@ def test_a_rollout_is_read_bounded(real, tmp_path, monkeypatch, caplog):
     assert "cannot read" in caplog.text and "over the limit" in caplog.text
     # a real rollout still reads
     (tmp_path / "real.npz").write_bytes(real[1])
-    assert "states_true" in R.load_arrays(tmp_path / "real.npz")
+    assert "states_true" in records.load_arrays(tmp_path / "real.npz")
 
 
 # --------------------------------------------------------------------------- fuzz
@@ -414,7 +415,7 @@ _json = st.recursive(
     lambda children: st.lists(children, max_size=4)
     | st.dictionaries(st.text(max_size=10), children, max_size=4),
     max_leaves=20)
-_FIELDS = [f.name for f in S.FIELDS]
+_FIELDS = [f.name for f in records.FIELDS]
 
 
 @settings(max_examples=60, deadline=None,
@@ -442,24 +443,24 @@ def test_fuzz_the_loader_never_raises_and_names_every_file_left_out(real, tmp_pa
             content = json.dumps(rec).encode()
         written.append(_put(root, f"job{i}", content))
     for strict in (False, True):
-        loaded = R.load(root, strict=strict)
-        found = [Path(r["path"]) / R.RECORD_NAME for r in loaded.records]
+        loaded = records.load(root, strict=strict)
+        found = [Path(r["path"]) / records.RECORD_NAME for r in loaded.records]
         named = [p.path for p in loaded.problems]
         assert sorted(found + named) == sorted(written)
         assert all(p.reason and _one_line(p.reason) for p in loaded.problems)
         if strict:
             for rec in loaded.records:
-                assert R.strict_problems(rec) == []
+                assert records.strict_problems(rec) == []
 
 
 def test_a_value_outside_its_domain_is_never_marked_best(tmp_path):
     """The report (not strict) shows such a record, but never marks it best or tied."""
-    from hnnbench._families import families
-    from hnnbench._table import records_frame
+    from hnnbench._results.families import families
+    from hnnbench._results.leaderboard import records_frame
 
     for model, value in (("mlp_torch", -5.0), ("hnn_torch", 2e-3), ("dhnn_torch", 1e-2)):
         for seed in range(5):
             write_run(tmp_path, "spring", model, seed, metrics={"energy_mse": value},
                       rollout=False)
-    board = families(records_frame(R.load(tmp_path).records)).board.set_index("family")
+    board = families(records_frame(records.load(tmp_path).records)).board.set_index("family")
     assert board["energy_mse_mark"].to_dict() == {"mlp": "", "hnn": "best", "dhnn": ""}

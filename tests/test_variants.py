@@ -7,12 +7,11 @@ import pandas as pd
 import pytest
 from report_fixtures import write_run
 
-from hnnbench import _check as check
-from hnnbench import _report as report
-from hnnbench._records import load
-from hnnbench._report.figures import slug
-from hnnbench._report.published import ours_cell
-from hnnbench._table import leaderboard, records_frame, summary_frame, variant_labels
+from hnnbench._record.loader import load
+from hnnbench._results import check, report
+from hnnbench._results.leaderboard import leaderboard, records_frame, summary_frame, variant_labels
+from hnnbench._results.report.figures import slug
+from hnnbench._results.report.published import ours_cell
 
 
 def test_a_variant_is_the_overrides_that_differ_between_runs():

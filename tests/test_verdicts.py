@@ -1,6 +1,6 @@
-"""Verdicts with confidence: the statistics (hnnbench._stats), one competitor per family
-with its twins' agreement and its best/tied marks (hnnbench._families), and the
-aggregate across systems (hnnbench._aggregate), on small synthetic records."""
+"""Verdicts with confidence: the statistics (hnnbench._results.stats), one competitor per family
+with its twins' agreement and its best/tied marks (hnnbench._results.families), and the
+aggregate across systems (hnnbench._results.aggregate), on small synthetic records."""
 
 from __future__ import annotations
 
@@ -11,67 +11,68 @@ import pandas as pd
 import pytest
 from report_fixtures import make_sweep, seed_metrics, write_run
 
-from hnnbench import _records as records
-from hnnbench import _stats as S
-from hnnbench._aggregate import aggregate
-from hnnbench._families import families, mark_best, primary_rows
-from hnnbench._metric import CheckRule
-from hnnbench._table import leaderboard_frame, records_frame
+from hnnbench import _record as records
+from hnnbench._contracts.metric import CheckRule
+from hnnbench._results import stats
+from hnnbench._results.aggregate import aggregate
+from hnnbench._results.families import families, mark_best, primary_rows
+from hnnbench._results.leaderboard import leaderboard_frame, records_frame
 
 # --------------------------------------------------------------------------- statistics
 
 
 def test_the_sign_test_is_exact_and_counts_ties_and_gaps_against_the_leader():
-    assert S.sign_test([1, 2, 3], [2, 3, 4]) == (0.125, 3, 3)  # 3 seeds: never below 5%
-    assert S.sign_test([1, 2, 3, 4, 5], [2, 3, 4, 5, 6])[0] == pytest.approx(1 / 32)
-    assert S.sign_test([1, 2, 3, 4, 5], [2, 3, 4, 5, 5])[1] == 4  # a tie is no win
-    p, wins, n = S.sign_test([1, math.nan, 3, 4, 5], [2, 3, 4, 5, math.nan])
+    assert stats.sign_test([1, 2, 3], [2, 3, 4]) == (0.125, 3, 3)  # 3 seeds: never below 5%
+    assert stats.sign_test([1, 2, 3, 4, 5], [2, 3, 4, 5, 6])[0] == pytest.approx(1 / 32)
+    assert stats.sign_test([1, 2, 3, 4, 5], [2, 3, 4, 5, 5])[1] == 4  # a tie is no win
+    p, wins, n = stats.sign_test([1, math.nan, 3, 4, 5], [2, 3, 4, 5, math.nan])
     assert (wins, n) == (4, 5) and p == pytest.approx(6 / 32)  # own gap loses, theirs wins
-    assert S.sign_test([3, 4], [1, 2], better="higher") == (0.25, 2, 2)
-    assert S.sign_test([1, 1], [math.inf, math.inf])[1] == 2  # a diverged rollout loses
-    assert S.sign_test([], []) == (1.0, 0, 0)
-    assert S.MIN_SEPARABLE_SEEDS == 5 and S.min_separable_seeds(0.01) == 7
+    assert stats.sign_test([3, 4], [1, 2], better="higher") == (0.25, 2, 2)
+    assert stats.sign_test([1, 1], [math.inf, math.inf])[1] == 2  # a diverged rollout loses
+    assert stats.sign_test([], []) == (1.0, 0, 0)
+    assert stats.MIN_SEPARABLE_SEEDS == 5 and stats.min_separable_seeds(0.01) == 7
 
 
 def test_cell_intervals_none_for_one_seed_or_inf_and_degenerate_when_equal():
-    out = S.mean_intervals([[1.0], [1.0, math.inf], [3.5, 3.5, 3.5], [1.0, 2.0, 3.0, 10.0, 4.0]])
+    out = stats.mean_intervals([[1.0], [1.0, math.inf], [3.5, 3.5, 3.5],
+                                [1.0, 2.0, 3.0, 10.0, 4.0]])
     assert all(math.isnan(x) for x in out[0] + out[1])
     assert out[2] == (3.5, 3.5)
     low, high = out[3]
     assert 1.0 <= low < np.mean([1, 2, 3, 10, 4]) < high <= 10.0
     # A sample's interval does not depend on the others bootstrapped with it.
-    assert S.mean_intervals([[1.0, 2.0, 3.0, 10.0, 4.0]])[0] == (low, high)
+    assert stats.mean_intervals([[1.0, 2.0, 3.0, 10.0, 4.0]])[0] == (low, high)
 
 
 def test_normalised_scores_run_from_the_baseline_to_the_floor():
     rule = CheckRule(10, 1e-10)
-    scores = S.normalised_scores([1e-1, 1e-10, 1e-16, 1e-4, math.inf, math.nan], base=1e-1,
+    scores = stats.normalised_scores([1e-1, 1e-10, 1e-16, 1e-4, math.inf, math.nan], base=1e-1,
                                  floor=1e-16, rule=rule)
     assert scores is not None
     # baseline 0, the floor 1 (the noise floor 1e-10 counts as it), halfway in decades 0.5
     np.testing.assert_allclose(scores[:4], [0.0, 1.0, 1.0, 1 / 3])
-    assert list(scores[4:]) == [S.SCORE_RANGE[0]] * 2  # diverged, no result
+    assert list(scores[4:]) == [stats.SCORE_RANGE[0]] * 2  # diverged, no result
     higher = CheckRule(3, 0.0, better="higher")
-    assert S.normalised_scores([20.0, 2.0, 0.0], base=2.0, floor=20.0, rule=higher) \
-        .tolist() == [1.0, 0.0, S.SCORE_RANGE[0]]
+    assert stats.normalised_scores([20.0, 2.0, 0.0], base=2.0, floor=20.0, rule=higher) \
+        .tolist() == [1.0, 0.0, stats.SCORE_RANGE[0]]
     # No scale where the baseline is within the metric's tolerance of the floor.
-    assert S.normalised_scores([1.0], base=3.7e-2, floor=3.9e-2, rule=CheckRule(2)) is None
-    assert S.normalisation_scale(math.inf, 1e-10, rule) is None
+    assert stats.normalised_scores([1.0], base=3.7e-2, floor=3.9e-2, rule=CheckRule(2)) is None
+    assert stats.normalisation_scale(math.inf, 1e-10, rule) is None
 
 
 def test_stratified_intervals_iqm_and_probability_of_improvement():
-    assert S.iqm(np.array([0.0, 1, 2, 3, 4, 5, 6, 100])) == pytest.approx(3.5)
+    assert stats.iqm(np.array([0.0, 1, 2, 3, 4, 5, 6, 100])) == pytest.approx(3.5)
     strata = [np.array([0.1, 0.2, 0.3]), np.array([0.5, 0.6])]
-    point, low, high = S.stratified_interval(strata)
-    assert low <= point <= high and point == pytest.approx(S.iqm(np.r_[strata[0], strata[1]]))
-    assert S.stratified_interval([np.array([0.4]), np.array([0.6])]) == (0.5, 0.5, 0.5)
+    point, low, high = stats.stratified_interval(strata)
+    assert low <= point <= high and point == pytest.approx(stats.iqm(np.r_[strata[0], strata[1]]))
+    assert stats.stratified_interval([np.array([0.4]), np.array([0.6])]) == (0.5, 0.5, 0.5)
     # A system with one run stays as it is in every resample (scipy resamples two or more).
-    assert S.stratified_interval([np.array([0.1, 0.2, 0.3]), np.array([0.9])]) == \
+    assert stats.stratified_interval([np.array([0.1, 0.2, 0.3]), np.array([0.9])]) == \
         pytest.approx((0.25, 0.1, 0.3))
     better = [s + 1.0 for s in strata]
-    assert S.probability_of_improvement(better, strata) == (1.0, 1.0, 1.0)
-    assert S.probability_of_improvement(strata, strata)[0] == pytest.approx(0.5)
-    frac, low, high = S.performance_profile(strata, np.array([0.0, 0.25, 1.0]))
+    assert stats.probability_of_improvement(better, strata) == (1.0, 1.0, 1.0)
+    assert stats.probability_of_improvement(strata, strata)[0] == pytest.approx(0.5)
+    frac, low, high = stats.performance_profile(strata, np.array([0.0, 0.25, 1.0]))
     np.testing.assert_allclose(frac, [1.0, (1 / 3 + 1) / 2, 0.0])
     assert np.all(low <= frac) and np.all(frac <= high)
 

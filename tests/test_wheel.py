@@ -27,14 +27,14 @@ def test_wheel_install_finds_config_from_any_directory(tmp_path):
     assert (site / "hnnbench_plugins" / "systems" / "spring.py").exists()
     env = {**os.environ, "PYTHONPATH": str(site)}
     code = ("import sys, hnnbench; print(hnnbench.__file__); "
-            "from hnnbench._cli import run; "
+            "from hnnbench._entry.command import run; "
             "sys.exit(run(['--cfg', 'job', 'system=pendulum', 'model=oracle']))")
     proc = subprocess.run([sys.executable, "-c", code], cwd=elsewhere, env=env,
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.splitlines()[0].startswith(str(site))
     assert "name: pendulum" in proc.stdout and "radius_min: 1.3" in proc.stdout
-    code = ("import sys; from hnnbench._cli import run; sys.exit(run(["
+    code = ("import sys; from hnnbench._entry.command import run; sys.exit(run(["
             "'system=spring', 'model=oracle', 'profile=quick', 'hydra.run.dir=out']))")
     proc = subprocess.run([sys.executable, "-c", code], cwd=elsewhere, env=env,
                           capture_output=True, text=True)

@@ -37,7 +37,7 @@ def _value(rec: dict, metric: str) -> float:
 
 
 def table(root: Path) -> str:
-    from hnnbench._records import load
+    from hnnbench._record.loader import load
 
     found: dict[tuple[str, str], dict[str, dict]] = {}
     for embedding in EMBEDDINGS:

@@ -35,7 +35,7 @@ import sys
 import time
 from pathlib import Path
 
-from hnnbench._registry import claim_sets
+from hnnbench._registry.groups import claim_sets
 
 ROOT = Path(__file__).resolve().parents[2]
 SYSTEM = {"2body": "two_body", "3body": "three_body"}

@@ -26,8 +26,8 @@ TRACK_ORDER = ("protocol", "tuned", "recipe")
 
 def main(argv: list[str] | None = None) -> int:
     import hnnbench
-    from hnnbench._registry import metrics as registered
-    from hnnbench._table import format_value
+    from hnnbench._registry.groups import metrics as registered
+    from hnnbench._results.leaderboard import format_value
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("dirs", nargs="+", type=Path, help="record directories (merged)")

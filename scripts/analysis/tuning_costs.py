@@ -31,8 +31,9 @@ RECORDS = REPO / "results" / "records"
 
 
 def protocol_steps(system: str, model: str, profile: str) -> int:
-    from hnnbench._config import compose, prepare_job
-    from hnnbench._contract import TrainSettings
+    from hnnbench._contracts.plugin import TrainSettings
+    from hnnbench._running.compose import compose
+    from hnnbench._running.config import prepare_job
 
     job = prepare_job(compose([f"system={system}", f"model={model}", f"profile={profile}"]))
     return TrainSettings.resolve(job.system_cfg, job.model_cfg).steps

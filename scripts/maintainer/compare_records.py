@@ -39,8 +39,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from hnnbench._records import RUN_ONLY_KEYS
-from hnnbench._records import load as load_records
+from hnnbench._record.loader import load as load_records
+from hnnbench._running.config import RUN_ONLY_KEYS
 
 #: Top-level record fields that say when, where and with which hnnbench a job ran.
 IGNORED = {"environment", "created_at", "timings", "cpu_pin"}

@@ -1,5 +1,5 @@
 """Write hnnbench/resources/job_costs.csv: the wall time of one job per (profile, system,
-model), from the runs this repository publishes (hnnbench._costs reads it for the
+model), from the runs this repository publishes (hnnbench._sweeping.eta reads it for the
 sweep's estimate and ETA).
 
 - paper profile: the median ``timings.total_s`` over the protocol track's records in
@@ -33,9 +33,10 @@ QUICK = REPO / "results" / "reference" / "quick.csv"
 def rows(records: Path = RECORDS, quick: Path = QUICK) -> list[dict[str, object]]:
     """The table's rows: the paper profile's from ``records``, the quick profile's from
     ``quick``."""
-    from hnnbench._costs import median_seconds
-    from hnnbench._record_schema import DEFAULT_TRACK, track_of
-    from hnnbench._table import _variant_items, variant_overrides
+    from hnnbench._contracts.names import DEFAULT_TRACK
+    from hnnbench._record.tracks import track_of
+    from hnnbench._results.leaderboard import _variant_items, variant_overrides
+    from hnnbench._sweeping.eta import median_seconds
 
     times: dict[tuple[str, str, str], list[float]] = defaultdict(list)
     for path in sorted(records.rglob("result.json")):
@@ -65,7 +66,7 @@ def rows(records: Path = RECORDS, quick: Path = QUICK) -> list[dict[str, object]
 
 
 def render() -> str:
-    from hnnbench._costs import COLUMNS
+    from hnnbench._sweeping.eta import COLUMNS
 
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
@@ -75,7 +76,7 @@ def render() -> str:
 
 
 def _out() -> Path:
-    from hnnbench._costs import COSTS_FILE
+    from hnnbench._sweeping.eta import COSTS_FILE
 
     return REPO / "hnnbench" / "resources" / COSTS_FILE
 

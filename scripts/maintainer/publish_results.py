@@ -7,7 +7,7 @@
 1. Copies every ``result.json`` of the sweeps into ``results/records/<system>/<model>/
    seed<k>/result.json``, and beside the lowest seed of each pair that has a rollout a
    small *figure rollout* (``rollout.npz``: what the per-system figures draw, 3
-   trajectories, at most 200 time points, float32; ``hnnbench._report.figures.
+   trajectories, at most 200 time points, float32; ``hnnbench._results.report.figures.
    figure_arrays``), so that a report merging a new sweep with ``results/records`` draws
    every model. Weights and full rollouts stay in the sweeps. Sweeps of different
    systems, run at different times or on different machines, merge there; a record
@@ -32,9 +32,9 @@
    ``<!-- tracks:end -->`` in README.md with the tracks side by side (tracks.md).
 
 Records come from other machines (docs/LEADERBOARD.md, "Threat model"): a record's
-directory is built from its names by ``hnnbench._paths.safe_join`` (a name that is not a
+directory is built from its names by ``hnnbench._contracts.paths.safe_join`` (a name that is not a
 name, or a path outside results/records, is refused), every Markdown cell and line is
-escaped (``hnnbench._report.markdown``), and a marker counts only as a whole line of its
+escaped (``hnnbench._results.report.markdown``), and a marker counts only as a whole line of its
 own, exactly once, so no content can forge one.
 """
 
@@ -98,13 +98,13 @@ def record_dir(rec: dict) -> Path:
     """``results/records/<system>/<model>/seed<k>`` of a protocol record, and
     ``results/records/<system>/<model>/<track>/seed<k>`` of a tuned or recipe one (so a
     row of another track never replaces the protocol's), built by
-    ``hnnbench._paths.safe_join``: a system or model that is not a name
-    (``hnnbench._record_schema.NAME_PATTERN``), a track not of ``TRACKS``, a seed that is
+    ``hnnbench._contracts.paths.safe_join``: a system or model that is not a name
+    (``hnnbench._contracts.names.NAME_PATTERN``), a track not of ``TRACKS``, a seed that is
     not a non-negative integer, or a path outside results/records is refused
     (``SystemExit``, naming the record)."""
-    from hnnbench._errors import UnsafePathError
-    from hnnbench._paths import safe_join
-    from hnnbench._record_schema import DEFAULT_TRACK, TRACKS, name_problem
+    from hnnbench._contracts.errors import UnsafePathError
+    from hnnbench._contracts.names import DEFAULT_TRACK, TRACKS, name_problem
+    from hnnbench._contracts.paths import safe_join
 
     where = rec.get("path", "a record")
     seed = rec.get("seed")
@@ -126,7 +126,7 @@ def record_dir(rec: dict) -> Path:
 
 def job_of(rec: dict) -> tuple[str, str, str, int]:
     """A published job's identity: (track, system, model, seed)."""
-    from hnnbench._record_schema import track_of
+    from hnnbench._record.tracks import track_of
 
     return track_of(rec), str(rec["system"]), str(rec["model"]), int(rec["seed"])
 
@@ -139,14 +139,14 @@ def copy_figure_rollouts(sweeps: list[Path]) -> tuple[int, int]:
 
     import numpy as np
 
-    from hnnbench import _records as R
-    from hnnbench._paths import safe_join
-    from hnnbench._report.figures import figure_arrays
+    from hnnbench import _record as records
+    from hnnbench._contracts.paths import safe_join
+    from hnnbench._results.report.figures import figure_arrays
 
     chosen: dict[tuple[str, str, str], tuple[int, Path]] = {}
     for sweep in sweeps:
-        for rec in R.load(sweep, strict=True).records:
-            source = Path(rec["path"]) / R.ROLLOUT_NAME
+        for rec in records.load(sweep, strict=True).records:
+            source = Path(rec["path"]) / records.ROLLOUT_NAME
             if rec.get("status") not in ("ok", "diverged") or not source.is_file():
                 continue
             track, system, model, seed = job_of(rec)
@@ -157,15 +157,15 @@ def copy_figure_rollouts(sweeps: list[Path]) -> tuple[int, int]:
     for (track, system, model), (seed, source) in sorted(chosen.items()):
         rec = {"system": system, "model": model, "seed": seed, "track": track,
                "path": str(source.parent)}
-        target = safe_join(record_dir(rec), R.ROLLOUT_NAME)
+        target = safe_join(record_dir(rec), records.ROLLOUT_NAME)
         buffer = io.BytesIO()
-        np.savez_compressed(buffer, **figure_arrays(R.load_arrays(source)))
+        np.savez_compressed(buffer, **figure_arrays(records.load_arrays(source)))
         target.parent.mkdir(parents=True, exist_ok=True)
         tmp = target.with_name(f".{target.name}.tmp")
         tmp.write_bytes(buffer.getvalue())
         tmp.replace(target)
         written[target.resolve()] = len(buffer.getvalue())
-    for stale in RECORDS.rglob(R.ROLLOUT_NAME):
+    for stale in RECORDS.rglob(records.ROLLOUT_NAME):
         if stale.resolve() not in written:
             stale.unlink()
     return len(written), sum(written.values())
@@ -185,13 +185,13 @@ def given_records(sweeps: list[Path]) -> list[dict]:
     """The records of the directories given, each checked: valid against the schema (a
     strict load), the paper profile, the paper settings (its variant derived from its
     stored config), and no job twice (``SystemExit`` naming the record otherwise)."""
-    from hnnbench import _records as R
-    from hnnbench._provenance import config_variant
+    from hnnbench import _record as records
+    from hnnbench._results.provenance import config_variant
 
     out: list[dict] = []
     seen: dict[tuple[str, str, str, int], str] = {}
     for sweep in sweeps:
-        recs, bad = R.load(sweep, strict=True)
+        recs, bad = records.load(sweep, strict=True)
         if bad:
             raise SystemExit(f"publish: {len(bad)} unreadable or invalid record(s) in "
                              f"{sweep}, e.g. {bad[0]}")
@@ -220,26 +220,26 @@ def given_records(sweeps: list[Path]) -> list[dict]:
 def copy_records(sweeps: list[Path], recs: list[dict] | None = None) -> int:
     """Copy each sweep's records (:func:`given_records`, unless already given as
     ``recs``) into results/records; returns how many."""
-    from hnnbench import _records as R
-    from hnnbench._paths import safe_join
-    from hnnbench._record_schema import MAX_RECORD_BYTES
+    from hnnbench import _record as records
+    from hnnbench._contracts.paths import safe_join
+    from hnnbench._record.store import MAX_RECORD_BYTES
 
     recs = given_records(sweeps) if recs is None else recs
     for rec in recs:
-        source = Path(rec["path"]) / R.RECORD_NAME
+        source = Path(rec["path"]) / records.RECORD_NAME
         target = record_dir(rec)
         text = source.read_text()
         if len(text.encode()) > MAX_RECORD_BYTES:
             raise SystemExit(f"publish: {source} grew over {MAX_RECORD_BYTES} bytes")
         target.mkdir(parents=True, exist_ok=True)
-        R.atomic_write_text(safe_join(target, R.RECORD_NAME), text)
+        records.atomic_write_text(safe_join(target, records.RECORD_NAME), text)
     return len(recs)
 
 
 def published_jobs() -> set[tuple[str, str, str, int]]:
     """The (track, system, model, seed) of every record under results/records
     (:func:`record_dir`'s layout)."""
-    from hnnbench._record_schema import DEFAULT_TRACK
+    from hnnbench._contracts.names import DEFAULT_TRACK
 
     jobs = {(DEFAULT_TRACK, p.parts[-4], p.parts[-3], int(p.parts[-2].removeprefix("seed")))
             for p in RECORDS.glob("*/*/seed*/result.json")}
@@ -276,15 +276,15 @@ def main(argv: list[str] | None = None) -> int:
                              "the same step")
     args = parser.parse_args(argv)
 
-    from hnnbench._errors import HnnbenchError
-    from hnnbench._report import write_report
-    from hnnbench._report.figures import main_profile_figure
-    from hnnbench._report.markdown import md_code
-    from hnnbench._report.verdicts import aggregate_markdown
+    from hnnbench._contracts.errors import HnnbenchError
+    from hnnbench._results.report import write_report
+    from hnnbench._results.report.figures import main_profile_figure
+    from hnnbench._results.report.markdown import md_code
+    from hnnbench._results.report.verdicts import aggregate_markdown
 
     recs = given_records(args.sweeps)
     replaced = {s for s in args.replace.split(",") if s}
-    from hnnbench._record_schema import DEFAULT_TRACK, name_problem
+    from hnnbench._contracts.names import DEFAULT_TRACK, name_problem
 
     for system in sorted(replaced):
         problem = name_problem("system", system)
@@ -363,8 +363,8 @@ def main(argv: list[str] | None = None) -> int:
 def partial_lines(published: set[Path] | list[Path]) -> list[str]:
     """One line per published system that lacks some installed models, naming them
     (``records/<system>/<model>/...`` paths)."""
-    from hnnbench._registry import available
-    from hnnbench._report.markdown import md_code
+    from hnnbench._registry.groups import available
+    from hnnbench._results.report.markdown import md_code
 
     models: dict[str, set[str]] = {}
     for path in published:

@@ -2,7 +2,7 @@
 
     python scripts/maintainer/record_schema.py [--write | --check]
 
-The record is defined in ``hnnbench/_record_schema.py``; the JSON Schema
+The record is defined in ``hnnbench/_record/fields.py``; the JSON Schema
 ``hnnbench/resources/record.schema.json`` is made from that definition. With no option
 the schema is printed; ``--write`` rewrites the file (after changing the definition);
 ``--check`` exits 1 when the file differs from the definition (tests/test_records_schema.py
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import sys
 
-from hnnbench._record_schema import SCHEMA_FILE, schema_text
+from hnnbench._record.fields import SCHEMA_FILE, schema_text
 
 
 def main(argv: list[str]) -> int:
@@ -23,7 +23,7 @@ def main(argv: list[str]) -> int:
         print(f"wrote {SCHEMA_FILE}")
     elif argv == ["--check"]:
         if SCHEMA_FILE.read_text(encoding="utf-8") != text:
-            print(f"{SCHEMA_FILE} differs from hnnbench/_record_schema.py: run "
+            print(f"{SCHEMA_FILE} differs from hnnbench/_record/fields.py: run "
                   "python scripts/maintainer/record_schema.py --write", file=sys.stderr)
             return 1
     elif not argv:

@@ -1,0 +1,244 @@
+"""The verdict across systems: per family and metric, a score normalised per system,
+its interquartile mean over every (system, seed) run with a stratified bootstrap
+interval, the probability that one family beats another, and performance profiles
+(Agarwal et al. 2021; the statistics are :mod:`hnnbench._results.stats`, docs/STATISTICS.md).
+
+Per (profile, system, metric) the *scale* runs from the baseline family's mean (the
+family that declares :attr:`hnnbench.neural.Family.baseline`; score 0) to the *floor*
+(score 1): the best mean of an unranked reference model on the system (the oracle; never
+standing still, which is a reference to beat), or,
+where none ran (measured data), the metric's noise floor (``CheckRule.floor``), and
+never below that noise floor. A run's score is ``1 - log W(floor, v) / log W(floor,
+base)`` with ``W`` the metric's :meth:`~hnnbench._contracts.metric.CheckRule.worsening`
+(:func:`hnnbench._results.stats.normalised_scores`). A (system, metric) has no scale, and is
+left out with the reason in :attr:`Aggregate.scales`, where the baseline has no finite
+mean or is within the metric's declared tolerance of the floor (e.g. a loss on noisy
+targets, where the oracle scores the noise).
+
+Only rows without a variant take part. A family's runs on a system are its primary
+twin's seeds (:mod:`hnnbench._results.families`); a skipped pair is no run, a diverged or failed
+seed scores the bottom of :data:`hnnbench._results.stats.SCORE_RANGE`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from itertools import combinations
+from typing import Optional
+
+import numpy as np
+import pandas as pd
+
+from hnnbench import _registry as registry
+from hnnbench._contracts.metric import CheckRule
+from hnnbench._contracts.names import STANDING_STILL
+from hnnbench._results import stats
+from hnnbench._results.families import SCOPE_KEY, Families, family_order, key_of, scope_name, select
+from hnnbench._results.leaderboard import metric_declarations
+
+__all__ = ["Aggregate", "aggregate", "headline_metrics", "profile_taus"]
+
+#: Points of a performance profile.
+N_TAUS = 81
+
+
+def profile_taus(scores: np.ndarray) -> np.ndarray:
+    """The thresholds of a performance profile: from the 2nd percentile of the scores
+    (at least -1) to their largest (at most the floor's 1), on a 0.1 grid."""
+    finite = scores[np.isfinite(scores)]
+    if not finite.size:
+        return np.linspace(-1.0, 1.0, N_TAUS)
+    low = max(-1.0, math.floor(float(np.quantile(finite, 0.02)) * 10) / 10)
+    high = min(1.0, math.ceil(float(np.max(finite)) * 10) / 10)
+    return np.linspace(low, max(high, low + 0.1), N_TAUS)
+
+SCALE_COLUMNS = [*SCOPE_KEY, "metric", "system", "baseline", "floor", "floor_from", "used",
+                 "why_not"]
+IQM_COLUMNS = [*SCOPE_KEY, "metric", "family", "iqm", "iqm_low", "iqm_high", "n_systems",
+               "n_runs", "systems"]
+IMPROVEMENT_COLUMNS = [*SCOPE_KEY, "metric", "family", "other", "p", "p_low", "p_high",
+                       "n_systems"]
+
+
+def headline_metrics() -> list[str]:
+    """The installed metrics declared ``headline`` (:attr:`hnnbench.Metric.headline`),
+    in table order."""
+    return [m.name for m in registry.metrics() if m.headline and m.ranked]
+
+
+@dataclass
+class Aggregate:
+    """The aggregate of a family view, per scope (:data:`hnnbench._results.families.SCOPE_KEY`:
+    the profile; one aggregate never mixes two).
+
+    Attributes:
+        iqm: per (scope, metric, family): ``iqm`` and its interval ``iqm_low``,
+            ``iqm_high``, ``n_systems``, ``n_runs``, ``systems`` (``;``-joined).
+        improvement: per (scope, metric, family, other), both orders: ``p`` =
+            P(a run of ``family`` scores higher than one of ``other`` on the same
+            system), its interval ``p_low``, ``p_high``, ``n_systems`` (both ran).
+        scales: per (scope, metric, system): ``baseline``, ``floor``, ``floor_from``,
+            ``used`` and, where not used, ``why_not``.
+        scores: per (scope, metric, system, family, seed): ``score``.
+        profiles: ``{(scope, metric): (taus, {family: (fraction, low, high)})}`` (the
+            scope's values joined by ``/``)
+            (:func:`profile_taus`; :func:`hnnbench._results.stats.performance_profile`).
+        baseline: the baseline family, or ``None``.
+        note: why there is no aggregate, if there is none.
+    """
+
+    iqm: pd.DataFrame = field(default_factory=lambda: pd.DataFrame(columns=IQM_COLUMNS))
+    improvement: pd.DataFrame = field(
+        default_factory=lambda: pd.DataFrame(columns=IMPROVEMENT_COLUMNS))
+    scales: pd.DataFrame = field(default_factory=lambda: pd.DataFrame(columns=SCALE_COLUMNS))
+    scores: pd.DataFrame = field(default_factory=pd.DataFrame)
+    profiles: dict[tuple[str, str], tuple[np.ndarray, dict[str, tuple[np.ndarray, np.ndarray,
+                                                                        np.ndarray]]]] = \
+        field(default_factory=dict)
+    baseline: Optional[str] = None
+    note: str = ""
+
+    @property
+    def empty(self) -> bool:
+        return self.iqm.empty
+
+
+def _floor(rows: pd.DataFrame, metric: str, rule: CheckRule) -> tuple[float, str]:
+    """The floor of one (system, metric) and where it comes from."""
+    refs = rows[~rows["ranked"].fillna(True).astype(bool)] if "ranked" in rows else rows[:0]
+    if "reference" in refs:  # standing still is a reference to beat, never the floor
+        refs = refs[refs["reference"].fillna("").astype(str) != STANDING_STILL]
+    values = pd.to_numeric(refs.get(f"{metric}_mean", pd.Series(dtype=float)),
+                           errors="coerce")
+    values = values[np.isfinite(values)]
+    if len(values):
+        i = values.idxmax() if rule.better == "higher" else values.idxmin()
+        best = float(values[i])
+        if rule.better == "lower" and best < rule.floor:
+            return rule.floor, f"noise floor (the {refs.at[i, 'family']} is below it)"
+        return best, str(refs.at[i, "family"])
+    if rule.floor > 0:
+        return rule.floor, "noise floor (no reference model ran)"
+    return math.nan, "no reference model ran, and the metric declares no noise floor"
+
+
+def _runs(fams: Families, scope: tuple[str, ...], system: str, family: str, metric: str
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """A family's seeds and per-seed values on a system (skipped runs left out)."""
+    sel = select(fams.runs, SCOPE_KEY, scope)
+    sel = sel[(sel["system"] == system) & (sel["family"] == family)]
+    if "variant" in sel:
+        sel = sel[sel["variant"].fillna("").astype(str) == ""]
+    sel = sel[sel["status"] != "skipped"]
+    values = pd.to_numeric(sel[metric], errors="coerce") if metric in sel else \
+        pd.Series(math.nan, index=sel.index)
+    return sel["seed"].to_numpy(), values.to_numpy(dtype=float)
+
+
+def aggregate(fams: Families, metrics: Optional[Sequence[str]] = None,
+              improvement_metrics: Optional[Sequence[str]] = None) -> Aggregate:
+    """The aggregate (:class:`Aggregate`) of ``fams`` over ``metrics`` (default: every
+    ranked metric of the board); probabilities of improvement and performance profiles
+    over ``improvement_metrics`` (default: :func:`headline_metrics`)."""
+    declared = metric_declarations()
+    board = fams.board
+    if board.empty:
+        return Aggregate(note="no records")
+    if "variant" in board:
+        board = board[board["variant"].fillna("").astype(str) == ""]
+    present = [c[:-5] for c in board.columns if c.endswith("_mean")]
+    if metrics is None:
+        metrics = [m for m in present if m in declared and declared[m].ranked]
+    metrics = [m for m in metrics if m in present and m in declared]
+    if improvement_metrics is None:
+        improvement_metrics = headline_metrics()
+    baselines = registry.baseline_families()
+    if not baselines:
+        return Aggregate(note="no installed model family declares itself the baseline "
+                              "(hnnbench.neural.Family(baseline=True))")
+    if len(baselines) > 1:
+        return Aggregate(note=f"several families declare themselves the baseline "
+                              f"({', '.join(baselines)}); exactly one may")
+    baseline = baselines[0]
+    order = family_order(board)
+    scales, scores = [], []
+    for _, mine in board.groupby(list(SCOPE_KEY), sort=False, dropna=False):
+        scope = key_of(mine.iloc[0], SCOPE_KEY)
+        where = dict(zip(SCOPE_KEY, scope, strict=True))
+        for metric in metrics:
+            rule = declared[metric].check
+            for system in registry.ordered("system", mine["system"].astype(str)):
+                rows = mine[mine["system"] == system]
+                values = pd.to_numeric(rows[f"{metric}_mean"], errors="coerce")
+                if values.isna().all():
+                    continue  # not applicable on this system
+                base_rows = rows[rows["family"] == baseline]
+                base = float(pd.to_numeric(base_rows[f"{metric}_mean"], errors="coerce")
+                             .iloc[0]) if len(base_rows) else math.nan
+                floor, source = _floor(rows, metric, rule)
+                scale = stats.normalisation_scale(base, floor, rule)
+                why = "" if scale is not None else (
+                    f"no {baseline} (baseline) value" if math.isnan(base) else
+                    f"{baseline} (baseline) is not finite" if not math.isfinite(base) else
+                    source if math.isnan(floor) else
+                    f"{baseline} (baseline) is within the metric's tolerance "
+                    f"({rule.factor:g}x) of the floor")
+                scales.append({**where, "metric": metric, "system": system, "baseline": base,
+                               "floor": floor, "floor_from": source,
+                               "used": scale is not None, "why_not": why})
+                if scale is None:
+                    continue
+                for family in rows[rows["ranked"].fillna(True).astype(bool)]["family"]:
+                    seeds, runs = _runs(fams, scope, system, str(family), metric)
+                    if not len(runs):
+                        continue
+                    normalised = stats.normalised_scores(runs, base, floor, rule)
+                    assert normalised is not None
+                    scores += [{**where, "metric": metric, "system": system,
+                                "family": str(family), "seed": int(seed), "score": float(v)}
+                               for seed, v in zip(seeds, normalised, strict=True)]
+    scores_frame = pd.DataFrame(scores, columns=[*SCOPE_KEY, "metric", "system", "family",
+                                                 "seed", "score"])
+    out = Aggregate(scales=pd.DataFrame(scales, columns=SCALE_COLUMNS), scores=scores_frame,
+                    baseline=baseline)
+    if scores_frame.empty:
+        out.note = "no (system, metric) with a scale: every one lacks a baseline or a floor"
+        return out
+    iqm_rows, poi_rows = [], []
+    for key, group in scores_frame.groupby([*SCOPE_KEY, "metric"], sort=False):
+        *names, metric = (str(k) for k in key)
+        where = dict(zip(SCOPE_KEY, names, strict=True))
+        strata: dict[str, dict[str, np.ndarray]] = {}
+        for (family, system), g in group.groupby(["family", "system"], sort=False):
+            strata.setdefault(str(family), {})[str(system)] = g["score"].to_numpy(float)
+        families = [f for f in order if f in strata]
+        for family in families:
+            point, low, high = stats.stratified_interval(list(strata[family].values()))
+            iqm_rows.append({**where, "metric": metric, "family": family,
+                             "iqm": point, "iqm_low": low, "iqm_high": high,
+                             "n_systems": len(strata[family]),
+                             "n_runs": int(sum(v.size for v in strata[family].values())),
+                             "systems": ";".join(strata[family])})
+        if metric not in improvement_metrics:
+            continue
+        for a, b in combinations(families, 2):
+            common = [s for s in strata[a] if s in strata[b]]
+            if not common:
+                continue
+            p, low, high = stats.probability_of_improvement(
+                [strata[a][s] for s in common], [strata[b][s] for s in common])
+            poi_rows.append({**where, "metric": metric, "family": a, "other": b,
+                             "p": p, "p_low": low, "p_high": high, "n_systems": len(common)})
+            poi_rows.append({**where, "metric": metric, "family": b, "other": a,
+                             "p": 1.0 - p, "p_low": 1.0 - high, "p_high": 1.0 - low,
+                             "n_systems": len(common)})
+        taus = profile_taus(group["score"].to_numpy(float))
+        label = scope_name(names)
+        out.profiles[(label, metric)] = (taus, {
+            family: stats.performance_profile(list(strata[family].values()), taus)
+            for family in families})
+    out.iqm = pd.DataFrame(iqm_rows, columns=IQM_COLUMNS)
+    out.improvement = pd.DataFrame(poi_rows, columns=IMPROVEMENT_COLUMNS)
+    return out
