@@ -1,7 +1,8 @@
 """hnnbench: physics-informed models of dynamics vs plain networks, as a benchmark.
 
-This module is hnnbench's public surface; every implementation module is private
-(``hnnbench._name``) and may change without notice.
+This module is hnnbench's public surface; the implementation is private, one underscore
+package per layer (``hnnbench._contracts``, ``hnnbench._running``, ...;
+docs/ARCHITECTURE.md), and may change without notice.
 
 Running things (the ``hnnbench`` command's twins): :func:`run`, :func:`sweep`,
 :func:`tune` (the tuned track), :func:`load`, :func:`leaderboard`; :func:`register` adds

@@ -34,7 +34,7 @@ def test_plugin_appears_in_list(plugin_env):
 
 
 def test_all_includes_plugin(plugin_env):
-    code = ("from hnnbench._sweeping import plan; "
+    code = ("from hnnbench._sweeping.plan import plan; "
             "print(' '.join(plan(['-m', 'system=all', 'model=all']).argv))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          env={**os.environ, **plugin_env}, check=True).stdout

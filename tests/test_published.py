@@ -13,6 +13,7 @@ import pytest
 from conftest import REPO, hnnbench
 
 from hnnbench import _record as records
+from hnnbench._contracts.names import STATUSES
 from hnnbench._registry.groups import available
 from hnnbench._results.families import families
 from hnnbench._results.leaderboard import leaderboard, records_frame
@@ -43,7 +44,7 @@ def _block(text: str, name: str) -> str:
 def test_every_committed_record_is_valid_paper_profile(committed):
     assert committed
     for rec in committed:
-        assert rec["profile"] == "paper" and rec["status"] in records.STATUSES
+        assert rec["profile"] == "paper" and rec["status"] in STATUSES
 
 
 @pytest.fixture(scope="module")

@@ -1,23 +1,7 @@
-"""Claims from the literature, evaluated on a leaderboard and reported whatever they
-come to.
-
-A :class:`Claim` compares two model *families* (``mlp`` vs ``hnn``, ``lnn`` vs ``hnn``)
-on one system and one metric: one is lower by at least a factor, or the two are within
-a factor of each other. It is evaluated per backend: for each backend that has a model
-of both families (the registry knows which model belongs to which family), the two
-models' leaderboard values are compared. A :class:`ClaimSet` groups the claims of one
-source, optionally with the published values they were read from (a paper's table).
-
-Claim sets are plugins of the entry-point group ``hnnbench.claims`` (each entry point
-names a :class:`ClaimSet`). This module names no model or family: hnnbench's own sets
-(the 2019 paper, the model zoo) are declared in ``hnnbench_plugins.claims``.
-
-Outcomes: ``reproduced``, ``not reproduced``, ``not run`` (no record of that pair, or
-no finite value because every run failed), ``did not train`` (most seeds of one of the
-two models never improved on their first validation: the claim is about a trained
-model, so it is not tested). A claim whose source trained a family by its own recipe
-says so (``recipe``), and its result carries that note: the protocol track tests the
-family under the shared protocol, not the paper's recipe.
+"""Claims from the literature, evaluated on a leaderboard and reported whatever they come
+to: a :class:`Claim` compares two model families on one system and metric, per backend;
+a :class:`ClaimSet` groups one source's claims with the values it published
+(docs/PLUGINS.md, "5. Claim sets"). This module names no model or family.
 """
 
 from __future__ import annotations

@@ -1,30 +1,7 @@
-"""Locating external (measured) data files, with a SHA-256 check.
-
-:func:`locate` looks for a file in this order and returns the first hit:
-
-1. an explicit path from the config (``system.data_path``): a file, or a directory that
-   holds the file. If it is given but the file is not there, that is an error (no silent
-   fallback to another copy);
-2. the data directories of :func:`hnnbench._contracts.paths.data_dirs`: a job's ``data_dir``
-   setting (when set), then ``$HNNBENCH_DATA_DIR``, each as ``<dir>/<filename>``;
-3. the cache, ``<cache root>/data/<filename>``, where the cache root is
-   :func:`hnnbench._contracts.paths.cache_root` (a job's ``cache_dir`` setting, else
-   ``$HNNBENCH_CACHE_DIR``, else ``platformdirs.user_cache_dir("hnnbench")``);
-4. a download from ``url`` (if one is configured) into the cache, done by pooch
-   (:func:`pooch.retrieve`): it streams into a temporary file in the cache directory,
-   checks the SHA-256, then moves the file into place, so a partial or wrong download
-   never looks like a cached file. The transfer itself is :class:`_Transfer`: pooch's
-   HTTP downloader for ``http(s)://`` and a plain reader for ``file://``, both bounded
-   in time and size.
-
-Every file found locally and every download is checked against the expected SHA-256.
-A missing file, a failed download or a hash mismatch raises a one-line
-:class:`hnnbench._contracts.errors.DataError` that says which file, where it looked and where to put
-it. Successful checks are memoised per process, keyed by path, size and mtime. pooch's
-log lines about our downloads go to the ``hnnbench`` logger.
-
-This module imports only the standard library and :mod:`hnnbench._contracts.paths` (pooch and
-platformdirs on first use); no numpy, torch or JAX.
+"""Locating external (measured) data files with a SHA-256 check (:func:`locate`): the
+config's path, the data directories, the cache, a bounded download through pooch, in
+that order, each file checked; a one-line :class:`~hnnbench.DataError` saying where it
+looked (docs/DATA.md, "Where hnnbench looks"). Standard library only until used.
 """
 
 from __future__ import annotations

@@ -1,39 +1,9 @@
-"""Dataset scaffolding shared by systems: seed streams and the train/test split.
-
-Seed streams. Every random draw a system makes comes from a generator derived from the
-job's seed and a *stream tag*, :func:`seed_stream` (``np.random.default_rng((seed,
-stream))``), so draws of different purposes never overlap and adding draws to one purpose
-leaves the others unchanged:
-
-- :data:`DATA_STREAM` (0): the training/test data. A system draws its initial states first
-  and then, if it adds any, the input noise, from this one generator.
-- :data:`EVAL_STREAM` (1): the evaluation trajectories' initial states.
-- :data:`SPLIT_STREAM` (3): the shuffled train/test assignment of
-  ``TrajectorySplit(test_from="shuffled")``.
-- :data:`VALID_STREAM` (4): the validation trajectories (:func:`with_validation`).
-
-Other tags are free for a system's own draws (the built-in double pendulum's Lyapunov
-estimate uses 2).
-
-The split. A system that generates whole trajectories, arrays shaped ``(n_traj,
-n_points, ...)``, hands them to :func:`trajectory_dataset` with a :class:`TrajectorySplit`
-that states which trajectories are test: a fraction of them, taken from the start
-(``"first"``), from the end (``"last"``) or by a seeded shuffle (``"shuffled"``), and which
-count is rounded. The rest train. Every point of a trajectory lands in the same split, so
-train and test share no trajectory.
-
-The validation split. :func:`with_validation` carves it from a dataset's *training*
-split, never from test, by one rule for every system, applied by the job before a
-model sees the data (a system's ``dataset`` and its cache entry do not change):
-
-- a training split of at least :data:`MIN_VALID_TRAJECTORIES` trajectories gives
-  ``round(VALID_FRACTION * n)`` (at least one) whole trajectories, drawn without
-  replacement from :data:`VALID_STREAM` of the job's seed, so validation shares no
-  trajectory with training;
-- a training split of fewer trajectories (measured series: one or two long recordings)
-  gives the last ``VALID_FRACTION`` of each trajectory's points in time order (at least
-  one point each, and at least one point left to train on), a held-out continuation
-  of each recording.
+"""Dataset scaffolding shared by systems: seed streams (:func:`seed_stream`, one generator
+per purpose: :data:`DATA_STREAM`, :data:`EVAL_STREAM`, :data:`SPLIT_STREAM`,
+:data:`VALID_STREAM`), the train/test split of whole trajectories
+(:class:`TrajectorySplit`, :func:`trajectory_dataset`), and the validation split carved
+from training data by one rule (:func:`with_validation`; docs/PLUGINS.md, "2. Write a
+system"; docs/METRICS.md, "Validation and the scored checkpoint").
 """
 
 from __future__ import annotations

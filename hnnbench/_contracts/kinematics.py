@@ -1,29 +1,7 @@
-"""Kinematics: how positions move, the part of a system's contract that second-order
-models (the Lagrangian NN, the second-order neural ODE) need.
-
-hnnbench states are canonical, ``x = (q, p)`` of shape ``(N, 2n)``. A second-order
-model works in *velocity coordinates* ``v = (q, q̇)`` instead: it learns ``q̈`` and
-gets ``q̇`` for free. A system that declares :meth:`hnnbench.System.kinematics`
-tells such a model how to move between the two, exactly:
-
-- :meth:`Kinematics.to_velocity` ``x -> v`` and :meth:`Kinematics.to_canonical`
-  ``v -> x`` (inverse maps, positions unchanged);
-- :meth:`Kinematics.velocity_rate` ``(x, ẋ) -> v̇``: the time derivative of ``v``
-  along a trajectory whose canonical derivative is ``ẋ`` (the tangent map), used to
-  turn the dataset's ``dx/dt`` targets into ``(q̇, q̈)``;
-- :meth:`Kinematics.canonical_rate` ``(v, v̇) -> ẋ``: the inverse tangent map, used to
-  report a second-order model's ``q̈`` as ``dx/dt = (q̇, ṗ)`` (losses, metrics).
-
-Two implementations cover the built-in systems:
-
-- :class:`LinearKinematics`: ``q̇ = A p`` with a constant matrix ``A`` (the inverse mass
-  matrix): springs, the ideal pendulum in the paper's units (``A = 2``), n bodies
-  (``A = 1/m``), and measured data whose "momentum" already is the angular velocity
-  (``A = 1``, :func:`identity_kinematics`).
-- :class:`MassMatrixKinematics`: ``p = M(q) q̇`` with a configuration-dependent mass
-  matrix (the double pendulum).
-
-This module is pure numpy.
+"""Kinematics: the map between canonical ``(q, p)`` and velocity coordinates ``(q, q̇)``
+that second-order models need, and its tangent maps (:class:`Kinematics`,
+:class:`LinearKinematics`, :class:`MassMatrixKinematics`; docs/MODELS.md, "Velocity
+coordinates"). Pure numpy.
 """
 
 from __future__ import annotations

@@ -1,27 +1,7 @@
-"""Model outputs, checked against the shapes and dtypes the contract documents.
-
-Every model output the harness consumes goes through :func:`checked` first (the
-evaluation, :class:`hnnbench._contracts.metric.EvalContext`; the default
-:meth:`hnnbench._contracts.plugin.Model.loss`), so a rollout of the wrong shape cannot broadcast
-against the true trajectories and score as something it is not. A mismatch raises
-:class:`~hnnbench._contracts.errors.ModelOutputError`: the job is recorded ``failed`` with one
-line naming the method, the expected and the actual shape.
-
-The documented outputs (docs/PLUGINS.md, :class:`hnnbench._contracts.plugin.Model`):
-
-======================  =================  ==========================================
-method                  shape              dtype
-======================  =================  ==========================================
-``time_derivative(x)``  ``(N, D)``         float64; same N and D as ``x`` and targets
-``rollout(z0, t)``      ``(M, T, d)``      float64; M = len(z0), T = len(t), d = z0's
-``energy(x)``           ``(N,)`` or None   float64
-``loss(x, dxdt)``       a scalar           real
-``encode(obs)``         ``(N, k)``         floating (a pixel autoencoder's precision)
-``decode(z)``           ``(N, D_obs)``     floating
-======================  =================  ==========================================
-
-An output that is already an array of the right shape and dtype is returned as it is:
-no copy, no conversion, so correct models' numbers never change.
+"""Model outputs checked against the shapes and dtypes the contract documents
+(:func:`checked`, before the evaluation or a loss uses them): a mismatch is a one-line
+:class:`~hnnbench.ModelOutputError`, and an output already right is returned as it is
+(docs/PLUGINS.md, "3. Write a model", where the shapes are listed).
 """
 
 from __future__ import annotations

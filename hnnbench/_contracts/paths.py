@@ -1,26 +1,7 @@
-"""Where hnnbench keeps its files, and the SHA-256 of a file.
-
-This is the only module that decides where things live:
-
-- the **cache root**, which holds generated datasets (``datasets/``), downloaded
-  measured data (``data/``) and JAX's compiled executables (``jax-compilation/``).
-  :func:`cache_root` returns, in this order: the innermost active
-  :func:`cache_root_override` (a job enters one with its ``cache_dir`` setting),
-  ``$HNNBENCH_CACHE_DIR``, else ``platformdirs.user_cache_dir("hnnbench")``;
-- the **data directories** searched for measured data files before the cache
-  (:func:`data_dirs`): the innermost active :func:`data_dir_override` (a job's
-  ``data_dir`` setting), then ``$HNNBENCH_DATA_DIR``.
-
-Overrides are context variables: they apply to the code that runs inside the ``with``
-block (in this thread, or in tasks that copy its context), and end with it. The
-environment is read at each call, never cached.
-
-Every path built from a name that comes from a record or a plugin (a figure per system,
-``results/records/<system>/<model>/seed<k>``) is built by :func:`safe_join`, which
-refuses a name that is not one plain component and a result outside its root.
-
-This module imports only the standard library and :mod:`hnnbench._contracts.errors`
-(platformdirs on first use): no numpy, torch or JAX.
+"""Where hnnbench keeps its files: the cache root (:func:`cache_root`), the data
+directories (:func:`data_dirs`), their per-job overrides (context variables), a file's
+SHA-256, and :func:`safe_join` (every path built from a record's or plugin's name: one
+plain component, inside its root; docs/DATA.md, "One cache root for everything").
 """
 
 from __future__ import annotations

@@ -1,32 +1,7 @@
-"""Search spaces: the settings a model may be tuned over, declared next to its config.
-
-A model declares its space as ``search_space = {setting: distribution}`` (a neural
-family in its :class:`~hnnbench.neural.Family`); ``setting`` is a field of the model's
-config (``lr``, ``hidden``, ``window``, ...), set on the command line as
-``model.<setting>=<value>``. ``hnnbench tune`` (:mod:`hnnbench._tuning`) gives every
-model of a system the same number of trials over its declared space, each with the same
-step budget, and selects on validation. The registry checks each declared space
-(:func:`space_problem`) when it discovers the plugin: a bad one makes the plugin
-unusable, with the reason, like a bad ``profiles``.
-
-Distributions (all immutable; :func:`describe` and :func:`space_json` show them):
-
-- :class:`LogUniform` ``(low, high)``: a float, uniform in ``log`` (learning rates,
-  scales); ``0 < low < high``.
-- :class:`Uniform` ``(low, high)``: a float, uniform.
-- :class:`IntRange` ``(low, high, log=False)``: an integer of ``[low, high]``, both
-  included.
-- :class:`Categorical` ``(choices)``: one of a few JSON scalars (strings, numbers,
-  booleans).
-
-Each takes ``changes_training_loss=True`` for a setting that changes what the model's
-own loss measures on the validation split (the training loop's validation loss). The
-tuner's pruner compares trials by that loss part-way through training, which is unfair
-across such a setting, so it prunes no trial of a space that holds one
-(docs/TUNING.md). The SRNN's window is not one: it sets the training windows, and its
-validation windows keep the family's declared length.
-
-A contract (it imports nothing else of hnnbench but the errors).
+"""Search spaces: the settings a model may be tuned over, declared next to its config
+(``search_space = {setting: distribution}``), the distributions (:class:`LogUniform`,
+:class:`Uniform`, :class:`IntRange`, :class:`Categorical`), and the check the registry
+applies to a declared space (:func:`space_problem`; docs/TUNING.md, "Search spaces").
 """
 
 from __future__ import annotations

@@ -1,23 +1,7 @@
-"""The verdict across systems: per family and metric, a score normalised per system,
-its interquartile mean over every (system, seed) run with a stratified bootstrap
-interval, the probability that one family beats another, and performance profiles
-(Agarwal et al. 2021; the statistics are :mod:`hnnbench._results.stats`, docs/STATISTICS.md).
-
-Per (profile, system, metric) the *scale* runs from the baseline family's mean (the
-family that declares :attr:`hnnbench.neural.Family.baseline`; score 0) to the *floor*
-(score 1): the best mean of an unranked reference model on the system (the oracle; never
-standing still, which is a reference to beat), or,
-where none ran (measured data), the metric's noise floor (``CheckRule.floor``), and
-never below that noise floor. A run's score is ``1 - log W(floor, v) / log W(floor,
-base)`` with ``W`` the metric's :meth:`~hnnbench._contracts.metric.CheckRule.worsening`
-(:func:`hnnbench._results.stats.normalised_scores`). A (system, metric) has no scale, and is
-left out with the reason in :attr:`Aggregate.scales`, where the baseline has no finite
-mean or is within the metric's declared tolerance of the floor (e.g. a loss on noisy
-targets, where the oracle scores the noise).
-
-Only rows without a variant take part. A family's runs on a system are its primary
-twin's seeds (:mod:`hnnbench._results.families`); a skipped pair is no run, a diverged or failed
-seed scores the bottom of :data:`hnnbench._results.stats.SCORE_RANGE`.
+"""The verdict across systems: per family and metric a score normalised per system, its
+interquartile mean over every (system, seed) run with a stratified bootstrap interval,
+P(A > B) and performance profiles (Agarwal et al. 2021; docs/STATISTICS.md, "Across
+systems"). The statistics themselves are :mod:`hnnbench._results.stats`.
 """
 
 from __future__ import annotations

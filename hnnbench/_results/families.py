@@ -1,33 +1,5 @@
-"""One competitor per family: family rows, twin agreement, and the best and tied marks.
-
-A model's *family* is its record's ``family`` (a model without one, e.g. the oracle or a
-third party's model, is a family of its own); the models of one family on other
-backends are *twins*. Ranking twins as two competitors lets one family take ranks 1 and
-2, so every verdict is about families (docs/STATISTICS.md):
-
-- **A family row** is the leaderboard row of one of its models, the *primary* twin: the
-  one with the most seeds, then the most ``ok`` seeds, then by backend name. Its seeds
-  are that model's (the lead engineer's protocol: the JAX twin's seeds 0-4, with the
-  torch twin's 0-2 as a parity check). The other twins are shown beside it.
-- **Twin agreement** (:func:`twin_agreement`): on every seed two twins share, the same
-  status and every metric within its declared tolerance in both directions
-  (:class:`hnnbench._contracts.metric.CheckRule`: the factor ``hnnbench check --rerun`` requires of
-  a re-run, since a twin is the same job on another backend). A family whose twins
-  disagree stays one row; the cells of the metrics they disagree on are flagged and the
-  twin table says by how much.
-- **Best and tied** (:func:`mark_best`): per (profile, system, variant) and ranked metric,
-  the *leader* is the best mean among the ranked families whose every seed is ``ok``; for a
-  metric with :attr:`~hnnbench.Metric.best_requires`, a family that fails the guard (a
-  rollout no better than standing still, on an energy metric) takes no part. It
-  is marked ``best`` when a one-sided sign test over shared seeds
-  (:func:`hnnbench._results.stats.sign_test`) separates it from every other ranked family with a
-  value at :data:`hnnbench._results.stats.ALPHA`; otherwise it and every family it is not
-  separated from are marked ``tied``. On a metric declared
-  :attr:`~hnnbench.Metric.beat_reference` (rollout errors, skill, valid prediction
-  time), nothing is marked unless the leader's mean beats the standing-still reference
-  row's; where it does not, that row's cell is marked ``unbeaten`` ("no family beats
-  standing still"), and without such a row nothing is claimed.
-
+"""One competitor per family: family rows (the primary twin's), twin agreement, and the
+best and tied marks (docs/STATISTICS.md, "One competitor per family", "Best and tied").
 Nothing here names a family, model or backend: they come from the records.
 """
 

@@ -1,30 +1,7 @@
-"""The statistics behind every verdict, declared once (docs/STATISTICS.md).
-
-Every table, figure, the aggregate across systems and ``hnnbench check`` read these
-functions and constants; none computes an interval, a test or a normalised score of its
-own. Pure numpy and scipy: a contract, importing nothing of hnnbench but the metric's
-:class:`~hnnbench._contracts.metric.CheckRule` (whose direction and noise floor a normalised score
-uses).
-
-- **A cell's interval** (:func:`mean_intervals`): the BCa bootstrap interval (95%) of the
-  mean over seeds, ``scipy.stats.bootstrap`` with :data:`N_RESAMPLES` resamples drawn
-  from a fixed seed (:data:`BOOTSTRAP_SEED`: the same records give the same interval);
-  no interval for one seed or a non-finite value.
-- **Separated** (:func:`sign_test`): a one-sided exact sign test over the seeds two
-  competitors share (a seed fixes the training data and the evaluation trajectories of
-  every model, so seed ``k`` of one family is paired with seed ``k`` of another); a tie
-  or a missing value counts against the one said to be better. With ``n`` shared seeds
-  the smallest p is ``0.5 ** n``: 3 seeds can never reach :data:`ALPHA` (0.125), 5 can
-  only when one is better on all 5 (0.031), 10 when on at least 9 (0.011).
-- **The aggregate across systems** (:func:`normalised_scores`, :func:`iqm`,
-  :func:`stratified_interval`, :func:`probability_of_improvement`,
-  :func:`performance_profile`): per system and metric each run's score is normalised
-  between the baseline family (0) and the floor (1) on a log scale; the interquartile
-  mean over every (system, seed) run of a family, with a percentile interval from a
-  stratified bootstrap (seeds resampled within each system, the systems kept), as
-  Agarwal et al. (2021) and rliable do; ``scipy.stats.bootstrap`` with one sample per
-  system is exactly that resampling (benchmarks/bootstrap_library.py compares it with
-  rliable 1.2.0).
+"""The statistics behind every verdict, declared once (docs/STATISTICS.md): a cell's
+interval over seeds, the paired sign test, and the aggregate's normalised scores, IQM,
+stratified intervals, P(A > B) and performance profiles. Every table, figure, the
+aggregate and ``hnnbench check`` read these; none computes its own. Pure numpy and scipy.
 """
 
 from __future__ import annotations

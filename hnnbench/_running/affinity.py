@@ -1,26 +1,6 @@
-"""One CPU core per job process.
-
-A job runs its networks with one thread (``threads=1``), but XLA's CPU thread pool
-spreads products over every core in the process's affinity mask. That makes two
-parallel workers on a 2-core machine contend (docs/SCALING.md), and it makes JAX results
-depend on the core count: a product split over two threads rounds differently. So a
-job started by the ``hnnbench`` command pins its process to one core before any JAX
-computation: XLA then starts a one-thread pool, whichever launcher runs the job, and
-the basic, joblib and submitit launchers give the same numbers.
-
-:func:`claim_core` takes an exclusive ``flock`` on one lock file per allowed CPU, in
-order, and pins every thread of the process to the first CPU whose lock it gets. The
-lock is held until the process exits, so concurrent processes (joblib/loky workers,
-submitit tasks, even two sweeps) end up on different cores, and a reused worker keeps
-its core. When more processes than cores run at once (submitit_local starts a whole
-batch; two sweeps, or a sweep next to a stopped one whose workers still hold their
-locks), the extra ones share cores evenly: every core's first lock taken, a claimant
-takes the first free *second* lock (``cpu<n>.2.lock``), then third, and so on, so the
-two workers of a sweep started beside another never share a core while one is less
-shared (they used to share the core their process ids chose). They are pinned all the
-same, so XLA runs one thread in every job; such a process keeps that core even if
-another frees up, so do not start more job processes than cores. Linux only; elsewhere
-nothing is pinned.
+"""One CPU core per job process (:func:`claim_core`: a ``flock`` per core, every thread
+pinned before any JAX computation), so that XLA runs one thread and every launcher gives
+the same numbers (docs/SCALING.md, "One thread per job"). Linux only.
 """
 
 from __future__ import annotations

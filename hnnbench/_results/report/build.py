@@ -1,29 +1,5 @@
-"""``write_report``: every table and figure of one or more sweeps, into one directory.
-
-Writes into ``out`` (default: the only sweep directory):
-
-- ``leaderboard.csv``: one row per (profile, system, model, variant): status counts and
-  the reason of every run that was not ``ok``, mean, std and 95% interval over seeds of
-  every metric (``<metric>_mean``, ``<metric>_std``, ``<metric>_ci_low``,
-  ``<metric>_ci_high``), mean times (``cpu_s_mean`` among them), provenance (commits,
-  machines, dates). Also the reference format of ``hnnbench check``.
-- ``families.csv``: one row per family (:mod:`hnnbench._results.families`): its primary twin's
-  row, the twins, and per ranked metric its mark (``best``, ``tied``) and p-value.
-- ``twins.csv``: the agreement of every family's twins.
-- ``aggregate.csv``, ``improvement.csv``, ``aggregate_scales.csv``: the aggregate across
-  systems (:mod:`hnnbench._results.aggregate`): each family's IQM with its interval, P(A > B),
-  and the normalisation of every (system, metric).
-- ``leaderboard.md``: the family table (marks), the twin agreement, every model's row;
-  ``aggregate.md``: the aggregate and the verdicts its intervals support.
-- ``tracks.md`` (and ``tracks.csv`` when some row is of another track than the
-  protocol): each track's verdict per system and headline metric, side by side, and
-  where it changes (:func:`hnnbench._results.report.verdicts.tracks_frame`).
-- ``selection.csv``, ``selection.md``: what checkpoint selection resolved per system and
-  family: the criterion's paired noise against the differences between checkpoints,
-  and how many seeds converged (:mod:`hnnbench._results.report.selection`).
-- ``paper_comparison.md``: published values next to ours, and every claim.
-- ``figures/``: the registered figures (:mod:`hnnbench._results.report.figures`).
-- ``leaderboard.html``: one self-contained page with all of the above.
+"""``write_report``: every table and figure of one or more sweeps, into one directory
+(docs/ARCHITECTURE.md, "What a report holds").
 """
 
 from __future__ import annotations
