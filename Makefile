@@ -15,15 +15,15 @@ MODELS ?= all
 SEEDS ?= 0
 PYTEST_ARGS ?=
 
-.PHONY: setup benchmark benchmark-serial quick test test-fast test-distributed lint typecheck \
-	imports clean \
+.PHONY: setup benchmark benchmark-serial quick test test-fast unit integration e2e \
+	test-distributed lint typecheck imports clean \
 	ci-reference guard-reference
 
 setup:
 	@scripts/maintainer/setup.sh
 
 # Every system x every model, paper settings, seed(s) $(SEEDS); one joblib worker per core.
-# The records are the same as a serial run's (tests/test_launchers.py).
+# The records are the same as a serial run's (tests/e2e/test_launchers.py).
 benchmark: setup
 	$(VENV)/hnnbench -m system=$(SYSTEMS) model=$(MODELS) seed=$(SEEDS) hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS)
 
@@ -34,7 +34,7 @@ benchmark-serial: setup
 quick: setup
 	$(VENV)/hnnbench -m system=all model=all profile=quick hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS)
 
-# The CI gate's reference (tests/test_ci_gate.py sweeps exactly the pairs it holds):
+# The CI gate's reference (tests/e2e/test_ci_gate.py sweeps exactly the pairs it holds):
 # every system x the JAX twin of every neural family + the oracle, and the torch twins
 # on the spring; quick, seed 0.
 GATE_MODELS := mlp_jax,hnn_jax,dhnn_jax,lnn_jax,so_mlp_jax,srnn_jax,oracle
@@ -50,9 +50,9 @@ ci-reference: setup
 	  --reference results/reference/quick.csv --update
 	$(VENV)/python scripts/maintainer/job_costs.py
 
-# The reproduction guard's reference (tests/test_reproduction_guard.py).
+# The reproduction guard's reference (tests/e2e/test_reproduction_guard.py).
 guard-reference: setup
-	$(VENV)/python tests/test_reproduction_guard.py --update
+	$(VENV)/python tests/e2e/test_reproduction_guard.py --update
 
 test: setup
 	$(VENV)/ruff check .
@@ -68,6 +68,19 @@ test-distributed: setup
 
 test-fast: setup
 	$(VENV)/python -m pytest -m "not slow" $(PYTEST_ARGS)
+
+# The tests by kind (CONTRIBUTING.md): tests/unit (no job, no sweep, no subprocess;
+# under a minute: the inner loop), tests/integration (jobs, sweeps, reports and models
+# in process), tests/e2e (the console script, wheels, plugin packages, launchers,
+# clusters, notebooks, benchmark scripts).
+unit: setup
+	$(VENV)/python -m pytest tests/unit -q $(PYTEST_ARGS)
+
+integration: setup
+	$(VENV)/python -m pytest tests/integration $(PYTEST_ARGS)
+
+e2e: setup
+	$(VENV)/python -m pytest tests/e2e $(PYTEST_ARGS)
 
 lint: setup
 	$(VENV)/ruff check .

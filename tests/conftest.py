@@ -80,7 +80,7 @@ def assert_one_line_error(proc: subprocess.CompletedProcess, *needles: str) -> s
 def compose_job(overrides: list[str] | None = None, **kwargs):
     """:func:`hnnbench._running.compose.compose` with the suite's usual pair (spring x hnn_torch)
     where ``overrides`` choose none: the shipped config names no plugin, so every job
-    chooses both (``tests/test_layers.py``)."""
+    chooses both (``tests/integration/test_layers.py``)."""
     from hnnbench._running.compose import compose
 
     overrides = list(overrides or [])

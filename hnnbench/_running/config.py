@@ -29,7 +29,7 @@ __all__ = [
 #: Top-level config keys that say where and how a job runs, not what it computes: a
 #: finished record is reused on resume whatever they are, they define no leaderboard
 #: variant, and they are left out of a sweep job's directory name (conf/config.yaml's
-#: ``override_dirname.exclude_keys``, which tests/test_config.py holds to this list).
+#: ``override_dirname.exclude_keys``, which tests/unit/test_config.py holds to this list).
 RUN_ONLY_KEYS = frozenset({
     "rerun", "device", "threads", "pin_cpu", "save_model", "cache_dir", "data_dir",
     "seeds_per_job", "seed_batch", "timeout_s",

@@ -16,7 +16,7 @@ equivalent in Hydra 1.3:
   the command's own process (they then need no environment variable to learn the
   launch context).
 
-``tests/test_hydra_private.py`` pins the behaviour each of these relies on, so a
+``tests/unit/test_hydra_private.py`` pins the behaviour each of these relies on, so a
 Hydra upgrade that moves them fails there, by name.
 """
 

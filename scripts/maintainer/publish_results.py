@@ -20,7 +20,7 @@
    families.csv, twins.csv, aggregate.{csv,md}, improvement.csv, aggregate_scales.csv,
    paper_comparison.md, figures/; a PNG in figures/ that this report did not draw is
    removed (the page embeds every figure there). The leaderboard is the one of
-   ``results/records`` (tests/test_published.py rebuilds it from the committed records
+   ``results/records`` (tests/integration/test_published.py rebuilds it from the committed records
    and compares).
 3. Replaces the block between ``<!-- aggregate:begin -->`` and ``<!-- aggregate:end -->``
    in README.md with the aggregate across systems (the verdicts its intervals support

@@ -5,7 +5,7 @@
 The record is defined in ``hnnbench/_record/fields.py``; the JSON Schema
 ``hnnbench/resources/record.schema.json`` is made from that definition. With no option
 the schema is printed; ``--write`` rewrites the file (after changing the definition);
-``--check`` exits 1 when the file differs from the definition (tests/test_records_schema.py
+``--check`` exits 1 when the file differs from the definition (tests/unit/test_records_schema.py
 checks the same).
 """
 

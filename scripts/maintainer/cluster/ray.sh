@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A real local Ray cluster (one head node on 127.0.0.1) for tests/test_distributed.py
+# A real local Ray cluster (one head node on 127.0.0.1) for tests/e2e/test_distributed.py
 # and for trying the Ray launcher by hand (docs/SCALING.md).
 #
 #   scripts/maintainer/cluster/ray.sh up       install ray + hydra-ray-launcher if missing, start a head
@@ -39,7 +39,7 @@ ADDRESS=127.0.0.1:$PORT
 # Keep Ray on the loopback address: by default it swaps 127.0.0.1 for the address of the
 # machine's outward interface. The variable is named for Windows/macOS, where loopback is
 # the default; on Linux it does the same. A driver connecting to this head sets it too
-# (tests/test_distributed.py, docs/SCALING.md).
+# (tests/e2e/test_distributed.py, docs/SCALING.md).
 export RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0 RAY_USAGE_STATS_ENABLED=0
 
 say() { echo "ray.sh: $*" >&2; }

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A real one-node Slurm cluster on this machine, for tests/test_distributed.py and for
+# A real one-node Slurm cluster on this machine, for tests/e2e/test_distributed.py and for
 # trying the submitit_slurm launcher by hand (docs/SCALING.md).
 #
 #   scripts/maintainer/cluster/slurm.sh up       install what is missing, write the config, start

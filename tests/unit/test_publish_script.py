@@ -5,7 +5,6 @@ from __future__ import annotations
 import sys
 import types
 
-import pandas as pd
 import pytest
 from conftest import REPO
 from report_fixtures import write_run
@@ -94,58 +93,6 @@ def tree(tmp_path, monkeypatch):
     return root
 
 
-@pytest.mark.slow
-def test_a_new_model_published_with_the_records_keeps_every_figure_and_page(tree, tmp_path):
-    """docs/LEADERBOARD.md, followed literally: the published records (with their small
-    figure rollouts) and a new model's sweep, published together."""
-    from hnnbench import _record as records
-    from hnnbench._results.leaderboard import leaderboard
-    from hnnbench._results.report.figures import N_TRAJ_SHOWN, runs_for_figures
-
-    first = tmp_path / "first"  # the protocol: JAX twins seeds 0-4, torch twins 0-2
-    for model, seeds in (("mlp_jax", 5), ("hnn_jax", 5), ("oracle", 5), ("mlp_torch", 3),
-                         ("hnn_torch", 3)):
-        for seed in range(seeds):
-            write_run(first, "spring", model, seed, profile="paper")
-    assert publish_results.main([str(first)]) == 0
-    published = tree / "results" / "records"
-    rollouts = sorted(p.relative_to(published) for p in published.rglob("rollout.npz"))
-    assert [str(p) for p in rollouts] == [f"spring/{m}/seed0/rollout.npz" for m in
-                                          ("hnn_jax", "hnn_torch", "mlp_jax", "mlp_torch",
-                                           "oracle")]
-    families = pd.read_csv(tree / "results" / "families.csv").set_index("family")
-    assert families.loc["hnn", "seeds_from"] == "hnn_jax" and families.loc["hnn", "n_seeds"] == 5
-    assert families.loc["hnn", "twins"] == "hnn_torch agrees (3 seeds)"
-    assert families.loc["hnn", "energy_mse_mark"] == "best"  # better on each of 5 seeds
-    board = pd.read_csv(tree / "results" / "leaderboard.csv")
-    assert {"energy_mse_ci_low", "energy_mse_ci_high", "cpu_s_mean", "reason"} <= set(board)
-    aggregate = pd.read_csv(tree / "results" / "aggregate.csv")
-    assert set(aggregate[aggregate["metric"] == "energy_mse"]["family"]) == {"mlp", "hnn"}
-    assert len(pd.read_csv(tree / "results" / "twins.csv")) == 2
-    readme = (tree / "README.md").read_text()
-    assert "**" in readme.split("<!-- leaderboard:begin -->")[1]  # a separated best, bold
-    kept = records.load_arrays(published / rollouts[0])
-    assert kept["states_hat"].shape[0] <= N_TRAJ_SHOWN and kept["states_hat"].dtype == "float32"
-    assert not (tree / "results" / "figures" / "old_system_energy.png").exists()  # stale
-
-    new = tmp_path / "new"
-    for seed in (0, 1, 2):
-        write_run(new, "spring", "dhnn_jax", seed, profile="paper")
-    assert publish_results.main([str(new), str(published)]) == 0
-    recs = records.load(published).records
-    board = pd.read_csv(tree / "results" / "leaderboard.csv")
-    assert list(board["model"]) == list(leaderboard(recs)["model"])
-    assert "dhnn_jax" in set(board["model"])
-    seed, runs = runs_for_figures(recs)  # the merged page draws every model
-    assert seed == 0 and {r.model for r in runs} == {"mlp_jax", "mlp_torch", "hnn_jax",
-                                                     "hnn_torch", "dhnn_jax", "oracle"}
-    pngs = sorted((tree / "results" / "figures").glob("*.png"))
-    assert {"spring_energy.png", "performance_profile.png"} <= {p.name for p in pngs}
-    page = (tree / "results" / "leaderboard.html").read_text()
-    assert page.count("data:image/png;base64,") == len(pngs)
-    readme = (tree / "README.md").read_text()
-    assert "| family" in readme.split("<!-- aggregate:begin -->")[1]
-    assert "| dhnn " in readme.split("<!-- leaderboard:begin -->")[1]
 
 
 def test_publishing_without_the_published_records_is_refused(tree, tmp_path):

@@ -424,10 +424,3 @@ def test_validate_rejects_bad_values(override, match):
 # --------------------------------------------------------------------------- paper size
 
 
-@pytest.mark.slow
-def test_paper_three_body_dataset():
-    system = ThreeBody(ThreeBodyConfig(name="three_body"))
-    data = system.dataset(0)
-    assert len(data.train) == 4000 * 20 and len(data.test) == 1000 * 20
-    assert data.meta["max_rel_energy_drift"] < 1e-10
-    assert data.meta["n_rejected_orbits"] <= 5

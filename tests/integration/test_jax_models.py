@@ -258,7 +258,7 @@ def test_initial_weights_start_fit(spring, data):
 def test_cuda_without_gpu_is_one_line_config_error(spring):
     # Asked here, not in a skipif: that would start JAX's backends at collection, in
     # an unpinned pytest process, and later in-process runs would then differ in the
-    # last bits from the CLI's (tests/test_api.py).
+    # last bits from the CLI's (tests/integration/test_api.py).
     if _gpus():
         pytest.skip("a GPU is present")
     with pytest.raises(ConfigError) as err:

@@ -1,7 +1,7 @@
 """Real clusters on this machine: a one-node Slurm cluster (munge, slurmdbd, slurmctld,
 slurmd) and a local Ray head, brought up by scripts/maintainer/cluster/ (installing what is
 missing), and one small sweep through each launcher, whose records must equal the basic
-launcher's bit for bit (as in tests/test_launchers.py). Also: a Slurm task cancelled
+launcher's bit for bit (as in tests/e2e/test_launchers.py). Also: a Slurm task cancelled
 mid-run (``scancel``) is finished by re-running the sweep, nothing lost, nothing redone.
 
 Marked ``distributed`` (``make test-distributed`` = ``pytest -m distributed``) and

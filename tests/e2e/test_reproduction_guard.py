@@ -2,13 +2,13 @@
 data and models at reduced steps, must give the committed reference's metrics within
 1e-3 relative, in either direction (``hnnbench check --same``).
 
-The CI gate (tests/test_ci_gate.py) lets a metric move within its tolerance and
+The CI gate (tests/e2e/test_ci_gate.py) lets a metric move within its tolerance and
 welcomes improvements; that is how a change moved the committed pixel-pendulum HNN into
 another basin unnoticed. Training is deterministic on CPU, so any change of numerics
 (initial weights, data, chunking of the training loop, thread settings) moves these
 numbers, and a commit that does so must regenerate the reference on purpose:
 
-    make guard-reference      # = python tests/test_reproduction_guard.py --update
+    make guard-reference      # = python tests/e2e/test_reproduction_guard.py --update
 
 Pairs: the pixel pendulum's HNN and baseline (the pair that moved) and the two-body
 HNN and baseline (the 2019 posing), 2000 steps each.
@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: conftest
 from conftest import REPO, hnnbench  # noqa: E402
 
 pytestmark = pytest.mark.slow
@@ -55,7 +55,7 @@ if __name__ == "__main__":  # make guard-reference
     import tempfile
 
     if sys.argv[1:] != ["--update"]:
-        raise SystemExit("usage: python tests/test_reproduction_guard.py --update")
+        raise SystemExit("usage: python tests/e2e/test_reproduction_guard.py --update")
     with tempfile.TemporaryDirectory() as tmp:
         _sweep(Path(tmp) / "guard", Path(tmp))
         proc = hnnbench("check", str(Path(tmp) / "guard"), "--reference", str(REFERENCE),

@@ -21,7 +21,7 @@ from types import ModuleType
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 EVAL_SPEED = REPO / "benchmarks" / "eval_speed.py"
 HEADER = "| system | model | traj | batched ms | scipy-loop ms | speed-up |"
 

@@ -17,7 +17,7 @@ from hnnbench_plugins.systems.real_pendulum import (
     RealPendulumConfig,
 )
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 

@@ -13,8 +13,6 @@ from hnnbench import _registry as registry
 from hnnbench._contracts.errors import ModelOutputError
 from hnnbench._contracts.metric import EvalContext, EvaluationConfig
 from hnnbench._contracts.outputs import checked, checked_scalar
-from hnnbench._running.compose import compose
-from hnnbench._running.job import run_job
 
 
 class _Truth(hnnbench.Model):
@@ -37,32 +35,10 @@ class _Truth(hnnbench.Model):
         return self.system.energy(x)
 
 
-class _OneStepRollout(_Truth):
-    """Returns only the initial state, ``(M, 1, d)``: it broadcasts against ``(M, T, d)``."""
-
-    def rollout(self, x0, t, rtol=1e-9, atol=1e-9):
-        return np.asarray(x0, dtype=np.float64)[:, None, :]
 
 
-@pytest.fixture()
-def one_step_model():
-    registry.register("model", "one_step_rollout", _OneStepRollout)
-    yield "one_step_rollout"
-    registry.MODELS._registered.pop("one_step_rollout", None)
-    registry.refresh()
 
 
-def test_a_rollout_of_the_wrong_shape_fails_the_job_in_one_line(one_step_model, tmp_path):
-    overrides = ["system=spring", f"model={one_step_model}", "profile=quick",
-                 "save_model=false", "pin_cpu=false"]
-    record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)[0].record
-    assert record["status"] == "failed", record
-    error = record["error"]
-    assert "\n" not in error and "traceback" not in record
-    assert error.startswith(f"{one_step_model}.rollout returned shape (5, 1, 2)"), error
-    assert "expected (M, T, d)" in error and "(5, 100, 2)" in error
-    # no metric was recorded from the broadcast arrays
-    assert not record["metrics"]
 
 
 class _Model:
