@@ -102,7 +102,7 @@ class Row:
 def energy_mse(system: Any, traj: Any, states_hat: np.ndarray) -> float:
     """The ``energy_mse`` metric's mean, computed as :func:`hnnbench._running.evaluation.evaluate`
     does: true energy along the rollout vs along the true trajectories."""
-    from hnnbench_plugins import metrics as M
+    from hnnbench_plugins import metrics as builtin_metrics
 
     def _energies(system: Any, states: np.ndarray) -> np.ndarray:
         # (M, T, 2n) -> (M, T), as hnnbench._running.evaluation does
@@ -110,7 +110,7 @@ def energy_mse(system: Any, traj: Any, states_hat: np.ndarray) -> float:
         return system.energy(states.reshape(m * t, d)).reshape(m, t)
 
     e_true, e_hat = _energies(system, traj.states), _energies(system, states_hat)
-    return M.summarize(M.energy_error_per_traj(e_hat, e_true))["mean"]
+    return builtin_metrics.summarize(builtin_metrics.energy_error_per_traj(e_hat, e_true))["mean"]
 
 
 def batched_energy_mse(
