@@ -11,8 +11,9 @@ For each pair it compares, and prints every difference it finds:
   config, steps, training protocol, data hashes and sizes, identity, tuning, overrides,
   command lines), with these left out: what says when, where and with which hnnbench it
   ran (``environment``: versions, host, git commit; ``created_at``; ``timings``;
-  ``tuning.cpu_s``; ``cpu_pin``, the core a job was given; ``data.cache_hit``, whether
-  the dataset was in the cache already; each plugin's ``distribution_version``), and in
+  ``tuning.cpu_s``, also in the config a tuned job ran with; ``cpu_pin``, the core a
+  job was given; ``data.cache_hit``, whether the dataset was in the cache already; each
+  plugin's ``distribution_version``), and in
   ``config`` the run-only settings (:data:`RUN_ONLY_KEYS`, which say how a job runs,
   not what it computes). Each sweep's own directory, written into paths and command
   lines, reads as ``<sweep>``;
@@ -45,8 +46,8 @@ from hnnbench._running.config import RUN_ONLY_KEYS
 #: Top-level record fields that say when, where and with which hnnbench a job ran.
 IGNORED = {"environment", "created_at", "timings", "cpu_pin"}
 #: Fields below the top level, likewise (``*``: any key).
-IGNORED_PATHS = frozenset({("tuning", "cpu_s"), ("data", "cache_hit"),
-                           ("plugins", "*", "distribution_version")})
+IGNORED_PATHS = frozenset({("tuning", "cpu_s"), ("config", "tuning", "cpu_s"),
+                           ("data", "cache_hit"), ("plugins", "*", "distribution_version")})
 #: Overrides that do not say which job a record is (its identity's keys, the run-only
 #: settings, Hydra's own).
 NOT_VARIANT = {"system", "model", "seed", "profile", "track", "tuning"} | set(RUN_ONLY_KEYS)

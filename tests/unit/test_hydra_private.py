@@ -1,4 +1,4 @@
-"""Pins the private Hydra API that hnnbench/hydra_private.py wraps (the only module that
+"""Pins the private Hydra API that hnnbench/_running/hydra_private.py wraps (the only module that
 touches it). A Hydra upgrade that moves or changes these fails here, by name."""
 
 from __future__ import annotations
