@@ -116,6 +116,34 @@ def sweep_records(directory: Path) -> dict:
 
 
 @pytest.fixture(autouse=True)
+def _cores_given_back():
+    """A job run in this process under the hnnbench command's launch context pins the
+    whole process to one core for good (hnnbench._running.affinity): give every thread
+    its cores back and release the claimed core after the test, so that no test depends
+    on the ones before it (tests/integration/test_affinity.py needs the machine's cores)."""
+    if not hasattr(os, "sched_getaffinity"):
+        yield
+        return
+    before = os.sched_getaffinity(0)
+    yield
+    if os.sched_getaffinity(0) == before:
+        return
+    from hnnbench._running import affinity
+
+    handle = affinity._held.pop("handle", None)
+    if handle is not None:
+        handle.close()  # releases the core's lock
+    affinity._held.clear()
+    tasks = Path("/proc/self/task")
+    for tid in [int(t.name) for t in tasks.iterdir()] if tasks.is_dir() else []:
+        try:
+            os.sched_setaffinity(tid, before)
+        except OSError:  # a thread that ended meanwhile
+            pass
+    os.sched_setaffinity(0, before)
+
+
+@pytest.fixture(autouse=True)
 def _restore_logging():
     """A command run in-process configures logging (Hydra's job logging) with handlers
     on the streams of that moment, e.g. a test's captured stdout, which pytest closes

@@ -13,9 +13,9 @@ For each pair it compares, and prints every difference it finds:
   ran (``environment``: versions, host, git commit; ``created_at``; ``timings``;
   ``tuning.cpu_s``, also in the config a tuned job ran with; ``cpu_pin``, the core a
   job was given; ``data.cache_hit``, whether the dataset was in the cache already; each
-  plugin's ``distribution_version``), and in
-  ``config`` the run-only settings (:data:`RUN_ONLY_KEYS`, which say how a job runs,
-  not what it computes). Each sweep's own directory, written into paths and command
+  plugin's ``distribution_version``), and the run-only settings (:data:`RUN_ONLY_KEYS`,
+  which say how a job runs, not what it computes) in ``config``, ``overrides`` and
+  ``rerun_command``. Each sweep's own directory, written into paths and command
   lines, reads as ``<sweep>``;
 - ``rollout.npz`` beside the record: the same arrays, equal element by element (NaN
   equal to NaN);
@@ -35,6 +35,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shlex
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -76,6 +77,22 @@ def describe(key: Key) -> str:
     return tag + (f" [{' '.join(variant)}]" if variant else "")
 
 
+def _run_only(override: str) -> bool:
+    return override.lstrip("+~").split("=", 1)[0] in RUN_ONLY_KEYS
+
+
+def comparable(record: dict[str, Any]) -> dict[str, Any]:
+    """``record`` with the run-only settings left out of its ``overrides`` and its
+    ``rerun_command`` (its ``config``'s are left out by :func:`diff`)."""
+    out = dict(record)
+    if isinstance(out.get("overrides"), list):
+        out["overrides"] = [o for o in out["overrides"] if not _run_only(str(o))]
+    if isinstance(out.get("rerun_command"), str):
+        out["rerun_command"] = shlex.join(t for t in shlex.split(out["rerun_command"])
+                                          if not _run_only(t))
+    return out
+
+
 def load(directory: Path) -> tuple[dict[Key, tuple[dict[str, Any], Path]], list[str]]:
     """The records below ``directory`` by job, each as its raw JSON (strict JSON: no
     decoding, so values compare as written) with its directory, and a line for each
@@ -85,7 +102,7 @@ def load(directory: Path) -> tuple[dict[Key, tuple[dict[str, Any], Path]], list[
     out: dict[Key, tuple[dict[str, Any], Path]] = {}
     for rec in loaded.records:
         path = Path(rec["path"])
-        raw = json.loads((path / "result.json").read_text("utf-8"))
+        raw = comparable(json.loads((path / "result.json").read_text("utf-8")))
         key = job_key(raw)
         if key in out:
             problems.append(f"{path}: a second record of {describe(key)} "
