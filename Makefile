@@ -1,5 +1,5 @@
 # hnnbench: `make benchmark` runs the whole benchmark, `make test` runs the tests.
-# Both set up .venv first (scripts/setup.sh; idempotent).
+# Both set up .venv first (scripts/maintainer/setup.sh; idempotent).
 SHELL := /bin/bash
 VENV := .venv/bin
 # The measured-pendulum data: $HNNBENCH_DATA_DIR, else ../shared/... beside the clone.
@@ -10,20 +10,20 @@ JOBS ?= $(shell env -u OMP_NUM_THREADS nproc 2>/dev/null || echo 1)
 # What `make benchmark` sweeps, e.g. SYSTEMS=spring,pendulum MODELS=hnn_jax,mlp_jax.
 SYSTEMS ?= all
 MODELS ?= all
-# Seeds of `make benchmark` (the committed leaderboard is built by scripts/paper_sweep.sh:
+# Seeds of `make benchmark` (the committed leaderboard is built by scripts/maintainer/paper_sweep.sh:
 # seeds 0-4 of the JAX twins and the oracle, 0-2 of the torch twins).
 SEEDS ?= 0
 PYTEST_ARGS ?=
 
-.PHONY: setup benchmark benchmark-serial quick test test-fast test-distributed lint typecheck \
-	imports clean \
+.PHONY: setup benchmark benchmark-serial quick test test-fast unit integration e2e \
+	test-distributed lint typecheck imports clean \
 	ci-reference guard-reference
 
 setup:
-	@scripts/setup.sh
+	@scripts/maintainer/setup.sh
 
 # Every system x every model, paper settings, seed(s) $(SEEDS); one joblib worker per core.
-# The records are the same as a serial run's (tests/test_launchers.py).
+# The records are the same as a serial run's (tests/e2e/test_launchers.py).
 benchmark: setup
 	$(VENV)/hnnbench -m system=$(SYSTEMS) model=$(MODELS) seed=$(SEEDS) hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS)
 
@@ -34,7 +34,7 @@ benchmark-serial: setup
 quick: setup
 	$(VENV)/hnnbench -m system=all model=all profile=quick hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS)
 
-# The CI gate's reference (tests/test_ci_gate.py sweeps exactly the pairs it holds):
+# The CI gate's reference (tests/e2e/test_ci_gate.py sweeps exactly the pairs it holds):
 # every system x the JAX twin of every neural family + the oracle, and the torch twins
 # on the spring; quick, seed 0.
 GATE_MODELS := mlp_jax,hnn_jax,dhnn_jax,lnn_jax,so_mlp_jax,srnn_jax,oracle
@@ -48,11 +48,11 @@ ci-reference: setup
 	  hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS) hydra.sweep.dir=$(GATE_DIR)/torch
 	$(VENV)/hnnbench check $(GATE_DIR)/jax $(GATE_DIR)/torch \
 	  --reference results/reference/quick.csv --update
-	$(VENV)/python scripts/job_costs.py
+	$(VENV)/python scripts/maintainer/job_costs.py
 
-# The reproduction guard's reference (tests/test_reproduction_guard.py).
+# The reproduction guard's reference (tests/e2e/test_reproduction_guard.py).
 guard-reference: setup
-	$(VENV)/python tests/test_reproduction_guard.py --update
+	$(VENV)/python tests/e2e/test_reproduction_guard.py --update
 
 test: setup
 	$(VENV)/ruff check .
@@ -60,7 +60,7 @@ test: setup
 	$(VENV)/lint-imports
 	$(VENV)/python -m pytest $(PYTEST_ARGS)
 
-# Real one-node Slurm and Ray clusters on this machine (scripts/cluster/, as root:
+# Real one-node Slurm and Ray clusters on this machine (scripts/maintainer/cluster/, as root:
 # installs slurm/munge/MariaDB with apt-get, ray + hydra-ray-launcher into .venv/ray-site).
 # `make test` runs them too (pytest selects every marker).
 test-distributed: setup
@@ -68,6 +68,19 @@ test-distributed: setup
 
 test-fast: setup
 	$(VENV)/python -m pytest -m "not slow" $(PYTEST_ARGS)
+
+# The tests by kind (CONTRIBUTING.md): tests/unit (no job, no sweep, no subprocess;
+# under a minute: the inner loop), tests/integration (jobs, sweeps, reports and models
+# in process), tests/e2e (the console script, wheels, plugin packages, launchers,
+# clusters, notebooks, benchmark scripts).
+unit: setup
+	$(VENV)/python -m pytest tests/unit -q $(PYTEST_ARGS)
+
+integration: setup
+	$(VENV)/python -m pytest tests/integration $(PYTEST_ARGS)
+
+e2e: setup
+	$(VENV)/python -m pytest tests/e2e $(PYTEST_ARGS)
 
 lint: setup
 	$(VENV)/ruff check .

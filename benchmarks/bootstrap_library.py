@@ -1,4 +1,4 @@
-"""The aggregate's bootstrap: ``scipy.stats.bootstrap`` (hnnbench._stats) against rliable.
+"""The aggregate's bootstrap: ``scipy.stats.bootstrap`` (hnnbench._results.stats) against rliable.
 
     python benchmarks/bootstrap_library.py [--rliable-python PY] [--reps 2000 9999]
 
@@ -7,10 +7,11 @@ seeds, heavy-tailed, one family with diverged runs at the clip) go through both:
 
 - the interquartile mean of each family over every (system, seed) run, with the 95%
   percentile interval of the stratified bootstrap (seeds resampled within each system):
-  ``hnnbench._stats.stratified_interval`` (scipy, one sample per system) and rliable's
+  ``hnnbench._results.stats.stratified_interval`` (scipy, one sample per system) and rliable's
   ``get_interval_estimates(..., method="percentile")`` with ``metrics.aggregate_iqm``;
 - the probability of improvement of the first family over each other one
-  (``_stats.probability_of_improvement`` and rliable's ``probability_of_improvement``).
+  (``hnnbench._results.stats.probability_of_improvement`` and rliable's
+  ``probability_of_improvement``).
 
 rliable 1.2.0 needs ``pandas<3`` (through ``arch``); hnnbench's environment has pandas 3,
 so rliable runs in a Python of its own given by ``--rliable-python`` (a virtual
@@ -73,16 +74,16 @@ def synthetic_scores(seed: int = 0) -> np.ndarray:
 
 
 def ours(scores: np.ndarray, reps: int) -> dict:
-    from hnnbench import _stats as S
+    from hnnbench._results import stats
 
-    S.N_RESAMPLES = reps  # the module's default is 9999; measured at each count
-    S.stratified_interval([scores[0][:, 0]])  # imports scipy.stats outside the timing
+    stats.N_RESAMPLES = reps  # the module's default is 9999; measured at each count
+    stats.stratified_interval([scores[0][:, 0]])  # imports scipy.stats outside the timing
     t = time.perf_counter()
-    iqm = [list(S.stratified_interval([scores[i][:, m] for m in range(N_SYSTEMS)]))
+    iqm = [list(stats.stratified_interval([scores[i][:, m] for m in range(N_SYSTEMS)]))
            for i in range(len(scores))]
     iqm_s = time.perf_counter() - t
     t = time.perf_counter()
-    poi = [list(S.probability_of_improvement([scores[0][:, m] for m in range(N_SYSTEMS)],
+    poi = [list(stats.probability_of_improvement([scores[0][:, m] for m in range(N_SYSTEMS)],
                                              [scores[j][:, m] for m in range(N_SYSTEMS)]))
            for j in range(1, len(scores))]
     return {"iqm": iqm, "poi": poi, "iqm_s": iqm_s, "poi_s": time.perf_counter() - t}
@@ -108,7 +109,7 @@ def main() -> int:
         mine = ours(scores, reps)
         other = theirs.get(str(reps))
         print(f"\n{reps} resamples: IQM [95% interval] per family; then P(family 0 > j)")
-        print(f"{'':10} {'scipy (hnnbench._stats)':>34} {'rliable 1.2.0':>34}")
+        print(f"{'':10} {'scipy (hnnbench._results.stats)':>34} {'rliable 1.2.0':>34}")
         for kind in ("iqm", "poi"):
             for i, row in enumerate(mine[kind]):
                 name = f"fam {i}" if kind == "iqm" else f"P(0>{i + 1})"

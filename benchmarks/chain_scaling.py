@@ -9,7 +9,7 @@ with ``system.n_masses=N`` for each ``--sizes`` value (the data, the evaluation
 trajectories and the training protocol are the system's: 80 training trajectories of 51
 points, batch 500, lr 1e-3; the networks' width is the same at every N, only their
 input and output sizes grow). Configs are composed and validated as a run's are
-(``hnnbench._config.compose`` + ``prepare_job``); datasets and evaluation trajectories
+(``hnnbench._running.compose.compose`` + ``prepare_job``); datasets and evaluation trajectories
 come from the cache a real run uses (``$HNNBENCH_CACHE_DIR``).
 
 For each N and model, two figures:
@@ -23,7 +23,7 @@ For each N and model, two figures:
   column divides by the same model's figure at the smallest N.
 - **energy MSE** after one fit of ``--steps`` steps (seed ``--seed``): the
   ``energy_mse`` metric (docs/METRICS.md) on the evaluation trajectories, computed by
-  ``hnnbench._evaluate.evaluate`` as a job does (batched float64 rollout at the harness
+  ``hnnbench._running.evaluation.evaluate`` as a job does (batched float64 rollout at the harness
   tolerances), timed as "eval s" (which includes, for JAX, compiling the rollout). A
   rollout that diverges is reported as such.
 
@@ -81,10 +81,12 @@ def prepare(n: int, model_name: str, overrides: Sequence[str]) -> Cell:
     """Compose, validate and load the data of one (N, model)."""
     from omegaconf import OmegaConf
 
-    from hnnbench import _cache as cache
-    from hnnbench._config import EvaluationConfig, compose, prepare_job
-    from hnnbench._contract import Dataset, TrainSettings, Trajectories
-    from hnnbench._errors import ConfigError
+    from hnnbench._contracts.errors import ConfigError
+    from hnnbench._contracts.metric import EvaluationConfig
+    from hnnbench._contracts.plugin import Dataset, TrainSettings, Trajectories
+    from hnnbench._running import dataset_cache
+    from hnnbench._running.compose import compose
+    from hnnbench._running.config import prepare_job
 
     cfg = compose([f"system={SYSTEM}", f"model={model_name}", f"system.n_masses={n}",
                    *overrides])
@@ -96,8 +98,8 @@ def prepare(n: int, model_name: str, overrides: Sequence[str]) -> Cell:
     if reason is not None:
         raise ConfigError(f"{model_name} on {SYSTEM}: {reason}")
     ev = EvaluationConfig(**OmegaConf.to_container(cfg.evaluation, resolve=True))  # type: ignore[arg-type]
-    data, _, _ = cache.cached(system, 0, "dataset", lambda: system.dataset(0), Dataset.load)
-    traj, _, _ = cache.cached(system, 0, "evaluation", lambda: system.evaluation(0),
+    data, _, _ = dataset_cache.cached(system, 0, "dataset", lambda: system.dataset(0), Dataset.load)
+    traj, _, _ = dataset_cache.cached(system, 0, "evaluation", lambda: system.evaluation(0),
                               Trajectories.load)
     paper = TrainSettings.resolve(job.system_cfg, job.model_cfg)
     every = job.model_cfg.log_interval(paper.steps)
@@ -120,9 +122,9 @@ def timed_fit(cell: Cell, steps: int, seed: int) -> tuple[Any, float, float]:
 
 def energy_after_fit(cell: Cell, steps: int, seed: int) -> None:
     """Train ``steps`` steps, then the energy MSE as a job computes it."""
-    from hnnbench._errors import RolloutDiverged
-    from hnnbench._evaluate import evaluate
-    from hnnbench._registry import metrics
+    from hnnbench._contracts.errors import RolloutDiverged
+    from hnnbench._registry.groups import metrics
+    from hnnbench._running.evaluation import evaluate
 
     energy = [m for m in metrics() if m.name == "energy_mse"]
     try:
@@ -187,8 +189,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         pinned = min(os.sched_getaffinity(0))
         os.sched_setaffinity(0, {pinned})
 
-    from hnnbench._errors import HnnbenchError, RolloutDiverged, UnsupportedPair
-    from hnnbench._job import _set_threads
+    from hnnbench._contracts.errors import HnnbenchError, RolloutDiverged, UnsupportedPair
+    from hnnbench._running.job import _set_threads
 
     _set_threads(1)
     load = os.getloadavg()

@@ -11,7 +11,7 @@ settings (``--steps`` shortens training; the learned field only has to be realis
 then times two ways of computing the ``energy_mse`` metric (docs/METRICS.md) on all
 evaluation trajectories:
 
-(a) **batched** (what :func:`hnnbench._evaluate.evaluate` does): one
+(a) **batched** (what :func:`hnnbench._running.evaluation.evaluate` does): one
     ``model.rollout(x0_all, t, rtol, atol)`` call from every initial state at once,
     the batch integrated as one system by the backend's adaptive Dormand-Prince 5(4)
     in float64 (hnnbench's own batched ``dopri5`` for torch, diffrax ``Dopri5`` for JAX), then the
@@ -100,24 +100,24 @@ class Row:
 
 
 def energy_mse(system: Any, traj: Any, states_hat: np.ndarray) -> float:
-    """The ``energy_mse`` metric's mean, computed as :func:`hnnbench._evaluate.evaluate`
+    """The ``energy_mse`` metric's mean, computed as :func:`hnnbench._running.evaluation.evaluate`
     does: true energy along the rollout vs along the true trajectories."""
-    from hnnbench_plugins import metrics as M
+    from hnnbench_plugins import metrics as builtin_metrics
 
     def _energies(system: Any, states: np.ndarray) -> np.ndarray:
-        # (M, T, 2n) -> (M, T), as hnnbench._evaluate does
+        # (M, T, 2n) -> (M, T), as hnnbench._running.evaluation does
         m, t, d = states.shape
         return system.energy(states.reshape(m * t, d)).reshape(m, t)
 
     e_true, e_hat = _energies(system, traj.states), _energies(system, states_hat)
-    return M.summarize(M.energy_error_per_traj(e_hat, e_true))["mean"]
+    return builtin_metrics.summarize(builtin_metrics.energy_error_per_traj(e_hat, e_true))["mean"]
 
 
 def batched_energy_mse(
     system: Any, model: Any, traj: Any, rtol: float, atol: float
 ) -> float:
     """(a) hnnbench's path: one batched rollout of all initial states, then the metric."""
-    from hnnbench._errors import RolloutDiverged
+    from hnnbench._contracts.errors import RolloutDiverged
 
     states_hat = model.rollout(traj.x0, traj.t, rtol=rtol, atol=atol)
     if not np.all(np.isfinite(states_hat)):
@@ -133,7 +133,7 @@ def loop_energy_mse(
     ``nfev``."""
     from scipy.integrate import solve_ivp
 
-    from hnnbench._errors import RolloutDiverged
+    from hnnbench._contracts.errors import RolloutDiverged
 
     def fun(_t: float, x: np.ndarray) -> np.ndarray:
         return model.time_derivative(x[None])[0]
@@ -209,10 +209,12 @@ def measure(
     """Build, train and time one (system, model) pair."""
     from omegaconf import OmegaConf
 
-    from hnnbench import _cache as cache
-    from hnnbench._config import EvaluationConfig, compose, prepare_job
-    from hnnbench._contract import Dataset, TrainSettings, Trajectories
-    from hnnbench._errors import ConfigError
+    from hnnbench._contracts.errors import ConfigError
+    from hnnbench._contracts.metric import EvaluationConfig
+    from hnnbench._contracts.plugin import Dataset, TrainSettings, Trajectories
+    from hnnbench._running import dataset_cache
+    from hnnbench._running.compose import compose
+    from hnnbench._running.config import prepare_job
 
     cfg = compose([f"system={system_name}", f"model={model_name}"])
     job = prepare_job(cfg)
@@ -233,10 +235,10 @@ def measure(
 
         torch.set_num_threads(1)
 
-    root = cache.cache_root()
-    data, _, _ = cache.cached(system, seed, "dataset", lambda: system.dataset(seed),
+    root = dataset_cache.cache_root()
+    data, _, _ = dataset_cache.cached(system, seed, "dataset", lambda: system.dataset(seed),
                               Dataset.load, root)
-    traj, _, _ = cache.cached(system, seed, "evaluation", lambda: system.evaluation(seed),
+    traj, _, _ = dataset_cache.cached(system, seed, "evaluation", lambda: system.evaluation(seed),
                               Trajectories.load, root)
 
     train = TrainSettings.resolve(job.system_cfg, job.model_cfg)
@@ -313,7 +315,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if args.repeats < 1 or (args.steps is not None and args.steps < 1):
         parser.error("--repeats and --steps must be >= 1")
 
-    from hnnbench._errors import HnnbenchError, RolloutDiverged
+    from hnnbench._contracts.errors import HnnbenchError, RolloutDiverged
 
     rows: list[Row] = []
     failures: list[str] = []

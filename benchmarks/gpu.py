@@ -52,7 +52,8 @@ SEEDS = (0, 1, 2)
 
 def _hnnbench() -> list[str]:
     """The CLI, as this interpreter runs it (a console script may not be on PATH)."""
-    return [sys.executable, "-c", "import sys; from hnnbench._cli import main; sys.exit(main())"]
+    return [sys.executable, "-c",
+            "import sys; from hnnbench._entry.command import main; sys.exit(main())"]
 
 
 #: Each job's environment: progress lines in its log, and JAX allocating GPU memory as
@@ -104,9 +105,10 @@ def warm_datasets(system: str, model: str, seeds: tuple[int, ...]) -> None:
     (a child process, the CPU only), as a job would."""
     code = (
         "import functools, sys\n"
-        "from hnnbench import _cache as cache\n"
-        "from hnnbench._config import compose, prepare_job\n"
-        "from hnnbench._contract import Dataset, Trajectories\n"
+        "from hnnbench._running import dataset_cache as cache\n"
+        "from hnnbench._running.compose import compose\n"
+        "from hnnbench._running.config import prepare_job\n"
+        "from hnnbench._contracts.plugin import Dataset, Trajectories\n"
         f"job = prepare_job(compose(['system={system}', 'model={model}']))\n"
         "system = job.system_cls(job.system_cfg)\n"
         f"for seed in {list(seeds)}:\n"

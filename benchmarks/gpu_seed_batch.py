@@ -55,7 +55,8 @@ PLAN_SEEDS = 10
 
 
 def _hnnbench() -> list[str]:
-    return [sys.executable, "-c", "import sys; from hnnbench._cli import main; sys.exit(main())"]
+    code = "import sys; from hnnbench._entry.command import main; sys.exit(main())"
+    return [sys.executable, "-c", code]
 
 
 def _env(parallel: int, extra: dict[str, str] | None = None) -> dict[str, str]:

@@ -50,15 +50,16 @@ def measure(system_name: str, model_name: str, steps: int, repeats: int
     import torch
     import torchode as to
 
-    from hnnbench import _cache as cache
-    from hnnbench._config import compose, prepare_job
-    from hnnbench._contract import Dataset, TrainSettings, Trajectories
+    from hnnbench._contracts.plugin import Dataset, TrainSettings, Trajectories
+    from hnnbench._running import dataset_cache
+    from hnnbench._running.compose import compose
+    from hnnbench._running.config import prepare_job
     from hnnbench.neural.torch._ode import dopri5
 
     job = prepare_job(compose([f"system={system_name}", f"model={model_name}"]))
     system = job.system_cls(job.system_cfg)
-    data, _, _ = cache.cached(system, 0, "dataset", lambda: system.dataset(0), Dataset.load)
-    traj, _, _ = cache.cached(system, 0, "evaluation", lambda: system.evaluation(0),
+    data, _, _ = dataset_cache.cached(system, 0, "dataset", lambda: system.dataset(0), Dataset.load)
+    traj, _, _ = dataset_cache.cached(system, 0, "evaluation", lambda: system.evaluation(0),
                               Trajectories.load)
     protocol = TrainSettings.resolve(job.system_cfg, job.model_cfg)
     model = job.model_cls(job.model_cfg, system, "cpu")

@@ -8,9 +8,9 @@
 **Training** (default): for each (system, model), the same ``--seeds`` seeds (10 by
 default, the protocol's seed plan; each its own data, initial weights and minibatches,
 at the system's paper settings, ``--steps`` steps) are trained (a) by that many
-``Model.fit`` calls in a row and (b) by one ``Model.fit_seeds`` call, the batch. Both run once untimed first (JAX compilation, torch
-warm-up), then ``--repeats`` timed rounds, interleaved; the medians give the throughput
-ratio (a) / (b).
+``Model.fit`` calls in a row and (b) by one ``Model.fit_seeds`` call, the batch. Both
+run once untimed first (JAX compilation, torch warm-up), then ``--repeats`` timed rounds,
+interleaved; the medians give the throughput ratio (a) / (b).
 
 **Jobs** (``--jobs``): the whole command a user runs,
 ``hnnbench -m system=S model=M seed=0,...,N-1`` against the same with ``seeds_per_job=N``
@@ -54,15 +54,16 @@ JAX_TWINS = ("mlp_jax", "hnn_jax", "dhnn_jax", "lnn_jax", "so_mlp_jax", "srnn_ja
 def _pair(system_name: str, model_name: str) -> tuple[Any, Any, list[Any], Any]:
     """One thread; the composed job, its system, the datasets of ``SEEDS`` (from the
     cache) and the protocol's training settings."""
-    from hnnbench import _cache as cache
-    from hnnbench._config import compose, prepare_job
-    from hnnbench._contract import Dataset, TrainSettings
-    from hnnbench._job import _set_threads
+    from hnnbench._contracts.plugin import Dataset, TrainSettings
+    from hnnbench._running import dataset_cache
+    from hnnbench._running.compose import compose
+    from hnnbench._running.config import prepare_job
+    from hnnbench._running.job import _set_threads
 
     _set_threads(1)
     job = prepare_job(compose([f"system={system_name}", f"model={model_name}"]))
     system = job.system_cls(job.system_cfg)
-    datas = [cache.cached(system, s, "dataset", lambda s=s: system.dataset(s),
+    datas = [dataset_cache.cached(system, s, "dataset", lambda s=s: system.dataset(s),
                           Dataset.load)[0] for s in SEEDS]
     return job, system, datas, TrainSettings.resolve(job.system_cfg, job.model_cfg)
 
@@ -70,7 +71,7 @@ def _pair(system_name: str, model_name: str) -> tuple[Any, Any, list[Any], Any]:
 def training(system_name: str, model_name: str, steps: int, repeats: int
              ) -> tuple[float, float]:
     """Median seconds of separate fits of :data:`SEEDS` and of one batched fit."""
-    from hnnbench._contract import TrainSettings
+    from hnnbench._contracts.plugin import TrainSettings
 
     job, system, datas, protocol = _pair(system_name, model_name)
     train = TrainSettings(steps, protocol.batch_size, protocol.lr, protocol.weight_decay)
@@ -103,7 +104,7 @@ def aten_calls(system_name: str, model_name: str, steps: int = 20
 
     from torch.utils._python_dispatch import TorchDispatchMode
 
-    from hnnbench._contract import TrainSettings
+    from hnnbench._contracts.plugin import TrainSettings
 
     class Count(TorchDispatchMode):
         def __init__(self) -> None:

@@ -49,9 +49,10 @@ def main(argv: list[str] | None = None) -> int:
     import torch
 
     from hnnbench import _registry as registry
-    from hnnbench._datasets import with_validation
-    from hnnbench.neural.jax import nets_from_weights
-    from hnnbench.neural.torch import TrainingMLP, networks
+    from hnnbench._contracts.datasets import with_validation
+    from hnnbench.neural.jax._nets import nets_from_weights
+    from hnnbench.neural.torch import networks
+    from hnnbench.neural.torch._nets import TrainingMLP
     from hnnbench_plugins.models.srnn import SRNNJax
     from hnnbench_plugins.models.srnn import jax as srnn_jax
     from hnnbench_plugins.models.srnn import torch as srnn_torch

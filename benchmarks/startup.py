@@ -28,11 +28,11 @@ BIN = Path(sys.executable).parent
 
 JOB = """
 import sys, pathlib
-from hnnbench._config import compose
-from hnnbench._job import run_job
+from hnnbench._running.compose import compose
+from hnnbench._running.job import run_job
 overrides = ["system=spring", "model={model}", "profile=quick", "system.steps=20",
              "device=cpu", "save_model=false"]
-record = run_job(compose(overrides), pathlib.Path(sys.argv[1]), overrides=overrides)
+record = run_job(compose(overrides), pathlib.Path(sys.argv[1]), overrides=overrides)[0].record
 print(record["status"], "torch" in sys.modules, "jax" in sys.modules)
 """
 

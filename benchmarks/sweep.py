@@ -56,7 +56,7 @@ PHASES = ("data_s", "compile_s", "fit_s", "eval_s")
 LAUNCHERS = ("basic", "joblib", "joblib_300mb", "submitit_local")
 #: Environment of a launcher's command beyond the benchmark's own. ``joblib_300mb``:
 #: joblib with loky's own worker memory-growth limit (300 MB), which replaced a worker
-#: every few jobs before hnnbench raised it (hnnbench._sweep.WORKER_GROWTH).
+#: every few jobs before hnnbench raised it (hnnbench._sweeping.loky.WORKER_GROWTH).
 LAUNCHER_ENV = {"joblib_300mb": {"HNNBENCH_WORKER_GROWTH_MB": "300"}}
 
 

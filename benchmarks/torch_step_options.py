@@ -118,7 +118,8 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
     import torch
     import torch.nn.functional as F
 
-    from hnnbench.neural.torch import MLP, FusedAdam, TrainingMLP, symplectic
+    from hnnbench.neural.torch import FusedAdam
+    from hnnbench.neural.torch._nets import MLP, TrainingMLP, symplectic
 
     torch.set_num_threads(1)
     rng = np.random.default_rng(1)

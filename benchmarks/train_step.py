@@ -196,7 +196,7 @@ def time_fit(entry: Entry, system: Any, data: Any, rep: int
 def training_rows(job: Any, system: Any, data: Any) -> int:
     """Rows the model's training loop draws its minibatches from: the training points,
     or, for a family trained on trajectory windows (srnn), the windows. Raises
-    :class:`~hnnbench._errors.UnsupportedPair` where the data has none."""
+    :class:`~hnnbench._contracts.errors.UnsupportedPair` where the data has none."""
     from hnnbench import with_validation
 
     model = job.model_cls(job.model_cfg, system, "cpu")
@@ -208,9 +208,10 @@ def bench_system(system_name: str, models: Sequence[str], args: argparse.Namespa
     from loop2019 import fit_2019, make_2019
     from roofline import jax_fit_flops, record_matmuls, torch_fit_matmuls
 
-    from hnnbench._config import compose, prepare_job
-    from hnnbench._contract import TrainSettings
-    from hnnbench._errors import UnsupportedPair
+    from hnnbench._contracts.errors import UnsupportedPair
+    from hnnbench._contracts.plugin import TrainSettings
+    from hnnbench._running.compose import compose
+    from hnnbench._running.config import prepare_job
 
     entries: list[Entry] = []
     system = data = None

@@ -18,7 +18,7 @@
 # mass-spring, looks at the true energy along their rollouts, loads a sweep into pandas,
 # and puts a model of your own on the leaderboard. It uses the `quick` profile (seconds
 # per job); `profile="paper"` gives the 2019 paper's settings. CI runs this notebook
-# (`tests/test_tutorial.py`), so it stays in step with the code.
+# (`tests/unit/test_tutorial.py`), so it stays in step with the code.
 #
 # Everything here goes through the same machinery as the `hnnbench` command: the
 # records a notebook writes are the ones the CLI writes.

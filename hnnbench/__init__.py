@@ -1,7 +1,8 @@
 """hnnbench: physics-informed models of dynamics vs plain networks, as a benchmark.
 
-This module is hnnbench's public surface; every implementation module is private
-(``hnnbench._name``) and may change without notice.
+This module is hnnbench's public surface; the implementation is private, one underscore
+package per layer (``hnnbench._contracts``, ``hnnbench._running``, ...;
+docs/ARCHITECTURE.md), and may change without notice.
 
 Running things (the ``hnnbench`` command's twins): :func:`run`, :func:`sweep`,
 :func:`tune` (the tuned track), :func:`load`, :func:`leaderboard`; :func:`register` adds
@@ -20,12 +21,51 @@ model families build on :mod:`hnnbench.neural`.
 Importing hnnbench imports neither torch nor JAX (nor pandas).
 """
 
-from hnnbench._claims import Claim, ClaimSet, Published
-from hnnbench._contract import (
+from importlib import metadata as _metadata
+
+from hnnbench._contracts.claims import Claim, ClaimSet, Published
+from hnnbench._contracts.data_files import URL_SCHEMES, locate
+from hnnbench._contracts.datasets import (
+    DATA_STREAM,
+    EVAL_STREAM,
+    SPLIT_STREAM,
+    VALID_STREAM,
+    TrajectoryIndices,
+    TrajectorySplit,
+    seed_stream,
+    trajectory_dataset,
+    with_validation,
+)
+from hnnbench._contracts.errors import (
+    BackendMissingError,
+    ConfigError,
+    DataError,
+    HnnbenchError,
+    ModelOutputError,
+    RolloutDiverged,
+    UnknownNameError,
+    UnsupportedPair,
+    require_backend,
+)
+from hnnbench._contracts.integrate import VectorField, solve_batch
+from hnnbench._contracts.kinematics import (
+    Kinematics,
+    LinearKinematics,
+    MassMatrixKinematics,
+    identity_kinematics,
+)
+from hnnbench._contracts.metric import (
+    CheckRule,
+    EvalContext,
+    EvaluationConfig,
+    Metric,
+    per_point_squared_error,
+    sem,
+    summarize,
+)
+from hnnbench._contracts.names import ORACLE, REFERENCES, STANDING_STILL
+from hnnbench._contracts.plugin import (
     CLEAN_INPUTS,
-    ORACLE,
-    REFERENCES,
-    STANDING_STILL,
     Dataset,
     FitResult,
     Model,
@@ -42,50 +82,12 @@ from hnnbench._contract import (
     check_ordered,
     check_positive,
 )
-from hnnbench._data import URL_SCHEMES, locate
-from hnnbench._datasets import (
-    DATA_STREAM,
-    EVAL_STREAM,
-    SPLIT_STREAM,
-    VALID_STREAM,
-    TrajectoryIndices,
-    TrajectorySplit,
-    seed_stream,
-    trajectory_dataset,
-    with_validation,
-)
-from hnnbench._errors import (
-    BackendMissingError,
-    ConfigError,
-    DataError,
-    HnnbenchError,
-    ModelOutputError,
-    RolloutDiverged,
-    UnknownNameError,
-    UnsupportedPair,
-    require_backend,
-)
-from hnnbench._integrate import VectorField, solve_batch
-from hnnbench._kinematics import (
-    Kinematics,
-    LinearKinematics,
-    MassMatrixKinematics,
-    identity_kinematics,
-)
-from hnnbench._metric import (
-    CheckRule,
-    EvalContext,
-    EvaluationConfig,
-    Metric,
-    per_point_squared_error,
-    sem,
-    summarize,
-)
+from hnnbench._contracts.space import Categorical, IntRange, LogUniform, SearchSpace, Uniform
+from hnnbench._entry.api import leaderboard, load, run, sweep, tune
 from hnnbench._registry import register
-from hnnbench._space import Categorical, IntRange, LogUniform, SearchSpace, Uniform
-from hnnbench._user_api import leaderboard, load, run, sweep, tune
 
-__version__ = "0.4.0"
+#: The installed distribution's version (pyproject.toml is its one source).
+__version__ = _metadata.version("hnnbench")
 
 __all__ = [
     "BackendMissingError",

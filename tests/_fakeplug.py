@@ -19,7 +19,7 @@ DIST = "hnnbench_fakeplug"
 MODULE = '''
 import numpy as np
 
-from hnnbench._contract import FitResult, Model, ModelConfig
+from hnnbench._contracts.plugin import FitResult, Model, ModelConfig
 
 
 class NaNModel(Model):
@@ -54,7 +54,7 @@ class RolloutCrashModel(NaNModel):
 '''
 
 NO_BACKEND = '''
-from hnnbench._errors import require_backend
+from hnnbench._contracts.errors import require_backend
 
 require_backend("hnnbench_no_such_backend_xyz", "jax")
 

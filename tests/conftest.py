@@ -78,10 +78,10 @@ def assert_one_line_error(proc: subprocess.CompletedProcess, *needles: str) -> s
 
 
 def compose_job(overrides: list[str] | None = None, **kwargs):
-    """:func:`hnnbench._config.compose` with the suite's usual pair (spring x hnn_torch)
+    """:func:`hnnbench._running.compose.compose` with the suite's usual pair (spring x hnn_torch)
     where ``overrides`` choose none: the shipped config names no plugin, so every job
-    chooses both (``tests/test_layers.py``)."""
-    from hnnbench._config import compose
+    chooses both (``tests/integration/test_layers.py``)."""
+    from hnnbench._running.compose import compose
 
     overrides = list(overrides or [])
     keys = {o.lstrip("+~").split("=", 1)[0] for o in overrides}
@@ -113,6 +113,34 @@ def sweep_records(directory: Path) -> dict:
         assert key not in out, f"two records for {key} under {directory}"
         out[key] = {**rec, "path": path}
     return out
+
+
+@pytest.fixture(autouse=True)
+def _cores_given_back():
+    """A job run in this process under the hnnbench command's launch context pins the
+    whole process to one core for good (hnnbench._running.affinity): give every thread
+    its cores back and release the claimed core after the test, so that no test depends
+    on the ones before it (tests/integration/test_affinity.py needs the machine's cores)."""
+    if not hasattr(os, "sched_getaffinity"):
+        yield
+        return
+    before = os.sched_getaffinity(0)
+    yield
+    if os.sched_getaffinity(0) == before:
+        return
+    from hnnbench._running import affinity
+
+    handle = affinity._held.pop("handle", None)
+    if handle is not None:
+        handle.close()  # releases the core's lock
+    affinity._held.clear()
+    tasks = Path("/proc/self/task")
+    for tid in [int(t.name) for t in tasks.iterdir()] if tasks.is_dir() else []:
+        try:
+            os.sched_setaffinity(tid, before)
+        except OSError:  # a thread that ended meanwhile
+            pass
+    os.sched_setaffinity(0, before)
 
 
 @pytest.fixture(autouse=True)

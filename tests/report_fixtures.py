@@ -1,6 +1,6 @@
 """Synthetic sweep directories for the report and check tests: real ``result.json``
-records (via :func:`hnnbench._records.write_record`) and ``rollout.npz`` arrays in the
-layout that :mod:`hnnbench._job` writes."""
+records (via :func:`hnnbench._record.store.write_record`) and ``rollout.npz`` arrays in the
+layout that :mod:`hnnbench._running.job` writes."""
 
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ from typing import Any
 
 import numpy as np
 
-from hnnbench import _records as records
+from hnnbench import _record as records
 from hnnbench import _registry as registry
-from hnnbench._job import plugin_provenance
+from hnnbench._running.job import plugin_provenance
 
 INF = float("inf")
 NAN = float("nan")
@@ -89,7 +89,7 @@ def _installed_version(kind: str, name: str) -> str:
 def _config_text(system: str, model: str, profile: str, overrides: tuple[str, ...]) -> str:
     from omegaconf import OmegaConf
 
-    from hnnbench._config import compose
+    from hnnbench._running.compose import compose
 
     cfg = compose([f"system={system}", f"model={model}", f"profile={profile}", *overrides])
     return json.dumps(records.encode(OmegaConf.to_container(cfg, resolve=True)))

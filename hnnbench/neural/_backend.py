@@ -24,8 +24,8 @@ from typing import Optional, Protocol
 
 import numpy as np
 
-from hnnbench._contract import TrainSettings
-from hnnbench._errors import BackendMissingError, HnnbenchError
+from hnnbench._contracts.errors import BackendMissingError, HnnbenchError
+from hnnbench._contracts.plugin import TrainSettings
 from hnnbench.neural._config import NeuralConfig
 from hnnbench.neural._embedding import Layout
 from hnnbench.neural._family import Family
@@ -96,7 +96,7 @@ class Inference(Protocol):
                 max_steps: int) -> np.ndarray:
         """Adaptive Dormand-Prince 5(4) in float64 from ``(M, d)`` over ``(T,)``
         (monotonic, may decrease), the batch integrated as one system; ``(M, T, d)``.
-        Raises :class:`~hnnbench._errors.RolloutDiverged` when the solver gives up: more
+        Raises :class:`~hnnbench._contracts.errors.RolloutDiverged` when the solver gives up: more
         than ``max_steps`` steps, or a step size below :func:`rollout_min_step` (the
         stall rule, the same in every backend)."""
         ...
@@ -166,7 +166,7 @@ def missing_backend(name: str) -> Optional[str]:
 
 def load_backend(name: str, cfg: NeuralConfig, device: str) -> Backend:
     """Import backend ``name`` (``torch`` / ``jax``) and configure it; a missing
-    install raises a one-line :class:`~hnnbench._errors.BackendMissingError`."""
+    install raises a one-line :class:`~hnnbench._contracts.errors.BackendMissingError`."""
     if name not in BACKENDS:
         raise HnnbenchError(
             f"Unknown neural backend '{name}': expected one of {', '.join(BACKENDS)}"

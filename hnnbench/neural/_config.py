@@ -5,9 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from types import MappingProxyType
 
-from hnnbench._contract import ModelConfig, check_int_at_least, check_positive
-from hnnbench._errors import ConfigError
-from hnnbench._space import Categorical, Distribution, IntRange, LogUniform
+from hnnbench._contracts.errors import ConfigError
+from hnnbench._contracts.plugin import ModelConfig, check_int_at_least, check_positive
+from hnnbench._contracts.space import Categorical, Distribution, IntRange, LogUniform
 from hnnbench.neural._embedding import ANGLE_EMBEDDINGS
 
 __all__ = ["ACTIVATIONS", "DTYPES", "LOSSES", "LR_SCHEDULES", "SHARED_SPACE", "NeuralConfig"]

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from types import ModuleType
 from typing import Any, Literal, Optional
 
-from hnnbench._space import SearchSpace
+from hnnbench._contracts.space import SearchSpace
 
 __all__ = ["Family"]
 

@@ -19,7 +19,7 @@ rest, identically for every backend and family:
   system's criterion, :attr:`hnnbench.System.selection`, the same for every family); a
   seed whose criterion is finite and below its best so far has its weights kept
   (``Trainer.keep``). At the end the last checkpoint is scored unless the lowest one
-  beats it by more than :data:`~hnnbench._contract.SELECTION_Z` paired standard
+  beats it by more than :data:`~hnnbench._contracts.plugin.SELECTION_Z` paired standard
   errors (the checkpoints share the points); :class:`~hnnbench.Selection` says which
   step it is, and what the late (80 %) checkpoint says of convergence;
 - divergence: a seed whose training or validation loss becomes non-finite stops
@@ -28,7 +28,7 @@ rest, identically for every backend and family:
   (the reason it stopped is recorded). Training ends when every seed has stopped;
 - stopping early: a progress callback that returns ``True`` (a tuner's pruner) stops
   every seed after that chunk, each with its selected checkpoint and the reason
-  (:data:`hnnbench._contract.STOPPED_BY_CALLER`).
+  (:data:`hnnbench._contracts.plugin.STOPPED_BY_CALLER`).
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from typing import Any, Optional, Protocol
 
 import numpy as np
 
-from hnnbench._contract import (
+from hnnbench._contracts.plugin import (
     HISTORY_STEP,
     HISTORY_TRAIN,
     HISTORY_VALID,
@@ -162,7 +162,7 @@ def paired_se(a: np.ndarray, b: np.ndarray) -> float:
 def _selection(track: _Track, evaluations: int, first_step: int, criterion: Optional[str],
                stopped: Optional[str], last_available: bool) -> tuple[Selection, bool]:
     """The scored checkpoint of a seed (the rule of
-    :data:`~hnnbench._contract.SELECTION_RULE`) and whether it is the last one.
+    :data:`~hnnbench._contracts.plugin.SELECTION_RULE`) and whether it is the last one.
     ``last_available``: the trainer still holds the last checkpoint's weights (not so
     after a non-finite loss: then the lowest one is scored)."""
     assert track.best is not None and track.last is not None

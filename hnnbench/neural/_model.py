@@ -24,9 +24,9 @@ from typing import Any, ClassVar, Literal, Optional
 
 import numpy as np
 
-from hnnbench._contract import Dataset, FitResult, Model, Progress, System, TrainSettings
-from hnnbench._datasets import with_validation
-from hnnbench._errors import ConfigError, RolloutDiverged
+from hnnbench._contracts.datasets import with_validation
+from hnnbench._contracts.errors import ConfigError, RolloutDiverged
+from hnnbench._contracts.plugin import Dataset, FitResult, Model, Progress, System, TrainSettings
 from hnnbench.neural import _views as views
 from hnnbench.neural._backend import Inference, Weights, load_backend, missing_backend
 from hnnbench.neural._config import NeuralConfig
@@ -197,7 +197,7 @@ class NeuralModel(Model):
 
     def _problems(self, data: Sequence[Dataset], seeds: Sequence[int]) -> list[Problem]:
         """Each seed's training problem; a dataset without a validation split (a fit
-        outside a job) gets the job's one (:func:`hnnbench._datasets.with_validation`)."""
+        outside a job) gets the job's one (:func:`hnnbench._contracts.datasets.with_validation`)."""
         integrator: Literal["rk4", "map"] = "map" if self.rolls_out_by_map() else "rk4"
         return [self.view.problem(d if d.valid is not None else with_validation(d, seed),
                                   *self.training_options(), integrator=integrator)

@@ -5,12 +5,12 @@ family's declared coordinates, and composes with any family:
 
 - :class:`CanonicalView`: the family works on the system's states ``(q, p)``;
 - :class:`VelocityView`: the family works on ``(q, q̇)``; the system's
-  :class:`~hnnbench._kinematics.Kinematics` maps states, targets and predicted rates;
+  :class:`~hnnbench._contracts.kinematics.Kinematics` maps states, targets and predicted rates;
 - :class:`PixelView`: the family is the latent dynamics of an autoencoder on
   observations (the 2019 pixel-pendulum model); latents ``z = (z_q, z_p)``, time in
   frames.
 
-A view turns a :class:`~hnnbench._contract.Dataset` into a :class:`Problem` (numpy arrays
+A view turns a :class:`~hnnbench._contracts.plugin.Dataset` into a :class:`Problem` (numpy arrays
 the backend trains on) and converts between the model API's arrays and the family's
 working coordinates. It is pure numpy.
 """
@@ -23,9 +23,9 @@ from typing import Any, Literal, Optional
 
 import numpy as np
 
-from hnnbench._contract import CLEAN_INPUTS, Dataset, Split, System
-from hnnbench._errors import ConfigError, UnsupportedPair
-from hnnbench._kinematics import Kinematics
+from hnnbench._contracts.errors import ConfigError, UnsupportedPair
+from hnnbench._contracts.kinematics import Kinematics
+from hnnbench._contracts.plugin import CLEAN_INPUTS, Dataset, Split, System
 from hnnbench.neural._family import Family
 
 __all__ = [
@@ -236,7 +236,7 @@ class View:
         training window, 0 for the family's; ``options``: the family's loss options;
         ``integrator``: how the family rolls out, for the rollout criterion: RK4 on its
         field, or its own map ``step`` with ``options``' substeps). ``data`` must hold
-        a validation split (:func:`hnnbench._datasets.with_validation`). The validation
+        a validation split (:func:`hnnbench._contracts.datasets.with_validation`). The validation
         arrays are those of the system's selection criterion (:meth:`criterion`), the
         same for every family."""
         valid = _validation(data)

@@ -1,13 +1,13 @@
 """hnnbench's Hydra sweeper, where Hydra looks for plugins (the ``hydra_plugins``
-namespace). The implementation is :class:`hnnbench._sweep.Sweeper`; conf/config.yaml
+namespace). The implementation is :class:`hnnbench._sweeping.sweeper.Sweeper`; conf/config.yaml
 selects it (``hydra/sweeper=hnnbench``)."""
 
-from hnnbench._sweep import Sweeper
+from hnnbench._sweeping.sweeper import Sweeper
 
 
 class HnnbenchSweeper(Sweeper):
     """Hydra's basic sweeper without its per-job validation composition, collecting the
-    jobs' outcomes (:class:`hnnbench._sweep.Sweeper`)."""
+    jobs' outcomes (:class:`hnnbench._sweeping.sweeper.Sweeper`)."""
 
 
 __all__ = ["HnnbenchSweeper"]

@@ -10,12 +10,12 @@ torch's, compiled training chunks, diffrax rollouts.
 - Rollouts use diffrax (Dopri5, PID step-size control) in float64. The batch of
   initial states is integrated as one system (one step-size sequence, error norm over
   the whole batch), as the torch backend does. A solve that stops early raises
-  :class:`~hnnbench._errors.RolloutDiverged`; nothing is silently truncated.
+  :class:`~hnnbench._contracts.errors.RolloutDiverged`; nothing is silently truncated.
 
 Importing this module enables 64-bit floats in JAX (``jax_enable_x64``), which float64
 rollouts need; training runs in ``cfg.dtype`` (parameters and data cast explicitly).
 It also turns on JAX's persistent compilation cache in ``<cache root>/jax-compilation``
-(:func:`hnnbench._paths.cache_root`, which a job's ``cache_dir`` moves), unless
+(:func:`hnnbench._contracts.paths.cache_root`, which a job's ``cache_dir`` moves), unless
 ``JAX_COMPILATION_CACHE_DIR`` names
 another place or ``JAX_ENABLE_COMPILATION_CACHE=false`` turns it off. For the rollout
 to be cacheable it must hold no host callbacks, so equinox's in-graph error checks
@@ -62,10 +62,10 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import optax  # noqa: E402
 
-from hnnbench import _paths as paths  # noqa: E402
-from hnnbench._contract import TrainSettings  # noqa: E402
-from hnnbench._device import device_request, gpu_device  # noqa: E402
-from hnnbench._errors import RolloutDiverged  # noqa: E402
+from hnnbench._contracts import paths  # noqa: E402
+from hnnbench._contracts.device import device_request, gpu_device  # noqa: E402
+from hnnbench._contracts.errors import RolloutDiverged  # noqa: E402
+from hnnbench._contracts.plugin import TrainSettings  # noqa: E402
 from hnnbench.neural._backend import (  # noqa: E402
     Weights,
     map_plan,
@@ -95,7 +95,7 @@ _cache_chosen: Optional[str] = None
 
 def use_compilation_cache() -> None:
     """Point JAX's persistent compilation cache at ``<cache root>/jax-compilation``
-    (:func:`hnnbench._paths.jax_compilation_cache_dir`, which follows a job's
+    (:func:`hnnbench._contracts.paths.jax_compilation_cache_dir`, which follows a job's
     ``cache_dir``), unless the user chose another folder (``JAX_COMPILATION_CACHE_DIR``
     or ``jax.config``). Called at import and whenever a JAX model is built."""
     global _cache_chosen

@@ -16,9 +16,9 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from hnnbench._contract import TrainSettings
-from hnnbench._device import device_request, gpu_device
-from hnnbench._errors import RolloutDiverged
+from hnnbench._contracts.device import device_request, gpu_device
+from hnnbench._contracts.errors import RolloutDiverged
+from hnnbench._contracts.plugin import TrainSettings
 from hnnbench.neural._backend import (
     Weights,
     map_plan,

@@ -9,7 +9,7 @@ node whose backward is written out: the activation's derivative is one fused ker
 (``tanh_backward``) wherever the math allows, the weight gradients of the two paths
 through a layer accumulate into one array (``addmm_``), and no intermediate is kept
 that the backward does not read. The arithmetic is the same as autograd's up to
-rounding (``tests/test_torch_backprop.py`` checks the values, the gradients with
+rounding (``tests/integration/test_torch_backprop.py`` checks the values, the gradients with
 respect to every parameter and the input, seed batches under ``torch.func.vmap``, and
 every activation).
 

@@ -1,2 +1,2 @@
-"""Broken plugins, one failure each (tests/test_isolation.py): none of them may stop
+"""Broken plugins, one failure each (tests/e2e/test_isolation.py): none of them may stop
 hnnbench, or any other plugin, command or job."""

@@ -1,0 +1,83 @@
+"""A record's track and tuning: its track, the settings a tuned record's tuning
+selected, and whether track and tuning hold together (docs/TUNING.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, Optional
+
+from hnnbench._contracts.names import DEFAULT_TRACK, shown_value
+
+__all__ = [
+    "SELECTED_ON", "STEPS_SETTING", "TRACK_KEYS", "track_of", "track_problem", "tuned_settings",
+]
+
+
+#: What a tuned record's ``tuning`` says selection was made on (never test).
+SELECTED_ON = "validation"
+#: Config keys that say a run's track (never a variant of its row).
+TRACK_KEYS = ("track", "tuning")
+
+
+def track_of(record: Mapping[str, Any]) -> str:
+    """The track of a record (:data:`TRACKS`): its ``track``, :data:`DEFAULT_TRACK`
+    where it has none (or a value that is not a string, which the schema refuses)."""
+    value = record.get("track")
+    return value if isinstance(value, str) and value else DEFAULT_TRACK
+
+
+#: The setting that holds a tuned run's step budget (``tuning.steps``).
+STEPS_SETTING = "model.steps"
+
+
+def tuned_settings(record: Mapping[str, Any]) -> frozenset[str]:
+    """The settings (``model.lr``, ...) a tuned record's tuning selected, and its step
+    budget (:data:`STEPS_SETTING`): its track's definition, not a variant of its row.
+    Empty for any other record."""
+    tuning = record.get("tuning")
+    if track_of(record) != "tuned" or not isinstance(tuning, Mapping):
+        return frozenset()
+    selected = tuning.get("selected")
+    keys = {str(k) for k in selected} if isinstance(selected, Mapping) else set()
+    return frozenset(keys | {STEPS_SETTING})
+
+
+def track_problem(record: Mapping[str, Any]) -> Optional[str]:
+    """Why a record's track and tuning do not hold together, or ``None``: ``tuning``
+    belongs to a tuned record only; a tuned record says how it was tuned (selected on
+    validation, its trials, step budget and selected settings: a tuner's trial is not a
+    result) and holds those settings in its config; the config's track is the
+    record's."""
+    track = track_of(record)
+    tuning = record.get("tuning")
+    config = record.get("config")
+    config = config if isinstance(config, Mapping) else {}
+    stored = config.get("track")
+    if stored is not None and stored != track:
+        return f"track: the record says {track}, its config {stored}"
+    if tuning is not None and track != "tuned":
+        return f"tuning: a {track} record holds a tuning; only tuned records do"
+    if track != "tuned":
+        return None
+    if not isinstance(tuning, Mapping):
+        return "tuning: a tuned record must say how it was tuned (hnnbench tune writes it)"
+    if tuning.get("selected_on") != SELECTED_ON:
+        return (f"tuning.selected_on: {shown_value(tuning.get('selected_on'))}, but the tuned "
+                f"track selects on {SELECTED_ON} only")
+    selected = tuning.get("selected")
+    for key in ("trials", "steps"):
+        value = tuning.get(key)
+        if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
+            return (f"tuning.{key}: {shown_value(value)}; a tuned result states its budget "
+                    "(a tuner's trial record is not a result)")
+    if not isinstance(selected, Mapping) or not selected:
+        return "tuning.selected: missing; a tuned result states the settings it selected"
+    for key, value in {**selected, STEPS_SETTING: tuning["steps"]}.items():
+        node: Any = config
+        for part in str(key).split("."):
+            node = node.get(part) if isinstance(node, Mapping) else None
+        if node != value or type(node) is bool and type(value) is not bool:
+            return (f"tuning.selected: {key}={shown_value(value)}, but the record's config has "
+                    f"{shown_value(node)}")
+    return None

@@ -1,0 +1,125 @@
+"""``--rerun SYSTEM/MODEL/SEED``: a recorded job run again from its config in a fresh
+cache and compared with its record, metric by metric, both ways.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from hnnbench._contracts.errors import HnnbenchError
+from hnnbench._contracts.metric import CheckRule
+from hnnbench._record.tracks import track_of
+from hnnbench._results import provenance
+from hnnbench._results.check.compare import format_number
+from hnnbench._results.check.findings import CheckError, Finding
+from hnnbench._results.check.records import record_file
+from hnnbench._running.config import RUN_ONLY_KEYS
+
+__all__ = ["DATA_HASHES", "RERUN_HEADERS", "Rerun", "rerun", "rerun_config"]
+
+
+#: The record's ``data`` hashes a re-run must reproduce.
+DATA_HASHES = ("dataset_sha256", "evaluation_sha256")
+RERUN_HEADERS = ["metric", "record", "re-run", "apart", "allowed", ""]
+
+
+@dataclass
+class Rerun:
+    """One ``--rerun``: its findings (regressions) and its table, record against
+    re-run per metric and data hash."""
+
+    spec: str
+    findings: list[Finding] = field(default_factory=list)
+    rows: list[list[str]] = field(default_factory=list)
+
+
+def rerun_config(rec: dict[str, Any], cache_dir: Path) -> dict[str, Any]:
+    """The config a ``--rerun`` of ``rec`` runs: the record's stored config, with every
+    run-only setting (:data:`hnnbench._running.config.RUN_ONLY_KEYS`: cache and data
+    directories, device, threads, pinning, saving, batching) taken from the defaults of
+    its (system, model, profile) instead of the record, a fresh ``cache_dir``, and no
+    weights written. Nothing the record names decides where the re-run reads or writes."""
+    config = rec.get("config")
+    spec = f"{rec.get('system')}/{rec.get('model')}/{rec.get('seed')}"
+    if not isinstance(config, dict) or not isinstance(config.get("system"), dict):
+        raise CheckError(f"--rerun {spec}: the record holds no resolved config to run again")
+    try:
+        defaults = provenance.default_config(str(rec.get("system")), str(rec.get("model")),
+                                    str(rec.get("profile") or "paper"), track_of(rec))
+    except HnnbenchError as err:
+        raise CheckError(f"--rerun {spec}: cannot compose its defaults: {err}") from None
+    out = {k: v for k, v in config.items() if k not in RUN_ONLY_KEYS}
+    out.update({k: defaults[k] for k in RUN_ONLY_KEYS if k in defaults})
+    out.update(rerun=True, save_model=False, cache_dir=str(cache_dir))
+    return out
+
+
+def _short(value: Any) -> str:
+    return str(value)[:12] if value else "none"
+
+
+def rerun(recs: Sequence[dict[str, Any]], spec: str, rules: tuple[CheckRule, dict[str, CheckRule]]
+          ) -> Rerun:
+    """Run the job ``SYSTEM/MODEL/SEED`` of ``recs`` again (:func:`rerun_config`, in a
+    temporary directory with a fresh dataset cache) and compare: its status, its data
+    hashes (the re-run's, generated now by the installed system, are the canonical ones),
+    and each metric with the record's by ``rules``, in both directions."""
+    import tempfile
+
+    from omegaconf import OmegaConf
+
+    from hnnbench._running.job import run_job
+
+    parts = spec.split("/")
+    if len(parts) != 3 or not parts[2].isdigit():
+        raise CheckError(f"--rerun {spec}: expected SYSTEM/MODEL/SEED, e.g. spring/hnn_jax/0")
+    system, model, seed = parts[0], parts[1], int(parts[2])
+    match = [r for r in recs if r.get("system") == system and r.get("model") == model
+             and r.get("seed") == seed]
+    if not match:
+        raise CheckError(f"--rerun {spec}: no record of that job in the checked directories")
+    rec = match[0]
+    result = Rerun(spec)
+    with tempfile.TemporaryDirectory(prefix="hnnbench-rerun-") as tmp:
+        cfg = OmegaConf.create(rerun_config(rec, Path(tmp) / "cache"))
+        (outcome, *_) = run_job(cfg, Path(tmp) / "job", overrides=rec.get("overrides"))
+        again = outcome.record
+    default, by_metric = rules
+    where = record_file(rec)
+
+    def add(name: str, ref: str, cur: str, apart: str, allowed: str, ok: bool) -> None:
+        result.rows.append([name, ref, cur, apart, allowed, "ok" if ok else "FAILS"])
+        if not ok:
+            result.findings.append(Finding("rerun", name, system, model, ref, cur, apart,
+                                           allowed))
+
+    add("status", str(rec.get("status")), str(again.get("status")), "", "same status",
+        again.get("status") == rec.get("status"))
+    if again.get("status") == "failed" and again.get("error"):
+        result.rows.append(["error", "", str(again["error"]), "", "", ""])
+    for key in DATA_HASHES:
+        mine = (rec.get("data") or {}).get(key)
+        canonical = (again.get("data") or {}).get(key)
+        if mine is None and canonical is None and rec.get("status") == "skipped":
+            continue
+        add(f"data.{key}", _short(mine), _short(canonical), "",
+            "the installed system's data", bool(canonical) and mine == canonical)
+        if canonical and mine != canonical:
+            result.findings[-1].current = (f"canonical {_short(canonical)} ({where} names "
+                                           "other data)")
+    for name, value in (rec.get("metrics") or {}).items():
+        rule = by_metric.get(name, default)
+        ref = float(value.get("mean", math.nan))
+        cur = float((again.get("metrics") or {}).get(name, {}).get("mean", math.nan))
+        if math.isnan(ref) and math.isnan(cur):
+            continue
+        # A re-run must agree with the record both ways, not merely be no worse.
+        worst = max(rule.worsening(ref, cur), rule.worsening(cur, ref))
+        ok = not (math.isnan(cur) or math.isnan(ref)) and worst <= rule.factor
+        add(name, format_number(ref), format_number(cur), f"{format_number(worst)}x",
+            f"within {rule.factor:g}x", ok)
+    return result

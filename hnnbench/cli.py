@@ -1,6 +1,0 @@
-"""Deprecated: ``hnnbench.cli`` is now private (``hnnbench._cli``); import the
-public names from :mod:`hnnbench`. To be removed in hnnbench 0.5."""
-
-from hnnbench._deprecated import forward
-
-__getattr__ = forward("hnnbench.cli", "hnnbench._cli")

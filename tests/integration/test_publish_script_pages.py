@@ -1,0 +1,93 @@
+"""Publishing a new model with the published records keeps every figure and page (slow: a
+whole report; tests/unit/test_publish_script.py has the rest)."""
+
+from __future__ import annotations
+
+import sys
+import types
+
+import pandas as pd
+import pytest
+from conftest import REPO
+from report_fixtures import write_run
+
+sys.path.insert(0, str(REPO / "scripts" / "maintainer"))
+import publish_results  # noqa: E402
+
+
+@pytest.fixture()
+def tree(tmp_path, monkeypatch):
+    """A repository root of its own: README.md and results/README.md with their markers,
+    results/figures holding a stale figure; publish_results writes there."""
+    root = tmp_path / "repo"
+    (root / "results" / "figures").mkdir(parents=True)
+    (root / "README.md").write_text(
+        "# x\n\n<!-- aggregate:begin -->\n<!-- aggregate:end -->\n\n"
+        "<!-- leaderboard:begin -->\n<!-- leaderboard:end -->\n\n"
+        "<!-- tracks:begin -->\n<!-- tracks:end -->\n")
+    (root / "results" / "README.md").write_text(
+        "<!-- provenance:begin -->\n<!-- provenance:end -->\n")
+    (root / "results" / "figures" / "old_system_energy.png").write_bytes(b"stale")
+    monkeypatch.setattr(publish_results, "ROOT", root)
+    monkeypatch.setattr(publish_results, "RESULTS", root / "results")
+    monkeypatch.setattr(publish_results, "RECORDS", root / "results" / "records")
+    fake = types.ModuleType("job_costs")
+    fake.main = lambda argv: 0  # the real one rewrites the installed job costs
+    monkeypatch.setitem(sys.modules, "job_costs", fake)
+    return root
+
+
+
+
+@pytest.mark.slow
+def test_a_new_model_published_with_the_records_keeps_every_figure_and_page(tree, tmp_path):
+    """docs/LEADERBOARD.md, followed literally: the published records (with their small
+    figure rollouts) and a new model's sweep, published together."""
+    from hnnbench import _record as records
+    from hnnbench._results.leaderboard import leaderboard
+    from hnnbench._results.report.figures import N_TRAJ_SHOWN, runs_for_figures
+
+    first = tmp_path / "first"  # the protocol: JAX twins seeds 0-9, torch twins 0-2
+    for model, seeds in (("mlp_jax", 10), ("hnn_jax", 10), ("oracle", 10), ("mlp_torch", 3),
+                         ("hnn_torch", 3)):
+        for seed in range(seeds):
+            write_run(first, "spring", model, seed, profile="paper")
+    assert publish_results.main([str(first)]) == 0
+    published = tree / "results" / "records"
+    rollouts = sorted(p.relative_to(published) for p in published.rglob("rollout.npz"))
+    assert [str(p) for p in rollouts] == [f"spring/{m}/seed0/rollout.npz" for m in
+                                          ("hnn_jax", "hnn_torch", "mlp_jax", "mlp_torch",
+                                           "oracle")]
+    families = pd.read_csv(tree / "results" / "families.csv").set_index("family")
+    assert families.loc["hnn", "seeds_from"] == "hnn_jax" and families.loc["hnn", "n_seeds"] == 10
+    assert families.loc["hnn", "twins"] == "hnn_torch agrees (3 seeds)"
+    assert families.loc["hnn", "energy_mse_mark"] == "best"  # better on each of 10 seeds
+    board = pd.read_csv(tree / "results" / "leaderboard.csv")
+    assert {"energy_mse_ci_low", "energy_mse_ci_high", "cpu_s_mean", "reason"} <= set(board)
+    aggregate = pd.read_csv(tree / "results" / "aggregate.csv")
+    assert set(aggregate[aggregate["metric"] == "energy_mse"]["family"]) == {"mlp", "hnn"}
+    assert len(pd.read_csv(tree / "results" / "twins.csv")) == 2
+    readme = (tree / "README.md").read_text()
+    assert "**" in readme.split("<!-- leaderboard:begin -->")[1]  # a separated best, bold
+    kept = records.load_arrays(published / rollouts[0])
+    assert kept["states_hat"].shape[0] <= N_TRAJ_SHOWN and kept["states_hat"].dtype == "float32"
+    assert not (tree / "results" / "figures" / "old_system_energy.png").exists()  # stale
+
+    new = tmp_path / "new"
+    for seed in (0, 1, 2):
+        write_run(new, "spring", "dhnn_jax", seed, profile="paper")
+    assert publish_results.main([str(new), str(published)]) == 0
+    recs = records.load(published).records
+    board = pd.read_csv(tree / "results" / "leaderboard.csv")
+    assert list(board["model"]) == list(leaderboard(recs)["model"])
+    assert "dhnn_jax" in set(board["model"])
+    seed, runs = runs_for_figures(recs)  # the merged page draws every model
+    assert seed == 0 and {r.model for r in runs} == {"mlp_jax", "mlp_torch", "hnn_jax",
+                                                     "hnn_torch", "dhnn_jax", "oracle"}
+    pngs = sorted((tree / "results" / "figures").glob("*.png"))
+    assert {"spring_energy.png", "performance_profile.png"} <= {p.name for p in pngs}
+    page = (tree / "results" / "leaderboard.html").read_text()
+    assert page.count("data:image/png;base64,") == len(pngs)
+    readme = (tree / "README.md").read_text()
+    assert "| family" in readme.split("<!-- aggregate:begin -->")[1]
+    assert "| dhnn " in readme.split("<!-- leaderboard:begin -->")[1]

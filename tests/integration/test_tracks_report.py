@@ -1,0 +1,165 @@
+"""The tracks side by side: a report over protocol and recipe (or tuned) records says
+each track's verdict per system and headline metric, and where it changes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+from report_fixtures import make_sweep, scale_metric
+
+from hnnbench import _record as records
+from hnnbench._results.report import write_report
+from hnnbench._results.report.figures import main_profile_figure
+
+PAIRS = (("spring", "mlp_torch"), ("spring", "hnn_torch"), ("pendulum", "mlp_torch"),
+         ("pendulum", "hnn_torch"))
+SEEDS = tuple(range(6))
+
+
+def _as_track(root: Path, track: str) -> None:
+    for path in root.rglob(records.RECORD_NAME):
+        rec = records.read_record(path)
+        assert rec is not None
+        records.write_record(path.parent, {**rec, "track": track})
+
+
+def test_the_report_sets_the_tracks_side_by_side_and_names_a_changed_verdict(tmp_path):
+    protocol = make_sweep(tmp_path / "protocol", pairs=PAIRS, seeds=SEEDS)
+    recipe = make_sweep(tmp_path / "recipe", pairs=PAIRS, seeds=SEEDS)
+    _as_track(recipe, "recipe")
+    # on the recipe track the MLP's spring energy error falls far below the HNN's
+    scale_metric(recipe, "spring", "mlp_torch", "energy_mse", 1e-4)
+    report = write_report([protocol, recipe], tmp_path / "out", figures=False)
+    tracks = pd.read_csv(report.files["tracks"], keep_default_na=False)
+    assert {"protocol", "recipe", "changes"} <= set(tracks.columns)
+    cell = tracks[(tracks["system"] == "spring") & (tracks["metric"] == "energy_mse")].iloc[0]
+    assert (cell["protocol"], cell["recipe"], cell["changes"]) == ("best: hnn", "best: mlp",
+                                                                   True)
+    same = tracks[(tracks["system"] == "pendulum") & (tracks["metric"] == "energy_mse")]
+    assert same.iloc[0]["protocol"] == same.iloc[0]["recipe"] == "best: hnn"
+    assert not same.iloc[0]["changes"]
+    text = report.files["tracks_md"].read_text()
+    assert "Where the verdict changes between tracks:" in text
+    assert "- `spring`, `energy_mse`: protocol best: hnn; recipe best: mlp." in text
+    assert "`pendulum`, `energy_mse`" not in text.split("changes between tracks:")[1]
+
+
+def test_a_report_of_one_track_says_only_the_protocol_ran(tmp_path):
+    report = write_report([make_sweep(tmp_path / "p", pairs=PAIRS, seeds=(0, 1))],
+                          tmp_path / "out", figures=False)
+    assert "tracks" not in report.files
+    assert "Only the protocol track has published rows" in report.files["tracks_md"].read_text()
+
+
+def test_a_report_of_the_recipe_track_alone_shows_its_verdicts(tmp_path):
+    recipe = make_sweep(tmp_path / "recipe", pairs=PAIRS, seeds=SEEDS)
+    _as_track(recipe, "recipe")
+    report = write_report([recipe], tmp_path / "out", figures=False)
+    tracks = pd.read_csv(report.files["tracks"], keep_default_na=False)
+    assert "recipe" in tracks.columns and "protocol" not in tracks.columns
+    assert not tracks["changes"].any()
+    assert "Only the protocol track" not in report.files["tracks_md"].read_text()
+
+
+def _as_tuned(root: Path, lr: float) -> None:
+    """Every record under ``root`` as the tuned track's, its tuning selecting
+    ``model.lr=lr`` at a step budget of 20."""
+    for path in root.rglob(records.RECORD_NAME):
+        rec = records.read_record(path)
+        assert rec is not None
+        config = {**rec["config"], "track": "tuned",
+                  "model": {**rec["config"]["model"], "lr": lr, "steps": 20}}
+        records.write_record(path.parent, {
+            **rec, "track": "tuned", "config": config,
+            "overrides": [*rec["overrides"], f"model.lr={lr}", "model.steps=20", "track=tuned"],
+            "tuning": {"selected_on": "validation", "trials": 4, "steps": 20,
+                       "selected": {"model.lr": lr}, "cpu_s": 12.0, "space": {}}})
+
+
+def test_a_report_draws_each_track_apart_and_speaks_of_the_protocol(tmp_path):
+    """With a tuned track beside the protocol: the per-system figures of the tuned runs
+    are their own (named by the track, not by the selected settings, which are no
+    variant), the heatmaps and performance profiles of the main scope keep their names
+    (the README embeds them) and the tuned track gets its own, and the per-system marks,
+    the aggregate's left-out lines and the paper comparison's seed line speak of the
+    protocol's rows only."""
+    from hnnbench._results.report.verdicts import left_out_lines, marks_line
+
+    pairs = PAIRS[:2]
+    protocol = make_sweep(tmp_path / "protocol", pairs=pairs, seeds=SEEDS)
+    alone = write_report([protocol], tmp_path / "alone")
+    tuned = make_sweep(tmp_path / "tuned", pairs=pairs, seeds=(0, 1))  # 2 seeds: no verdict
+    _as_tuned(tuned, 0.003)
+    both = write_report([protocol, tuned], tmp_path / "both")
+    names = {p.name for p in (tmp_path / "both" / "figures").glob("*.png")}
+    assert {p.name for p in (tmp_path / "alone" / "figures").glob("*.png")} <= names
+    assert "performance_profile.png" in names and "heatmap_energy_mse.png" in names
+    assert "heatmap_energy_mse_quick_tuned.png" in names
+    assert any(n.startswith("spring_tuned_") for n in names), sorted(names)
+    assert not any("model.lr" in n or "/" in n for n in names), sorted(names)
+    assert main_profile_figure(both.figures).name == "performance_profile.png"
+    assert both.verdicts is not None and alone.verdicts is not None
+    assert marks_line(both.verdicts.families) == marks_line(alone.verdicts.families)
+    assert left_out_lines(both.verdicts.aggregate) == left_out_lines(alone.verdicts.aggregate)
+    seed_line = both.files["paper"].read_text().splitlines()[2]
+    assert seed_line == alone.files["paper"].read_text().splitlines()[2]
+    assert "seed(s) per row" in seed_line
+
+
+def test_a_report_of_another_track_alone_keeps_plain_names_and_compares_nothing(tmp_path):
+    """A recipe-only report: its heatmaps keep the plain names (it is the only scope),
+    no scope line, and the paper comparison says it reads the protocol track only."""
+    recipe = make_sweep(tmp_path / "recipe", pairs=PAIRS, seeds=(0, 1, 2))
+    _as_track(recipe, "recipe")
+    report = write_report([recipe], tmp_path / "out")
+    names = {p.name for p in (tmp_path / "out" / "figures").glob("*.png")}
+    assert "heatmap_energy_mse.png" in names and not any("recipe" in n[:8] for n in names)
+    assert any(n.startswith("spring_recipe_") for n in names), sorted(names)
+    paper = report.files["paper"].read_text()
+    assert "No protocol-track rows" in paper and "Profile ?" not in paper
+    assert "Of the " not in report.files["aggregate_md"].read_text()
+
+
+def test_the_aggregate_speaks_of_the_protocol_even_where_only_another_track_has_one(
+        tmp_path):
+    """The protocol track without its baseline (no MLP: nothing to normalise) beside a
+    tuned track with one: the aggregate says there is none for the protocol (it does not
+    show the tuned track's under the protocol's marks), names its scope, and draws the
+    tuned track's performance profiles under the tuned track's name only."""
+    protocol = make_sweep(tmp_path / "protocol", pairs=PAIRS[1::2], seeds=SEEDS)  # HNN only
+    tuned = make_sweep(tmp_path / "tuned", pairs=PAIRS, seeds=SEEDS)
+    _as_tuned(tuned, 0.003)
+    report = write_report([protocol, tuned], tmp_path / "out")
+    text = report.files["aggregate_md"].read_text()
+    assert "No aggregate" in text and "Of the `quick` rows" in text, text
+    assert main_profile_figure(report.figures) is None
+    names = {p.name for p in (tmp_path / "out" / "figures").glob("*.png")}
+    assert "performance_profile_quick_tuned.png" in names and \
+        "performance_profile.png" not in names, sorted(names)
+
+
+def test_a_track_that_cannot_separate_its_leaders_changes_no_verdict(tmp_path):
+    """Three recipe seeds cannot separate the HNN and the MLP ("too few seeds to
+    separate"); the protocol's best, the HNN, is among them: no change of verdict, even
+    where the MLP's mean moved ahead (said apart, as a difference of means)."""
+    protocol = make_sweep(tmp_path / "protocol", pairs=PAIRS, seeds=SEEDS)
+    recipe = make_sweep(tmp_path / "recipe", pairs=PAIRS, seeds=(0, 1, 2))
+    _as_track(recipe, "recipe")
+    scale_metric(recipe, "pendulum", "hnn_torch", "energy_mse", 1e4)  # now far behind
+    report = write_report([protocol, recipe], tmp_path / "out", figures=False)
+    tracks = pd.read_csv(report.files["tracks"], keep_default_na=False)
+    rows = tracks[tracks["metric"] == "energy_mse"].set_index("system")
+    assert rows.loc["spring", "protocol"] == "best: hnn"
+    assert rows.loc["spring", "recipe"].startswith("too few seeds to separate: ") and \
+        "hnn" in rows.loc["spring", "recipe"]
+    assert not rows.loc["spring", "changes"]
+    # 3 seeds tie everyone: no separated change, but the best mean moved to the MLP
+    assert rows.loc["pendulum", "recipe"] == "too few seeds to separate: mlp, hnn"
+    assert not rows.loc["pendulum", "changes"] and rows.loc["pendulum", "mean_changes"]
+    assert not rows.loc["spring", "mean_changes"]
+    text = report.files["tracks_md"].read_text()
+    assert "never separates its leaders" in text and "No verdict changes" in text
+    assert "- `pendulum`, `energy_mse`: protocol best: hnn; recipe too few seeds to " \
+        "separate: mlp, hnn." in \
+        text.split("Where only the best mean moves")[1]

@@ -1,0 +1,128 @@
+"""scripts/maintainer/publish_results.py: how sweeps become the committed records."""
+
+from __future__ import annotations
+
+import sys
+import types
+
+import pytest
+from conftest import REPO
+from report_fixtures import write_run
+
+sys.path.insert(0, str(REPO / "scripts" / "maintainer"))
+import publish_results  # noqa: E402
+
+
+def test_a_job_in_two_sweeps_is_refused_not_counted_twice(tmp_path, monkeypatch):
+    """A re-run kept beside the run it supersedes would enter the report twice."""
+    monkeypatch.setattr(publish_results, "RECORDS", tmp_path / "records")
+    old, new = tmp_path / "old", tmp_path / "new"
+    for sweep in (old, new):
+        write_run(sweep, "spring", "hnn_torch", 0, profile="paper", rollout=False)
+    write_run(old, "spring", "hnn_torch", 1, profile="paper", rollout=False)
+    assert publish_results.copy_records([old]) == 2
+    with pytest.raises(SystemExit, match=r"'hnn_torch', 0\) is in both .*move the superseded"):
+        publish_results.copy_records([old, new])
+    (old / "spring" / "hnn_torch" / "seed0" / "result.json").unlink()
+    assert publish_results.copy_records([old, new]) == 2
+
+
+def test_a_record_of_other_settings_is_not_published(tmp_path, monkeypatch):
+    """Whatever its overrides say, a record whose stored config is not the paper
+    defaults is refused, naming the setting."""
+    import json
+
+    monkeypatch.setattr(publish_results, "RECORDS", tmp_path / "records")
+    declared = tmp_path / "declared"
+    write_run(declared, "spring", "hnn_torch", 0, profile="paper", rollout=False,
+              overrides=("model.hidden=300",))
+    with pytest.raises(SystemExit, match=r"a variant \(model.hidden=300\), not the paper"):
+        publish_results.copy_records([declared])
+    stripped = tmp_path / "stripped"
+    job = write_run(stripped, "spring", "hnn_torch", 0, profile="paper", rollout=False)
+    record = json.loads((job / "result.json").read_text())
+    record["config"]["model"]["hidden"] = 300
+    (job / "result.json").write_text(json.dumps(record))
+    with pytest.raises(SystemExit, match=f"{job}: .*model.hidden=300"):
+        publish_results.copy_records([stripped])
+    assert not (tmp_path / "records").exists()
+
+
+def test_a_row_of_another_track_is_published_beside_the_protocols(tmp_path, monkeypatch):
+    """A tuned or recipe record of a job the protocol also ran lands in a directory of
+    its track (records/<system>/<model>/<track>/seed<k>), never over the protocol's."""
+    import json
+
+    records_dir = tmp_path / "records"
+    monkeypatch.setattr(publish_results, "RECORDS", records_dir)
+    protocol, recipe = tmp_path / "protocol", tmp_path / "recipe"
+    write_run(protocol, "spring", "hnn_torch", 0, profile="paper", rollout=False)
+    job = write_run(recipe, "spring", "hnn_torch", 0, profile="paper", rollout=False)
+    record = json.loads((job / "result.json").read_text())
+    (job / "result.json").write_text(json.dumps({**record, "track": "recipe"}))
+    assert publish_results.copy_records([protocol, recipe]) == 2
+    assert (records_dir / "spring" / "hnn_torch" / "seed0" / "result.json").is_file()
+    kept = json.loads((records_dir / "spring" / "hnn_torch" / "recipe" / "seed0" /
+                       "result.json").read_text())
+    assert kept["track"] == "recipe"
+    assert publish_results.published_jobs() == {("protocol", "spring", "hnn_torch", 0),
+                                                ("recipe", "spring", "hnn_torch", 0)}
+    with pytest.raises(SystemExit, match=r"\('recipe', 'spring', 'hnn_torch', 0\) is in both"):
+        publish_results.copy_records([recipe, recipe])
+
+
+@pytest.fixture()
+def tree(tmp_path, monkeypatch):
+    """A repository root of its own: README.md and results/README.md with their markers,
+    results/figures holding a stale figure; publish_results writes there."""
+    root = tmp_path / "repo"
+    (root / "results" / "figures").mkdir(parents=True)
+    (root / "README.md").write_text(
+        "# x\n\n<!-- aggregate:begin -->\n<!-- aggregate:end -->\n\n"
+        "<!-- leaderboard:begin -->\n<!-- leaderboard:end -->\n\n"
+        "<!-- tracks:begin -->\n<!-- tracks:end -->\n")
+    (root / "results" / "README.md").write_text(
+        "<!-- provenance:begin -->\n<!-- provenance:end -->\n")
+    (root / "results" / "figures" / "old_system_energy.png").write_bytes(b"stale")
+    monkeypatch.setattr(publish_results, "ROOT", root)
+    monkeypatch.setattr(publish_results, "RESULTS", root / "results")
+    monkeypatch.setattr(publish_results, "RECORDS", root / "results" / "records")
+    fake = types.ModuleType("job_costs")
+    fake.main = lambda argv: 0  # the real one rewrites the installed job costs
+    monkeypatch.setitem(sys.modules, "job_costs", fake)
+    return root
+
+
+
+
+def test_publishing_without_the_published_records_is_refused(tree, tmp_path):
+    first = tmp_path / "first"
+    write_run(first, "spring", "hnn_jax", 0, profile="paper", rollout=False)
+    assert publish_results.copy_records([first]) == 1
+    new = tmp_path / "new"
+    write_run(new, "spring", "dhnn_jax", 0, profile="paper", rollout=False)
+    assert publish_results.main([str(new)]) == 2  # results/records holds hnn_jax: pass it too
+    assert not (tree / "results" / "records" / "spring" / "dhnn_jax").exists()
+
+
+def test_a_system_is_replaced_in_one_step(tree, tmp_path):
+    """--replace S: a re-publication of S removes S's published protocol records that
+    the directories given do not hold (another seed plan, a model gone), and nothing
+    else; without records of S in the directories it refuses."""
+    first = tmp_path / "first"
+    for model, seeds in (("hnn_jax", 3), ("mlp_jax", 3)):
+        for seed in range(seeds):
+            write_run(first, "spring", model, seed, profile="paper", rollout=False)
+    write_run(first, "pendulum", "hnn_jax", 0, profile="paper", rollout=False)
+    assert publish_results.copy_records([first]) == 7
+    published = tree / "results" / "records"
+    again = tmp_path / "again"
+    write_run(again, "spring", "hnn_jax", 0, profile="paper", rollout=False)
+    write_run(again, "spring", "mlp_jax", 0, profile="paper", rollout=False)
+    assert publish_results.main([str(again)]) == 2  # the published records not given
+    assert publish_results.main([str(again), "--replace", "pendulum"]) == 2
+    assert publish_results.main([str(again), str(published / "pendulum"),
+                                 "--replace", "spring"]) == 0
+    kept = {(p.parts[-4], p.parts[-3], p.parts[-2]) for p in published.rglob("result.json")}
+    assert kept == {("spring", "hnn_jax", "seed0"), ("spring", "mlp_jax", "seed0"),
+                    ("pendulum", "hnn_jax", "seed0")}
