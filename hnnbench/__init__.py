@@ -42,7 +42,7 @@ from hnnbench._contract import (
     check_ordered,
     check_positive,
 )
-from hnnbench._data import URL_SCHEMES, locate
+from hnnbench._data import URL_SCHEMES, DataArchive, locate
 from hnnbench._datasets import (
     DATA_STREAM,
     EVAL_STREAM,
@@ -99,6 +99,7 @@ __all__ = [
     "ClaimSet",
     "ConfigError",
     "DATA_STREAM",
+    "DataArchive",
     "DataError",
     "Dataset",
     "EVAL_STREAM",
