@@ -23,7 +23,9 @@ Writes into ``out`` (default: the only sweep directory):
   and how many seeds converged (:mod:`hnnbench._report.selection`).
 - ``paper_comparison.md``: published values next to ours, and every claim.
 - ``figures/``: the registered figures (:mod:`hnnbench._report.figures`).
-- ``leaderboard.html``: one self-contained page with all of the above.
+- ``leaderboard.html``: one page with all of the above, the figures linked from
+  ``figures/`` and loaded lazily (``embed_figures=True``: inline, one self-contained
+  file).
 """
 
 from __future__ import annotations
@@ -70,13 +72,14 @@ class Report:
 
 
 def write_report(sweep_dir: Path | str | Sequence[Path | str], out: Path | str | None = None,
-                 figures: bool = True, strict: bool = False, aggregate: bool = True
-                 ) -> Report:
+                 figures: bool = True, strict: bool = False, aggregate: bool = True,
+                 embed_figures: bool = False) -> Report:
     """Build every table and figure of the sweep directories into ``out`` (default: the
     sweep, when there is one); ``figures=False`` skips the figures, ``aggregate=False``
     the aggregate across systems (a sweep's rewrite while it runs); ``strict``: every
     record is checked in full (:func:`hnnbench._records.load`, strict), and an
-    unreadable or invalid record is an error instead of a warning."""
+    unreadable or invalid record is an error instead of a warning; ``embed_figures``:
+    the page holds its figures inline (base64) instead of linking them."""
     dirs = [Path(sweep_dir)] if isinstance(sweep_dir, (str, Path)) else [Path(d) for d in
                                                                         sweep_dir]
     recs, bad = load_sweeps(dirs, strict=strict)
@@ -133,7 +136,7 @@ def write_report(sweep_dir: Path | str | Sequence[Path | str], out: Path | str |
     R.atomic_write_text(report.files["paper"], comparison_markdown(board))
     report.files["html"] = out / "leaderboard.html"
     R.atomic_write_text(report.files["html"], page(board, report.figures, prov, recs, bad,
-                                                   verdicts))
+                                                   verdicts, base=out, embed=embed_figures))
     return report
 
 
