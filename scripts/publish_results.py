@@ -18,17 +18,19 @@
    ``results/``: leaderboard.{csv,md,html},
    families.csv, twins.csv, aggregate.{csv,md}, improvement.csv, aggregate_scales.csv,
    paper_comparison.md, figures/; a PNG in figures/ that this report did not draw is
-   removed (the page embeds every figure there). The leaderboard is the one of
+   removed (the page shows every figure there). The leaderboard is the one of
    ``results/records`` (tests/test_published.py rebuilds it from the committed records
    and compares).
-3. Replaces the block between ``<!-- aggregate:begin -->`` and ``<!-- aggregate:end -->``
-   in README.md with the aggregate across systems (the verdicts its intervals support
-   and the performance profiles), the block between ``<!-- leaderboard:begin -->`` and
-   ``<!-- leaderboard:end -->`` with the family table, its provenance, the heatmap and
-   the twins' agreement, and the block between ``<!-- provenance:begin -->`` and
-   ``<!-- provenance:end -->`` in results/README.md with the provenance and the list of
-   systems published so far, and the block between ``<!-- tracks:begin -->`` and
-   ``<!-- tracks:end -->`` in README.md with the tracks side by side (tracks.md).
+3. Replaces, in results/README.md (the results page; README.md only links to it), the
+   block between ``<!-- aggregate:begin -->`` and ``<!-- aggregate:end -->`` with the
+   aggregate across systems (the verdicts its intervals support and the performance
+   profiles), the block between ``<!-- leaderboard:begin -->`` and
+   ``<!-- leaderboard:end -->`` with the family table (and the notes of its status
+   cells), its provenance, the heatmap and the twins' agreement, the block between
+   ``<!-- tracks:begin -->`` and ``<!-- tracks:end -->`` with the tracks side by side
+   (tracks.md), and the block between ``<!-- provenance:begin -->`` and
+   ``<!-- provenance:end -->`` with the provenance and the list of systems published so
+   far. Links in the blocks are relative to results/.
 
 Records come from other machines (docs/LEADERBOARD.md, "Threat model"): a record's
 directory is built from its names by ``hnnbench._paths.safe_join`` (a name that is not a
@@ -40,6 +42,7 @@ own, exactly once, so no content can forge one.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import sys
 from pathlib import Path
@@ -74,14 +77,25 @@ def replace_block(text: str, name: str, body: str) -> str:
     return "\n".join([*lines[:starts[0] + 1], body.strip(), *lines[stops[0]:]])
 
 
+#: The line that leads the notes under the family table (its status cells' ``[n]``).
+NOTES_LEAD = "Why runs did not finish"
+
+
 def table_and_provenance(markdown: str) -> tuple[str, str]:
-    """Split leaderboard.md into (its first table: the family table, provenance bullet
-    lines)."""
+    """Split leaderboard.md into (its first table: the family table, with the notes its
+    status cells point to, if any; provenance bullet lines)."""
     lines = markdown.splitlines()
     start = next((i for i, line in enumerate(lines) if line.startswith("|")), len(lines))
     stop = next((i for i in range(start, len(lines)) if not lines[i].startswith("|")),
                 len(lines))
+    rest = [line for line in lines[stop:] if line.strip()]
+    notes: list[str] = []
+    if rest and rest[0].startswith(NOTES_LEAD):
+        notes = [rest[0], *itertools.takewhile(lambda ln: ln.split(". ", 1)[0].isdigit(),
+                                               rest[1:])]
     table = "\n".join(lines[start:stop])
+    if notes:
+        table += "\n\n" + notes[0] + "\n\n" + "\n".join(notes[1:])
     prov = "\n".join(line for line in lines if line.startswith("- "))
     return table, prov
 
@@ -171,7 +185,7 @@ def copy_figure_rollouts(sweeps: list[Path]) -> tuple[int, int]:
 
 
 def remove_stale_figures(made: list[Path]) -> list[Path]:
-    """Remove every PNG in results/figures that is not one of ``made`` (the page embeds
+    """Remove every PNG in results/figures that is not one of ``made`` (the page shows
     every figure there); returns the removed files."""
     keep = {Path(p).resolve() for p in made}
     stale = [p for p in sorted((RESULTS / "figures").glob("*.png")) if p.resolve() not in keep]
@@ -267,7 +281,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("sweeps", type=Path, nargs="+",
                         help="sweep directories with result.json records and rollouts")
     parser.add_argument("--figure", default="heatmap_energy_mse",
-                        help="figure embedded in README.md (a name under results/figures/)")
+                        help="figure shown in results/README.md (a name under results/figures/)")
     parser.add_argument("--replace", default="", metavar="SYSTEM[,SYSTEM]",
                         help="replace every published protocol-track record of these "
                              "systems by the records given (a re-publication): the "
@@ -326,28 +340,25 @@ def main(argv: list[str] | None = None) -> int:
     markdown = report.files["md"].read_text()
     table, prov = table_and_provenance(markdown)
     systems = sorted({p.parts[0] for p in published})
-    readme = ROOT / "README.md"
+    results_readme = RESULTS / "README.md"
     body = "\n\n".join([
         prov, table,
-        f"![Which family wins where: rank by energy MSE]({figure.relative_to(ROOT).as_posix()})",
+        f"![Which family wins where: rank by energy MSE]({figure.relative_to(RESULTS).as_posix()})",
         sentence_after(markdown, "## Twin agreement") + " The twin table, every model's "
-        "row and the per-system figures: [results/leaderboard.html](results/leaderboard.html).",
+        "row and the per-system figures: [leaderboard.html](leaderboard.html).",
     ])
-    text = replace_block(readme.read_text(), "leaderboard", body)
+    text = replace_block(results_readme.read_text(), "leaderboard", body)
     assert report.verdicts is not None
     profile = main_profile_figure(report.figures)
     text = replace_block(text, "aggregate", aggregate_markdown(
-        report.verdicts, profile.relative_to(ROOT).as_posix() if profile else None,
+        report.verdicts, profile.relative_to(RESULTS).as_posix() if profile else None,
         heading=""))
     text = replace_block(text, "tracks", report.files["tracks_md"].read_text()
                          .removeprefix("# Tracks").strip())
-    readme.write_text(text)
-    results_readme = RESULTS / "README.md"
     listing = f"- Systems published: {', '.join(md_code(s) for s in systems)}"
     for line in partial_lines(published):
         listing += "\n" + line
-    results_readme.write_text(replace_block(results_readme.read_text(), "provenance",
-                                            f"{prov}\n{listing}"))
+    results_readme.write_text(replace_block(text, "provenance", f"{prov}\n{listing}"))
     import job_costs  # scripts/: the sweep's estimate reads the published job times
 
     job_costs.main([])

@@ -74,15 +74,16 @@ def test_a_row_of_another_track_is_published_beside_the_protocols(tmp_path, monk
 
 @pytest.fixture()
 def tree(tmp_path, monkeypatch):
-    """A repository root of its own: README.md and results/README.md with their markers,
-    results/figures holding a stale figure; publish_results writes there."""
+    """A repository root of its own: README.md (no markers: the blocks are the results
+    page's) and results/README.md with their markers, results/figures holding a stale
+    figure; publish_results writes there."""
     root = tmp_path / "repo"
     (root / "results" / "figures").mkdir(parents=True)
-    (root / "README.md").write_text(
+    (root / "README.md").write_text("# x\n\nSee [results](results/README.md).\n")
+    (root / "results" / "README.md").write_text(
         "# x\n\n<!-- aggregate:begin -->\n<!-- aggregate:end -->\n\n"
         "<!-- leaderboard:begin -->\n<!-- leaderboard:end -->\n\n"
-        "<!-- tracks:begin -->\n<!-- tracks:end -->\n")
-    (root / "results" / "README.md").write_text(
+        "<!-- tracks:begin -->\n<!-- tracks:end -->\n\n"
         "<!-- provenance:begin -->\n<!-- provenance:end -->\n")
     (root / "results" / "figures" / "old_system_energy.png").write_bytes(b"stale")
     monkeypatch.setattr(publish_results, "ROOT", root)
@@ -102,8 +103,10 @@ def test_a_new_model_published_with_the_records_keeps_every_figure_and_page(tree
     from hnnbench._report.figures import N_TRAJ_SHOWN, runs_for_figures
     from hnnbench._table import leaderboard
 
-    first = tmp_path / "first"  # the protocol: JAX twins seeds 0-4, torch twins 0-2
-    for model, seeds in (("mlp_jax", 5), ("hnn_jax", 5), ("oracle", 5), ("mlp_torch", 3),
+    # The protocol: JAX twins seeds 0-5 (the two-sided sign test separates from 6 shared
+    # seeds: docs/STATISTICS.md), torch twins 0-2.
+    first = tmp_path / "first"
+    for model, seeds in (("mlp_jax", 6), ("hnn_jax", 6), ("oracle", 6), ("mlp_torch", 3),
                          ("hnn_torch", 3)):
         for seed in range(seeds):
             write_run(first, "spring", model, seed, profile="paper")
@@ -114,16 +117,18 @@ def test_a_new_model_published_with_the_records_keeps_every_figure_and_page(tree
                                           ("hnn_jax", "hnn_torch", "mlp_jax", "mlp_torch",
                                            "oracle")]
     families = pd.read_csv(tree / "results" / "families.csv").set_index("family")
-    assert families.loc["hnn", "seeds_from"] == "hnn_jax" and families.loc["hnn", "n_seeds"] == 5
+    assert families.loc["hnn", "seeds_from"] == "hnn_jax" and families.loc["hnn", "n_seeds"] == 6
     assert families.loc["hnn", "twins"] == "hnn_torch agrees (3 seeds)"
-    assert families.loc["hnn", "energy_mse_mark"] == "best"  # better on each of 5 seeds
+    assert families.loc["hnn", "energy_mse_mark"] == "best"  # better on each of 6 seeds
     board = pd.read_csv(tree / "results" / "leaderboard.csv")
     assert {"energy_mse_ci_low", "energy_mse_ci_high", "cpu_s_mean", "reason"} <= set(board)
     aggregate = pd.read_csv(tree / "results" / "aggregate.csv")
     assert set(aggregate[aggregate["metric"] == "energy_mse"]["family"]) == {"mlp", "hnn"}
     assert len(pd.read_csv(tree / "results" / "twins.csv")) == 2
-    readme = (tree / "README.md").read_text()
+    assert (tree / "README.md").read_text() == "# x\n\nSee [results](results/README.md).\n"
+    readme = (tree / "results" / "README.md").read_text()
     assert "**" in readme.split("<!-- leaderboard:begin -->")[1]  # a separated best, bold
+    assert "](figures/heatmap_energy_mse.png)" in readme  # links relative to results/
     kept = records.load_arrays(published / rollouts[0])
     assert kept["states_hat"].shape[0] <= N_TRAJ_SHOWN and kept["states_hat"].dtype == "float32"
     assert not (tree / "results" / "figures" / "old_system_energy.png").exists()  # stale
@@ -142,8 +147,8 @@ def test_a_new_model_published_with_the_records_keeps_every_figure_and_page(tree
     pngs = sorted((tree / "results" / "figures").glob("*.png"))
     assert {"spring_energy.png", "performance_profile.png"} <= {p.name for p in pngs}
     page = (tree / "results" / "leaderboard.html").read_text()
-    assert page.count("data:image/png;base64,") == len(pngs)
-    readme = (tree / "README.md").read_text()
+    assert page.count('<img loading="lazy"') == len(pngs) and "data:image" not in page
+    readme = (tree / "results" / "README.md").read_text()
     assert "| family" in readme.split("<!-- aggregate:begin -->")[1]
     assert "| dhnn " in readme.split("<!-- leaderboard:begin -->")[1]
 
@@ -156,3 +161,16 @@ def test_publishing_without_the_published_records_is_refused(tree, tmp_path):
     write_run(new, "spring", "dhnn_jax", 0, profile="paper", rollout=False)
     assert publish_results.main([str(new)]) == 2  # results/records holds hnn_jax: pass it too
     assert not (tree / "results" / "records" / "spring" / "dhnn_jax").exists()
+
+
+def test_the_family_table_is_published_with_the_notes_of_its_status_cells():
+    markdown = "\n".join([
+        "# Leaderboard", "", "- Command: `hnnbench -m system=spring`", "", "## Families", "",
+        "| system | family | status |", "|---|---|---|", "| spring | mlp | ok |",
+        "| spring | hnn | 1 ok, 1 diverged [1] |", "",
+        "Why runs did not finish `ok` ([n] after a status):", "",
+        "1. diverged (seed 1): rollout stalled", "", "## Twin agreement", "", "- not a note"])
+    table, prov = publish_results.table_and_provenance(markdown)
+    assert table.startswith("| system") and table.endswith("1. diverged (seed 1): rollout stalled")
+    assert "Why runs did not finish" in table and "Twin" not in table
+    assert prov.startswith("- Command:")
