@@ -2,6 +2,7 @@
 
     python scripts/publish_results.py SWEEP_DIR [SWEEP_DIR ...] [--figure two_body_energy]
         [--replace SYSTEM[,SYSTEM]]
+    python scripts/publish_results.py --pages-only     # steps 2 and 3 alone
 
 1. Copies every ``result.json`` of the sweeps into ``results/records/<system>/<model>/
    seed<k>/result.json``, and beside the lowest seed of each pair that has a rollout a
@@ -46,6 +47,7 @@ import itertools
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "results"
@@ -278,7 +280,7 @@ def remove_jobs(jobs: set[tuple[str, str, str, int]]) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("sweeps", type=Path, nargs="+",
+    parser.add_argument("sweeps", type=Path, nargs="*",
                         help="sweep directories with result.json records and rollouts")
     parser.add_argument("--figure", default="heatmap_energy_mse",
                         help="figure shown in results/README.md (a name under results/figures/)")
@@ -287,13 +289,18 @@ def main(argv: list[str] | None = None) -> int:
                              "systems by the records given (a re-publication): the "
                              "published ones the directories do not hold are removed in "
                              "the same step")
+    parser.add_argument("--pages-only", action="store_true",
+                        help="no sweeps: rebuild the report, figures and results/README.md "
+                             "blocks (steps 2 and 3) from results/records as committed, "
+                             "after a change of the report's code")
     args = parser.parse_args(argv)
-
-    from hnnbench._errors import HnnbenchError
-    from hnnbench._report import write_report
-    from hnnbench._report.figures import main_profile_figure
-    from hnnbench._report.markdown import md_code
-    from hnnbench._report.verdicts import aggregate_markdown
+    if args.pages_only:
+        if args.sweeps or args.replace:
+            parser.error("--pages-only takes no sweeps and no --replace")
+        status, _ = write_pages(args.figure)
+        return status
+    if not args.sweeps:
+        parser.error("give the sweep directories to publish (or --pages-only)")
 
     recs = given_records(args.sweeps)
     replaced = {s for s in args.replace.split(",") if s}
@@ -324,19 +331,41 @@ def main(argv: list[str] | None = None) -> int:
     copied = copy_records(args.sweeps, recs)
     removed_records = remove_jobs(superseded)
     rollouts, rollout_bytes = copy_figure_rollouts(args.sweeps)
+    status, summary = write_pages(args.figure)
+    if status:
+        return status
+    import job_costs  # scripts/: the sweep's estimate reads the published job times
+
+    job_costs.main([])
+    print(json.dumps({"copied_records": copied, "removed_records": removed_records,
+                      "figure_rollouts": rollouts, "figure_rollout_bytes": rollout_bytes,
+                      **summary}))
+    return 0
+
+
+def write_pages(figure_name: str) -> tuple[int, dict[str, Any]]:
+    """Steps 2 and 3: the report of results/records into results/, stale figures
+    removed, and the blocks of results/README.md. Returns ``(0, summary)``, or ``(2,
+    {})`` with the reason on stderr."""
+    from hnnbench._errors import HnnbenchError
+    from hnnbench._report import write_report
+    from hnnbench._report.figures import main_profile_figure
+    from hnnbench._report.markdown import md_code
+    from hnnbench._report.verdicts import aggregate_markdown
+
     published = sorted(p.parent.relative_to(RECORDS) for p in RECORDS.rglob("result.json"))
     try:
         report = write_report([RECORDS], RESULTS)
     except HnnbenchError as err:
         print(f"publish: {err}", file=sys.stderr)
-        return 2
+        return 2, {}
     removed = remove_stale_figures([m.path for m in report.figures])
-    figure = RESULTS / "figures" / f"{args.figure}.png"
+    figure = RESULTS / "figures" / f"{figure_name}.png"
     if not figure.exists():
         names = sorted(p.stem for p in (RESULTS / "figures").glob("*.png"))
         print(f"publish: no figure {figure.name}; available: {', '.join(names)}",
               file=sys.stderr)
-        return 2
+        return 2, {}
     markdown = report.files["md"].read_text()
     table, prov = table_and_provenance(markdown)
     systems = sorted({p.parts[0] for p in published})
@@ -359,15 +388,9 @@ def main(argv: list[str] | None = None) -> int:
     for line in partial_lines(published):
         listing += "\n" + line
     results_readme.write_text(replace_block(text, "provenance", f"{prov}\n{listing}"))
-    import job_costs  # scripts/: the sweep's estimate reads the published job times
-
-    job_costs.main([])
-    print(json.dumps({"copied_records": copied, "removed_records": removed_records,
-                      "published_records": len(published),
-                      "figure_rollouts": rollouts, "figure_rollout_bytes": rollout_bytes,
-                      "systems": systems, "figures": len(report.figures),
-                      "stale_figures_removed": [p.name for p in removed]}))
-    return 0
+    return 0, {"published_records": len(published), "systems": systems,
+               "figures": len(report.figures),
+               "stale_figures_removed": [p.name for p in removed]}
 
 
 def partial_lines(published: set[Path] | list[Path]) -> list[str]:

@@ -174,3 +174,19 @@ def test_the_family_table_is_published_with_the_notes_of_its_status_cells():
     assert table.startswith("| system") and table.endswith("1. diverged (seed 1): rollout stalled")
     assert "Why runs did not finish" in table and "Twin" not in table
     assert prov.startswith("- Command:")
+
+
+def test_pages_only_rebuilds_the_pages_of_the_committed_records(tree, tmp_path):
+    """After a change of the report's code: the pages from results/records as they are,
+    no sweep copied, no record checked against today's settings."""
+    first = tmp_path / "first"
+    for model in ("mlp_jax", "hnn_jax"):
+        write_run(first, "spring", model, 0, profile="paper", rollout=False)
+    assert publish_results.copy_records([first]) == 2
+    assert publish_results.main(["--pages-only", "--figure", "no_such_figure"]) == 2
+    assert publish_results.main(["--pages-only", "--figure", "heatmap_energy_mse"]) == 0
+    page = (tree / "results" / "README.md").read_text()
+    assert "| hnn " in page.split("<!-- leaderboard:begin -->")[1]
+    assert (tree / "results" / "leaderboard.html").is_file()
+    with pytest.raises(SystemExit):
+        publish_results.main(["--pages-only", str(first)])
