@@ -17,6 +17,7 @@ from typing import Any, Optional
 from omegaconf import MISSING, DictConfig, OmegaConf
 
 from hnnbench import _registry as registry
+from hnnbench import _tracking as tracking
 from hnnbench._contract import Model, ModelConfig, System, SystemConfig
 from hnnbench._device import device_request
 from hnnbench._errors import ConfigError, HnnbenchError, UnknownNameError
@@ -97,6 +98,11 @@ class RunConfig:
         tuning: how a ``tuned`` job's settings were chosen (trials, step budget,
             space, selected settings, CPU seconds; set by ``hnnbench tune``), copied into
             the record; ``null`` for every other track.
+        log_to: experiment trackers each finished job is exported to
+            (:mod:`hnnbench._tracking`): ``[mlflow, tensorboard]``, ``mlflow`` or
+            ``tensorboard``; ``[]`` (default): none.
+        mlflow_uri: the MLflow tracking store (``null``: ``sqlite:///<sweep
+            dir>/mlflow.db``).
     """
 
     system: Any = MISSING
@@ -116,6 +122,8 @@ class RunConfig:
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     track: str = DEFAULT_TRACK
     tuning: Optional[Any] = None
+    log_to: Any = field(default_factory=list)
+    mlflow_uri: Optional[str] = None
 
 
 @dataclass
@@ -236,6 +244,7 @@ def validate_run(cfg: Any) -> None:
     if tuning is not None and (track != "tuned" or not isinstance(tuning, DictConfig)):
         raise ConfigError("tuning is set by hnnbench tune for track=tuned only (a mapping); "
                           "remove it from the command line.")
+    tracking.check(cfg.get("log_to"), cfg.get("mlflow_uri"))
 
 
 def _instantiate_config(kind: str, node: Any) -> Any:

@@ -38,6 +38,7 @@ from hnnbench import _launch as launch
 from hnnbench import _paths as paths
 from hnnbench import _records as records
 from hnnbench import _registry as registry
+from hnnbench import _tracking as tracking
 from hnnbench._config import EvaluationConfig, Job, prepare_job
 from hnnbench._contract import (
     HISTORY_STEP,
@@ -441,6 +442,10 @@ def run_seed_outcomes(
         except Exception as err:  # e.g. a full disk: say so, and let the sweep go on
             log.error("%s%s: could not write %s: %s", count, tags[seed],
                       dirs[seed] / records.RECORD_NAME, err)
+        else:  # the record is written: hand it to the trackers asked for (never raises)
+            if _select(cfg, "log_to"):
+                tracking.export(record, dirs[seed], _select(cfg, "log_to"),
+                                _select(cfg, "mlflow_uri"))
         _log_outcome(count, tags[seed], record)
     return [SeedOutcome(done[s], s in kept) if s in done else SeedOutcome(runs[s], False)
             for s in seeds]

@@ -69,7 +69,7 @@ FINISHED = ("ok", "diverged", "skipped")
 #: ``override_dirname.exclude_keys``, which tests/test_config.py holds to this list).
 RUN_ONLY_KEYS = frozenset({
     "rerun", "device", "threads", "pin_cpu", "save_model", "cache_dir", "data_dir",
-    "seeds_per_job", "seed_batch", "timeout_s",
+    "seeds_per_job", "seed_batch", "timeout_s", "log_to", "mlflow_uri",
 })
 
 __all__ = [
