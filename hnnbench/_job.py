@@ -49,7 +49,7 @@ from hnnbench._contract import (
 )
 from hnnbench._errors import HnnbenchError, JobTimeout, RolloutDiverged, UnsupportedPair
 from hnnbench._evaluate import evaluate, failed_metrics
-from hnnbench._progress import TrainingProgress
+from hnnbench._progress import EvaluationProgress, TrainingProgress
 from hnnbench._record_schema import DEFAULT_TRACK, TRACKS, new_record
 
 log = logging.getLogger("hnnbench")
@@ -576,7 +576,9 @@ def _finish(record: dict[str, Any], system: Any, model: Any, fit: FitResult, dat
     # evaluation.metrics: only those (a tuner's trial: the metric it selects on alone).
     chosen = None if ev.metrics is None else [
         m for m in registry.metrics() if m.name in set(ev.metrics)]
-    result = evaluate(system, model, data, traj, ev, chosen)
+    label = f"{cfg.system.name}/{cfg.model.name} s{record.get('seed')}"
+    with EvaluationProgress(label) as shown:
+        result = evaluate(system, model, data, traj, ev, chosen, progress=shown.update)
     timings["eval_s"] = time.perf_counter() - t0
     timings.update({k: v for k, v in model.timings.items() if k not in timings})
     record["metrics"] = result.metrics

@@ -79,6 +79,8 @@ def test_estimate_line_counts_what_is_known():
     assert line is not None
     assert "took 1 h 30 min of job time (about 45 min on 2 workers)" in line
     assert "2 job(s) have no published run" in line
+    assert line.endswith(f"({costs.ESTIMATE_BASIS})")  # what it rests on, said with it
+    assert "published runs" in costs.ESTIMATE_BASIS and "CPU" in costs.ESTIMATE_BASIS
     assert costs.estimate_line([("paper", "s", "c")], table, workers=2) is None
 
 
@@ -165,6 +167,13 @@ def test_a_sweep_prints_its_estimate_and_progress(tmp_path):
                     f"hydra.sweep.dir={tmp_path / 'sweep'}", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "hnnbench: the published runs of these jobs took" in proc.stderr, proc.stderr
+    assert costs.ESTIMATE_BASIS in proc.stderr
+    # Every job kept from that run: nothing will run, so no estimate.
+    proc = hnnbench("-m", "system=spring", "model=oracle", "profile=quick", "seed=0,1",
+                    f"hydra.sweep.dir={tmp_path / 'sweep'}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "published runs" not in proc.stderr and "2 kept from an earlier run" in \
+        proc.stderr, proc.stderr
 
 
 def test_a_jobs_directory_whatever_its_track():
