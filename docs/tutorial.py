@@ -21,7 +21,8 @@
 # (`tests/unit/test_tutorial.py`), so it stays in step with the code.
 #
 # Everything here goes through the same machinery as the `hnnbench` command: the
-# records a notebook writes are the ones the CLI writes.
+# records a notebook writes are the ones the CLI writes. (The stored notebook shows each
+# cell's results; the log lines the jobs print while they run are left out of it.)
 
 # %%
 import os
@@ -33,7 +34,7 @@ import numpy as np
 import hnnbench
 
 OUT = Path(os.environ.get("HNNBENCH_TUTORIAL_OUT", "results/runs/tutorial")).resolve()
-print("hnnbench", hnnbench.__version__, "- records go to", OUT)
+print("hnnbench", hnnbench.__version__, "- records go to", os.path.relpath(OUT))
 
 # %% [markdown]
 # ## 1. Train an MLP and an HNN on the spring

@@ -24,7 +24,7 @@ Importing hnnbench imports neither torch nor JAX (nor pandas).
 from importlib import metadata as _metadata
 
 from hnnbench._contracts.claims import Claim, ClaimSet, Published
-from hnnbench._contracts.data_files import URL_SCHEMES, locate
+from hnnbench._contracts.data_files import URL_SCHEMES, DataArchive, locate
 from hnnbench._contracts.datasets import (
     DATA_STREAM,
     EVAL_STREAM,
@@ -101,6 +101,7 @@ __all__ = [
     "ClaimSet",
     "ConfigError",
     "DATA_STREAM",
+    "DataArchive",
     "DataError",
     "Dataset",
     "EVAL_STREAM",

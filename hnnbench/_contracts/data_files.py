@@ -1,5 +1,6 @@
 """Locating external (measured) data files with a SHA-256 check (:func:`locate`): the
-config's path, the data directories, the cache, a bounded download through pooch, in
+config's path, the data directories, the cache, a bounded download through pooch, the
+member of a pinned archive (:class:`DataArchive`, downloaded once into the cache), in
 that order, each file checked; a one-line :class:`~hnnbench.DataError` saying where it
 looked (docs/DATA.md, "Where hnnbench looks"). Standard library only until used.
 """
@@ -8,10 +9,15 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import os
+import tempfile
 import time
 import urllib.parse
 import urllib.request
+import zipfile
+import zlib
 from contextvars import ContextVar
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO, Optional
 
@@ -21,6 +27,7 @@ from hnnbench._contracts.errors import DataError
 __all__ = [
     "CACHE_ENV",
     "DATA_ENV",
+    "DataArchive",
     "cache_dir",
     "download",
     "locate",
@@ -54,6 +61,34 @@ def _one_line(text: object) -> str:
 def cache_dir() -> Path:
     """The directory holding cached data files (it need not exist yet)."""
     return paths.data_cache_dir()
+
+
+@dataclass(frozen=True)
+class DataArchive:
+    """A published archive (zip) that holds data files: where to fetch it and its
+    SHA-256. :func:`locate` extracts the member it needs by file name.
+
+    Attributes:
+        url: ``http(s)://`` or ``file://`` URL of the archive.
+        sha256: the archive's hex SHA-256 (each member is checked against its own, too).
+        name: its file name in the cache (default: the URL's last path component).
+    """
+
+    url: str
+    sha256: str
+    name: str = ""
+
+    @property
+    def filename(self) -> str:
+        """The archive's file name in the cache."""
+        if self.name:
+            return self.name
+        tail = urllib.parse.urlsplit(self.url).path.rsplit("/", 1)[-1]
+        return urllib.parse.unquote(tail) or "archive.zip"
+
+    def cached(self) -> Path:
+        """Where the archive is kept once fetched: ``<cache root>/data/archives/<name>``."""
+        return cache_dir() / "archives" / self.filename
 
 
 def _mismatch(path: Path, expected: str, actual: str, fix: str) -> DataError:
@@ -155,9 +190,10 @@ class _Transfer:
     DataError (pooch then deletes the temporary file); :attr:`sha256` is the digest of
     what was fetched, for the message when pooch finds that it does not match."""
 
-    def __init__(self, dest: Path, timeout_s: float) -> None:
+    def __init__(self, dest: Path, timeout_s: float, fix: str = "") -> None:
         self.dest = dest
         self.timeout_s = timeout_s
+        self.fix = fix
         self.sha256: Optional[str] = None
 
     def __call__(self, url: str, output_file: Any, pooch: Any, check_only: bool = False) -> None:
@@ -179,20 +215,21 @@ class _Transfer:
             reason = getattr(exc, "reason", None) or exc
             raise DataError(
                 f"Download of {self.dest.name} from {url} failed: {_one_line(reason)}. "
-                f"Copy the file to {self.dest} instead, or set {DATA_ENV} to a directory "
-                "holding it."
+                + (self.fix or f"Copy the file to {self.dest} instead, or set {DATA_ENV} "
+                   "to a directory holding it.")
             ) from None
         self.sha256 = sink.digest.hexdigest()
 
 
 def download(
-    url: str, dest: Path, *, sha256: str, timeout_s: float = 30.0
+    url: str, dest: Path, *, sha256: str, timeout_s: float = 30.0, fix: str = ""
 ) -> Path:
     """Fetch ``url`` to ``dest`` with pooch, atomically, checking its SHA-256; raise
     DataError on any failure (bad URL, network error, timeout, too large, hash
     mismatch, unwritable cache).
 
-    ``timeout_s`` bounds each network operation and the whole transfer.
+    ``timeout_s`` bounds each network operation and the whole transfer; ``fix`` (what
+    to do instead) replaces the messages' default advice.
     """
     dest = Path(dest)
     scheme = urllib.parse.urlsplit(url).scheme.lower()
@@ -214,7 +251,7 @@ def download(
     except OSError as exc:
         raise unwritable(exc) from None
     pooch = _pooch()
-    transfer = _Transfer(dest, timeout_s)
+    transfer = _Transfer(dest, timeout_s, fix)
     token = _in_download.set(True)
     try:
         pooch.retrieve(url, known_hash=f"sha256:{sha256.lower()}", fname=dest.name,
@@ -225,9 +262,9 @@ def download(
         actual = transfer.sha256 or "?"
         raise DataError(
             f"Downloaded {dest.name} from {url} does not match the expected file: its "
-            f"SHA-256 is {actual[:12]}..., expected {sha256.lower()[:12]}.... The "
-            "mirror holds a different version; use another URL or copy the original "
-            f"file to {dest}."
+            f"SHA-256 is {actual[:12]}..., expected {sha256.lower()[:12]}.... "
+            + (fix or "The mirror holds a different version; use another URL or copy the "
+               f"original file to {dest}.")
         ) from None
     except OSError as exc:  # pooch's temporary file or the move into place
         raise unwritable(exc) from None
@@ -248,10 +285,11 @@ def locate(
     timeout_s: float = 30.0,
     explicit_key: str = "system.data_path",
     url_key: str = "system.url",
+    archive: Optional[DataArchive] = None,
 ) -> Path:
     """Find ``filename`` (explicit path, ``data_dir``, ``$HNNBENCH_DATA_DIR``, cache,
-    download), verify its SHA-256 and return its path. Raises a one-line DataError
-    otherwise.
+    download, then extraction from a downloaded archive), verify its SHA-256 and return
+    its path. Raises a one-line DataError otherwise.
 
     Args:
         filename: the file's name, e.g. ``"real_pend_h_1.txt"``.
@@ -260,6 +298,8 @@ def locate(
         url: where to download it from when no local copy exists (``None``: no download).
         timeout_s: network timeout of the download.
         explicit_key, url_key: the config keys named in messages.
+        archive: a published archive holding ``filename`` (``None``: none), fetched into
+            the cache when no copy of the file exists (:func:`extract`).
     """
     cache = cache_dir() / filename
 
@@ -292,6 +332,8 @@ def locate(
 
     if url:
         return download(url, cache, sha256=sha256, timeout_s=timeout_s)
+    if archive is not None:
+        return from_archive(archive, filename, sha256=sha256, timeout_s=timeout_s)
     looked.append(f"no download URL ({url_key} is not set)")
 
     raise DataError(
@@ -299,3 +341,85 @@ def locate(
         f"Set {DATA_ENV}=<directory holding {filename}>, or copy {filename} to {cache}, "
         f"or set {explicit_key}=<path to {filename}>."
     )
+
+
+def from_archive(archive: DataArchive, filename: str, *, sha256: str,
+                 timeout_s: float = 30.0) -> Path:
+    """``<cache>/<filename>`` extracted from ``archive``: the archive from the cache
+    (``archive.cached()``) or downloaded there (checked against ``archive.sha256``),
+    then the member named ``filename`` checked against ``sha256``. Raises a one-line
+    DataError that says what to fetch and from where when the archive cannot be had."""
+    path = archive.cached()
+    fetch = (f"Fetch {archive.url} (SHA-256 {archive.sha256.lower()}) and save it as "
+             f"{path} (hnnbench extracts {filename} from it), or set {DATA_ENV}="
+             f"<directory holding {filename}>.")
+    if path.is_file():
+        verify(path, archive.sha256, fix=f"Delete it to download it again. {fetch}")
+    else:
+        try:
+            download(archive.url, path, sha256=archive.sha256, timeout_s=timeout_s,
+                     fix=fetch)
+        except DataError as err:
+            raise DataError(f"Data file {filename} is not on this machine and its archive "
+                            f"could not be fetched: {err}") from None
+    return extract(path, filename, sha256=sha256, dest=cache_dir() / filename)
+
+
+def extract(archive: Path, filename: str, *, sha256: str, dest: Path) -> Path:
+    """Extract the member of the zip ``archive`` whose file name is ``filename`` (at any
+    depth; the first whose SHA-256 is ``sha256`` where several are) to ``dest``,
+    atomically, checked against ``sha256``; raise a one-line DataError otherwise."""
+    try:
+        with zipfile.ZipFile(archive) as zf:
+            members = [m for m in zf.infolist() if not m.is_dir()
+                       and m.filename.replace("\\", "/").rsplit("/", 1)[-1] == filename]
+            if not members:
+                raise DataError(f"Archive {archive} holds no file named {filename}: it is "
+                                "not the expected archive. Delete it to download it again.")
+            found: list[str] = []
+            for member in members:
+                if member.file_size > MAX_DOWNLOAD_BYTES:
+                    found.append(f"{member.filename} is larger than {MAX_DOWNLOAD_BYTES} "
+                                 "bytes")
+                    continue
+                digest = _extract_member(zf, member, dest, sha256)
+                if digest == sha256.lower():
+                    _remember(dest, digest)
+                    return dest
+                found.append(f"{member.filename} has SHA-256 {digest[:12]}...")
+    except (zipfile.BadZipFile, EOFError, NotImplementedError, RuntimeError,
+            zlib.error) as exc:
+        raise DataError(f"Archive {archive} is not a readable zip file ({_one_line(exc)}). "
+                        "Delete it to download it again.") from None
+    except OSError as exc:
+        raise DataError(f"Cannot extract {filename} from {archive} into {dest.parent}: "
+                        f"{_one_line(exc.strerror or exc)}. Set {paths.CACHE_KEY}=<dir> or "
+                        f"{CACHE_ENV} to a writable directory.") from None
+    raise DataError(f"Archive {archive} holds no copy of {filename} with the expected "
+                    f"SHA-256 {sha256.lower()[:12]}... ({'; '.join(found)}). Delete it to "
+                    "download it again.")
+
+
+def _extract_member(zf: zipfile.ZipFile, member: zipfile.ZipInfo, dest: Path,
+                    sha256: str) -> str:
+    """Write ``member`` to a temporary file beside ``dest`` and move it into place if
+    its SHA-256 is ``sha256`` (nothing is left behind otherwise); return its hex
+    SHA-256."""
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    digest = hashlib.sha256()
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".part", dir=dest.parent)
+    tmp = Path(tmp_name)
+    try:
+        with os.fdopen(fd, "wb") as out, zf.open(member) as src:
+            size = 0
+            for block in iter(lambda: src.read(_CHUNK), b""):
+                size += len(block)
+                if size > MAX_DOWNLOAD_BYTES:  # the header's size may lie
+                    return "larger than the limit"
+                digest.update(block)
+                out.write(block)
+        if digest.hexdigest() == sha256.lower():
+            os.replace(tmp, dest)
+        return digest.hexdigest()
+    finally:
+        tmp.unlink(missing_ok=True)

@@ -28,6 +28,7 @@ usage: hnnbench [-m] [KEY=VALUE ...]        run one job, or a sweep with -m (Hyd
        hnnbench tune system=S model=A,B trials=N [seeds=0,...,4] [steps=K] [out=DIR]
                                             the tuned track: the same tuning budget
                                             for every model, selected on validation
+       hnnbench --version                   hnnbench's version (and Python's, Hydra's)
 
 examples:
   hnnbench -m system=all model=all                  every model on every system (paper)
@@ -40,7 +41,8 @@ Hydra's own options: hnnbench --hydra-help. Docs: README.md, docs/.
 """
 
 #: Commands that only print (a listing, a config): ``| head`` may close the pipe early.
-_PRINT_ONLY = ("list", "--cfg", "-c", "--info", "-i", "--help", "-h", "help", "--hydra-help")
+_PRINT_ONLY = ("list", "--cfg", "-c", "--info", "-i", "--help", "-h", "help", "--hydra-help",
+               "--version")
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -64,6 +66,9 @@ def run(argv: list[str]) -> int:
         if argv and argv[0] in ("-h", "--help", "help"):
             print(USAGE)
             return 0
+        if "--version" in argv:  # hnnbench's, not Hydra's (which --version would print)
+            print(version_line())
+            return 0
         return run_hydra(argv)
     except HnnbenchError as err:
         if _full_error():
@@ -86,6 +91,25 @@ def run(argv: list[str]) -> int:
         _error_line(f"unexpected {type(err).__name__}: {err} (set HYDRA_FULL_ERROR=1 for the "
                     "traceback, and please report it)")
         return 1
+
+
+def version_line() -> str:
+    """``hnnbench 0.4.0 (Python 3.11.7, Hydra 1.3.8)``: the installed distribution's
+    version (the package's ``__version__`` where it is not installed as one)."""
+    import platform
+    from importlib import metadata
+
+    import hnnbench
+
+    try:
+        version = metadata.version("hnnbench")
+    except metadata.PackageNotFoundError:
+        version = hnnbench.__version__
+    try:
+        hydra = f", Hydra {metadata.version('hydra-core')}"
+    except metadata.PackageNotFoundError:
+        hydra = ""
+    return f"hnnbench {version} (Python {platform.python_version()}{hydra})"
 
 
 def _full_error() -> bool:
@@ -214,8 +238,25 @@ def _report_single(record: dict) -> int:
     if status == "failed":
         _error_line(str(record.get("error")))
         return 1
-    rows = [[k, v.get("mean"), v.get("sem")] for k, v in record.get("metrics", {}).items()]
-    print(tabulate(rows, headers=["metric", "mean", "sem"], floatfmt=".4g"))
+    print(tabulate(summary_rows(record), headers=["metric", "mean", "sem"], floatfmt=".4g"))
     print(f"status: {status}" + (f" ({record.get('error')})" if record.get("error") else ""))
     return 0 if status in ("ok", "skipped") else 1
 
+
+
+def summary_rows(record: dict) -> list[list[Any]]:
+    """A single run's metric rows, ``[name with its direction, mean, sem]``: only the
+    metrics that apply to its system (a metric that does not records no value, NaN, and
+    is left out; so is one that has no value for this model)."""
+    import math
+
+    from hnnbench._table import direction_header, metric_declarations
+
+    declared = metric_declarations()
+    rows = []
+    for name, value in (record.get("metrics") or {}).items():
+        mean = value.get("mean") if isinstance(value, dict) else None
+        if mean is None or (isinstance(mean, float) and math.isnan(mean)):
+            continue
+        rows.append([direction_header(name, declared), mean, value.get("sem")])
+    return rows

@@ -38,6 +38,7 @@ from hnnbench._running.config import RUN_ONLY_KEYS
 
 __all__ = [
     "INTERVAL_SUFFIXES",
+    "direction_header",
     "display_frame",
     "variant_overrides",
     "summary_metrics",
@@ -58,6 +59,30 @@ def summary_metrics() -> list[str]:
 def metric_declarations() -> dict[str, Metric]:
     """``{name: Metric}`` of the registered metrics."""
     return {m.name: m for m in registry.metrics()}
+
+
+#: The mark a column header carries for the direction of its metric.
+DIRECTION_MARKS = {"lower": "\u2193", "higher": "\u2191"}
+#: Header suffixes of columns derived from a metric, and which way they read: a mean
+#: rank (1 = best) and an IQM of normalised scores (1 = the floor, 0 = the baseline).
+DERIVED_DIRECTIONS = {" rank": "lower", " IQM": "higher"}
+
+
+def direction_header(column: str, declared: dict[str, Metric] | None = None) -> str:
+    """A table's column header with the direction of its metric (from the metric's
+    declaration, :attr:`Metric.better`): ``energy_mse ↓`` (lower is better),
+    ``rollout_skill ↑``, ``energy_mse rank ↓``, ``energy_mse IQM ↑``; any other
+    column, or one already marked, as it is."""
+    text = str(column)
+    if text.endswith(tuple(DIRECTION_MARKS.values())):
+        return text
+    declared = metric_declarations() if declared is None else declared
+    if text in declared:
+        return f"{text} {DIRECTION_MARKS[declared[text].better]}"
+    for suffix, better in DERIVED_DIRECTIONS.items():
+        if text.endswith(suffix) and text[: -len(suffix)] in declared:
+            return f"{text} {DIRECTION_MARKS[better]}"
+    return text
 
 
 #: Override keys that do not define a variant: the identity columns, and settings that

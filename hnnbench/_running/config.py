@@ -19,6 +19,7 @@ from hnnbench._contracts.errors import ConfigError, HnnbenchError, UnknownNameEr
 from hnnbench._contracts.metric import EvaluationConfig
 from hnnbench._contracts.names import DEFAULT_TRACK, TRACKS
 from hnnbench._contracts.plugin import Model, ModelConfig, System, SystemConfig
+from hnnbench._running import tracking
 
 __all__ = [
     "Job", "MAX_SEED", "ProfileConfig", "RUN_ONLY_KEYS", "RunConfig", "SweeperConfig",
@@ -32,7 +33,7 @@ __all__ = [
 #: ``override_dirname.exclude_keys``, which tests/unit/test_config.py holds to this list).
 RUN_ONLY_KEYS = frozenset({
     "rerun", "device", "threads", "pin_cpu", "save_model", "cache_dir", "data_dir",
-    "seeds_per_job", "seed_batch", "timeout_s",
+    "seeds_per_job", "seed_batch", "timeout_s", "log_to", "mlflow_uri",
 })
 #: Seeds must fit every backend's generator (torch, numpy, JAX keys): 0 <= seed < 2**32.
 MAX_SEED = 2**32 - 1
@@ -80,6 +81,11 @@ class RunConfig:
         tuning: how a ``tuned`` job's settings were chosen (trials, step budget,
             space, selected settings, CPU seconds; set by ``hnnbench tune``), copied into
             the record; ``null`` for every other track.
+        log_to: experiment trackers each finished job is exported to
+            (:mod:`hnnbench._tracking`): ``[mlflow, tensorboard]``, ``mlflow`` or
+            ``tensorboard``; ``[]`` (default): none.
+        mlflow_uri: the MLflow tracking store (``null``: ``sqlite:///<sweep
+            dir>/mlflow.db``).
     """
 
     system: Any = MISSING
@@ -99,6 +105,8 @@ class RunConfig:
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     track: str = DEFAULT_TRACK
     tuning: Optional[Any] = None
+    log_to: Any = field(default_factory=list)
+    mlflow_uri: Optional[str] = None
 
 
 @dataclass
@@ -209,6 +217,7 @@ def validate_run(cfg: Any) -> None:
     if tuning is not None and (track != "tuned" or not isinstance(tuning, DictConfig)):
         raise ConfigError("tuning is set by hnnbench tune for track=tuned only (a mapping); "
                           "remove it from the command line.")
+    tracking.check(cfg.get("log_to"), cfg.get("mlflow_uri"))
 
 
 def _instantiate_config(kind: str, node: Any) -> Any:

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -59,10 +60,16 @@ def failed_metrics(system: System, metrics: Sequence[Metric],
     return out
 
 
+#: ``progress(metric, index, total, seconds)``: a metric that applies starts
+#: (``seconds`` None) or is done (:class:`hnnbench._progress.EvaluationProgress`).
+MetricProgress = Callable[[str, int, int, Optional[float]], None]
+
+
 def evaluate(system: System, model: Model, data: Dataset, traj: Trajectories,
-             cfg: EvaluationConfig, metrics: Optional[Sequence[Metric]] = None
-             ) -> Evaluation:
-    """Compute every metric (default: all registered) of ``model`` on ``system``."""
+             cfg: EvaluationConfig, metrics: Optional[Sequence[Metric]] = None,
+             progress: Optional[MetricProgress] = None) -> Evaluation:
+    """Compute every metric (default: all registered) of ``model`` on ``system``;
+    ``progress`` is told as each metric that applies starts and is done."""
     if metrics is None:
         from hnnbench._registry.groups import metrics as registered
 
@@ -71,10 +78,16 @@ def evaluate(system: System, model: Model, data: Dataset, traj: Trajectories,
     result: dict[str, dict[str, float]] = {}
     errors: dict[str, str] = {}
     diverged: Optional[str] = None
+    applies = {m.name: bool(m.applies(system)) for m in metrics}
+    applying = [name for name, yes in applies.items() if yes]
     for metric in metrics:
-        if not metric.applies(system):
+        if not applies[metric.name]:
             result[metric.name] = _nan()
             continue
+        index = applying.index(metric.name) + 1
+        if progress is not None:
+            progress(metric.name, index, len(applying), None)
+        started = time.perf_counter()
         try:
             values = metric.compute(ctx)
         except RolloutDiverged as err:
@@ -100,6 +113,9 @@ def evaluate(system: System, model: Model, data: Dataset, traj: Trajectories,
             log.warning("metric %s failed: %s", metric.name, errors[metric.name])
             result[metric.name] = _nan()
             continue
+        finally:  # done, whichever way it went
+            if progress is not None:
+                progress(metric.name, index, len(applying), time.perf_counter() - started)
         if values is None:
             result[metric.name] = _nan()
         elif isinstance(values, dict):

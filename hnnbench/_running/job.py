@@ -40,10 +40,10 @@ from hnnbench._contracts.metric import EvaluationConfig
 from hnnbench._contracts.names import DEFAULT_TRACK, TRACKS
 from hnnbench._contracts.plugin import HISTORY_STEP, Dataset, FitResult, TrainSettings, Trajectories
 from hnnbench._record.fields import new_record
-from hnnbench._running import affinity, dataset_cache, launch_context
+from hnnbench._running import affinity, dataset_cache, launch_context, tracking
 from hnnbench._running.config import RUN_ONLY_KEYS, Job, fingerprint, prepare_job
 from hnnbench._running.evaluation import evaluate, failed_metrics
-from hnnbench._running.progress import TrainingProgress
+from hnnbench._running.progress import EvaluationProgress, TrainingProgress
 
 log = logging.getLogger("hnnbench")
 
@@ -421,6 +421,10 @@ def run_job(
         except Exception as err:  # e.g. a full disk: say so, and let the sweep go on
             log.error("%s%s: could not write %s: %s", count, tags[seed],
                       dirs[seed] / records.RECORD_NAME, err)
+        else:  # the record is written: hand it to the trackers asked for (never raises)
+            if _select(cfg, "log_to"):
+                tracking.export(record, dirs[seed], _select(cfg, "log_to"),
+                                _select(cfg, "mlflow_uri"))
         _log_outcome(count, tags[seed], record)
     return [SeedOutcome(done[s], s in kept) if s in done else SeedOutcome(runs[s], False)
             for s in seeds]
@@ -564,7 +568,9 @@ def _finish(record: dict[str, Any], system: Any, model: Any, fit: FitResult, dat
     # evaluation.metrics: only those (a tuner's trial: the metric it selects on alone).
     chosen = None if ev.metrics is None else [
         m for m in registry.metrics() if m.name in set(ev.metrics)]
-    result = evaluate(system, model, data, traj, ev, chosen)
+    label = f"{cfg.system.name}/{cfg.model.name} s{record.get('seed')}"
+    with EvaluationProgress(label) as shown:
+        result = evaluate(system, model, data, traj, ev, chosen, progress=shown.update)
     timings["eval_s"] = time.perf_counter() - t0
     timings.update({k: v for k, v in model.timings.items() if k not in timings})
     record["metrics"] = result.metrics

@@ -1,9 +1,11 @@
-"""Progress display for training runs.
+"""Progress display for training runs and their evaluation.
 
-On a terminal: a tqdm bar per run with the current losses. Elsewhere (CI logs, Slurm
-output files): a log line at every quarter of the run. ``HNNBENCH_PROGRESS=bar|log|off``
-forces a mode. Every few seconds an update also checks that the ``hnnbench`` command
-which started the job still exists (:func:`hnnbench._running.launch_context.abandoned`).
+On a terminal: a tqdm bar per run with the current losses, then one over the metrics of
+its evaluation. Elsewhere (CI logs, Slurm output files): a log line at every quarter of
+the run, then one per metric evaluated, with its seconds (:class:`EvaluationProgress`).
+``HNNBENCH_PROGRESS=bar|log|off`` forces a mode. Every few seconds an update also checks
+that the ``hnnbench`` command which started the job still exists
+(:func:`hnnbench._running.launch_context.abandoned`).
 
 An observer (:func:`observing`, this process's jobs only) sees every update and may ask
 training to stop: ``hnnbench tune`` reports each validation loss to its pruner this way
@@ -19,15 +21,18 @@ import sys
 import time
 from collections.abc import Callable, Iterator, Mapping
 from types import TracebackType
-from typing import Optional
+from typing import Any, Optional
 
 from hnnbench._running import launch_context
 
 log = logging.getLogger("hnnbench")
 #: Seconds between two checks for an abandoned job.
 CHECK_EVERY_S = 5.0
+#: A metric that takes at least this many seconds gets a log line of its own (the
+#: quick ones stay silent: a sweep's log is not a list of every metric of every job).
+LOG_METRIC_S = 1.0
 
-__all__ = ["Observer", "TrainingProgress", "observing"]
+__all__ = ["EvaluationProgress", "Observer", "TrainingProgress", "observing"]
 
 #: ``observer(step, losses) -> stop``: sees every training update of this process's
 #: jobs; ``True`` asks the model to stop training (:data:`hnnbench.Progress`).
@@ -47,16 +52,21 @@ def observing(observer: Observer) -> Iterator[None]:
         _observer = previous
 
 
+def _mode() -> str:
+    """``bar``, ``log`` or ``off``: ``$HNNBENCH_PROGRESS``, else a bar on a terminal."""
+    mode = os.environ.get("HNNBENCH_PROGRESS", "")
+    if mode not in ("bar", "log", "off"):
+        mode = "bar" if sys.stderr.isatty() else "log"
+    return mode
+
+
 class TrainingProgress:
     """Context manager; pass :meth:`update` to ``Model.fit`` as its ``progress``."""
 
     def __init__(self, label: str, total: int) -> None:
         self.label = label
         self.total = max(int(total), 1)
-        mode = os.environ.get("HNNBENCH_PROGRESS", "")
-        if mode not in ("bar", "log", "off"):
-            mode = "bar" if sys.stderr.isatty() else "log"
-        self.mode = mode
+        self.mode = _mode()
         self._bar = None
         self._last = 0
         self._next_log = self.total // 4
@@ -97,3 +107,58 @@ class TrainingProgress:
     ) -> None:
         if self._bar is not None:
             self._bar.close()
+
+
+class EvaluationProgress:
+    """Context manager; pass :meth:`update` to :func:`hnnbench._evaluate.evaluate` as its
+    ``progress``: called with ``(metric, index, total, None)`` when a metric that applies
+    starts and ``(metric, index, total, seconds)`` when it is done. A bar shows the metric
+    being computed; a log says when the evaluation starts (``spring/hnn_jax s0
+    evaluation: 10 metrics``) and gives each metric that took :data:`LOG_METRIC_S` or more
+    a line (``spring/hnn_jax s0 evaluation 4/10 energy_mse 4.2 s``), so a long
+    evaluation (rollouts of many trajectories) is never silent."""
+
+    def __init__(self, label: str) -> None:
+        self.label = label
+        self.mode = _mode()
+        self._bar: Optional[object] = None
+        self._next_check = time.monotonic() + CHECK_EVERY_S
+
+    def __enter__(self) -> EvaluationProgress:
+        return self
+
+    def update(self, metric: str, index: int, total: int, seconds: Optional[float]) -> None:
+        """Show that ``metric`` (the ``index``-th of ``total`` that apply) started
+        (``seconds`` None) or is done."""
+        if time.monotonic() >= self._next_check:
+            self._next_check = time.monotonic() + CHECK_EVERY_S
+            if launch_context.abandoned():  # as TrainingProgress: nobody waits for this job
+                log.warning("%s: the hnnbench command that started this job has gone; "
+                            "exiting (re-run the command to resume the sweep)", self.label)
+                logging.shutdown()
+                os._exit(130)
+        if self.mode == "bar":
+            from tqdm.auto import tqdm
+
+            if self._bar is None:
+                self._bar = tqdm(total=total, desc=f"{self.label} evaluation", leave=False,
+                                 dynamic_ncols=True, unit="metric")
+            bar: Any = self._bar
+            if seconds is None:
+                bar.set_postfix_str(metric, refresh=True)
+            else:
+                bar.update(1)
+        elif self.mode == "log":
+            if seconds is None and index == 1:
+                log.info("  %s evaluation: %d metrics", self.label, total)
+            elif seconds is not None and seconds >= LOG_METRIC_S:
+                log.info("  %s evaluation %d/%d %s %.1f s", self.label, index, total, metric,
+                         seconds)
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if self._bar is not None:
+            bar: Any = self._bar
+            bar.close()

@@ -96,9 +96,16 @@ def duration_text(seconds: float) -> str:
     return f"{minutes // 60} h {minutes % 60:02d} min"
 
 
+#: What the estimate rests on, said with it: the machines of the published runs.
+ESTIMATE_BASIS = ("estimated from the published runs: median wall time per job, one core "
+                  "each, on the project's 2-core CPU machines "
+                  f"(hnnbench/resources/{COSTS_FILE}); yours may differ")
+
+
 def estimate_line(keys: Sequence[Optional[JobKey]], costs: Mapping[JobKey, float],
                   workers: Optional[int]) -> Optional[str]:
-    """What the published runs of these jobs took, or ``None`` when none is known."""
+    """What the published runs of these jobs took, and what that rests on
+    (:data:`ESTIMATE_BASIS`), or ``None`` when none is known (or no job will run)."""
     known = [costs[k] for k in keys if k is not None and k in costs]
     if not known:
         return None
@@ -109,7 +116,7 @@ def estimate_line(keys: Sequence[Optional[JobKey]], costs: Mapping[JobKey, float
     unknown = len(keys) - len(known)
     if unknown:
         line += f"; {unknown} job(s) have no published run and are not counted"
-    return line
+    return f"{line} ({ESTIMATE_BASIS})"
 
 
 @dataclass
@@ -141,6 +148,11 @@ class SweepProgress:
     _start: float = field(default_factory=time.monotonic)
     _stop: threading.Event = field(default_factory=threading.Event)
     _thread: Optional[threading.Thread] = None
+
+    def kept(self, overrides: Sequence[str]) -> bool:
+        """Whether the job of these overrides holds a record from an earlier run (it is
+        registered by :meth:`add`): it will not run again."""
+        return job_directory(overrides) in self._kept
 
     def add(self, batch: Iterable[Sequence[str]]) -> None:
         """Register a batch of jobs (each its overrides) and start watching."""

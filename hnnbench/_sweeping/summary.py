@@ -59,7 +59,12 @@ def print_summary(sweep_dir: Path) -> None:
     apart, and the directory's total when it holds other records) when run by the
     hnnbench command or API, else the directory's records."""
     from hnnbench import _record as records
-    from hnnbench._results.leaderboard import records_frame, summary_frame, summary_metrics
+    from hnnbench._results.leaderboard import (
+        direction_header,
+        records_frame,
+        summary_frame,
+        summary_metrics,
+    )
 
     recs, bad = records.load(sweep_dir)
     for item in bad:
@@ -72,7 +77,8 @@ def print_summary(sweep_dir: Path) -> None:
     frame.to_csv(sweep_dir / "summary.csv", index=False)
     counts = frame["status"].value_counts().to_dict()
     shown = summary_frame(frames, summary_metrics())
-    shown = shown[[c for c in shown.columns if not shown[c].isna().all()]]
+    shown = shown[[c for c in shown.columns if not shown[c].isna().all()]]  # none applies
+    shown = shown.rename(columns=direction_header)  # energy_mse ↓, rollout_skill ↑
     print()
     print(shown.to_markdown(index=False, floatfmt=".3g"))
     print()

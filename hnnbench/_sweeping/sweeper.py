@@ -94,18 +94,21 @@ class Sweeper(HydraSweeper):
                 self._progress.stop()
 
     def _started(self, batch: Sequence[Sequence[str]]) -> None:
-        """A batch is about to launch: on the first, say what its jobs took when
-        published; then watch for their records."""
+        """A batch is about to launch: watch for its jobs' records, and on the first
+        batch say what the jobs that will run (not those kept from an earlier run) took
+        when published, and what that estimate rests on; nothing when none will run."""
         assert self._progress is not None
-        if not self._progress.started:
-            keys = [eta.job_key(list(o), self._progress.default_profile) for o in batch]
+        first = not self._progress.started
+        self._progress.add([list(o) for o in batch])
+        todo = [list(o) for o in batch if not self._progress.kept(list(o))]
+        if first and todo:
+            keys = [eta.job_key(o, self._progress.default_profile) for o in todo]
             launcher = self._config.hydra.launcher
             workers = next((int(launcher[k]) for k in ("n_jobs", "array_parallelism")
                             if isinstance(launcher.get(k), int) and launcher[k] > 0), None)
             line = eta.estimate_line(keys, self._progress.costs, workers)
             if line:
                 print(f"hnnbench: {line}", file=sys.stderr, flush=True)
-        self._progress.add([list(o) for o in batch])
 
 
 def _partial_report(directory: Path) -> None:

@@ -12,7 +12,8 @@ angle from the downward vertical (not the angle between the rods: fitting the
 equations of motion both ways leaves relative residuals of 25-27% with absolute angles
 and 86-87% with relative ones), unwrapped: in trial 1 both rods rotate many turns. The file is
 found by :func:`hnnbench.locate` (``data_path``, ``$HNNBENCH_DATA_DIR``, the cache,
-then ``url``) and checked against its SHA-256; no live public URL is known (docs/DATA.md).
+``url``, then the data set's public archive, as the measured pendulum's) and checked
+against its SHA-256 (docs/DATA.md).
 
 Protocol:
 
@@ -97,8 +98,8 @@ class RealDoublePendulumConfig(RealPendulumConfig):
     """Settings: 2000 full-batch steps, weight decay 1e-5, five folds (seed 0 tests on the
     last fifth of the rows).
 
-    The location fields (``data_path``, ``url``, ``download_timeout_s``) and the other
-    checks are the measured pendulum's.
+    The location fields (``data_path``, ``url``, ``archive_url``, ``archive_sha256``,
+    ``download_timeout_s``) and the other checks are the measured pendulum's.
     """
 
     #: A sampling interval above this many median intervals is a gap (chunks avoid it).

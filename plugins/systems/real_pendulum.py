@@ -4,9 +4,9 @@ Data file: ``real_pend_h_1.txt`` from the supplement of M. Schmidt and H. Lipson
 "Distilling free-form natural laws from experimental data", Science 324:81 (2009).
 Header ``%o v``, then 556 rows ``trial t theta omega`` (CRLF line endings), sampled at
 dt = 1/6 s with a few gaps. It is found by :func:`hnnbench.locate` (``data_path``,
-``$HNNBENCH_DATA_DIR``, the cache, then ``url``) and checked against its SHA-256. The
-paper's download URL is dead and no live public mirror is known, so ``url`` defaults
-to ``None``; see docs/DATA.md.
+``$HNNBENCH_DATA_DIR``, the cache, ``url``, then the data set's public archive,
+``archive_url``: downloaded into the cache on first use, the file extracted from it)
+and checked against its SHA-256; see docs/DATA.md.
 
 Protocol:
 
@@ -49,6 +49,7 @@ import numpy as np
 from hnnbench import (
     URL_SCHEMES,
     ConfigError,
+    DataArchive,
     DataError,
     Dataset,
     Kinematics,
@@ -66,6 +67,13 @@ FILENAME = "real_pend_h_1.txt"
 SHA256 = "45d92988198b89a5933f5a53e67aa819d06937516f71a462ac09e1307d8b3411"
 #: Columns of a data row.
 COLUMNS = ("trial", "t", "theta", "omega")
+#: A public copy of the data set's archive ``invar_datasets.zip``: the file as committed
+#: to the Symplectic-ODENet repository (Zhong et al. 2020; removed from its later
+#: commits, so the URL names the commit). Its members lie at the archive's top level.
+ARCHIVE_URL = ("https://raw.githubusercontent.com/Physics-aware-AI/Symplectic-ODENet/"
+               "5e83faf93e8f4990e63821c49d0ce5926a96cc94/experiment-real/invar_datasets.zip")
+#: SHA-256 of ``invar_datasets.zip`` (the shared data set's README).
+ARCHIVE_SHA256 = "9794ee02f45403f87b739cc235a046bd424a73b8222067165f66463cef57be59"
 #: Energy model E = A (1 - cos q) + p^2.
 ENERGY_A = 2.4
 
@@ -77,9 +85,14 @@ class RealPendulumConfig(SystemConfig):
 
     #: The data file, or a directory holding it (None: $HNNBENCH_DATA_DIR, then cache).
     data_path: Optional[str] = None
-    #: Full URL to download the file from when no local copy exists. None: no download
-    #: (the paper's URL is dead and no live public mirror is known).
+    #: Full URL of the file itself, tried when no local copy exists. None: none (the
+    #: paper's URL is dead).
     url: Optional[str] = None
+    #: The data set's archive, downloaded into the cache when no copy of the file exists
+    #: (the file is extracted from it). None: no download.
+    archive_url: Optional[str] = ARCHIVE_URL
+    #: The archive's SHA-256 (each file extracted is checked against its own too).
+    archive_sha256: str = ARCHIVE_SHA256
     #: Network timeout of the download, in seconds.
     download_timeout_s: float = 30.0
     #: Blocks the series is cut into; the seed's fold tests on one of them.
@@ -96,7 +109,8 @@ class RealPendulumConfig(SystemConfig):
     weight_decay: float = 1e-5
 
     #: Fields that say where to find the file, not what it holds: not part of the key.
-    LOCATION_FIELDS: ClassVar[tuple[str, ...]] = ("data_path", "url", "download_timeout_s")
+    LOCATION_FIELDS: ClassVar[tuple[str, ...]] = ("data_path", "url", "archive_url",
+                                                  "archive_sha256", "download_timeout_s")
 
     def data_fields(self) -> dict[str, Any]:
         """The dataset cache key: the file's hash instead of where it was found."""
@@ -135,10 +149,18 @@ class RealPendulumConfig(SystemConfig):
                 f"system.eval_chunks={self.eval_chunks} is invalid: expected an integer "
                 ">= 1, e.g. system.eval_chunks=5."
             )
-        if self.url is not None and str(self.url).split(":", 1)[0].lower() not in URL_SCHEMES:
+        for key in ("url", "archive_url"):
+            value = getattr(self, key)
+            if value is not None and str(value).split(":", 1)[0].lower() not in URL_SCHEMES:
+                raise ConfigError(
+                    f"system.{key}={value} is invalid: expected a full URL starting with "
+                    f"{', '.join(s + '://' for s in URL_SCHEMES)}, or null for no download."
+                )
+        digest = str(self.archive_sha256).lower()
+        if len(digest) != 64 or any(c not in "0123456789abcdef" for c in digest):
             raise ConfigError(
-                f"system.url={self.url} is invalid: expected a full URL starting with "
-                f"{', '.join(s + '://' for s in URL_SCHEMES)}, or null for no download."
+                f"system.archive_sha256={self.archive_sha256} is invalid: expected the "
+                "archive's SHA-256, 64 hexadecimal digits."
             )
 
 
@@ -257,9 +279,11 @@ class MeasuredTableSystem(System):
         """Locate, verify and parse the data file (once per instance)."""
         if self._loaded is None:
             c = self.cfg
+            archive = (DataArchive(str(c.archive_url), str(c.archive_sha256))
+                       if c.archive_url else None)
             path = locate(
                 self.data_file, sha256=self.data_sha256, explicit=c.data_path, url=c.url,
-                timeout_s=c.download_timeout_s,
+                timeout_s=c.download_timeout_s, archive=archive,
             )
             self._loaded = (path, self.parse(path))
         return self._loaded

@@ -3,6 +3,7 @@
     python scripts/maintainer/publish_results.py SWEEP_DIR [SWEEP_DIR ...] \
         [--figure two_body_energy]
         [--replace SYSTEM[,SYSTEM]]
+    python scripts/maintainer/publish_results.py --pages-only     # steps 2 and 3 alone
 
 1. Copies every ``result.json`` of the sweeps into ``results/records/<system>/<model>/
    seed<k>/result.json``, and beside the lowest seed of each pair that has a rollout a
@@ -19,17 +20,19 @@
    ``results/``: leaderboard.{csv,md,html},
    families.csv, twins.csv, aggregate.{csv,md}, improvement.csv, aggregate_scales.csv,
    paper_comparison.md, figures/; a PNG in figures/ that this report did not draw is
-   removed (the page embeds every figure there). The leaderboard is the one of
+   removed (the page shows every figure there). The leaderboard is the one of
    ``results/records`` (tests/integration/test_published.py rebuilds it from the committed records
    and compares).
-3. Replaces the block between ``<!-- aggregate:begin -->`` and ``<!-- aggregate:end -->``
-   in README.md with the aggregate across systems (the verdicts its intervals support
-   and the performance profiles), the block between ``<!-- leaderboard:begin -->`` and
-   ``<!-- leaderboard:end -->`` with the family table, its provenance, the heatmap and
-   the twins' agreement, and the block between ``<!-- provenance:begin -->`` and
-   ``<!-- provenance:end -->`` in results/README.md with the provenance and the list of
-   systems published so far, and the block between ``<!-- tracks:begin -->`` and
-   ``<!-- tracks:end -->`` in README.md with the tracks side by side (tracks.md).
+3. Replaces, in results/README.md (the results page; README.md only links to it), the
+   block between ``<!-- aggregate:begin -->`` and ``<!-- aggregate:end -->`` with the
+   aggregate across systems (the verdicts its intervals support and the performance
+   profiles), the block between ``<!-- leaderboard:begin -->`` and
+   ``<!-- leaderboard:end -->`` with the family table (and the notes of its status
+   cells), its provenance, the heatmap and the twins' agreement, the block between
+   ``<!-- tracks:begin -->`` and ``<!-- tracks:end -->`` with the tracks side by side
+   (tracks.md), and the block between ``<!-- provenance:begin -->`` and
+   ``<!-- provenance:end -->`` with the provenance and the list of systems published so
+   far. Links in the blocks are relative to results/.
 
 Records come from other machines (docs/LEADERBOARD.md, "Threat model"): a record's
 directory is built from its names by ``hnnbench._contracts.paths.safe_join`` (a name that is not a
@@ -41,9 +44,11 @@ own, exactly once, so no content can forge one.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "results"
@@ -75,14 +80,25 @@ def replace_block(text: str, name: str, body: str) -> str:
     return "\n".join([*lines[:starts[0] + 1], body.strip(), *lines[stops[0]:]])
 
 
+#: The line that leads the notes under the family table (its status cells' ``[n]``).
+NOTES_LEAD = "Why runs did not finish"
+
+
 def table_and_provenance(markdown: str) -> tuple[str, str]:
-    """Split leaderboard.md into (its first table: the family table, provenance bullet
-    lines)."""
+    """Split leaderboard.md into (its first table: the family table, with the notes its
+    status cells point to, if any; provenance bullet lines)."""
     lines = markdown.splitlines()
     start = next((i for i, line in enumerate(lines) if line.startswith("|")), len(lines))
     stop = next((i for i in range(start, len(lines)) if not lines[i].startswith("|")),
                 len(lines))
+    rest = [line for line in lines[stop:] if line.strip()]
+    notes: list[str] = []
+    if rest and rest[0].startswith(NOTES_LEAD):
+        notes = [rest[0], *itertools.takewhile(lambda ln: ln.split(". ", 1)[0].isdigit(),
+                                               rest[1:])]
     table = "\n".join(lines[start:stop])
+    if notes:
+        table += "\n\n" + notes[0] + "\n\n" + "\n".join(notes[1:])
     prov = "\n".join(line for line in lines if line.startswith("- "))
     return table, prov
 
@@ -172,7 +188,7 @@ def copy_figure_rollouts(sweeps: list[Path]) -> tuple[int, int]:
 
 
 def remove_stale_figures(made: list[Path]) -> list[Path]:
-    """Remove every PNG in results/figures that is not one of ``made`` (the page embeds
+    """Remove every PNG in results/figures that is not one of ``made`` (the page shows
     every figure there); returns the removed files."""
     keep = {Path(p).resolve() for p in made}
     stale = [p for p in sorted((RESULTS / "figures").glob("*.png")) if p.resolve() not in keep]
@@ -265,22 +281,27 @@ def remove_jobs(jobs: set[tuple[str, str, str, int]]) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("sweeps", type=Path, nargs="+",
+    parser.add_argument("sweeps", type=Path, nargs="*",
                         help="sweep directories with result.json records and rollouts")
     parser.add_argument("--figure", default="heatmap_energy_mse",
-                        help="figure embedded in README.md (a name under results/figures/)")
+                        help="figure shown in results/README.md (a name under results/figures/)")
     parser.add_argument("--replace", default="", metavar="SYSTEM[,SYSTEM]",
                         help="replace every published protocol-track record of these "
                              "systems by the records given (a re-publication): the "
                              "published ones the directories do not hold are removed in "
                              "the same step")
+    parser.add_argument("--pages-only", action="store_true",
+                        help="no sweeps: rebuild the report, figures and results/README.md "
+                             "blocks (steps 2 and 3) from results/records as committed, "
+                             "after a change of the report's code")
     args = parser.parse_args(argv)
-
-    from hnnbench._contracts.errors import HnnbenchError
-    from hnnbench._results.report import write_report
-    from hnnbench._results.report.figures import main_profile_figure
-    from hnnbench._results.report.markdown import md_code
-    from hnnbench._results.report.verdicts import aggregate_markdown
+    if args.pages_only:
+        if args.sweeps or args.replace:
+            parser.error("--pages-only takes no sweeps and no --replace")
+        status, _ = write_pages(args.figure)
+        return status
+    if not args.sweeps:
+        parser.error("give the sweep directories to publish (or --pages-only)")
 
     recs = given_records(args.sweeps)
     replaced = {s for s in args.replace.split(",") if s}
@@ -311,53 +332,66 @@ def main(argv: list[str] | None = None) -> int:
     copied = copy_records(args.sweeps, recs)
     removed_records = remove_jobs(superseded)
     rollouts, rollout_bytes = copy_figure_rollouts(args.sweeps)
+    status, summary = write_pages(args.figure)
+    if status:
+        return status
+    import job_costs  # scripts/: the sweep's estimate reads the published job times
+
+    job_costs.main([])
+    print(json.dumps({"copied_records": copied, "removed_records": removed_records,
+                      "figure_rollouts": rollouts, "figure_rollout_bytes": rollout_bytes,
+                      **summary}))
+    return 0
+
+
+def write_pages(figure_name: str) -> tuple[int, dict[str, Any]]:
+    """Steps 2 and 3: the report of results/records into results/, stale figures
+    removed, and the blocks of results/README.md. Returns ``(0, summary)``, or ``(2,
+    {})`` with the reason on stderr."""
+    from hnnbench._contracts.errors import HnnbenchError
+    from hnnbench._results.report import write_report
+    from hnnbench._results.report.figures import main_profile_figure
+    from hnnbench._results.report.markdown import md_code
+    from hnnbench._results.report.verdicts import aggregate_markdown
+
     published = sorted(p.parent.relative_to(RECORDS) for p in RECORDS.rglob("result.json"))
     try:
         report = write_report([RECORDS], RESULTS)
     except HnnbenchError as err:
         print(f"publish: {err}", file=sys.stderr)
-        return 2
+        return 2, {}
     removed = remove_stale_figures([m.path for m in report.figures])
-    figure = RESULTS / "figures" / f"{args.figure}.png"
+    figure = RESULTS / "figures" / f"{figure_name}.png"
     if not figure.exists():
         names = sorted(p.stem for p in (RESULTS / "figures").glob("*.png"))
         print(f"publish: no figure {figure.name}; available: {', '.join(names)}",
               file=sys.stderr)
-        return 2
+        return 2, {}
     markdown = report.files["md"].read_text()
     table, prov = table_and_provenance(markdown)
     systems = sorted({p.parts[0] for p in published})
-    readme = ROOT / "README.md"
+    results_readme = RESULTS / "README.md"
     body = "\n\n".join([
         prov, table,
-        f"![Which family wins where: rank by energy MSE]({figure.relative_to(ROOT).as_posix()})",
+        f"![Which family wins where: rank by energy MSE]({figure.relative_to(RESULTS).as_posix()})",
         sentence_after(markdown, "## Twin agreement") + " The twin table, every model's "
-        "row and the per-system figures: [results/leaderboard.html](results/leaderboard.html).",
+        "row and the per-system figures: [leaderboard.html](leaderboard.html).",
     ])
-    text = replace_block(readme.read_text(), "leaderboard", body)
+    text = replace_block(results_readme.read_text(), "leaderboard", body)
     assert report.verdicts is not None
     profile = main_profile_figure(report.figures)
     text = replace_block(text, "aggregate", aggregate_markdown(
-        report.verdicts, profile.relative_to(ROOT).as_posix() if profile else None,
+        report.verdicts, profile.relative_to(RESULTS).as_posix() if profile else None,
         heading=""))
     text = replace_block(text, "tracks", report.files["tracks_md"].read_text()
                          .removeprefix("# Tracks").strip())
-    readme.write_text(text)
-    results_readme = RESULTS / "README.md"
     listing = f"- Systems published: {', '.join(md_code(s) for s in systems)}"
     for line in partial_lines(published):
         listing += "\n" + line
-    results_readme.write_text(replace_block(results_readme.read_text(), "provenance",
-                                            f"{prov}\n{listing}"))
-    import job_costs  # scripts/: the sweep's estimate reads the published job times
-
-    job_costs.main([])
-    print(json.dumps({"copied_records": copied, "removed_records": removed_records,
-                      "published_records": len(published),
-                      "figure_rollouts": rollouts, "figure_rollout_bytes": rollout_bytes,
-                      "systems": systems, "figures": len(report.figures),
-                      "stale_figures_removed": [p.name for p in removed]}))
-    return 0
+    results_readme.write_text(replace_block(text, "provenance", f"{prov}\n{listing}"))
+    return 0, {"published_records": len(published), "systems": systems,
+               "figures": len(report.figures),
+               "stale_figures_removed": [p.name for p in removed]}
 
 
 def partial_lines(published: set[Path] | list[Path]) -> list[str]:

@@ -27,7 +27,7 @@ def test_plugin_appears_in_list(plugin_env):
     quartic = next(s for s in data["system"] if s["name"] == "quartic")
     model = next(m for m in data["model"] if m["name"] == "linear_lstsq")
     assert quartic["status"] == model["status"] == "ok"
-    assert quartic["version"] == "2" and quartic["package"] == "hnnbench-toy-plugin 0.3.0"
+    assert quartic["version"] == "3" and quartic["package"] == "hnnbench-toy-plugin 0.3.0"
     assert model["backend"] == "numpy"
     # Built-ins are still there.
     assert {"spring", "pendulum"} <= {s["name"] for s in data["system"]}
@@ -57,7 +57,7 @@ def test_plugin_runs_in_a_sweep(plugin_env, tmp_path):
     ]
     assert all(r["status"] == "ok" for r in recs), [r["error"] for r in recs]
     quartic = next(r for r in recs if r["system"] == "quartic" and r["model"] == "oracle")
-    assert quartic["system_version"] == "2"
+    assert quartic["system_version"] == "3"
     assert quartic["config"]["system"]["n_traj"] == 10  # the plugin's own quick profile
 
 

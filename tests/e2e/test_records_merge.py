@@ -43,7 +43,7 @@ def test_two_sweeps_merge_and_a_record_missing_a_field_is_rejected_in_one_line(t
     board = (out / "leaderboard.csv").read_text().splitlines()
     assert len(board) == 1 + 4 and "git_commits" in board[0]
     page = (out / "leaderboard.html").read_text()
-    assert "<h2>Provenance</h2>" in page and str(a) in page and str(b) in page
+    assert '<h2 id="provenance">Provenance</h2>' in page and str(a) in page and str(b) in page
 
     # a submitted record without its seed: left out and named (report), failed (check)
     (victim,) = (b / "pendulum" / "hnn_torch" / "seed1").glob("result.json")

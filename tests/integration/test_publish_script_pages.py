@@ -17,15 +17,16 @@ import publish_results  # noqa: E402
 
 @pytest.fixture()
 def tree(tmp_path, monkeypatch):
-    """A repository root of its own: README.md and results/README.md with their markers,
-    results/figures holding a stale figure; publish_results writes there."""
+    """A repository root of its own: README.md (no markers: the blocks are the results
+    page's) and results/README.md with their markers, results/figures holding a stale
+    figure; publish_results writes there."""
     root = tmp_path / "repo"
     (root / "results" / "figures").mkdir(parents=True)
-    (root / "README.md").write_text(
+    (root / "README.md").write_text("# x\n\nSee [results](results/README.md).\n")
+    (root / "results" / "README.md").write_text(
         "# x\n\n<!-- aggregate:begin -->\n<!-- aggregate:end -->\n\n"
         "<!-- leaderboard:begin -->\n<!-- leaderboard:end -->\n\n"
-        "<!-- tracks:begin -->\n<!-- tracks:end -->\n")
-    (root / "results" / "README.md").write_text(
+        "<!-- tracks:begin -->\n<!-- tracks:end -->\n\n"
         "<!-- provenance:begin -->\n<!-- provenance:end -->\n")
     (root / "results" / "figures" / "old_system_energy.png").write_bytes(b"stale")
     monkeypatch.setattr(publish_results, "ROOT", root)
@@ -37,8 +38,6 @@ def tree(tmp_path, monkeypatch):
     return root
 
 
-
-
 @pytest.mark.slow
 def test_a_new_model_published_with_the_records_keeps_every_figure_and_page(tree, tmp_path):
     """docs/LEADERBOARD.md, followed literally: the published records (with their small
@@ -47,7 +46,8 @@ def test_a_new_model_published_with_the_records_keeps_every_figure_and_page(tree
     from hnnbench._results.leaderboard import leaderboard
     from hnnbench._results.report.figures import N_TRAJ_SHOWN, runs_for_figures
 
-    first = tmp_path / "first"  # the protocol: JAX twins seeds 0-9, torch twins 0-2
+    # The protocol: JAX twins seeds 0-9, torch twins 0-2 (docs/STATISTICS.md).
+    first = tmp_path / "first"
     for model, seeds in (("mlp_jax", 10), ("hnn_jax", 10), ("oracle", 10), ("mlp_torch", 3),
                          ("hnn_torch", 3)):
         for seed in range(seeds):
@@ -67,8 +67,10 @@ def test_a_new_model_published_with_the_records_keeps_every_figure_and_page(tree
     aggregate = pd.read_csv(tree / "results" / "aggregate.csv")
     assert set(aggregate[aggregate["metric"] == "energy_mse"]["family"]) == {"mlp", "hnn"}
     assert len(pd.read_csv(tree / "results" / "twins.csv")) == 2
-    readme = (tree / "README.md").read_text()
+    assert (tree / "README.md").read_text() == "# x\n\nSee [results](results/README.md).\n"
+    readme = (tree / "results" / "README.md").read_text()
     assert "**" in readme.split("<!-- leaderboard:begin -->")[1]  # a separated best, bold
+    assert "](figures/heatmap_energy_mse.png)" in readme  # links relative to results/
     kept = records.load_arrays(published / rollouts[0])
     assert kept["states_hat"].shape[0] <= N_TRAJ_SHOWN and kept["states_hat"].dtype == "float32"
     assert not (tree / "results" / "figures" / "old_system_energy.png").exists()  # stale
@@ -87,7 +89,7 @@ def test_a_new_model_published_with_the_records_keeps_every_figure_and_page(tree
     pngs = sorted((tree / "results" / "figures").glob("*.png"))
     assert {"spring_energy.png", "performance_profile.png"} <= {p.name for p in pngs}
     page = (tree / "results" / "leaderboard.html").read_text()
-    assert page.count("data:image/png;base64,") == len(pngs)
-    readme = (tree / "README.md").read_text()
+    assert page.count('<img loading="lazy"') == len(pngs) and "data:image" not in page
+    readme = (tree / "results" / "README.md").read_text()
     assert "| family" in readme.split("<!-- aggregate:begin -->")[1]
     assert "| dhnn " in readme.split("<!-- leaderboard:begin -->")[1]

@@ -1,5 +1,6 @@
 """The committed paper-profile leaderboard (results/), built from the committed records
-(results/records), and the README that embeds it."""
+(results/records), the results page that embeds it (results/README.md), the HTML page
+that links its figures, and the README that starts with trying it and links there."""
 
 from __future__ import annotations
 
@@ -20,6 +21,8 @@ from hnnbench._results.leaderboard import leaderboard, records_frame
 
 RESULTS = REPO / "results"
 RECORDS = RESULTS / "records"
+#: The results page: the generated blocks live here (README.md links to it).
+PAGE = RESULTS / "README.md"
 sys.path.insert(0, str(REPO / "scripts" / "maintainer"))
 from publish_results import table_and_provenance  # noqa: E402
 
@@ -92,13 +95,13 @@ def test_the_family_table_and_the_aggregate_are_those_of_the_committed_records(r
         assert (rows["iqm_low"] <= rows["iqm"]).all() and (rows["iqm"] <= rows["iqm_high"]).all()
 
 
-def test_the_readme_sets_the_tracks_of_the_committed_records_side_by_side(rebuilt,
-                                                                         committed):
+def test_the_results_page_sets_the_tracks_of_the_committed_records_side_by_side(
+        rebuilt, committed):
     from hnnbench._results.report.verdicts import tracks_frame, tracks_markdown, tuning_costs
 
     fams = families(records_frame(committed), rebuilt)
     expected = tracks_markdown(tracks_frame(fams), tuning_costs(fams)).strip()
-    assert _block((REPO / "README.md").read_text(), "tracks").strip() == expected
+    assert _block(PAGE.read_text(), "tracks").strip() == expected
     assert (RESULTS / "tracks.md").read_text().strip() == f"# Tracks\n\n{expected}"
 
 
@@ -128,35 +131,70 @@ def test_every_published_system_has_every_model_with_its_seeds(board):
     assert systems <= set(available("system"))
 
 
-def test_readme_embeds_the_committed_table_provenance_and_an_existing_figure():
+def _links(markdown: str) -> list[str]:
+    """The targets of the Markdown links and images in ``markdown`` (no web links)."""
+    import re
+
+    return [t for t in re.findall(r"\]\(([^)\s]+)\)", markdown)
+            if not t.startswith(("http", "#", "mailto:"))]
+
+
+def test_the_results_page_embeds_the_committed_table_provenance_and_an_existing_figure():
     table, prov = table_and_provenance((RESULTS / "leaderboard.md").read_text())
-    block = _block((REPO / "README.md").read_text(), "leaderboard")
+    block = _block(PAGE.read_text(), "leaderboard")
     assert table and table in block
     assert table.splitlines()[0].startswith("| system") and "| family" in table.splitlines()[0]
     assert prov and prov in block
     assert "`hnnbench -m system=" in prov
-    figure = block.split("](", 1)[1].split(")", 1)[0]
-    assert (REPO / figure).is_file()
-    assert prov in _block((RESULTS / "README.md").read_text(), "provenance")
+    for target in _links(block):  # relative to results/
+        assert (RESULTS / target).is_file(), target
+    assert prov in _block(PAGE.read_text(), "provenance")
 
 
-def test_readme_leads_with_the_aggregate_and_what_its_intervals_support():
-    readme = (REPO / "README.md").read_text()
-    block = _block(readme, "aggregate")
-    assert readme.index("<!-- aggregate:begin -->") < readme.index("<!-- leaderboard:begin -->")
+def test_the_results_page_leads_with_the_aggregate_and_what_its_intervals_support():
+    page = PAGE.read_text()
+    block = _block(page, "aggregate")
+    assert page.index("<!-- aggregate:begin -->") < page.index("<!-- leaderboard:begin -->")
     aggregate = (RESULTS / "aggregate.md").read_text()
-    table = "\n".join(ln for ln in aggregate.splitlines() if ln.startswith("|"))
-    assert table and table in block and "| family" in table.splitlines()[0]
+    tables = [t for t in aggregate.split("\n\n") if t.startswith("|")]  # ranks, IQMs
+    assert tables and all(t in block and "| family" in t.splitlines()[0] for t in tables)
     assert "What the intervals support:" in block
-    for figure in [part.split(")", 1)[0] for part in block.split("](")[1:]]:
-        assert (REPO / figure).is_file(), figure
+    for target in _links(block):
+        assert (RESULTS / target).is_file(), target
 
 
-def test_html_report_embeds_every_figure():
+def test_the_readme_starts_with_trying_it_and_links_to_the_results():
+    """The README is a first screen, not the results: the two commands first (.ci/run
+    runs its test command), then how to install and a first result in about a minute,
+    then short sections that link out; no generated block, under 20 KB."""
+    readme = (REPO / "README.md").read_text()
+    assert len(readme.encode()) < 20_000
+    assert "<!--" not in readme  # the generated blocks are the results page's
+    lines = readme.splitlines()
+    assert lines[2] == "```bash" and lines[3].startswith("make benchmark ") and \
+        lines[4].startswith("make test ") and lines[5] == "```"
+    first_screen = "\n".join(lines[:40])
+    assert "pip install -e '.[all]'" in first_screen and "make setup" in first_screen
+    assert "hnnbench -m system=spring,pendulum model=hnn_jax,mlp_jax profile=quick" in \
+        first_screen and "leaderboard.html" in first_screen
+    for target in ("results/README.md", "results/leaderboard.html", "docs/PLUGINS.md",
+                   "docs/LEADERBOARD.md", "docs/SCALING.md", "docs/STATISTICS.md"):
+        assert f"]({target})" in readme, target
+    for target in _links(readme):
+        assert (REPO / target).exists(), target
+
+
+def test_html_report_links_every_figure_and_loads_light():
+    import re
+
     page = (RESULTS / "leaderboard.html").read_text()
-    figures = sorted((RESULTS / "figures").glob("*.png"))
+    figures = sorted(p.name for p in (RESULTS / "figures").glob("*.png"))
     assert len(figures) >= 3  # the heatmaps and the performance profiles at least
-    assert page.count("data:image/png;base64,") == len(figures)
+    assert (RESULTS / "leaderboard.html").stat().st_size < 3_000_000
+    assert "data:image" not in page
+    linked = re.findall(r'<img loading="lazy" [^>]*src="figures/([^"]+)"', page)
+    assert sorted(linked) == figures
+    assert '<nav class="toc">' in page and "<details>" in page
 
 
 @pytest.mark.slow

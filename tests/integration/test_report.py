@@ -99,7 +99,7 @@ def test_markdown_and_html_name_the_commands_commit_and_device(sweep):
     assert "<code>hnnbench -m system=spring seed=0</code>" in page and "`" not in page
 
 
-def test_figures_per_system_and_html_embeds_every_one(built):
+def test_figures_per_system_and_html_links_every_one(built):
     out = built
     pngs = sorted(p.name for p in (out / "figures").glob("*.png"))
     for system in ("spring", "pendulum"):
@@ -110,11 +110,45 @@ def test_figures_per_system_and_html_embeds_every_one(built):
     page = (out / "leaderboard.html").read_text()
     assert {"heatmap_energy_mse.png", "heatmap_rollout_mse.png",
             "performance_profile.png"} <= set(pngs)
-    # 4 kinds x 2 systems, 2 heatmaps, the performance profiles
+    # 4 kinds x 2 systems, 2 heatmaps, the performance profiles: each linked, lazily
     assert page.count("<img") == len(pngs) == 8 + 2 + 1
-    assert page.count('src="data:image/png;base64,') == len(pngs)
-    assert "src=\"figures/" not in page and "<link" not in page  # self-contained
+    linked = re.findall(r'<img loading="lazy" alt="[^"]*" width="\d+" height="\d+" '
+                        r'src="figures/([^"]+)">', page)
+    assert sorted(linked) == pngs
+    assert "data:image" not in page and "<link" not in page and "http" not in page
     assert "<table" in page and "hnn_torch" in page and "Qualitative claims" in page
+
+
+def test_the_page_leads_with_contents_and_the_headline_and_folds_provenance(built):
+    page = (built / "leaderboard.html").read_text()
+    body = page.split("<body>", 1)[1]
+    toc = re.search(r'<nav class="toc">(.*?)</nav>', body, re.S)
+    assert toc and body.index("<nav") < body.index("<h2")  # contents before any section
+    for anchor in re.findall(r'href="#([^"]+)"', toc.group(1)):
+        assert f'id="{anchor}"' in body, anchor  # every entry leads somewhere
+    assert {"spring", "pendulum"} <= set(re.findall(r'href="#fig-([^"]+)"', toc.group(1)))
+    # the headline table is the first table; the provenance lines are folded away
+    first_table = body.index("<table")
+    assert body.index('<h2 id="across">') < first_table < body.index('<h2 id="families">')
+    details = re.search(r"<details>(.*?)</details>", body, re.S).group(1)
+    assert "hnnbench -m system=spring" in details and body.index("<details>") < first_table
+    assert "hnnbench -m system=spring" not in body[:body.index("<details>")]
+    # every metric column says which way is better, in HTML and in Markdown
+    heads = re.findall(r"<th[^>]*>([^<]*)</th>", body)
+    assert "energy_mse \u2193" in heads and "valid_prediction_time \u2191" in heads
+    assert "energy_mse IQM \u2191" in heads and "energy_mse" not in heads
+    md = (built / "leaderboard.md").read_text()
+    header = next(line for line in md.splitlines() if line.startswith("| system"))
+    assert "energy_mse \u2193" in header and "valid_prediction_time \u2191" in header
+
+
+def test_embed_figures_gives_one_self_contained_file(sweep, tmp_path):
+    out = tmp_path / "embedded"
+    assert report.main([str(sweep), "--out", str(out), "--embed-figures"]) == 0
+    page = (out / "leaderboard.html").read_text()
+    pngs = list((out / "figures").glob("*.png"))
+    assert pngs and page.count('src="data:image/png;base64,') == len(pngs)
+    assert 'src="figures/' not in page and 'loading="lazy"' not in page
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "sched_getaffinity"),
@@ -250,12 +284,19 @@ def test_reasons_and_cpu_seconds_are_in_every_table(tmp_path):
     assert _row(board, "spring", "hnn_torch")["reason"] == \
         "diverged (seed 1): synthetic diverged"
     md = (sweep / "leaderboard.md").read_text()
-    for table in md.split("\n\n"):
-        if table.startswith("| system") and "twin" not in table.splitlines()[0]:
-            assert "| reason" in table.splitlines()[0] and "cpu_s" in table.splitlines()[0]
-            assert "synthetic skipped" in table and "synthetic diverged" in table
+    tables = [t for t in md.split("\n\n") if t.startswith("| system")]
+    families = next(t for t in tables if "| family" in t.splitlines()[0])
+    models = next(t for t in tables if "| model" in t.splitlines()[0])
+    assert "cpu_s" in families.splitlines()[0] and "cpu_s" in models.splitlines()[0]
+    # every model's table has the column; the family table, a note per reason instead
+    assert "| reason" in models.splitlines()[0] and "synthetic diverged" in models
+    assert "reason" not in families.splitlines()[0] and "synthetic" not in families
+    number = re.search(r"\| 1 ok, 1 diverged \[(\d)\]", families).group(1)
+    notes = md.split(families, 1)[1].split("## ", 1)[0]
+    assert f"{number}. diverged (seed 1): synthetic diverged" in notes
     page = (sweep / "leaderboard.html").read_text()
-    assert page.count("synthetic skipped") >= 2  # the family table and every model's
+    assert page.count("synthetic skipped") >= 2  # the family table's notes and every model's
+    assert f'<li value="{number}">diverged (seed 1): synthetic diverged' in page
 
 
 def test_format_value():
@@ -438,6 +479,39 @@ def test_a_claim_on_a_model_that_did_not_train_is_not_tested_and_a_recipe_is_nam
     board.loc[0, "n_untrained"] = 2  # 2 of 5: trained; judged on the values
     (res,) = claims.evaluate_claims(_lookup(values), [claim], pairs, board_untrained(board))
     assert res.outcome == claims.NOT_REPRODUCED and "recipe not run" in res.note
+
+
+def test_figures_of_many_panels_wrap_into_rows():
+    from hnnbench._report.figures import MAX_COLUMNS, _new_figure
+
+    fig, axes = _new_figure(13, width=3.8, height=3.4)
+    assert len(axes) == 13 and MAX_COLUMNS == 4
+    assert fig.get_figwidth() == pytest.approx(4 * 3.8)  # four panels a row, not 13
+    assert fig.get_figheight() == pytest.approx(4 * 3.4)
+    assert sum(ax.get_visible() for ax in fig.axes) == 13
+    fig, axes = _new_figure(3)
+    assert len(axes) == 3 and fig.get_figheight() == pytest.approx(3.6)
+
+
+def test_colours_are_the_familys_shaded_per_twin_and_stable():
+    """One colour per family, from the registry's order, whatever rows a figure holds;
+    its twins in shades of it; colour-blind-safe hues; no red-green rank scale."""
+    from hnnbench._report import figures, style
+
+    families = {"mlp_torch": "mlp", "mlp_jax": "mlp", "hnn_torch": "hnn", "hnn_jax": "hnn"}
+    alone = style.color("hnn_jax", {"hnn_jax": "hnn"}, ["hnn_jax"])
+    beside = style.color("hnn_jax", families, list(families))
+    assert alone == beside  # the rows present do not move it
+    assert style.family_color("hnn") == style.color("hnn_torch", families)
+    assert style.color("hnn_jax", families) != style.color("hnn_torch", families)
+    assert style.family_color("mlp") != style.family_color("hnn")
+    assert style.family_color("mlp") in style.PALETTE[:6]  # Okabe & Ito's
+    assert style.family_color("oracle") in style.REFERENCE_COLORS
+    assert style.family_color("a_family_not_installed") == \
+        style.family_color("a_family_not_installed")
+    torch, jax = (style.line(m, "", families, [m]) for m in ("hnn_torch", "hnn_jax"))
+    assert torch["ls"] != jax["ls"] and torch["lw"] > jax["lw"]
+    assert "RdYlGn" not in figures.RANK_CMAP and "viridis" in figures.RANK_CMAP
 
 
 def test_a_long_figure_title_is_wrapped_to_the_figure_width():

@@ -64,6 +64,8 @@ def test_estimate_line_counts_what_is_known():
     assert line is not None
     assert "took 1 h 30 min of job time (about 45 min on 2 workers)" in line
     assert "2 job(s) have no published run" in line
+    assert line.endswith(f"({eta.ESTIMATE_BASIS})")  # what it rests on, said with it
+    assert "published runs" in eta.ESTIMATE_BASIS and "CPU" in eta.ESTIMATE_BASIS
     assert eta.estimate_line([("paper", "s", "c")], table, workers=2) is None
 
 
@@ -141,11 +143,3 @@ def test_progress_calls_on_new_when_records_arrive_and_survives_its_errors(tmp_p
     assert len(calls) == 2, calls  # once per arrival, not once per poll
     assert out.getvalue().count("could not update the sweep's report: disk full") == 1
     assert "2/2 jobs done" in out.getvalue()
-
-
-
-
-def test_a_jobs_directory_whatever_its_track():
-    assert eta.job_directory(["system=s", "model=m", "+seed=3", "track=tuned"]) == "s/m/seed3"
-    assert eta.job_directory(["system=s", "model=m"]) == "s/m/seed0"  # the default seed
-    assert eta.job_directory(["seed=1"]) is None

@@ -73,15 +73,16 @@ def test_a_row_of_another_track_is_published_beside_the_protocols(tmp_path, monk
 
 @pytest.fixture()
 def tree(tmp_path, monkeypatch):
-    """A repository root of its own: README.md and results/README.md with their markers,
-    results/figures holding a stale figure; publish_results writes there."""
+    """A repository root of its own: README.md (no markers: the blocks are the results
+    page's) and results/README.md with their markers, results/figures holding a stale
+    figure; publish_results writes there."""
     root = tmp_path / "repo"
     (root / "results" / "figures").mkdir(parents=True)
-    (root / "README.md").write_text(
+    (root / "README.md").write_text("# x\n\nSee [results](results/README.md).\n")
+    (root / "results" / "README.md").write_text(
         "# x\n\n<!-- aggregate:begin -->\n<!-- aggregate:end -->\n\n"
         "<!-- leaderboard:begin -->\n<!-- leaderboard:end -->\n\n"
-        "<!-- tracks:begin -->\n<!-- tracks:end -->\n")
-    (root / "results" / "README.md").write_text(
+        "<!-- tracks:begin -->\n<!-- tracks:end -->\n\n"
         "<!-- provenance:begin -->\n<!-- provenance:end -->\n")
     (root / "results" / "figures" / "old_system_energy.png").write_bytes(b"stale")
     monkeypatch.setattr(publish_results, "ROOT", root)
@@ -126,3 +127,30 @@ def test_a_system_is_replaced_in_one_step(tree, tmp_path):
     kept = {(p.parts[-4], p.parts[-3], p.parts[-2]) for p in published.rglob("result.json")}
     assert kept == {("spring", "hnn_jax", "seed0"), ("spring", "mlp_jax", "seed0"),
                     ("pendulum", "hnn_jax", "seed0")}
+def test_the_family_table_is_published_with_the_notes_of_its_status_cells():
+    markdown = "\n".join([
+        "# Leaderboard", "", "- Command: `hnnbench -m system=spring`", "", "## Families", "",
+        "| system | family | status |", "|---|---|---|", "| spring | mlp | ok |",
+        "| spring | hnn | 1 ok, 1 diverged [1] |", "",
+        "Why runs did not finish `ok` ([n] after a status):", "",
+        "1. diverged (seed 1): rollout stalled", "", "## Twin agreement", "", "- not a note"])
+    table, prov = publish_results.table_and_provenance(markdown)
+    assert table.startswith("| system") and table.endswith("1. diverged (seed 1): rollout stalled")
+    assert "Why runs did not finish" in table and "Twin" not in table
+    assert prov.startswith("- Command:")
+
+
+def test_pages_only_rebuilds_the_pages_of_the_committed_records(tree, tmp_path):
+    """After a change of the report's code: the pages from results/records as they are,
+    no sweep copied, no record checked against today's settings."""
+    first = tmp_path / "first"
+    for model in ("mlp_jax", "hnn_jax"):
+        write_run(first, "spring", model, 0, profile="paper", rollout=False)
+    assert publish_results.copy_records([first]) == 2
+    assert publish_results.main(["--pages-only", "--figure", "no_such_figure"]) == 2
+    assert publish_results.main(["--pages-only", "--figure", "heatmap_energy_mse"]) == 0
+    page = (tree / "results" / "README.md").read_text()
+    assert "| hnn " in page.split("<!-- leaderboard:begin -->")[1]
+    assert (tree / "results" / "leaderboard.html").is_file()
+    with pytest.raises(SystemExit):
+        publish_results.main(["--pages-only", str(first)])

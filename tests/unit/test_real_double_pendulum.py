@@ -105,9 +105,10 @@ def test_checksum_mismatch_is_a_one_line_data_error(monkeypatch, tmp_path):
 
 
 def test_missing_data_is_a_data_error(monkeypatch, tmp_path):
+    """No copy and no download (the archive's download: tests/integration/test_data_archive.py)."""
     monkeypatch.setenv("HNNBENCH_DATA_DIR", str(tmp_path))
     with pytest.raises(DataError, match="HNNBENCH_DATA_DIR") as info:
-        make().dataset(0)
+        make(archive_url=None).dataset(0)
     assert FILENAME in str(info.value)
 
 

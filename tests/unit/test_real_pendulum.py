@@ -90,9 +90,10 @@ def test_corrupt_explicit_file_is_a_data_error(tmp_path):
 
 
 def test_missing_data_is_a_data_error(monkeypatch, tmp_path):
+    """No copy and no download (the archive's download: tests/integration/test_data_archive.py)."""
     monkeypatch.setenv("HNNBENCH_DATA_DIR", str(tmp_path))
     with pytest.raises(DataError, match="HNNBENCH_DATA_DIR"):
-        make().dataset(0)
+        make(archive_url=None).dataset(0)
 
 
 def _rows(raw, split):
@@ -232,7 +233,7 @@ def test_paper_protocol_and_cache_key():
     assert RealPendulum.profiles["quick"] == {"steps": 300}
     key = cfg.data_fields()
     assert key["sha256"] == SHA256
-    assert "data_path" not in key and "url" not in key
+    assert not {"data_path", "url", "archive_url", "archive_sha256"} & set(key)
     assert RealPendulumConfig(data_path="/elsewhere").data_fields() == key
 
 

@@ -47,13 +47,14 @@ class Report:
 
 
 def write_report(sweep_dir: Path | str | Sequence[Path | str], out: Path | str | None = None,
-                 figures: bool = True, strict: bool = False, aggregate: bool = True
-                 ) -> Report:
+                 figures: bool = True, strict: bool = False, aggregate: bool = True,
+                 embed_figures: bool = False) -> Report:
     """Build every table and figure of the sweep directories into ``out`` (default: the
     sweep, when there is one); ``figures=False`` skips the figures, ``aggregate=False``
     the aggregate across systems (a sweep's rewrite while it runs); ``strict``: every
     record is checked in full (:func:`hnnbench._record.loader.load`, strict), and an
-    unreadable or invalid record is an error instead of a warning."""
+    unreadable or invalid record is an error instead of a warning; ``embed_figures``:
+    the page holds its figures inline (base64) instead of linking them."""
     dirs = [Path(sweep_dir)] if isinstance(sweep_dir, (str, Path)) else [Path(d) for d in
                                                                         sweep_dir]
     recs, bad = load_sweeps(dirs, strict=strict)
@@ -110,7 +111,7 @@ def write_report(sweep_dir: Path | str | Sequence[Path | str], out: Path | str |
     records.atomic_write_text(report.files["paper"], comparison_markdown(board))
     report.files["html"] = out / "leaderboard.html"
     records.atomic_write_text(report.files["html"], page(board, report.figures, prov, recs, bad,
-                                                   verdicts))
+                                                   verdicts, base=out, embed=embed_figures))
     return report
 
 

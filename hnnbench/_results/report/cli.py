@@ -1,4 +1,4 @@
-"""``hnnbench report DIR [DIR ...] [--out OUT] [--no-figures]``."""
+"""``hnnbench report DIR [DIR ...] [--out OUT] [--no-figures] [--embed-figures]``."""
 
 from __future__ import annotations
 
@@ -21,6 +21,9 @@ def _parser() -> OneLineArgumentParser:
     p.add_argument("--out", metavar="OUT", default=None,
                    help="output directory (default: DIR, when there is one)")
     p.add_argument("--no-figures", action="store_true", help="tables only (faster)")
+    p.add_argument("--embed-figures", action="store_true",
+                   help="put the figures inside leaderboard.html (one self-contained file, "
+                        "many MB) instead of linking them from figures/")
     p.add_argument("--strict", action="store_true",
                    help="an unreadable or invalid record is an error (default: left out "
                         "with a warning)")
@@ -30,7 +33,7 @@ def _parser() -> OneLineArgumentParser:
 def main(args: Sequence[str]) -> int:
     ns = _parser().parse_args(list(args))
     report = write_report([Path(d) for d in ns.dirs], ns.out, figures=not ns.no_figures,
-                          strict=ns.strict)
+                          strict=ns.strict, embed_figures=ns.embed_figures)
     assert report.verdicts is not None
     print(families_markdown(report.verdicts.families))
     print()

@@ -69,7 +69,12 @@ FIGURE_POINTS = 200
 #: The arrays of a rollout file that the system figures draw.
 FIGURE_ARRAYS = ("t", "states_true", "states_hat", "energy_true", "energy_hat",
                  "learned_energy")
-_TRAJ_COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c")
+#: The evaluation trajectories' colours in the phase portraits (Okabe & Ito's blue,
+#: orange and bluish green: told apart with any colour vision).
+_TRAJ_COLORS = ("#0072B2", "#E69F00", "#009E73")
+#: The most panels a figure puts side by side; more wrap into further rows, so that a
+#: figure of many models keeps readable panels and labels.
+MAX_COLUMNS = 4
 
 
 def _plotted(kind: str) -> list[str]:
@@ -204,10 +209,19 @@ def runs_for_figures(recs: list[dict[str, Any]]) -> tuple[Optional[int], list[Ru
     return seed, runs
 
 
-def _new_figure(n_panels: int, width: float = 4.6, height: float = 3.6) -> Any:
-    fig = Figure(figsize=(max(width * n_panels, 5.0), height), layout="constrained")
-    axes = fig.subplots(1, n_panels, squeeze=False)[0]
-    return fig, list(axes)
+def _new_figure(n_panels: int, width: float = 4.6, height: float = 3.6,
+                max_columns: int = MAX_COLUMNS) -> Any:
+    """A figure of ``n_panels`` panels of ``width`` x ``height`` inches, at most
+    ``max_columns`` in a row (more wrap into further rows); returns it and its used
+    axes (the rest of the last row is hidden)."""
+    n_panels = max(int(n_panels), 1)
+    columns = min(n_panels, max(int(max_columns), 1))
+    rows = -(-n_panels // columns)
+    fig = Figure(figsize=(max(width * columns, 5.0), height * rows), layout="constrained")
+    axes = list(fig.subplots(rows, columns, squeeze=False).ravel())
+    for ax in axes[n_panels:]:
+        ax.set_visible(False)
+    return fig, axes[:n_panels]
 
 
 def _fit_suptitle(fig: Any) -> None:
@@ -240,7 +254,7 @@ def phase_figure(ctx: SystemRuns) -> Any:
     if not shown:
         return None
     n_traj = min(N_TRAJ_SHOWN, shown[0].arrays["states_true"].shape[0])
-    fig, axes = _new_figure(len(shown), width=3.8)
+    fig, axes = _new_figure(len(shown), width=3.8, height=3.4)
     for ax, run in zip(axes, shown, strict=True):
         true, hat = run.arrays["states_true"], run.arrays["states_hat"]
         n = true.shape[-1] // 2
@@ -348,7 +362,10 @@ CELL_STATES: dict[str, tuple[str, str, str]] = {
     "n/a": ("#f2f2f2", "n/a", "0.45"),
 }
 #: A diverged pair (its mean is ``inf``) keeps its rank, on this colour.
-DIVERGED_COLOR = "#3b0a45"
+DIVERGED_COLOR = "#1a1a1a"
+#: The colour map of ranks (rank 1, the best, at its bright end): viridis, readable
+#: with any colour vision and in greyscale (no red-green scale).
+RANK_CMAP = "viridis_r"
 #: A cell's mark after its rank: best (separated by the sign test) and tied (not
 #: separated from the leader), as in the family table.
 RANK_MARKS = {"best": " \u2605", "tied": " ="}
@@ -450,7 +467,7 @@ def _heatmap(ranks: pd.DataFrame, values: pd.DataFrame, states: pd.DataFrame,
     fig, (ax,) = _new_figure(1, width=width, height=max(3.0, 0.42 * n_rows + 2.0))
     worst = max(float(np.nanmax(ranks.to_numpy())), 2.0) if ranks.notna().any().any() else 2.0
     shade = ((ranks - 1) / (worst - 1)).to_numpy(dtype=float)
-    rgba = mpl.colormaps["RdYlGn_r"](np.nan_to_num(shade))
+    rgba = mpl.colormaps[RANK_CMAP](np.nan_to_num(shade))
     for i in range(n_rows):
         for j in range(n_systems):
             state = str(states.iat[i, j])
@@ -465,15 +482,16 @@ def _heatmap(ranks: pd.DataFrame, values: pd.DataFrame, states: pd.DataFrame,
         for j, system in enumerate(values.columns):
             state = str(states.iat[i, j])
             if state in CELL_STATES:
-                ax.text(j, i, CELL_STATES[state][1], ha="center", va="center", fontsize=6.5,
+                ax.text(j, i, CELL_STATES[state][1], ha="center", va="center", fontsize=7,
                         color=CELL_STATES[state][2])
                 continue
             v, r = float(cast(float, values.iat[i, j])), float(cast(float, ranks.iat[i, j]))
             mark = marks.get((str(family), str(system)), "")
             text = "diverged" if state == "diverged" else format_value(v, linear=lin)
-            dark = state == "diverged" or not 0.15 < float(shade[i, j]) < 0.85
+            red, green, blue = rgba[i, j][:3]  # white text on a dark cell, black on a light
+            dark = 0.2126 * red + 0.7152 * green + 0.0722 * blue < 0.45
             ax.text(j, i, f"{int(r)}{RANK_MARKS.get(mark, '')}\n{text}", ha="center",
-                    va="center", fontsize=6.5, color="w" if dark else "k",
+                    va="center", fontsize=7, color="w" if dark else "k",
                     fontweight="bold" if mark == "best" else "normal")
     ax.set_xticks(range(n_systems), [str(s) for s in values.columns], rotation=35,
                   ha="right", fontsize=8)

@@ -1,11 +1,15 @@
-"""The report as one self-contained HTML page: figures inline (base64), sortable
-tables in a few lines of plain JavaScript, no external resource."""
+"""The report as one HTML page: a table of contents, the headline first, sortable
+tables in a few lines of plain JavaScript, provenance collapsed, and the figures linked
+from ``figures/`` beside the page and loaded lazily (``embed=True``: inline, base64, one
+self-contained file); no external resource either way."""
 
 from __future__ import annotations
 
 import base64
 import html
 import math
+import os
+import struct
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Optional
@@ -14,12 +18,13 @@ import pandas as pd
 
 from hnnbench import _record as records
 from hnnbench._results import stats
-from hnnbench._results.leaderboard import display_frame
+from hnnbench._results.leaderboard import direction_header, display_frame, metric_declarations
 from hnnbench._results.report.figures import FIGURES, Made
 from hnnbench._results.report.inputs import provenance_lines
 from hnnbench._results.report.published import claims_frame, comparison_frame
 from hnnbench._results.report.tables import (
     family_display,
+    reason_notes,
     reversal_note,
     seed_line,
     twins_display,
@@ -39,22 +44,28 @@ __all__ = ["page"]
 CSS = """
 body{font-family:-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:24px auto;
 max-width:1500px;padding:0 16px;color:#222}
-h1{font-size:1.6em}h2{margin-top:1.6em;border-bottom:1px solid #ddd;padding-bottom:4px}
+h1{font-size:1.6em;margin-bottom:.3em}
+h2{margin-top:1.6em;border-bottom:1px solid #ddd;padding-bottom:4px}
 table{border-collapse:collapse;font-size:13px;margin:8px 0}
 th,td{border:1px solid #ccc;padding:3px 8px;text-align:right;white-space:nowrap}
 th{background:#f3f3f3}td.txt,th.txt{text-align:left}
 table.sortable th{cursor:pointer}table.sortable th:hover{background:#e4e4e4}
 th[data-dir=asc]::after{content:" ▲"}th[data-dir=desc]::after{content:" ▼"}
 tr:nth-child(even) td{background:#fafafa}
-td.best,tr:nth-child(even) td.best{background:#d9f2d9;font-weight:bold}
-td.tied,tr:nth-child(even) td.tied{background:#eef8ee;font-style:italic}
+td.best,tr:nth-child(even) td.best{background:#cfe2f3;font-weight:bold}
+td.tied,tr:nth-child(even) td.tied{background:#e8f1fa;font-style:italic}
 td.unbeaten,tr:nth-child(even) td.unbeaten{background:#f3e6cc}
 .wrap{overflow-x:auto}
-td.diverged,td.inf{color:#b00}td.reproduced{color:#070}td.notrep{color:#b00}
+td.diverged,td.inf{color:#b35900}td.reproduced{color:#0072b2}td.notrep{color:#b35900}
 td.notrun{color:#888}
 .claims td.txt{white-space:normal}
-img{max-width:100%;border:1px solid #eee;margin:6px 0}
+img{max-width:100%;height:auto;border:1px solid #eee;margin:6px 0}
 .note{color:#555;font-size:13px}
+nav.toc{font-size:14px;background:#f7f7f7;border:1px solid #e3e3e3;padding:6px 12px}
+nav.toc ul{display:flex;flex-wrap:wrap;gap:2px 16px;list-style:none;margin:2px 0;padding:0}
+nav.toc li.systems{flex-basis:100%}nav.toc ul.systems{display:inline-flex;gap:2px 12px}
+details{margin:8px 0}details>summary{cursor:pointer;color:#444}
+ol.notes{font-size:13px;color:#444}ol.notes li{margin:2px 0}
 """
 
 #: Click a header to sort by it (again: reverse). Numeric cells sort by ``data-v``.
@@ -104,8 +115,9 @@ def _table(frame: pd.DataFrame, cls: str = "", status_col: Optional[str] = None,
     keys of its metric columns (same rows), ``marks`` the cells to highlight
     (``"best"`` or ``"tied"``)."""
     txt = ' class="txt"'
-    head = "".join(f"<th{txt if c in _TEXT_COLUMNS else ''}>{html.escape(str(c))}</th>"
-                   for c in frame.columns)
+    declared = metric_declarations()
+    head = "".join(f"<th{txt if c in _TEXT_COLUMNS else ''}>"
+                   f"{html.escape(direction_header(c, declared))}</th>" for c in frame.columns)
     body = []
     for i, (_, row) in enumerate(frame.iterrows()):
         cells = []
@@ -144,9 +156,31 @@ def _inline_code(markdown: str) -> str:
                    for i, p in enumerate(parts))
 
 
-def _img(path: Path, alt: str) -> str:
-    data = base64.b64encode(path.read_bytes()).decode("ascii")
-    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+def _png_size(path: Path) -> tuple[int, int] | None:
+    """``(width, height)`` from a PNG's header, or ``None`` when it is not one."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(24)
+    except OSError:
+        return None
+    if len(head) < 24 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
+        return None
+    width, height = struct.unpack(">II", head[16:24])
+    return int(width), int(height)
+
+
+def _img(path: Path, alt: str, base: Path | None = None, embed: bool = False) -> str:
+    """An ``<img>`` of the figure at ``path``: linked relative to the page's directory
+    ``base`` and loaded lazily, or inline (base64) with ``embed``; its pixel size is
+    given so the page does not jump while figures load."""
+    size = _png_size(path)
+    dims = f' width="{size[0]}" height="{size[1]}"' if size else ""
+    if embed:
+        data = base64.b64encode(path.read_bytes()).decode("ascii")
+        return f'<img alt="{html.escape(alt)}"{dims} src="data:image/png;base64,{data}">'
+    where = Path(os.path.relpath(path, base)) if base is not None else Path(path)
+    return (f'<img loading="lazy" alt="{html.escape(alt)}"{dims} '
+            f'src="{html.escape(where.as_posix())}">')
 
 
 def _provenance_table(recs: Sequence[dict[str, Any]]) -> pd.DataFrame:
@@ -168,100 +202,147 @@ def _provenance_table(recs: Sequence[dict[str, Any]]) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
-def _aggregate_section(verdicts: Verdicts, figures: list[Made]) -> list[str]:
+def _aggregate_section(verdicts: Verdicts, figures: list[Made], img: Any) -> list[str]:
+    """The headline: the aggregate's table first, then how to read it and what its
+    intervals support, then the performance profiles (``img(made)``: the figure's tag)."""
     agg, key = verdicts.aggregate, verdicts.main
-    parts = ["<h2>Across systems</h2>"]
+    parts = ['<h2 id="across">Across systems</h2>']
     scope = scope_line(verdicts)
-    if scope:
-        parts.append(f'<p class="note">{_inline_code(scope)}</p>')
     table = aggregate_frame(agg, key=key) if not agg.empty else pd.DataFrame()
     if table.empty:
+        if scope:
+            parts.append(f'<p class="note">{_inline_code(scope)}</p>')
         why = agg.note if agg.empty else "no (system, metric) of this scope is normalised"
         parts.append(f'<p class="note">No aggregate: {html.escape(why)}.</p>')
         parts += [f'<p class="note">{_inline_code(line)}</p>'
                   for line in left_out_lines(agg, key)]
         return parts
     rule = stats.aggregate_rule(agg.baseline or "the baseline")
+    parts.append(_table(table, "aggregate"))
+    if scope:
+        parts.append(f'<p class="note">{_inline_code(scope)}</p>')
     parts += [f'<p class="note">{_inline_code(rule)}</p>',
-              _table(table, "aggregate"),
               '<p class="note">What the intervals support:</p><ul>']
     parts += [f"<li>{_inline_code(line[2:])}</li>" for line in supported_lines(agg, key=key)]
     parts.append(f"<li>{_inline_code(marks_line(verdicts.families, key=key))}</li></ul>")
     parts += [f'<p class="note">{_inline_code(line)}</p>' for line in left_out_lines(agg, key)]
-    parts += [_img(m.path, m.path.stem) for m in figures if m.kind == "profile"]
+    parts += [img(m) for m in figures if m.kind == "profile"]
     return parts
+
+
+def _anchor(label: str) -> str:
+    """An element id for a figure section's label (letters, digits, ``-``, ``_``)."""
+    return "fig-" + "".join(c if c.isalnum() or c in "-_" else "-" for c in label)
+
+
+def _toc(entries: Sequence[tuple[str, str]], systems: Sequence[str]) -> str:
+    """The table of contents: ``(id, title)`` of each section, and the figure sections'
+    labels in a row of their own."""
+    items = [f'<li><a href="#{html.escape(i)}">{html.escape(t)}</a></li>' for i, t in entries]
+    if systems:
+        links = "".join(f'<li><a href="#{html.escape(_anchor(label))}">{html.escape(label)}'
+                        "</a></li>" for label in systems)
+        items.append(f'<li class="systems">Figures by system: <ul class="systems">{links}'
+                     "</ul></li>")
+    return f'<nav class="toc"><b>Contents</b><ul>{"".join(items)}</ul></nav>'
 
 
 def page(board: pd.DataFrame, figures: list[Made], prov: dict[str, list[str]],
          recs: Sequence[dict[str, Any]], unreadable: Sequence[records.Unreadable] = (),
-         verdicts: Optional[Verdicts] = None) -> str:
-    """The whole page."""
+         verdicts: Optional[Verdicts] = None, *, base: Optional[Path] = None,
+         embed: bool = False) -> str:
+    """The whole page: the figures linked relative to ``base`` (the page's directory)
+    and loaded lazily, or inline with ``embed`` (one self-contained file)."""
     if verdicts is None:
         from hnnbench._results.report.verdicts import build_verdicts
 
         verdicts = build_verdicts(list(recs), board)
+
+    def img(made: Made, alt: str = "") -> str:
+        return _img(made.path, alt or made.path.stem, base, embed)
+
     fams = verdicts.families
     shown_board = fams.board if not fams.board.empty else board
+    heatmaps = [m for m in figures if m.kind == "heatmap"]
+    comparison = comparison_frame(board)
+    titles = {kind.name: kind.title for kind in FIGURES.values()}
+    sections: dict[str, list[Made]] = {}
+    for made in figures:
+        if made.kind not in ("heatmap", "profile"):
+            sections.setdefault(made.label, []).append(made)
+    entries = [("across", "Across systems"), ("families", "Families"),
+               *([("heatmaps", "Which family wins where")] if heatmaps else []),
+               ("twins", "Twin agreement"), ("models", "Every model"),
+               *([("published", "Comparison with published results")]
+                 if not comparison.empty else []),
+               ("claims", "Qualitative claims from the literature"),
+               ("provenance", "Provenance")]
+    provenance = [f"<li>{_inline_code(line[2:])}</li>" for line in provenance_lines(prov)]
     parts = [
         "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
         "<title>hnnbench leaderboard</title>", f"<style>{CSS}</style></head><body>",
         "<h1>hnnbench leaderboard</h1>",
-        f'<p class="note">{_inline_code(seed_line(shown_board))}</p>',
-        *[f'<p class="note">{_inline_code(line[2:])}</p>' for line in provenance_lines(prov)],
+        _toc(entries, list(sections)),
+        "<details><summary>What the rows are, and where the records come from "
+        "(commands, commits, machines)</summary>"
+        f'<p class="note">{_inline_code(seed_line(shown_board))}</p>'
+        f'<ul class="note">{"".join(provenance)}</ul></details>',
     ]
-    parts += _aggregate_section(verdicts, figures)
+    parts += _aggregate_section(verdicts, figures, img)
     shown, marks = family_display(fams)
+    shown, notes = reason_notes(shown)
     parts += [
-        "<h2>Families</h2>",
+        '<h2 id="families">Families</h2>',
         '<p class="note">One row per family: its primary twin\'s seeds (<code>seeds_from</code>); '
-        "click a column header to sort. "
+        "click a column header to sort; \u2193 lower is better, \u2191 higher is better. "
         f"{_inline_code(stats.best_rule().replace('**', '').replace('*', ''))} "
         "Highlighted: best (bold) and tied (italics); a standing-still cell that no "
         "family's leader improves on is shaded.</p>",
         _table(shown, "board sortable", status_col="status",
                numbers=fams.board.reset_index(drop=True), marks=marks),
     ]
+    if notes:
+        parts.append('<p class="note">Why runs did not finish <code>ok</code> ([n] after a '
+                     'status):</p><ol class="notes">'
+                     + "".join(f'<li value="{n}">{html.escape(reason)}</li>'
+                               for n, reason in notes) + "</ol>")
     note = reversal_note(board)
     if note:
         parts.append(f'<p class="note">{_inline_code(note)}</p>')
-    heatmaps = [m for m in figures if m.kind == "heatmap"]
     if heatmaps:
-        parts.append("<h2>Which family wins where</h2>")
+        parts.append('<h2 id="heatmaps">Which family wins where</h2>')
         parts.append('<p class="note">Rank of each ranked family within each system '
                      "(1 = best, mean below it; best and tied as in the table); rows "
                      "without a variant only.</p>")
-        parts += [_img(m.path, m.path.stem) for m in heatmaps]
-    parts += ["<h2>Twin agreement</h2>", f'<p class="note">{_inline_code(twins_line(fams))}</p>']
+        parts += [img(m) for m in heatmaps]
+    parts += ['<h2 id="twins">Twin agreement</h2>',
+              f'<p class="note">{_inline_code(twins_line(fams))}</p>']
     twins = twins_display(fams)
     if not twins.empty:
         parts.append(_table(twins, "twins sortable"))
     parts += [
-        "<h2>Every model</h2>",
+        '<h2 id="models">Every model</h2>',
         '<p class="note">Both twins of every family, unmarked: the verdicts are the '
         "families'.</p>",
         _table(display_frame(board), "models sortable", status_col="status",
                numbers=board.reset_index(drop=True)),
     ]
-    comparison = comparison_frame(board)
     if not comparison.empty:
-        parts += ["<h2>Comparison with published results</h2>",
+        parts += ['<h2 id="published">Comparison with published results</h2>',
                   '<p class="note">Natural units; details in paper_comparison.md.</p>',
                   _table(comparison, "paper")]
-    parts += ["<h2>Qualitative claims from the literature</h2>",
+    parts += ['<h2 id="claims">Qualitative claims from the literature</h2>',
               _table(claims_frame(board), "claims sortable", status_col="result")]
-    titles = {kind.name: kind.title for kind in FIGURES.values()}
-    sections: dict[str, list[Made]] = {}
-    for made in figures:
-        if made.kind not in ("heatmap", "profile"):
-            sections.setdefault(made.label, []).append(made)
     for label, made_list in sections.items():
-        parts.append(f'<h2 id="{html.escape(label)}">{html.escape(label)}</h2>')
+        parts.append(f'<h2 id="{html.escape(_anchor(label))}">{html.escape(label)}</h2>')
         for made in made_list:
             parts.append(f"<h3>{html.escape(titles.get(made.kind, made.kind))}</h3>")
-            parts.append(_img(made.path, f"{label} {made.kind}"))
-    parts += ["<h2>Provenance</h2>",
-              '<p class="note">Where the records come from: one row per (directory, commit, '
-              "machine).</p>", _table(_provenance_table(recs), "prov sortable")]
+            parts.append(img(made, f"{label} {made.kind}"))
+    parts += ['<h2 id="provenance">Provenance</h2>',
+              "<details><summary>Where the records come from: one row per (directory, "
+              "commit, machine)</summary>", _table(_provenance_table(recs), "prov sortable"),
+              "</details>"]
     if unreadable:
         parts += ["<h2>Unreadable records (left out)</h2>",
                   _table(pd.DataFrame([{"path": str(u.path), "reason": u.reason}

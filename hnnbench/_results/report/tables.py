@@ -12,12 +12,17 @@ import pandas as pd
 from hnnbench import _registry as registry
 from hnnbench._results import stats
 from hnnbench._results.families import Families
-from hnnbench._results.leaderboard import display_frame, metric_declarations, short_reason
+from hnnbench._results.leaderboard import (
+    direction_header,
+    display_frame,
+    metric_declarations,
+    short_reason,
+)
 from hnnbench._results.report.inputs import provenance_lines
-from hnnbench._results.report.markdown import md_cell, md_code
+from hnnbench._results.report.markdown import md_cell, md_code, md_text
 
 __all__ = ["TWIN_FLAG", "families_markdown", "family_display", "leaderboard_markdown",
-           "md_table", "seed_line", "twins_display", "twins_line"]
+           "md_table", "reason_notes", "seed_line", "twins_display", "twins_line"]
 
 #: Appended to a family's cell where its twins disagree on that metric.
 TWIN_FLAG = "≠"
@@ -29,10 +34,14 @@ FAMILY_IDS = ("system", "family", "seeds_from")
 
 def md_table(frame: pd.DataFrame) -> str:
     """``frame`` as a GitHub Markdown table, every header and cell escaped
-    (:func:`hnnbench._results.report.markdown.md_cell`): the one writer of Markdown tables."""
+    (:func:`hnnbench._results.report.markdown.md_cell`), each metric column's header marked with
+    the direction that is better (:func:`hnnbench._results.leaderboard.direction_header`): the one
+    writer of Markdown tables."""
     from tabulate import tabulate
 
-    columns = {md_cell(c): [md_cell(v) for v in frame[c]] for c in frame.columns}
+    declared = metric_declarations()
+    columns = {md_cell(direction_header(c, declared)): [md_cell(v) for v in frame[c]]
+               for c in frame.columns}
     return tabulate(columns, headers="keys", tablefmt="github", showindex=False,
                     disable_numparse=True)
 
@@ -84,6 +93,23 @@ def family_display(fams: Families) -> tuple[pd.DataFrame, dict[tuple[int, str], 
     if "twins" in board:
         shown["twins"] = [short_reason(t, 90) or "—" for t in board["twins"].fillna("")]
     return shown, marks
+
+
+def reason_notes(shown: pd.DataFrame) -> tuple[pd.DataFrame, list[tuple[int, str]]]:
+    """``shown`` (a display frame) without its ``reason`` column, which is empty on most
+    rows: a row with a reason gets its note's number after its status (``3 ok, 2
+    diverged [1]``; rows of one reason share its number); returns the frame and the
+    notes ``[(number, reason), ...]``."""
+    if "reason" not in shown:
+        return shown, []
+    out = shown.drop(columns="reason").reset_index(drop=True)
+    numbers: dict[str, int] = {}
+    for i, reason in enumerate(shown["reason"].fillna("").astype(str)):
+        if reason.strip() in ("", "—", "nan"):
+            continue
+        number = numbers.setdefault(reason, len(numbers) + 1)
+        out.at[i, "status"] = f"{out.at[i, 'status']} [{number}]"
+    return out, [(number, reason) for reason, number in numbers.items()]
 
 
 def twins_display(fams: Families) -> pd.DataFrame:
@@ -149,9 +175,16 @@ def twins_line(fams: Families) -> str:
 
 
 def families_markdown(fams: Families) -> str:
-    """The family table with its marks (Markdown)."""
+    """The family table with its marks (Markdown), and below it the notes its status
+    cells point to (why runs were skipped, failed, timed out or diverged:
+    :func:`reason_notes`)."""
     shown, marks = family_display(fams)
-    return md_table(_bold(shown, marks))
+    shown, notes = reason_notes(shown)
+    table = md_table(_bold(shown, marks))
+    if not notes:
+        return table
+    return "\n".join([table, "", "Why runs did not finish `ok` ([n] after a status):", "",
+                      *(f"{n}. {md_text(reason)}" for n, reason in notes)])
 
 
 def reversal_note(board: pd.DataFrame) -> str:

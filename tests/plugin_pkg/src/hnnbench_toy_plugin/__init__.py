@@ -1,7 +1,9 @@
 """A third-party plugin as an outside author would write it: one system, one model.
 
 - ``quartic``: the anharmonic oscillator H = q^4 / 4 + p^2 / 2, reusing nothing from
-  hnnbench but the public API.
+  hnnbench but the public API. Its data and its evaluation trajectories come from their
+  own seed streams (``seed_stream(seed, DATA_STREAM)``, ``seed_stream(seed,
+  EVAL_STREAM)``), as docs/PLUGINS.md asks.
 - ``linear_lstsq``: dx/dt = A x + b fitted by least squares (no training loop).
 """
 
@@ -12,6 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from hnnbench import (
+    DATA_STREAM,
+    EVAL_STREAM,
     Dataset,
     FitResult,
     Model,
@@ -20,6 +24,7 @@ from hnnbench import (
     System,
     SystemConfig,
     Trajectories,
+    seed_stream,
     solve_batch,
 )
 
@@ -38,7 +43,7 @@ class Quartic(System):
     """Anharmonic oscillator H = q^4/4 + p^2/2."""
 
     Config = QuarticConfig
-    version = "2"
+    version = "3"  # 3: the data and the evaluation from their own seed streams
     description = "Anharmonic oscillator H = q^4/4 + p^2/2 (test plugin)"
     profiles = {"quick": {"n_traj": 10}}
 
@@ -59,7 +64,8 @@ class Quartic(System):
 
     def dataset(self, seed: int) -> Dataset:
         c = self.cfg
-        t, xs = self._trajectories(np.random.default_rng(seed), c.n_traj, c.t_end, c.n_points)
+        t, xs = self._trajectories(seed_stream(seed, DATA_STREAM), c.n_traj, c.t_end,
+                                   c.n_points)
         half = c.n_traj // 2
 
         def split(sl):
@@ -73,7 +79,8 @@ class Quartic(System):
 
     def evaluation(self, seed: int) -> Trajectories:
         c = self.cfg
-        t, xs = self._trajectories(np.random.default_rng(seed + 10_000), c.eval_n_traj,
+        # fresh trajectories over twice a training trajectory's span (docs/PLUGINS.md)
+        t, xs = self._trajectories(seed_stream(seed, EVAL_STREAM), c.eval_n_traj,
                                    c.eval_t_end, 50)
         return Trajectories(t=t, states=xs, dt=c.t_end / (c.n_points - 1))
 
