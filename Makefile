@@ -56,6 +56,7 @@ guard-reference: setup
 
 test: setup
 	$(VENV)/ruff check .
+	$(VENV)/ruff format --check .
 	$(VENV)/mypy
 	$(VENV)/lint-imports
 	$(VENV)/python -m pytest $(PYTEST_ARGS)
@@ -84,6 +85,7 @@ e2e: setup
 
 lint: setup
 	$(VENV)/ruff check .
+	$(VENV)/ruff format --check .
 
 typecheck: setup
 	$(VENV)/mypy

@@ -79,20 +79,29 @@ def ours(scores: np.ndarray, reps: int) -> dict:
     stats.N_RESAMPLES = reps  # the module's default is 9999; measured at each count
     stats.stratified_interval([scores[0][:, 0]])  # imports scipy.stats outside the timing
     t = time.perf_counter()
-    iqm = [list(stats.stratified_interval([scores[i][:, m] for m in range(N_SYSTEMS)]))
-           for i in range(len(scores))]
+    iqm = [
+        list(stats.stratified_interval([scores[i][:, m] for m in range(N_SYSTEMS)]))
+        for i in range(len(scores))
+    ]
     iqm_s = time.perf_counter() - t
     t = time.perf_counter()
-    poi = [list(stats.probability_of_improvement([scores[0][:, m] for m in range(N_SYSTEMS)],
-                                             [scores[j][:, m] for m in range(N_SYSTEMS)]))
-           for j in range(1, len(scores))]
+    poi = [
+        list(
+            stats.probability_of_improvement(
+                [scores[0][:, m] for m in range(N_SYSTEMS)],
+                [scores[j][:, m] for m in range(N_SYSTEMS)],
+            )
+        )
+        for j in range(1, len(scores))
+    ]
     return {"iqm": iqm, "poi": poi, "iqm_s": iqm_s, "poi_s": time.perf_counter() - t}
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("--rliable-python", default=None,
-                        help="a Python with rliable 1.2.0 and pandas<3 installed")
+    parser.add_argument(
+        "--rliable-python", default=None, help="a Python with rliable 1.2.0 and pandas<3 installed"
+    )
     parser.add_argument("--reps", type=int, nargs="+", default=[2000, 9999])
     args = parser.parse_args()
     scores = synthetic_scores()
@@ -101,9 +110,12 @@ def main() -> int:
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "scores.npz"
             np.savez(path, scores=scores)
-            proc = subprocess.run([args.rliable_python, "-c", RLIABLE, str(path),
-                                   json.dumps(args.reps)], capture_output=True, text=True,
-                                  check=True)
+            proc = subprocess.run(
+                [args.rliable_python, "-c", RLIABLE, str(path), json.dumps(args.reps)],
+                capture_output=True,
+                text=True,
+                check=True,
+            )
             theirs = json.loads(proc.stdout.strip().splitlines()[-1])
     for reps in args.reps:
         mine = ours(scores, reps)
@@ -113,10 +125,8 @@ def main() -> int:
         for kind in ("iqm", "poi"):
             for i, row in enumerate(mine[kind]):
                 name = f"fam {i}" if kind == "iqm" else f"P(0>{i + 1})"
-                theirs_text = ("{:.3f} [{:.3f}, {:.3f}]".format(*other[kind][i]) if other
-                               else "—")
-                print(f"{name:10} {'{:.3f} [{:.3f}, {:.3f}]'.format(*row):>34} "
-                      f"{theirs_text:>34}")
+                theirs_text = "{:.3f} [{:.3f}, {:.3f}]".format(*other[kind][i]) if other else "—"
+                print(f"{name:10} {'{:.3f} [{:.3f}, {:.3f}]'.format(*row):>34} {theirs_text:>34}")
         times = f"IQM {mine['iqm_s']:.2f}, P {mine['poi_s']:.2f}"
         times_rl = f"IQM {other['iqm_s']:.2f}, P {other['poi_s']:.2f}" if other else "—"
         print(f"{'seconds':10} {times:>34} {times_rl:>34}")

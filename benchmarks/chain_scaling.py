@@ -48,8 +48,10 @@ from typing import Any, Optional
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 SYSTEM = "spring_chain"
-HEADER = ("| N | state dim | model | batch | ms/step median | ms/step vs N={base} | "
-          "JAX compile s | energy MSE after {steps} steps | eval s |")
+HEADER = (
+    "| N | state dim | model | batch | ms/step median | ms/step vs N={base} | "
+    "JAX compile s | energy MSE after {steps} steps | eval s |"
+)
 
 
 @dataclass
@@ -88,19 +90,21 @@ def prepare(n: int, model_name: str, overrides: Sequence[str]) -> Cell:
     from hnnbench._running.compose import compose
     from hnnbench._running.config import prepare_job
 
-    cfg = compose([f"system={SYSTEM}", f"model={model_name}", f"system.n_masses={n}",
-                   *overrides])
+    cfg = compose([f"system={SYSTEM}", f"model={model_name}", f"system.n_masses={n}", *overrides])
     job = prepare_job(cfg)
     system = job.system_cls(job.system_cfg)
-    reason = (f"{model_name} is not a neural model (no training loop)"
-              if getattr(job.model_cls, "family", None) is None
-              else job.model_cls.unsupported_reason(system))
+    reason = (
+        f"{model_name} is not a neural model (no training loop)"
+        if getattr(job.model_cls, "family", None) is None
+        else job.model_cls.unsupported_reason(system)
+    )
     if reason is not None:
         raise ConfigError(f"{model_name} on {SYSTEM}: {reason}")
     ev = EvaluationConfig(**OmegaConf.to_container(cfg.evaluation, resolve=True))  # type: ignore[arg-type]
     data, _, _ = dataset_cache.cached(system, 0, "dataset", lambda: system.dataset(0), Dataset.load)
-    traj, _, _ = dataset_cache.cached(system, 0, "evaluation", lambda: system.evaluation(0),
-                              Trajectories.load)
+    traj, _, _ = dataset_cache.cached(
+        system, 0, "evaluation", lambda: system.evaluation(0), Trajectories.load
+    )
     paper = TrainSettings.resolve(job.system_cfg, job.model_cfg)
     every = job.model_cfg.log_interval(paper.steps)
     model_cfg = dataclasses.replace(job.model_cfg, log_every=every)
@@ -161,26 +165,44 @@ def markdown_table(cells: Sequence[Cell], steps: int) -> str:
         lines.append(
             f"| {c.n} | {2 * c.n} | {c.model} | {c.batch} | {_fmt(c.median, '.3f')} | "
             f"{_fmt(ratio, '.2f', 'x')} | {_fmt(c.compile_s if jax else None, '.2f')} | "
-            f"{mse} | {_fmt(c.eval_s, '.1f')} |")
+            f"{mse} | {_fmt(c.eval_s, '.1f')} |"
+        )
     return "\n".join(lines)
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("--sizes", nargs="+", type=int, default=[2, 5, 10, 20],
-                        help="numbers of masses N (system.n_masses; default 2 5 10 20)")
-    parser.add_argument("--models", nargs="+", default=["hnn_torch", "hnn_jax", "mlp_torch"],
-                        help="neural models (default: hnn_torch hnn_jax mlp_torch)")
-    parser.add_argument("--steps", type=int, default=500,
-                        help="training steps before the energy MSE (default 500)")
-    parser.add_argument("--timing-steps", type=int, default=100,
-                        help="steps per timed fit (default 100)")
+    parser.add_argument(
+        "--sizes",
+        nargs="+",
+        type=int,
+        default=[2, 5, 10, 20],
+        help="numbers of masses N (system.n_masses; default 2 5 10 20)",
+    )
+    parser.add_argument(
+        "--models",
+        nargs="+",
+        default=["hnn_torch", "hnn_jax", "mlp_torch"],
+        help="neural models (default: hnn_torch hnn_jax mlp_torch)",
+    )
+    parser.add_argument(
+        "--steps", type=int, default=500, help="training steps before the energy MSE (default 500)"
+    )
+    parser.add_argument(
+        "--timing-steps", type=int, default=100, help="steps per timed fit (default 100)"
+    )
     parser.add_argument("--repeats", type=int, default=3, help="timed fits (default 3)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the energy-MSE fit")
-    parser.add_argument("--overrides", nargs="*", default=[], metavar="KEY=VALUE",
-                        help="more config overrides, e.g. system.eval_t_end=10")
-    parser.add_argument("--no-pin", action="store_true",
-                        help="do not pin the process to one CPU core")
+    parser.add_argument(
+        "--overrides",
+        nargs="*",
+        default=[],
+        metavar="KEY=VALUE",
+        help="more config overrides, e.g. system.eval_t_end=10",
+    )
+    parser.add_argument(
+        "--no-pin", action="store_true", help="do not pin the process to one CPU core"
+    )
     args = parser.parse_args(argv)
     if min(args.sizes) < 1 or args.steps < 1 or args.timing_steps < 1 or args.repeats < 1:
         parser.error("--sizes, --steps, --timing-steps and --repeats must be >= 1")
@@ -194,9 +216,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     _set_threads(1)
     load = os.getloadavg()
-    print(f"CPU cores: {os.cpu_count()}, load average {load[0]:.2f} {load[1]:.2f} "
-          f"{load[2]:.2f}; one thread, pinned to core "
-          f"{'— (not pinned)' if pinned is None else pinned}", flush=True)
+    print(
+        f"CPU cores: {os.cpu_count()}, load average {load[0]:.2f} {load[1]:.2f} "
+        f"{load[2]:.2f}; one thread, pinned to core "
+        f"{'— (not pinned)' if pinned is None else pinned}",
+        flush=True,
+    )
 
     cells: list[Cell] = []
     failures: list[str] = []
@@ -212,28 +237,37 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                 print(f"  N={n:<3d} {model_name:10s} FAILED: {err}", flush=True)
                 continue
             row.append(cell)
-            print(f"  N={n:<3d} {model_name:10s} warm-up done (compile "
-                  f"{cell.compile_s:.2f} s; {len(cell.data.train)} training points)",
-                  flush=True)
+            print(
+                f"  N={n:<3d} {model_name:10s} warm-up done (compile "
+                f"{cell.compile_s:.2f} s; {len(cell.data.train)} training points)",
+                flush=True,
+            )
         for rep in range(1, args.repeats + 1):
             for cell in row:
                 _, seconds, _ = timed_fit(cell, args.timing_steps, rep)
                 cell.times_ms.append(1e3 * seconds / args.timing_steps)
-                print(f"  N={n:<3d} {cell.model:10s} rep {rep}: {cell.times_ms[-1]:8.3f} "
-                      "ms/step", flush=True)
+                print(
+                    f"  N={n:<3d} {cell.model:10s} rep {rep}: {cell.times_ms[-1]:8.3f} ms/step",
+                    flush=True,
+                )
         for cell in row:
             energy_after_fit(cell, args.steps, args.seed)
-            print(f"  N={n:<3d} {cell.model:10s} energy MSE after {args.steps} steps: "
-                  f"{_fmt(cell.energy_mse, '.3e')} {cell.status}".rstrip(), flush=True)
+            print(
+                f"  N={n:<3d} {cell.model:10s} energy MSE after {args.steps} steps: "
+                f"{_fmt(cell.energy_mse, '.3e')} {cell.status}".rstrip(),
+                flush=True,
+            )
         cells += row
 
     if cells:
         print(f"\n## {SYSTEM}: ms per training step and energy MSE against N\n")
-        print(f"ms/step: median of {args.repeats} fits of {args.timing_steps} steps after "
-              f"one warm-up fit, compilation excluded; paper protocol (batch, lr), test "
-              f"loss at the paper run's interval. Energy MSE: one fit of {args.steps} "
-              f"steps (seed {args.seed}), then the energy_mse metric on the evaluation "
-              "trajectories.\n")
+        print(
+            f"ms/step: median of {args.repeats} fits of {args.timing_steps} steps after "
+            f"one warm-up fit, compilation excluded; paper protocol (batch, lr), test "
+            f"loss at the paper run's interval. Energy MSE: one fit of {args.steps} "
+            f"steps (seed {args.seed}), then the energy_mse metric on the evaluation "
+            "trajectories.\n"
+        )
         print(markdown_table(cells, args.steps))
     for line in failures:
         print(f"FAILED: {line}")

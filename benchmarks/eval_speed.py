@@ -113,9 +113,7 @@ def energy_mse(system: Any, traj: Any, states_hat: np.ndarray) -> float:
     return builtin_metrics.summarize(builtin_metrics.energy_error_per_traj(e_hat, e_true))["mean"]
 
 
-def batched_energy_mse(
-    system: Any, model: Any, traj: Any, rtol: float, atol: float
-) -> float:
+def batched_energy_mse(system: Any, model: Any, traj: Any, rtol: float, atol: float) -> float:
     """(a) hnnbench's path: one batched rollout of all initial states, then the metric."""
     from hnnbench._contracts.errors import RolloutDiverged
 
@@ -142,8 +140,9 @@ def loop_energy_mse(
     rollouts: list[np.ndarray] = []
     nfev = 0
     for x0 in traj.x0:
-        sol = solve_ivp(fun, (float(t[0]), float(t[-1])), x0, t_eval=t, method="RK45",
-                        rtol=rtol, atol=atol)
+        sol = solve_ivp(
+            fun, (float(t[0]), float(t[-1])), x0, t_eval=t, method="RK45", rtol=rtol, atol=atol
+        )
         if not sol.success or sol.y.shape[1] != t.shape[0]:
             raise RolloutDiverged(f"scipy RK45 failed: {sol.message}")
         rollouts.append(sol.y.T)
@@ -203,8 +202,14 @@ def counting_field_calls(model: Any) -> Iterator[list[int]]:
 
 
 def measure(
-    system_name: str, model_name: str, steps: Optional[int], repeats: int, seed: int,
-    device: str, rtol: Optional[float], atol: Optional[float],
+    system_name: str,
+    model_name: str,
+    steps: Optional[int],
+    repeats: int,
+    seed: int,
+    device: str,
+    rtol: Optional[float],
+    atol: Optional[float],
 ) -> Row:
     """Build, train and time one (system, model) pair."""
     from omegaconf import OmegaConf
@@ -236,10 +241,12 @@ def measure(
         torch.set_num_threads(1)
 
     root = dataset_cache.cache_root()
-    data, _, _ = dataset_cache.cached(system, seed, "dataset", lambda: system.dataset(seed),
-                              Dataset.load, root)
-    traj, _, _ = dataset_cache.cached(system, seed, "evaluation", lambda: system.evaluation(seed),
-                              Trajectories.load, root)
+    data, _, _ = dataset_cache.cached(
+        system, seed, "dataset", lambda: system.dataset(seed), Dataset.load, root
+    )
+    traj, _, _ = dataset_cache.cached(
+        system, seed, "evaluation", lambda: system.evaluation(seed), Trajectories.load, root
+    )
 
     train = TrainSettings.resolve(job.system_cfg, job.model_cfg)
     if steps is not None:
@@ -255,9 +262,11 @@ def measure(
     loop_energy_mse(system, model, first, rtol, atol)
 
     batched_ms, batched_min, mse_batched = timed(
-        lambda: batched_energy_mse(system, model, traj, rtol, atol), repeats)
+        lambda: batched_energy_mse(system, model, traj, rtol, atol), repeats
+    )
     loop_ms, loop_min, (mse_loop, nfev) = timed(
-        lambda: loop_energy_mse(system, model, traj, rtol, atol), repeats)
+        lambda: loop_energy_mse(system, model, traj, rtol, atol), repeats
+    )
 
     rhs_calls: Optional[int] = None
     if job.model_cls.backend == "torch" and hasattr(model, "_infer"):  # untimed: how
@@ -267,11 +276,21 @@ def measure(
         rhs_calls = count[0]
 
     return Row(
-        system=system_name, model=model_name, n_traj=int(traj.states.shape[0]),
-        n_points=int(traj.t.shape[0]), rtol=rtol, atol=atol, fit_s=fit_s,
-        batched_ms=batched_ms, batched_min_ms=batched_min, loop_ms=loop_ms,
-        loop_min_ms=loop_min, loop_nfev=nfev, batched_rhs_calls=rhs_calls,
-        energy_mse_batched=mse_batched, energy_mse_loop=mse_loop,
+        system=system_name,
+        model=model_name,
+        n_traj=int(traj.states.shape[0]),
+        n_points=int(traj.t.shape[0]),
+        rtol=rtol,
+        atol=atol,
+        fit_s=fit_s,
+        batched_ms=batched_ms,
+        batched_min_ms=batched_min,
+        loop_ms=loop_ms,
+        loop_min_ms=loop_min,
+        loop_nfev=nfev,
+        batched_rhs_calls=rhs_calls,
+        energy_mse_batched=mse_batched,
+        energy_mse_loop=mse_loop,
     )
 
 
@@ -298,19 +317,27 @@ def markdown_table(rows: Sequence[Row]) -> str:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("--systems", nargs="+", default=["spring"],
-                        help="state systems (default: spring)")
-    parser.add_argument("--models", nargs="+",
-                        default=["mlp_torch", "hnn_torch", "mlp_jax", "hnn_jax"])
-    parser.add_argument("--steps", type=int, default=None,
-                        help="training steps (default: the system's paper setting)")
+    parser.add_argument(
+        "--systems", nargs="+", default=["spring"], help="state systems (default: spring)"
+    )
+    parser.add_argument(
+        "--models", nargs="+", default=["mlp_torch", "hnn_torch", "mlp_jax", "hnn_jax"]
+    )
+    parser.add_argument(
+        "--steps",
+        type=int,
+        default=None,
+        help="training steps (default: the system's paper setting)",
+    )
     parser.add_argument("--repeats", type=int, default=3, help="timed runs per path")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--device", default="cpu", help="cpu (default), auto, cuda[:N]")
-    parser.add_argument("--rtol", type=float, default=None,
-                        help="default: evaluation.rtol of conf/config.yaml")
-    parser.add_argument("--atol", type=float, default=None,
-                        help="default: evaluation.atol of conf/config.yaml")
+    parser.add_argument(
+        "--rtol", type=float, default=None, help="default: evaluation.rtol of conf/config.yaml"
+    )
+    parser.add_argument(
+        "--atol", type=float, default=None, help="default: evaluation.atol of conf/config.yaml"
+    )
     args = parser.parse_args(argv)
     if args.repeats < 1 or (args.steps is not None and args.steps < 1):
         parser.error("--repeats and --steps must be >= 1")
@@ -322,8 +349,16 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     for system_name in args.systems:
         for model_name in args.models:
             try:
-                row = measure(system_name, model_name, args.steps, args.repeats, args.seed,
-                              args.device, args.rtol, args.atol)
+                row = measure(
+                    system_name,
+                    model_name,
+                    args.steps,
+                    args.repeats,
+                    args.seed,
+                    args.device,
+                    args.rtol,
+                    args.atol,
+                )
             except (HnnbenchError, RolloutDiverged) as err:  # bad name, unsupported, diverged
                 failures.append(f"{system_name} / {model_name}: {err}")
                 print(f"{system_name:10s} {model_name:10s} FAILED: {err}", flush=True)
@@ -341,8 +376,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             )
 
     if rows:
-        print(f"\nMedian of {args.repeats} timed run(s) after one warm-up; "
-              f"target: batched >= {TARGET_SPEEDUP:g}x faster on spring.\n")
+        print(
+            f"\nMedian of {args.repeats} timed run(s) after one warm-up; "
+            f"target: batched >= {TARGET_SPEEDUP:g}x faster on spring.\n"
+        )
         print(markdown_table(rows))
     for line in failures:
         print(f"FAILED: {line}")

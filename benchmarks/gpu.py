@@ -52,8 +52,11 @@ SEEDS = (0, 1, 2)
 
 def _hnnbench() -> list[str]:
     """The CLI, as this interpreter runs it (a console script may not be on PATH)."""
-    return [sys.executable, "-c",
-            "import sys; from hnnbench._entry.command import main; sys.exit(main())"]
+    return [
+        sys.executable,
+        "-c",
+        "import sys; from hnnbench._entry.command import main; sys.exit(main())",
+    ]
 
 
 #: Each job's environment: progress lines in its log, and JAX allocating GPU memory as
@@ -67,9 +70,14 @@ def _run(args: list[str], log: Path, timeout_s: float) -> tuple[float, int]:
     start = time.perf_counter()
     with log.open("w") as out:
         try:
-            rc = subprocess.run([*_hnnbench(), *args], stdout=out, stderr=subprocess.STDOUT,
-                                env={**os.environ, **JOB_ENV}, timeout=timeout_s,
-                                cwd=REPO).returncode
+            rc = subprocess.run(
+                [*_hnnbench(), *args],
+                stdout=out,
+                stderr=subprocess.STDOUT,
+                env={**os.environ, **JOB_ENV},
+                timeout=timeout_s,
+                cwd=REPO,
+            ).returncode
         except subprocess.TimeoutExpired:
             rc = 124
     return time.perf_counter() - start, rc
@@ -92,11 +100,18 @@ except Exception as exc:
     print(f"jax: {exc!r}")
 """
 
+
 def environment() -> str:
     """Python, torch (CUDA, the GPU's name) and JAX (its devices), as a job sees them:
     read in a child process, so that this process starts no GPU backend."""
-    proc = subprocess.run([sys.executable, "-c", _ENVIRONMENT], capture_output=True,
-                          text=True, env={**os.environ, **JOB_ENV}, cwd=REPO, check=False)
+    proc = subprocess.run(
+        [sys.executable, "-c", _ENVIRONMENT],
+        capture_output=True,
+        text=True,
+        env={**os.environ, **JOB_ENV},
+        cwd=REPO,
+        check=False,
+    )
     return (proc.stdout + proc.stderr[-500:]).strip()
 
 
@@ -117,8 +132,9 @@ def warm_datasets(system: str, model: str, seeds: tuple[int, ...]) -> None:
         "    cache.cached(system, seed, 'evaluation',\n"
         "                 functools.partial(system.evaluation, seed), Trajectories.load)\n"
     )
-    subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO,
-                   env={**os.environ, **JOB_ENV})
+    subprocess.run(
+        [sys.executable, "-c", code], check=True, cwd=REPO, env={**os.environ, **JOB_ENV}
+    )
 
 
 def _records(directory: Path) -> list[dict[str, Any]]:
@@ -148,8 +164,10 @@ def measure(args: argparse.Namespace) -> int:
     def budget_left(what: str) -> bool:
         spent = time.perf_counter() - start
         if spent > args.budget_s:
-            print(f"skipped ({spent:.0f} s of the {args.budget_s:.0f} s budget spent): {what}",
-                  flush=True)
+            print(
+                f"skipped ({spent:.0f} s of the {args.budget_s:.0f} s budget spent): {what}",
+                flush=True,
+            )
             return False
         return True
 
@@ -163,31 +181,45 @@ def measure(args: argparse.Namespace) -> int:
         wall, rc = _run(argv, out / part / f"{name}.log", args.job_timeout_s)
         walls[f"{part}/{name}"] = wall
         exits[f"{part}/{name}"] = rc
-        print(f"[{time.perf_counter() - start:6.0f} s] {part}/{name}: exit {rc}, "
-              f"{wall:.1f} s wall", flush=True)
+        print(
+            f"[{time.perf_counter() - start:6.0f} s] {part}/{name}: exit {rc}, {wall:.1f} s wall",
+            flush=True,
+        )
 
     for system in args.systems:
         for model in args.models:
-            job("gpu", f"{system}-{model}",
-                [f"system={system}", f"model={model}", "seed=0", f"device={args.device}"])
+            job(
+                "gpu",
+                f"{system}-{model}",
+                [f"system={system}", f"model={model}", "seed=0", f"device={args.device}"],
+            )
     if args.batch_models and budget_left("the seed batch's datasets"):
         warm_datasets(args.batch_system, args.batch_models[0], SEEDS)
     for model in args.batch_models:
         seeds = "seed=" + ",".join(map(str, SEEDS))
         base = [f"system={args.batch_system}", f"model={model}", seeds, f"device={args.device}"]
         job("batch", f"{model}-separate", base, multirun=True)
-        job("batch", f"{model}-seeds_per_job3", [*base, f"seeds_per_job={len(SEEDS)}"],
-            multirun=True)
+        job(
+            "batch",
+            f"{model}-seeds_per_job3",
+            [*base, f"seeds_per_job={len(SEEDS)}"],
+            multirun=True,
+        )
     for model in args.models if args.cpu_models is None else args.cpu_models:
-        job("cpu", f"{args.cpu_system}-{model}",
-            [f"system={args.cpu_system}", f"model={model}", "seed=0", "device=cpu"])
+        job(
+            "cpu",
+            f"{args.cpu_system}-{model}",
+            [f"system={args.cpu_system}", f"model={model}", "seed=0", "device=cpu"],
+        )
     (out / "walls.json").write_text(json.dumps(walls, indent=1) + "\n")
     (out / "exits.json").write_text(json.dumps(exits, indent=1) + "\n")
     summarize(out)
     failed = sorted(k for k, rc in exits.items() if rc != 0)
     if failed:
-        print(f"{len(failed)} job(s) failed or ran past the limit: {', '.join(failed)}",
-              file=sys.stderr)
+        print(
+            f"{len(failed)} job(s) failed or ran past the limit: {', '.join(failed)}",
+            file=sys.stderr,
+        )
     return 1 if failed else 0
 
 
@@ -211,22 +243,26 @@ def _s(value: float | None) -> str:
 
 def summarize(out: Path) -> str:
     """The tables, from the records under ``out``; written to ``out/summary.md``."""
+
     def read(name: str) -> dict[str, Any]:
         path = out / name
         return json.loads(path.read_text()) if path.is_file() else {}
 
     walls, exits = read("walls.json"), read("exits.json")
     host_cpu = {(r["system"], r["model"]): r for r in _records(out / "cpu")}
-    lines = ["| system | model | GPU status | device | GPU fit s | GPU total s "
-             "| this host's CPU fit / total s | fit: CPU / GPU (this host) "
-             "| published CPU fit / total s | fit: CPU / GPU (published) "
-             "| total: CPU / GPU (published) | test loss GPU / published |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| system | model | GPU status | device | GPU fit s | GPU total s "
+        "| this host's CPU fit / total s | fit: CPU / GPU (this host) "
+        "| published CPU fit / total s | fit: CPU / GPU (published) "
+        "| total: CPU / GPU (published) | test loss GPU / published |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for rec in _records(out / "gpu"):
         system, model = rec["system"], rec["model"]
         pub, host = _published(system, model), host_cpu.get((system, model))
-        losses = [((r or {}).get("metrics", {}).get("test_loss") or {}).get("mean")
-                  for r in (rec, pub)]
+        losses = [
+            ((r or {}).get("metrics", {}).get("test_loss") or {}).get("mean") for r in (rec, pub)
+        ]
         loss_text = " / ".join(f"{v:.3g}" if isinstance(v, float) else "—" for v in losses)
         lines.append(
             f"| {system} | {model} | {rec['status']} | {rec.get('device')} "
@@ -235,7 +271,8 @@ def summarize(out: Path) -> str:
             f"| {_ratio(_t(host, 'fit_s'), _t(rec, 'fit_s'))} "
             f"| {_s(_t(pub, 'fit_s'))} / {_s(_t(pub, 'total_s'))} "
             f"| {_ratio(_t(pub, 'fit_s'), _t(rec, 'fit_s'))} "
-            f"| {_ratio(_t(pub, 'total_s'), _t(rec, 'total_s'))} | {loss_text} |")
+            f"| {_ratio(_t(pub, 'total_s'), _t(rec, 'total_s'))} | {loss_text} |"
+        )
     recorded = {f"{r['system']}-{r['model']}" for r in _records(out / "gpu")}
     for key, wall in sorted(walls.items()):
         part, name = key.split("/", 1)
@@ -243,11 +280,17 @@ def summarize(out: Path) -> str:
             system, model = name.split("-", 1)
             rc = exits.get(key)
             how = ("stopped at the job limit" if rc == 124 else f"exit {rc}") if rc else ""
-            lines.append(f"| {system} | {model} | no record: the process ran {wall:.1f} s"
-                         f"{', ' + how if how else ''} (see its log) |" + " — |" * 9)
-    lines += ["", "| model | three separate jobs: wall s | seeds_per_job=3: wall s "
-              "| throughput ratio | data s in them (separate / batch) "
-              "| records (separate / batch) |", "|---|---|---|---|---|---|"]
+            lines.append(
+                f"| {system} | {model} | no record: the process ran {wall:.1f} s"
+                f"{', ' + how if how else ''} (see its log) |" + " — |" * 9
+            )
+    lines += [
+        "",
+        "| model | three separate jobs: wall s | seeds_per_job=3: wall s "
+        "| throughput ratio | data s in them (separate / batch) "
+        "| records (separate / batch) |",
+        "|---|---|---|---|---|---|",
+    ]
     for key in sorted(walls):
         part, name = key.split("/", 1)
         if part != "batch" or not name.endswith("-separate"):
@@ -258,8 +301,10 @@ def summarize(out: Path) -> str:
         r_bat = _records(out / "batch" / f"{model}-seeds_per_job3")
         data = [sum(_t(r, "data_s") or 0.0 for r in rs) for rs in (r_sep, r_bat)]
         statuses = [",".join(r["status"] for r in rs) or "—" for rs in (r_sep, r_bat)]
-        lines.append(f"| {model} | {_s(sep)} | {_s(bat)} | {_ratio(sep, bat)} "
-                     f"| {data[0]:.1f} / {data[1]:.1f} | {statuses[0]} / {statuses[1]} |")
+        lines.append(
+            f"| {model} | {_s(sep)} | {_s(bat)} | {_ratio(sep, bat)} "
+            f"| {data[0]:.1f} / {data[1]:.1f} | {statuses[0]} / {statuses[1]} |"
+        )
     text = "\n".join(lines) + "\n"
     (out / "summary.md").write_text(text)
     print(text, flush=True)
@@ -268,23 +313,34 @@ def summarize(out: Path) -> str:
 
 def main() -> int:
     """The command line (module docstring)."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--out", help="where the records and summary go")
     parser.add_argument("--summarize", metavar="DIR", help="print the tables of a finished run")
     parser.add_argument("--profile", default="paper")
     parser.add_argument("--systems", nargs="*", default=["two_body", "pixel_pendulum"])
-    parser.add_argument("--models", nargs="+",
-                        default=["hnn_torch", "hnn_jax", "mlp_torch", "mlp_jax"])
-    parser.add_argument("--device", default="cuda",
-                        help="the device of parts 1 and 2 (cpu to try the script here)")
+    parser.add_argument(
+        "--models", nargs="+", default=["hnn_torch", "hnn_jax", "mlp_torch", "mlp_jax"]
+    )
+    parser.add_argument(
+        "--device", default="cuda", help="the device of parts 1 and 2 (cpu to try the script here)"
+    )
     parser.add_argument("--batch-system", default="two_body")
     parser.add_argument("--batch-models", nargs="*", default=["hnn_jax", "hnn_torch"])
     parser.add_argument("--cpu-system", default="two_body")
-    parser.add_argument("--cpu-models", nargs="*", default=None,
-                        help="the models of part 3 (default: --models; none: skip it)")
-    parser.add_argument("--budget-s", type=float, default=480.0,
-                        help="start no job after this many seconds (default 480)")
+    parser.add_argument(
+        "--cpu-models",
+        nargs="*",
+        default=None,
+        help="the models of part 3 (default: --models; none: skip it)",
+    )
+    parser.add_argument(
+        "--budget-s",
+        type=float,
+        default=480.0,
+        help="start no job after this many seconds (default 480)",
+    )
     parser.add_argument("--job-timeout-s", type=float, default=240.0)
     args = parser.parse_args()
     if args.summarize:

@@ -62,25 +62,38 @@ def _hnnbench() -> list[str]:
 def _env(parallel: int, extra: dict[str, str] | None = None) -> dict[str, str]:
     """A job's environment: progress lines, and JAX taking a share of the device's
     memory as it needs it (several processes share one GPU)."""
-    env = {**os.environ, "HNNBENCH_PROGRESS": "log", "XLA_PYTHON_CLIENT_PREALLOCATE": "false",
-           "XLA_PYTHON_CLIENT_MEM_FRACTION": f"{0.9 / max(1, parallel):.3f}",
-           # every compilation timed as on a fresh machine (no persistent cache hits)
-           "JAX_ENABLE_COMPILATION_CACHE": "false"}
+    env = {
+        **os.environ,
+        "HNNBENCH_PROGRESS": "log",
+        "XLA_PYTHON_CLIENT_PREALLOCATE": "false",
+        "XLA_PYTHON_CLIENT_MEM_FRACTION": f"{0.9 / max(1, parallel):.3f}",
+        # every compilation timed as on a fresh machine (no persistent cache hits)
+        "JAX_ENABLE_COMPILATION_CACHE": "false",
+    }
     env.update(extra or {})
     return env
 
 
 def _environment(out: Path) -> str:
-    code = ("import platform, os\n"
-            "print('python', platform.python_version(), os.cpu_count(), 'CPUs')\n"
-            "import jax\nprint('jax', jax.__version__, jax.devices())\n"
-            "import hnnbench\nprint('hnnbench', getattr(hnnbench, '__version__', '?'))\n")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          env=_env(1), cwd=REPO, check=False)
+    code = (
+        "import platform, os\n"
+        "print('python', platform.python_version(), os.cpu_count(), 'CPUs')\n"
+        "import jax\nprint('jax', jax.__version__, jax.devices())\n"
+        "import hnnbench\nprint('hnnbench', getattr(hnnbench, '__version__', '?'))\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        env=_env(1),
+        cwd=REPO,
+        check=False,
+    )
     text = (proc.stdout + proc.stderr[-800:]).strip()
     try:
-        smi = subprocess.run(["nvidia-smi", "-L"], capture_output=True, text=True,
-                             check=False).stdout
+        smi = subprocess.run(
+            ["nvidia-smi", "-L"], capture_output=True, text=True, check=False
+        ).stdout
     except OSError:
         smi = "no nvidia-smi"
     text += "\n" + smi.strip()
@@ -103,8 +116,9 @@ def measure(args: argparse.Namespace) -> int:
 
     def launch(name: str, argv: list[str], env: dict[str, str]) -> tuple[str, Any, float]:
         log = (out / f"{name}.log").open("w")
-        proc = subprocess.Popen([*_hnnbench(), *argv], stdout=log, stderr=subprocess.STDOUT,
-                                env=env, cwd=REPO)
+        proc = subprocess.Popen(
+            [*_hnnbench(), *argv], stdout=log, stderr=subprocess.STDOUT, env=env, cwd=REPO
+        )
         return name, proc, time.perf_counter()
 
     def run_all(jobs: list[tuple[str, list[str], dict[str, str]]], parallel: int) -> None:
@@ -114,8 +128,10 @@ def measure(args: argparse.Namespace) -> int:
                 running.append(launch(*queue.pop(0)))
             if queue and spent() >= args.budget_s:
                 for name, _, _ in queue:
-                    print(f"skipped ({spent():.0f} s of {args.budget_s:.0f} s spent): {name}",
-                          flush=True)
+                    print(
+                        f"skipped ({spent():.0f} s of {args.budget_s:.0f} s spent): {name}",
+                        flush=True,
+                    )
                 queue = []
             time.sleep(0.5)
             for item in list(running):
@@ -128,29 +144,68 @@ def measure(args: argparse.Namespace) -> int:
                     running.remove(item)
                     walls[name] = time.perf_counter() - began
                     exits[name] = rc
-                    print(f"[{spent():6.0f} s] {name}: exit {rc}, {walls[name]:.1f} s wall",
-                          flush=True)
+                    print(
+                        f"[{spent():6.0f} s] {name}: exit {rc}, {walls[name]:.1f} s wall",
+                        flush=True,
+                    )
 
-    warm = [(f"data-{system}",
-             ["-m", f"system={system}", "model=standing_still", f"seed={seeds}",
-              *common, f"hydra.sweep.dir={out / 'data' / system}"], _env(args.parallel))
-            for system in args.systems]
+    warm = [
+        (
+            f"data-{system}",
+            [
+                "-m",
+                f"system={system}",
+                "model=standing_still",
+                f"seed={seeds}",
+                *common,
+                f"hydra.sweep.dir={out / 'data' / system}",
+            ],
+            _env(args.parallel),
+        )
+        for system in args.systems
+    ]
     run_all(warm, args.parallel)
-    order = [m for m in DEAREST_FIRST if m in args.models] + \
-        [m for m in args.models if m not in DEAREST_FIRST]
-    pairs = [(f"pair-{system}-{model}",
-              ["-m", f"system={system}", f"model={model}", f"seed={seeds}",
-               f"seeds_per_job={args.seeds}", *common,
-               f"hydra.sweep.dir={out / 'pairs' / f'{system}-{model}'}"], _env(args.parallel))
-             for model in order for system in args.systems]
+    order = [m for m in DEAREST_FIRST if m in args.models] + [
+        m for m in args.models if m not in DEAREST_FIRST
+    ]
+    pairs = [
+        (
+            f"pair-{system}-{model}",
+            [
+                "-m",
+                f"system={system}",
+                f"model={model}",
+                f"seed={seeds}",
+                f"seeds_per_job={args.seeds}",
+                *common,
+                f"hydra.sweep.dir={out / 'pairs' / f'{system}-{model}'}",
+            ],
+            _env(args.parallel),
+        )
+        for model in order
+        for system in args.systems
+    ]
     run_all(pairs, args.parallel)
     if args.autotune_pair:
         system, model = args.autotune_pair.split(":")
-        run_all([(f"autotune-{system}-{model}",
-                  ["-m", f"system={system}", f"model={model}", f"seed={seeds}",
-                   f"seeds_per_job={args.seeds}", *common,
-                   f"hydra.sweep.dir={out / 'autotune' / f'{system}-{model}'}"],
-                  _env(1, {"XLA_FLAGS": "--xla_gpu_autotune_level=4"}))], 1)
+        run_all(
+            [
+                (
+                    f"autotune-{system}-{model}",
+                    [
+                        "-m",
+                        f"system={system}",
+                        f"model={model}",
+                        f"seed={seeds}",
+                        f"seeds_per_job={args.seeds}",
+                        *common,
+                        f"hydra.sweep.dir={out / 'autotune' / f'{system}-{model}'}",
+                    ],
+                    _env(1, {"XLA_FLAGS": "--xla_gpu_autotune_level=4"}),
+                )
+            ],
+            1,
+        )
     (out / "walls.json").write_text(json.dumps(walls, indent=1) + "\n")
     (out / "exits.json").write_text(json.dumps(exits, indent=1) + "\n")
     print(f"done in {spent():.0f} s", flush=True)
@@ -186,8 +241,7 @@ def _tolerances() -> dict[str, Any]:
     return {m.name: m for m in registry.metrics()}
 
 
-def _agree(gpu: dict[str, Any], cpu: dict[str, Any], declared: dict[str, Any]
-           ) -> list[str]:
+def _agree(gpu: dict[str, Any], cpu: dict[str, Any], declared: dict[str, Any]) -> list[str]:
     """The metrics of a GPU record not within the twins' tolerance of its CPU record
     (``CheckRule.worsening`` within the rule's factor, both directions)."""
     bad = []
@@ -210,14 +264,15 @@ def _agree(gpu: dict[str, Any], cpu: dict[str, Any], declared: dict[str, Any]
 
 def summarize(out: Path, cpu_dir: Path, plan: bool) -> str:
     out = Path(out)
-    walls = json.loads((out / "walls.json").read_text()) if (out / "walls.json").is_file() \
-        else {}
+    walls = json.loads((out / "walls.json").read_text()) if (out / "walls.json").is_file() else {}
     gpu = _records(out / "pairs")
     cpu = _records(Path(cpu_dir))
     declared = _tolerances()
-    lines = ["| system | model | seeds ok | device wall s | batch fit s | compile s | eval s "
-             "| CPU total s (the same jobs) | CPU / device | metrics within twin tolerance |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| system | model | seeds ok | device wall s | batch fit s | compile s | eval s "
+        "| CPU total s (the same jobs) | CPU / device | metrics within twin tolerance |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
     ratios: dict[str, list[float]] = {}
     pairs = sorted({(s, m) for s, m, _ in gpu})
     for system, model in pairs:
@@ -233,24 +288,29 @@ def summarize(out: Path, cpu_dir: Path, plan: bool) -> str:
         cpu_total = sum((c.get("timings") or {}).get("total_s", 0.0) for c in twins if c)
         have = [(g, c) for g, c in zip(recs, twins, strict=True) if c]
         bad = [(g["seed"], d) for g, c in have for d in _agree(g, c, declared)]
-        agree = (f"{len(have) - len({s for s, _ in bad})}/{len(have)} seeds"
-                 + (f" (off: {'; '.join(f'seed {s}: {d}' for s, d in bad[:3])})" if bad
-                    else ""))
+        agree = f"{len(have) - len({s for s, _ in bad})}/{len(have)} seeds" + (
+            f" (off: {'; '.join(f'seed {s}: {d}' for s, d in bad[:3])})" if bad else ""
+        )
         ratio = cpu_total / wall if wall and cpu_total else math.nan
         if math.isfinite(ratio):
             ratios.setdefault(model, []).append(ratio)
-        lines.append(f"| {system} | {model} | {ok}/{len(recs)} | "
-                     f"{wall or math.nan:.1f} | {fit:.1f} | {compile_s:.1f} | {eval_s:.1f} | "
-                     f"{cpu_total:.0f} | {ratio:.2f}× | {agree} |")
+        lines.append(
+            f"| {system} | {model} | {ok}/{len(recs)} | "
+            f"{wall or math.nan:.1f} | {fit:.1f} | {compile_s:.1f} | {eval_s:.1f} | "
+            f"{cpu_total:.0f} | {ratio:.2f}× | {agree} |"
+        )
     auto = _records(out / "autotune")
     if auto:
         (system, model, _), rec = next(iter(auto.items()))
         base = gpu.get((system, model, 0))
-        lines += ["", f"Autotuning ({system} {model}): compile "
-                  f"{(rec.get('timings') or {}).get('compile_s', math.nan):.1f} s at XLA's "
-                  f"default level against "
-                  f"{((base or {}).get('timings') or {}).get('compile_s', math.nan):.1f} s "
-                  "with hnnbench's (off)."]
+        lines += [
+            "",
+            f"Autotuning ({system} {model}): compile "
+            f"{(rec.get('timings') or {}).get('compile_s', math.nan):.1f} s at XLA's "
+            f"default level against "
+            f"{((base or {}).get('timings') or {}).get('compile_s', math.nan):.1f} s "
+            "with hnnbench's (off).",
+        ]
     if plan and ratios:
         lines += ["", _extrapolation(ratios)]
     text = "\n".join(lines)
@@ -278,11 +338,13 @@ def _extrapolation(ratios: dict[str, list[float]]) -> str:
         ratio = math.exp(statistics.fmean(math.log(r) for r in ratios[model]))
         cpu_s += seconds
         device_s += seconds / ratio
-    return (f"Extrapolation (not a measurement): the protocol plan's JAX twins (every "
-            f"system, {PLAN_SEEDS} seeds) cost {cpu_s / 3600:.1f} CPU hours on the 2-core "
-            f"machine's published job times; at the measured per-family ratios (geometric "
-            f"mean over the systems measured) one pair at a time on the device would take "
-            f"{device_s / 3600:.2f} device hours, before several pairs share it.")
+    return (
+        f"Extrapolation (not a measurement): the protocol plan's JAX twins (every "
+        f"system, {PLAN_SEEDS} seeds) cost {cpu_s / 3600:.1f} CPU hours on the 2-core "
+        f"machine's published job times; at the measured per-family ratios (geometric "
+        f"mean over the systems measured) one pair at a time on the device would take "
+        f"{device_s / 3600:.2f} device hours, before several pairs share it."
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

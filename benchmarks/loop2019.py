@@ -60,8 +60,9 @@ class HNN2019(nn.Module):
     """The original's model wrapper: a baseline (``dx/dt = net(x)``) or an HNN whose
     two output channels are the potentials of a conservative and a solenoidal field."""
 
-    def __init__(self, input_dim: int, net: nn.Module, baseline: bool,
-                 field_type: str = "solenoidal") -> None:
+    def __init__(
+        self, input_dim: int, net: nn.Module, baseline: bool, field_type: str = "solenoidal"
+    ) -> None:
         super().__init__()
         self.net = net
         self.baseline = baseline
@@ -69,7 +70,7 @@ class HNN2019(nn.Module):
         n = input_dim
         eye = torch.eye(n)
         # canonical coordinates (q, p): M maps dH/dx to (dH/dp, -dH/dq) via grad @ M.T
-        self.register_buffer("M", torch.cat([eye[n // 2:], -eye[: n // 2]]))
+        self.register_buffer("M", torch.cat([eye[n // 2 :], -eye[: n // 2]]))
 
     def forward(self, x: torch.Tensor) -> Any:
         y = self.net(x)
@@ -97,8 +98,13 @@ def _l2_loss(u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
 
 
 def make_2019(
-    data: Any, arch: str, batch_size: int | None, lr: float = 1e-3,
-    weight_decay: float = 0.0, seed: int = 0, hidden: int = 200,
+    data: Any,
+    arch: str,
+    batch_size: int | None,
+    lr: float = 1e-3,
+    weight_decay: float = 0.0,
+    seed: int = 0,
+    hidden: int = 200,
 ) -> tuple[Callable[[], None], dict[str, list[float]]]:
     """Build the 2019-style loop on ``data`` (an hnnbench ``Dataset``) and return
     ``(step, stats)``: ``step()`` runs one training step plus the per-step test loss,
@@ -152,9 +158,18 @@ def make_2019(
 
 
 def fit_2019(
-    data: Any, arch: str, steps: int, batch_size: int | None, lr: float = 1e-3,
-    weight_decay: float = 0.0, seed: int = 0, hidden: int = 200, warmup: int = 5,
-    threads: int = 1, block: int = 0, block_times: list[float] | None = None,
+    data: Any,
+    arch: str,
+    steps: int,
+    batch_size: int | None,
+    lr: float = 1e-3,
+    weight_decay: float = 0.0,
+    seed: int = 0,
+    hidden: int = 200,
+    warmup: int = 5,
+    threads: int = 1,
+    block: int = 0,
+    block_times: list[float] | None = None,
 ) -> float:
     """Run the 2019-style loop (see the module docstring) for ``warmup`` untimed steps,
     then ``steps`` timed ones; return the wall seconds per timed step. float32,

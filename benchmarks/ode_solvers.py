@@ -44,8 +44,9 @@ def median_time(fn: Any, repeats: int) -> tuple[float, Any]:
     return statistics.median(times), out
 
 
-def measure(system_name: str, model_name: str, steps: int, repeats: int
-            ) -> tuple[str, str, float, float, int, int, float]:
+def measure(
+    system_name: str, model_name: str, steps: int, repeats: int
+) -> tuple[str, str, float, float, int, int, float]:
     """Train one model briefly; time both solvers on its evaluation rollouts."""
     import torch
     import torchode as to
@@ -59,12 +60,17 @@ def measure(system_name: str, model_name: str, steps: int, repeats: int
     job = prepare_job(compose([f"system={system_name}", f"model={model_name}"]))
     system = job.system_cls(job.system_cfg)
     data, _, _ = dataset_cache.cached(system, 0, "dataset", lambda: system.dataset(0), Dataset.load)
-    traj, _, _ = dataset_cache.cached(system, 0, "evaluation", lambda: system.evaluation(0),
-                              Trajectories.load)
+    traj, _, _ = dataset_cache.cached(
+        system, 0, "evaluation", lambda: system.evaluation(0), Trajectories.load
+    )
     protocol = TrainSettings.resolve(job.system_cfg, job.model_cfg)
     model = job.model_cls(job.model_cfg, system, "cpu")
-    model.fit(data, TrainSettings(steps, protocol.batch_size, protocol.lr,
-                                  protocol.weight_decay), 0, lambda *_: None)
+    model.fit(
+        data,
+        TrainSettings(steps, protocol.batch_size, protocol.lr, protocol.weight_decay),
+        0,
+        lambda *_: None,
+    )
     infer = model._infer()
     field, nets = infer.impl.field, infer.nets64  # type: ignore[attr-defined]
     y0 = torch.as_tensor(model.view.to_model(traj.x0), dtype=torch.float64)
@@ -85,8 +91,9 @@ def measure(system_name: str, model_name: str, steps: int, repeats: int
         return field(nets, y)
 
     term = to.ODETerm(f_to)
-    solver = to.AutoDiffAdjoint(to.Dopri5(term=term),
-                                to.IntegralController(atol=1e-9, rtol=1e-9, term=term))
+    solver = to.AutoDiffAdjoint(
+        to.Dopri5(term=term), to.IntegralController(atol=1e-9, rtol=1e-9, term=term)
+    )
     t_eval = torch.as_tensor(t).expand(y0.shape[0], -1)
 
     def torchode() -> np.ndarray:
@@ -98,8 +105,7 @@ def measure(system_name: str, model_name: str, steps: int, repeats: int
     calls_own = calls["own"] // (repeats + 1)
     t_to, b = median_time(torchode, repeats)
     calls_to = calls["torchode"] // (repeats + 1)
-    return (system_name, model_name, t_own, t_to, calls_own, calls_to,
-            float(np.max(np.abs(a - b))))
+    return (system_name, model_name, t_own, t_to, calls_own, calls_to, float(np.max(np.abs(a - b))))
 
 
 def main() -> int:
@@ -113,17 +119,24 @@ def main() -> int:
     import torch
 
     torch.set_num_threads(1)
-    rows = [measure(system_name, model_name, args.steps, args.repeats)
-            for system_name in args.systems for model_name in args.models]
-    print("| system | model | own dopri5 ms | torchode ms | torchode / own | field calls own"
-          " / torchode | max abs difference |")
+    rows = [
+        measure(system_name, model_name, args.steps, args.repeats)
+        for system_name in args.systems
+        for model_name in args.models
+    ]
+    print(
+        "| system | model | own dopri5 ms | torchode ms | torchode / own | field calls own"
+        " / torchode | max abs difference |"
+    )
     print("|---|---|---|---|---|---|---|")
     worst = 0.0
     for system_name, model_name, t_own, t_to, c_own, c_to, diff in rows:
         ratio = t_to / t_own
         worst = max(worst, ratio)
-        print(f"| {system_name} | {model_name} | {1000 * t_own:.1f} | {1000 * t_to:.1f} | "
-              f"{ratio:.2f}x | {c_own} / {c_to} | {diff:.1e} |")
+        print(
+            f"| {system_name} | {model_name} | {1000 * t_own:.1f} | {1000 * t_to:.1f} | "
+            f"{ratio:.2f}x | {c_own} / {c_to} | {diff:.1e} |"
+        )
     verdict = "switch to torchode" if worst <= RULE else "keep the own solver"
     print(f"\nslowest torchode / own: {worst:.2f}x (rule: switch if <= {RULE}x) -> {verdict}")
     return 0

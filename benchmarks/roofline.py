@@ -99,12 +99,12 @@ def _recorder() -> Any:
             packet = getattr(func, "overloadpacket", None)
             if packet in (aten.mm, aten.addmm):
                 a, b = (args[0], args[1]) if packet is aten.mm else (args[1], args[2])
-                self.matmuls.append(Matmul(a.shape[0], a.shape[1], b.shape[1],
-                                           _is_transposed(a), _is_transposed(b)))
+                self.matmuls.append(
+                    Matmul(a.shape[0], a.shape[1], b.shape[1], _is_transposed(a), _is_transposed(b))
+                )
             elif packet in (aten.bmm, aten.baddbmm):
                 a, b = (args[0], args[1]) if packet is aten.bmm else (args[1], args[2])
-                self.matmuls.append(Matmul(a.shape[1], a.shape[2], b.shape[2],
-                                           batch=a.shape[0]))
+                self.matmuls.append(Matmul(a.shape[1], a.shape[2], b.shape[2], batch=a.shape[0]))
             elif packet in (aten.mv, aten.addmv):
                 a, v = (args[0], args[1]) if packet is aten.mv else (args[1], args[2])
                 self.matmuls.append(Matmul(a.shape[0], a.shape[1], 1, _is_transposed(a)))
@@ -154,8 +154,12 @@ def torch_fit_matmuls(
     if step - one:  # one fit step must be part of the 1-step fit
         raise RuntimeError("torch fit matmuls are not 'steps x step + evaluation'")
     step_fc = two_fc - one_fc
-    return {"step": step, "eval": evaluation, "step_flopcounter": step_fc,
-            "eval_flopcounter": one_fc - step_fc}
+    return {
+        "step": step,
+        "eval": evaluation,
+        "step_flopcounter": step_fc,
+        "eval_flopcounter": one_fc - step_fc,
+    }
 
 
 # --------------------------------------------------------------------------- JAX
@@ -259,8 +263,13 @@ def jax_fit_flops(
     eval_alone = sum(f for f, _ in hlo_dot_flops(evaluation.as_text()))
     chunk_xla = _cost(chunk).get("flops", float("nan"))
     eval_xla = _cost(evaluation).get("flops", float("nan"))
-    return {"step_dot": step_dot, "eval_dot": eval_dot, "eval_dot_alone": eval_alone,
-            "step_xla": chunk_xla - eval_xla, "eval_xla": eval_xla}
+    return {
+        "step_dot": step_dot,
+        "eval_dot": eval_dot,
+        "eval_dot_alone": eval_alone,
+        "step_xla": chunk_xla - eval_xla,
+        "eval_xla": eval_xla,
+    }
 
 
 # --------------------------------------------------------------------------- rates
@@ -289,10 +298,16 @@ def torch_rate(mm: Matmul, rounds: int = 30, budget_s: float = 2.0) -> float:
 
     torch.set_num_threads(1)
     gen = torch.Generator().manual_seed(0)
-    a = torch.rand(mm.k, mm.m, generator=gen).t() if mm.trans_a else torch.rand(
-        mm.m, mm.k, generator=gen)
-    b = torch.rand(mm.n, mm.k, generator=gen).t() if mm.trans_b else torch.rand(
-        mm.k, mm.n, generator=gen)
+    a = (
+        torch.rand(mm.k, mm.m, generator=gen).t()
+        if mm.trans_a
+        else torch.rand(mm.m, mm.k, generator=gen)
+    )
+    b = (
+        torch.rand(mm.n, mm.k, generator=gen).t()
+        if mm.trans_b
+        else torch.rand(mm.k, mm.n, generator=gen)
+    )
     c = torch.empty(mm.m, mm.n)
 
     def run(reps: int) -> None:
@@ -322,6 +337,7 @@ def jax_rate(mm: Matmul, rounds: int = 30, budget_s: float = 2.0) -> float:
     perturb_a = mm.m * mm.k <= mm.k * mm.n
     key = (a_shape, b_shape, dims, reps)
     if key not in _JAX_LOOPS:
+
         def loop(a: Any, b: Any) -> Any:
             def body(_: Any, carry: Any) -> Any:
                 a, b, _c = carry
@@ -355,9 +371,12 @@ def transposed(mm: Matmul) -> Matmul:
     return Matmul(mm.n, mm.k, mm.m, not mm.trans_b, not mm.trans_a, mm.batch)
 
 
-def measure_rates(matmuls: Iterable[Matmul], backends: Iterable[str] = ("torch", "jax"),
-                  budget_s: float = 2.0, with_transposed: bool = True,
-                  ) -> dict[Matmul, dict[str, float]]:
+def measure_rates(
+    matmuls: Iterable[Matmul],
+    backends: Iterable[str] = ("torch", "jax"),
+    budget_s: float = 2.0,
+    with_transposed: bool = True,
+) -> dict[Matmul, dict[str, float]]:
     """``{matmul (batch 1): {"torch": FLOP/s, "jax": FLOP/s, "best": FLOP/s}}`` for
     each distinct product (shape and layout) in ``matmuls`` and, with
     ``with_transposed``, for its transposed twin (:func:`transposed`)."""
@@ -376,8 +395,9 @@ def measure_rates(matmuls: Iterable[Matmul], backends: Iterable[str] = ("torch",
     return rates
 
 
-def shape_rate(rates: dict[Matmul, dict[str, float]], mm: Matmul,
-               either_orientation: bool = True) -> float:
+def shape_rate(
+    rates: dict[Matmul, dict[str, float]], mm: Matmul, either_orientation: bool = True
+) -> float:
     """The best measured rate for ``mm``'s shape over every layout measured (and, with
     ``either_orientation``, for the transposed product ``(n, k) x (k, m)`` too: the same
     FLOPs on the same data, which a library is free to compute either way)."""
@@ -392,8 +412,13 @@ def peak_rate(rates: dict[Matmul, dict[str, float]]) -> float:
     return max(r["best"] for r in rates.values())
 
 
-def roofline_seconds(matmuls: Counter, rates: dict[Matmul, dict[str, float]],
-                     weight: float = 1.0, either_orientation: bool = True) -> float:
+def roofline_seconds(
+    matmuls: Counter,
+    rates: dict[Matmul, dict[str, float]],
+    weight: float = 1.0,
+    either_orientation: bool = True,
+) -> float:
     """``weight * sum(FLOPs / rate(shape))`` over ``matmuls`` (a Counter)."""
-    return weight * sum(mm.flops * c / shape_rate(rates, mm, either_orientation)
-                        for mm, c in matmuls.items())
+    return weight * sum(
+        mm.flops * c / shape_rate(rates, mm, either_orientation) for mm, c in matmuls.items()
+    )

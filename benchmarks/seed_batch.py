@@ -63,13 +63,14 @@ def _pair(system_name: str, model_name: str) -> tuple[Any, Any, list[Any], Any]:
     _set_threads(1)
     job = prepare_job(compose([f"system={system_name}", f"model={model_name}"]))
     system = job.system_cls(job.system_cfg)
-    datas = [dataset_cache.cached(system, s, "dataset", lambda s=s: system.dataset(s),
-                          Dataset.load)[0] for s in SEEDS]
+    datas = [
+        dataset_cache.cached(system, s, "dataset", lambda s=s: system.dataset(s), Dataset.load)[0]
+        for s in SEEDS
+    ]
     return job, system, datas, TrainSettings.resolve(job.system_cfg, job.model_cfg)
 
 
-def training(system_name: str, model_name: str, steps: int, repeats: int
-             ) -> tuple[float, float]:
+def training(system_name: str, model_name: str, steps: int, repeats: int) -> tuple[float, float]:
     """Median seconds of separate fits of :data:`SEEDS` and of one batched fit."""
     from hnnbench._contracts.plugin import TrainSettings
 
@@ -78,12 +79,12 @@ def training(system_name: str, model_name: str, steps: int, repeats: int
 
     def separate() -> None:
         for seed, data in zip(SEEDS, datas, strict=True):
-            job.model_cls(job.model_cfg, system, "cpu").fit(data, train, seed,
-                                                            lambda *_: None)
+            job.model_cls(job.model_cfg, system, "cpu").fit(data, train, seed, lambda *_: None)
 
     def batched() -> None:
-        job.model_cls(job.model_cfg, system, "cpu").fit_seeds(datas, train, list(SEEDS),
-                                                              lambda *_: None)
+        job.model_cls(job.model_cfg, system, "cpu").fit_seeds(
+            datas, train, list(SEEDS), lambda *_: None
+        )
 
     separate()
     batched()
@@ -96,8 +97,9 @@ def training(system_name: str, model_name: str, steps: int, repeats: int
     return statistics.median(times["separate"]), statistics.median(times["batched"])
 
 
-def aten_calls(system_name: str, model_name: str, steps: int = 20
-               ) -> tuple[float, float, float, float]:
+def aten_calls(
+    system_name: str, model_name: str, steps: int = 20
+) -> tuple[float, float, float, float]:
     """ATen calls per training step, one seed's fit and the batched fit of ``SEEDS``,
     and of those the views: ``(calls 1, calls batch, views 1, views batch)``."""
     import collections
@@ -111,16 +113,16 @@ def aten_calls(system_name: str, model_name: str, steps: int = 20
             super().__init__()
             self.calls: collections.Counter[bool] = collections.Counter()
 
-        def __torch_dispatch__(self, func: Any, types: Any, args: Any = (),
-                               kwargs: Any = None) -> Any:
+        def __torch_dispatch__(
+            self, func: Any, types: Any, args: Any = (), kwargs: Any = None
+        ) -> Any:
             self.calls[bool(getattr(func, "is_view", False))] += 1
             return func(*args, **(kwargs or {}))
 
     job, system, datas, protocol = _pair(system_name, model_name)
 
     def count(n_steps: int, batched: bool) -> collections.Counter[bool]:
-        train = TrainSettings(n_steps, protocol.batch_size, protocol.lr,
-                              protocol.weight_decay)
+        train = TrainSettings(n_steps, protocol.batch_size, protocol.lr, protocol.weight_decay)
         model = job.model_cls(job.model_cfg, system, "cpu")
         with Count() as counter:
             if batched:
@@ -142,18 +144,29 @@ def jobs(system_name: str, model_name: str, steps: int) -> tuple[float, float]:
     """Wall seconds of the CLI sweep of :data:`SEEDS` without and with them as one job
     (``seeds_per_job``)."""
     exe = str(Path(sys.executable).parent / "hnnbench")
-    common = ["-m", f"system={system_name}", f"model={model_name}",
-              f"seed={','.join(map(str, SEEDS))}", f"system.steps={steps}", "device=cpu",
-              "save_model=false"]
+    common = [
+        "-m",
+        f"system={system_name}",
+        f"model={model_name}",
+        f"seed={','.join(map(str, SEEDS))}",
+        f"system.steps={steps}",
+        "device=cpu",
+        "save_model=false",
+    ]
     env = {**os.environ, "HNNBENCH_PROGRESS": "off"}
     out: list[float] = []
     with tempfile.TemporaryDirectory() as tmp:
-        subprocess.run([exe, *common, f"hydra.sweep.dir={tmp}/warm"], check=True,
-                       capture_output=True, env=env)
+        subprocess.run(
+            [exe, *common, f"hydra.sweep.dir={tmp}/warm"], check=True, capture_output=True, env=env
+        )
         for i, extra in enumerate(([], [f"seeds_per_job={len(SEEDS)}"])):
             start = time.perf_counter()
-            subprocess.run([exe, *common, *extra, f"hydra.sweep.dir={tmp}/run{i}"], check=True,
-                           capture_output=True, env=env)
+            subprocess.run(
+                [exe, *common, *extra, f"hydra.sweep.dir={tmp}/run{i}"],
+                check=True,
+                capture_output=True,
+                env=env,
+            )
             out.append(time.perf_counter() - start)
     return out[0], out[1]
 
@@ -162,26 +175,36 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--systems", nargs="+", default=["two_body", "real_pendulum"])
     parser.add_argument("--models", nargs="+", default=list(JAX_TWINS))
-    parser.add_argument("--seeds", type=int, default=len(SEEDS),
-                        help="seeds of one pair: separate fits against one batch of them")
+    parser.add_argument(
+        "--seeds",
+        type=int,
+        default=len(SEEDS),
+        help="seeds of one pair: separate fits against one batch of them",
+    )
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--jobs", action="store_true", help="also time whole CLI sweeps")
-    parser.add_argument("--ops", action="store_true",
-                        help="count ATen calls per step instead (torch models only)")
+    parser.add_argument(
+        "--ops", action="store_true", help="count ATen calls per step instead (torch models only)"
+    )
     args = parser.parse_args()
     global SEEDS
     SEEDS = tuple(range(args.seeds))
 
     if args.ops:
-        print(f"| system | model | ATen calls per step, 1 seed | {len(SEEDS)} seeds batched "
-              "| of them views, 1 seed | batched |")
+        print(
+            f"| system | model | ATen calls per step, 1 seed | {len(SEEDS)} seeds batched "
+            "| of them views, 1 seed | batched |"
+        )
         print("|---|---|---|---|---|---|")
         for system_name in args.systems:
             for model_name in (m for m in args.models if m.endswith("_torch")):
                 one, batch, one_views, batch_views = aten_calls(system_name, model_name)
-                print(f"| {system_name} | {model_name} | {one:.1f} | {batch:.1f} "
-                      f"| {one_views:.1f} | {batch_views:.1f} |", flush=True)
+                print(
+                    f"| {system_name} | {model_name} | {one:.1f} | {batch:.1f} "
+                    f"| {one_views:.1f} | {batch_views:.1f} |",
+                    flush=True,
+                )
         return 0
 
     rows: list[tuple[Any, ...]] = []
@@ -208,9 +231,13 @@ def main() -> int:
             text += f" {row[4]:.1f} | {row[5]:.1f} | {row[4] / row[5]:.2f}x |"
         print(text)
     best = {s: max(r[2] / r[3] for r in rows if r[0] == s) for s in args.systems}
-    print("\nbest training ratio per system: " + ", ".join(
-        f"{s} {v:.2f}x ({'meets' if v >= TARGET else 'below'} the {TARGET}x target)"
-        for s, v in best.items()))
+    print(
+        "\nbest training ratio per system: "
+        + ", ".join(
+            f"{s} {v:.2f}x ({'meets' if v >= TARGET else 'below'} the {TARGET}x target)"
+            for s, v in best.items()
+        )
+    )
     return 0
 
 

@@ -62,15 +62,16 @@ def main(argv: list[str] | None = None) -> int:
     system = system_cls(registry.config_defaults("system", args.system))
     cfg = registry.config_defaults("model", "srnn_jax")
     model = SRNNJax(cfg, system, "cpu")
-    problem = model.view.problem(with_validation(system.dataset(0), 0),
-                                 *model.training_options())
+    problem = model.view.problem(with_validation(system.dataset(0), 0), *model.training_options())
     windows, dts = problem.train
     batch = system.cfg.batch_size  # one training step's windows: the protocol's batch
     if batch is not None and batch < len(windows):
         windows, dts = windows[:batch], dts[:batch]
     layout, weights = model.layout(), model.initial_weights(0)
-    print(f"{args.system}: {windows.shape[0]} windows of {windows.shape[1]} states a step, "
-          f"networks {cfg.layers - 1} x {cfg.hidden} {cfg.activation}, float32, 1 thread")
+    print(
+        f"{args.system}: {windows.shape[0]} windows of {windows.shape[1]} states a step, "
+        f"networks {cfg.layers - 1} x {cfg.hidden} {cfg.activation}, float32, 1 thread"
+    )
 
     def chain(step: Callable, w: object, d: object, stack: Callable, mean: Callable) -> object:
         state, predictions = w[:, 0], []  # type: ignore[index]
@@ -93,18 +94,24 @@ def main(argv: list[str] | None = None) -> int:
             def interval(z: jax.Array, h: jax.Array) -> tuple[jax.Array, jax.Array]:
                 z = srnn_jax.step(n, z, h[:, None])
                 return z, z
+
             # the steps under lax.scan, as the loss ran them before the shared half-kick
             _, out = jax.lax.scan(interval, wj[:, 0], jnp.swapaxes(dj, 0, 1))
             return jnp.mean((jnp.swapaxes(out, 0, 1) - wj[:, 1:]) ** 2)
+
         step = jax.jit(jax.value_and_grad(loss))
         value = float(jax.block_until_ready(step(params))[0])
         return (lambda: jax.block_until_ready(step(params))), value
 
     # torch: value and gradient, eager
-    tparams = {k: torch.as_tensor(v, dtype=torch.float32).clone().requires_grad_()
-               for k, v in weights.items()}
-    wt, dt = torch.as_tensor(windows, dtype=torch.float32), torch.as_tensor(
-        dts, dtype=torch.float32)
+    tparams = {
+        k: torch.as_tensor(v, dtype=torch.float32).clone().requires_grad_()
+        for k, v in weights.items()
+    }
+    wt, dt = (
+        torch.as_tensor(windows, dtype=torch.float32),
+        torch.as_tensor(dts, dtype=torch.float32),
+    )
 
     def torch_loss(kind: str) -> tuple[Callable[[], object], float]:
         def step() -> float:
@@ -112,10 +119,10 @@ def main(argv: list[str] | None = None) -> int:
             if kind == "window_loss":
                 loss = srnn_torch.window_loss(n, wt, dt)
             else:
-                loss = chain(lambda z, h: srnn_torch.step(n, z, h), wt, dt, torch.stack,
-                             torch.mean)
+                loss = chain(lambda z, h: srnn_torch.step(n, z, h), wt, dt, torch.stack, torch.mean)
             torch.autograd.grad(loss, list(tparams.values()))
             return float(loss.detach())
+
         return step, step()
 
     kinds = ("chain of step", "window_loss")
@@ -126,9 +133,11 @@ def main(argv: list[str] | None = None) -> int:
             for k in kinds:
                 times[k].append(_best(built[k][0], args.steps))
         best = {k: min(v) for k, v in times.items()}
-        print(f"{backend:6s} " + "  ".join(
-            f"{k}: {best[k] * 1e3:.2f} ms (loss {built[k][1]:.9g})" for k in kinds)
-            + f"  ratio {best['window_loss'] / best['chain of step']:.2f}")
+        print(
+            f"{backend:6s} "
+            + "  ".join(f"{k}: {best[k] * 1e3:.2f} ms (loss {built[k][1]:.9g})" for k in kinds)
+            + f"  ratio {best['window_loss'] / best['chain of step']:.2f}"
+        )
     return 0
 
 

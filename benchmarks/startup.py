@@ -59,26 +59,38 @@ def main() -> int:
             times[name].append(timed(cmd))
     print(f"start-up, median of {args.repeats} interleaved runs (s):")
     for name, values in times.items():
-        print(f"  {name:32s} {statistics.median(values):6.3f}  "
-              f"(min {min(values):.3f}, max {max(values):.3f})")
+        print(
+            f"  {name:32s} {statistics.median(values):6.3f}  "
+            f"(min {min(values):.3f}, max {max(values):.3f})"
+        )
     ratio = statistics.median(times["hnnbench list"]) / statistics.median(
-        times["python -c 'import torch, jax'"])
-    print(f"  ratio list / import torch, jax: {ratio:.2f} (target < 0.5: "
-          f"{'met' if ratio < 0.5 else 'missed'})")
+        times["python -c 'import torch, jax'"]
+    )
+    print(
+        f"  ratio list / import torch, jax: {ratio:.2f} (target < 0.5: "
+        f"{'met' if ratio < 0.5 else 'missed'})"
+    )
 
     print("backends imported by one quick job (fresh process each):")
     env = {**os.environ, "HNNBENCH_PROGRESS": "off"}
     ok = ratio < 0.5
     for model, own, other in (("mlp_torch", "torch", "jax"), ("mlp_jax", "jax", "torch")):
         with tempfile.TemporaryDirectory() as tmp:
-            out = subprocess.run([sys.executable, "-c", JOB.format(model=model), tmp],
-                                 capture_output=True, text=True, env=env, check=True)
+            out = subprocess.run(
+                [sys.executable, "-c", JOB.format(model=model), tmp],
+                capture_output=True,
+                text=True,
+                env=env,
+                check=True,
+            )
         status, has_torch, has_jax = out.stdout.split()[-3:]
         imported = {"torch": has_torch == "True", "jax": has_jax == "True"}
         good = status == "ok" and imported[own] and not imported[other]
         ok &= good
-        print(f"  {model:10s} status={status}  imports {own}: {imported[own]}  "
-              f"imports {other}: {imported[other]}  -> {'ok' if good else 'FAILED'}")
+        print(
+            f"  {model:10s} status={status}  imports {own}: {imported[own]}  "
+            f"imports {other}: {imported[other]}  -> {'ok' if good else 'FAILED'}"
+        )
     return 0 if ok else 1
 
 

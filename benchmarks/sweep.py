@@ -119,8 +119,13 @@ def load_records(directory: Path) -> list[dict[str, Any]]:
     return out
 
 
-def run_sweep(label: str, args: list[str], root: Path, cache: Path | None = None,
-              extra_env: dict[str, str] | None = None) -> Sweep:
+def run_sweep(
+    label: str,
+    args: list[str],
+    root: Path,
+    cache: Path | None = None,
+    extra_env: dict[str, str] | None = None,
+) -> Sweep:
     """Run ``hnnbench -m ARGS`` into ``root/label`` with ``cache`` as the hnnbench cache
     (datasets and JAX compilations; default: a fresh one, ``root/label/cache``) and
     ``extra_env`` set."""
@@ -129,18 +134,25 @@ def run_sweep(label: str, args: list[str], root: Path, cache: Path | None = None
     log = root / label / "hnnbench.log"
     log.parent.mkdir(parents=True)
     command = [hnnbench_exe(), "-m", *args, f"hydra.sweep.dir={directory}"]
-    env = {**os.environ, "HNNBENCH_CACHE_DIR": str(cache), "HNNBENCH_PROGRESS": "log",
-           **(extra_env or {})}
+    env = {
+        **os.environ,
+        "HNNBENCH_CACHE_DIR": str(cache),
+        "HNNBENCH_PROGRESS": "log",
+        **(extra_env or {}),
+    }
     print(f"[{label}] {' '.join(command[1:])}", flush=True)
     before = _children_cpu_s()
     start = time.perf_counter()
     with open(log, "wb") as fh:
-        proc = subprocess.run(command, cwd=root / label, stdout=fh, stderr=subprocess.STDOUT,
-                              env=env, check=False)
+        proc = subprocess.run(
+            command, cwd=root / label, stdout=fh, stderr=subprocess.STDOUT, env=env, check=False
+        )
     wall = time.perf_counter() - start
     cpu = _children_cpu_s() - before
-    print(f"[{label}] exit {proc.returncode} after {wall:.1f} s wall, {cpu:.1f} s CPU; "
-          f"log: {log}", flush=True)
+    print(
+        f"[{label}] exit {proc.returncode} after {wall:.1f} s wall, {cpu:.1f} s CPU; log: {log}",
+        flush=True,
+    )
     if proc.returncode != 0:
         print(log.read_text(errors="replace")[-3000:], file=sys.stderr)
     return Sweep(label, directory, wall, cpu, proc.returncode, load_records(directory))
@@ -191,18 +203,25 @@ def _table(rows: list[list[Any]], headers: list[str]) -> str:
     """A Markdown (GitHub) table; numbers (already formatted) right-aligned."""
     numeric = ("jobs", "seed", "speed-up", "job s per wall s", "cpu per wall s", "wall_min")
     align = ["right" if h in numeric or h.endswith("_s") else "left" for h in headers]
-    return tabulate(rows, headers=headers, tablefmt="github", disable_numparse=True,
-                    colalign=align)
+    return tabulate(rows, headers=headers, tablefmt="github", disable_numparse=True, colalign=align)
 
 
 def job_table(records: list[dict[str, Any]]) -> str:
     """One row per job: identity, status, and the phases of ``timings``."""
     rows = []
-    for rec in sorted(records, key=lambda r: (str(r.get("system")), str(r.get("model")),
-                                              str(r.get("seed")))):
+    for rec in sorted(
+        records, key=lambda r: (str(r.get("system")), str(r.get("model")), str(r.get("seed")))
+    ):
         timings = rec.get("timings") or {}
-        rows.append([rec.get("system"), rec.get("model"), rec.get("seed"), rec.get("status"),
-                     *(_fmt(timings.get(k)) for k in ("total_s", *PHASES))])
+        rows.append(
+            [
+                rec.get("system"),
+                rec.get("model"),
+                rec.get("seed"),
+                rec.get("status"),
+                *(_fmt(timings.get(k)) for k in ("total_s", *PHASES)),
+            ]
+        )
     return _table(rows, ["system", "model", "seed", "status", "total_s", *PHASES])
 
 
@@ -214,9 +233,11 @@ def totals(records: list[dict[str, Any]]) -> dict[str, Any]:
         values = [float(r["timings"][key]) for r in records if key in (r.get("timings") or {})]
         sums[key] = sum(values) if values else None
     counts = Counter(str(r.get("status")) for r in records)
-    return {"jobs": len(records),
-            "statuses": ", ".join(f"{n} {s}" for s, n in sorted(counts.items())),
-            **sums}
+    return {
+        "jobs": len(records),
+        "statuses": ", ".join(f"{n} {s}" for s, n in sorted(counts.items())),
+        **sums,
+    }
 
 
 def comparison_table(sweeps: list[Sweep]) -> str:
@@ -226,17 +247,35 @@ def comparison_table(sweeps: list[Sweep]) -> str:
     for sweep in sweeps:
         tot = totals(sweep.records)
         wall = sweep.wall_s if sweep.returncode == 0 else None  # a failed run: no figure
-        rows.append([
-            sweep.label if wall else f"{sweep.label} (failed, exit {sweep.returncode})",
-            tot["jobs"], tot["statuses"], _fmt(wall), _fmt(wall / 60 if wall else None),
-            _fmt(sweep.cpu_s), _fmt(sweep.cpu_s / wall) if wall and sweep.cpu_s else "",
-            _fmt(tot["total_s"]),
-            _fmt(tot["total_s"] / wall) if wall and tot["total_s"] else "",
-            f"{base / wall:.2f}x" if base and wall else "",
-        ])
-    return _table(rows, ["launcher", "jobs", "statuses", "wall_s", "wall_min", "cpu_s",
-                         "cpu per wall s", "sum of job total_s", "job s per wall s",
-                         "speed-up"])
+        rows.append(
+            [
+                sweep.label if wall else f"{sweep.label} (failed, exit {sweep.returncode})",
+                tot["jobs"],
+                tot["statuses"],
+                _fmt(wall),
+                _fmt(wall / 60 if wall else None),
+                _fmt(sweep.cpu_s),
+                _fmt(sweep.cpu_s / wall) if wall and sweep.cpu_s else "",
+                _fmt(tot["total_s"]),
+                _fmt(tot["total_s"] / wall) if wall and tot["total_s"] else "",
+                f"{base / wall:.2f}x" if base and wall else "",
+            ]
+        )
+    return _table(
+        rows,
+        [
+            "launcher",
+            "jobs",
+            "statuses",
+            "wall_s",
+            "wall_min",
+            "cpu_s",
+            "cpu per wall s",
+            "sum of job total_s",
+            "job s per wall s",
+            "speed-up",
+        ],
+    )
 
 
 def summary_table(sweeps: list[Sweep]) -> str:
@@ -244,19 +283,38 @@ def summary_table(sweeps: list[Sweep]) -> str:
     rows = []
     for sweep in sweeps:
         tot = totals(sweep.records)
-        rows.append([sweep.label, _launcher_of(sweep.directory), tot["jobs"], tot["statuses"],
-                     _fmt(_span_s(sweep.records)),
-                     *(_fmt(tot[k]) for k in ("total_s", *PHASES))])
-    return _table(rows, ["sweep", "launcher", "jobs", "statuses", "span_s", "sum total_s",
-                         *(f"sum {k}" for k in PHASES)])
+        rows.append(
+            [
+                sweep.label,
+                _launcher_of(sweep.directory),
+                tot["jobs"],
+                tot["statuses"],
+                _fmt(_span_s(sweep.records)),
+                *(_fmt(tot[k]) for k in ("total_s", *PHASES)),
+            ]
+        )
+    return _table(
+        rows,
+        [
+            "sweep",
+            "launcher",
+            "jobs",
+            "statuses",
+            "span_s",
+            "sum total_s",
+            *(f"sum {k}" for k in PHASES),
+        ],
+    )
 
 
 def machine_line() -> str:
     """CPU count and load, which the wall times depend on."""
     load = " / ".join(f"{x:.2f}" for x in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
     cpu = platform.processor() or platform.machine()
-    return (f"{platform.node()}: {os.cpu_count()} CPUs ({cpu}), Python "
-            f"{platform.python_version()}, load average (1/5/15 min) {load}")
+    return (
+        f"{platform.node()}: {os.cpu_count()} CPUs ({cpu}), Python "
+        f"{platform.python_version()}, load average (1/5/15 min) {load}"
+    )
 
 
 def summarise(directories: list[Path]) -> int:
@@ -277,8 +335,9 @@ def summarise(directories: list[Path]) -> int:
     return 0
 
 
-def benchmark(overrides: list[str], launchers: list[str], n_jobs: int, keep: Path | None,
-              warm: bool = False) -> int:
+def benchmark(
+    overrides: list[str], launchers: list[str], n_jobs: int, keep: Path | None, warm: bool = False
+) -> int:
     """Run the sweep once per launcher, side by side; print the tables. ``warm``: first
     run it once with the basic launcher to fill one cache (datasets and JAX
     compilations), then time every launcher against that cache."""
@@ -300,8 +359,9 @@ def benchmark(overrides: list[str], launchers: list[str], n_jobs: int, keep: Pat
             label = name if name == "basic" else f"{name} n_jobs={n_jobs}"
             # The directory name goes into a Hydra override: no '=' or spaces in it.
             slug = name if name == "basic" else f"{name}_{n_jobs}"
-            sweep = run_sweep(slug, [*args, *launcher_args(name, n_jobs)], root, cache,
-                              LAUNCHER_ENV.get(name))
+            sweep = run_sweep(
+                slug, [*args, *launcher_args(name, n_jobs)], root, cache, LAUNCHER_ENV.get(name)
+            )
             sweep.label = label
             sweeps.append(sweep)
         print(f"\nmachine after: {machine_line()}\n")
@@ -324,24 +384,48 @@ def main(argv: list[str] | None = None) -> int:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="\n".join(__doc__.splitlines()[1:]),
     )
-    parser.add_argument("--overrides", nargs="+", default=[], metavar="KEY=VALUE",
-                        help="sweep overrides; replace the defaults "
-                             f"({' '.join(f'{k}={v}' for k, v in DEFAULT_OVERRIDES.items())}) "
-                             "key by key")
-    parser.add_argument("--n-jobs", type=int, default=2,
-                        help="parallel jobs of the non-basic launchers (default 2)")
-    parser.add_argument("--launchers", nargs="+", choices=LAUNCHERS,
-                        default=["basic", "joblib"],
-                        help="launchers to compare, in this order (default: basic joblib)")
-    parser.add_argument("--keep", type=Path, default=None, metavar="DIR",
-                        help="keep the sweep directories and logs under DIR "
-                             "(default: a temporary directory, removed)")
-    parser.add_argument("--warm", action="store_true",
-                        help="time every launcher with caches that one first, uncompared "
-                             "run filled (a user's second sweep); default: each starts "
-                             "empty")
-    parser.add_argument("--from", dest="sources", nargs="+", type=Path, metavar="DIR",
-                        help="only summarise these existing sweep directories")
+    parser.add_argument(
+        "--overrides",
+        nargs="+",
+        default=[],
+        metavar="KEY=VALUE",
+        help="sweep overrides; replace the defaults "
+        f"({' '.join(f'{k}={v}' for k, v in DEFAULT_OVERRIDES.items())}) "
+        "key by key",
+    )
+    parser.add_argument(
+        "--n-jobs", type=int, default=2, help="parallel jobs of the non-basic launchers (default 2)"
+    )
+    parser.add_argument(
+        "--launchers",
+        nargs="+",
+        choices=LAUNCHERS,
+        default=["basic", "joblib"],
+        help="launchers to compare, in this order (default: basic joblib)",
+    )
+    parser.add_argument(
+        "--keep",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="keep the sweep directories and logs under DIR "
+        "(default: a temporary directory, removed)",
+    )
+    parser.add_argument(
+        "--warm",
+        action="store_true",
+        help="time every launcher with caches that one first, uncompared "
+        "run filled (a user's second sweep); default: each starts "
+        "empty",
+    )
+    parser.add_argument(
+        "--from",
+        dest="sources",
+        nargs="+",
+        type=Path,
+        metavar="DIR",
+        help="only summarise these existing sweep directories",
+    )
     args = parser.parse_args(argv)
     if args.sources:
         return summarise(args.sources)

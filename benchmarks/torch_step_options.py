@@ -109,8 +109,9 @@ def initial_arrays(d: int, out: int, seed: int = 0) -> dict[str, Any]:
     return {f"f.{k}": v for k, v in init_arrays(seed, d, out, cfg).items()}
 
 
-def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
-                   ) -> tuple[dict[str, Step], dict[str, float], float]:
+def torch_variants(
+    n: int, d: int, hnn: bool, compile_mode: str | None
+) -> tuple[dict[str, Step], dict[str, float], float]:
     """``{name: step}`` for one shape and family, each variant's gradient difference
     from the ``a47bd0f`` step (relative to its largest entry), and the seconds
     ``torch.compile`` took (NaN without it)."""
@@ -128,11 +129,13 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
     arrays = initial_arrays(d, 1 if hnn else d)
 
     def fresh() -> dict[str, torch.Tensor]:
-        return {k: torch.as_tensor(v, dtype=torch.float32).clone().requires_grad_()
-                for k, v in arrays.items()}
+        return {
+            k: torch.as_tensor(v, dtype=torch.float32).clone().requires_grad_()
+            for k, v in arrays.items()
+        }
 
     def plain_symplectic(g: torch.Tensor) -> torch.Tensor:  # a47bd0f's
-        return torch.cat([g[:, d // 2:], -g[:, :d // 2]], dim=-1)
+        return torch.cat([g[:, d // 2 :], -g[:, : d // 2]], dim=-1)
 
     def field(net: MLP) -> torch.Tensor:
         if not hnn:
@@ -148,8 +151,9 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
 
     grads: dict[str, list[torch.Tensor]] = {}
 
-    def swapped(attr: str, replacement: Callable[..., Any],
-                loss: Callable[..., torch.Tensor]) -> Callable[..., torch.Tensor]:
+    def swapped(
+        attr: str, replacement: Callable[..., Any], loss: Callable[..., torch.Tensor]
+    ) -> Callable[..., torch.Tensor]:
         """``loss`` with :mod:`hnnbench.neural.torch._backprop`'s ``attr`` replaced by
         ``replacement`` while it runs."""
         from hnnbench.neural.torch import _backprop
@@ -165,8 +169,9 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
 
         return patched
 
-    def with_tanh(kernel: Callable[[torch.Tensor], torch.Tensor],
-                  loss: Callable[..., torch.Tensor]) -> Callable[..., torch.Tensor]:
+    def with_tanh(
+        kernel: Callable[[torch.Tensor], torch.Tensor], loss: Callable[..., torch.Tensor]
+    ) -> Callable[..., torch.Tensor]:
         """``loss`` with the hand-written backward's forward float32 ``tanh`` by
         ``kernel`` (the backward's ``tanh_backward`` reads its output, as before)."""
         from hnnbench.neural.torch import _backprop
@@ -180,8 +185,7 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
 
         return swapped("_act", act, loss)
 
-    def with_fused_linear_tanh(loss: Callable[..., torch.Tensor]
-                               ) -> Callable[..., torch.Tensor]:
+    def with_fused_linear_tanh(loss: Callable[..., torch.Tensor]) -> Callable[..., torch.Tensor]:
         """``loss`` with the hand-written backward's forward layers (product, bias,
         float32 ``tanh``) each one oneDNN call with a ``tanh`` post-op."""
         from hnnbench.neural.torch import _backprop
@@ -202,8 +206,7 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
     def optimizer_step(name: str, loss: Callable[..., torch.Tensor]) -> Step:
         params = fresh()
         grads[name] = list(torch.autograd.grad(loss(params), list(params.values())))
-        opt = torch.optim.Adam(list(params.values()), lr=LR, weight_decay=WEIGHT_DECAY,
-                               fused=True)
+        opt = torch.optim.Adam(list(params.values()), lr=LR, weight_decay=WEIGHT_DECAY, fused=True)
 
         def one() -> None:
             value = loss(params)
@@ -213,8 +216,12 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
 
         return one
 
-    def direct_step(name: str, loss: Callable[..., torch.Tensor], ftz: bool = False,
-                    tanh: Callable[[torch.Tensor], torch.Tensor] | None = None) -> Step:
+    def direct_step(
+        name: str,
+        loss: Callable[..., torch.Tensor],
+        ftz: bool = False,
+        tanh: Callable[[torch.Tensor], torch.Tensor] | None = None,
+    ) -> Step:
         if tanh is not None:
             loss = with_tanh(tanh, loss)
         params = fresh()
@@ -242,18 +249,30 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
             g = grad_fn({k: v.detach() for k, v in params.items()})
             with torch.no_grad():
                 torch._foreach_add_(adam.steps, 1)
-                torch._fused_adam_(adam.params, list(g.values()), adam.exp_avg,
-                                   adam.exp_avg_sq, [], adam.steps, lr=LR, beta1=0.9,
-                                   beta2=0.999, weight_decay=WEIGHT_DECAY, eps=1e-8,
-                                   amsgrad=False, maximize=False)
+                torch._fused_adam_(
+                    adam.params,
+                    list(g.values()),
+                    adam.exp_avg,
+                    adam.exp_avg_sq,
+                    [],
+                    adam.steps,
+                    lr=LR,
+                    beta1=0.9,
+                    beta2=0.999,
+                    weight_decay=WEIGHT_DECAY,
+                    eps=1e-8,
+                    amsgrad=False,
+                    maximize=False,
+                )
 
         return one
 
-    def manual_step(name: str, tanh_: Callable[[torch.Tensor], torch.Tensor] = torch.tanh_
-                    ) -> Step:
+    def manual_step(name: str, tanh_: Callable[[torch.Tensor], torch.Tensor] = torch.tanh_) -> Step:
         params = fresh()
-        w1, b1, w2, b2, w3 = (params[f"f.linears.{i}.{kind}"].detach() for i, kind in (
-            (0, "weight"), (0, "bias"), (1, "weight"), (1, "bias"), (2, "weight")))
+        w1, b1, w2, b2, w3 = (
+            params[f"f.linears.{i}.{kind}"].detach()
+            for i, kind in ((0, "weight"), (0, "bias"), (1, "weight"), (1, "bias"), (2, "weight"))
+        )
         adam = FusedAdam([w1, b1, w2, b2, w3], LR, WEIGHT_DECAY)
         tb = torch.ops.aten.tanh_backward
         half = d // 2
@@ -292,10 +311,21 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
         def one() -> None:
             g = gradient()
             torch._foreach_add_(adam.steps, 1)
-            torch._fused_adam_(adam.params, g, adam.exp_avg, adam.exp_avg_sq, [],
-                               adam.steps, lr=LR, beta1=0.9, beta2=0.999,
-                               weight_decay=WEIGHT_DECAY, eps=1e-8, amsgrad=False,
-                               maximize=False)
+            torch._fused_adam_(
+                adam.params,
+                g,
+                adam.exp_avg,
+                adam.exp_avg_sq,
+                [],
+                adam.steps,
+                lr=LR,
+                beta1=0.9,
+                beta2=0.999,
+                weight_decay=WEIGHT_DECAY,
+                eps=1e-8,
+                amsgrad=False,
+                maximize=False,
+            )
 
         return one
 
@@ -304,42 +334,65 @@ def torch_variants(n: int, d: int, hnn: bool, compile_mode: str | None
         "+ direct Adam": direct_step("+ direct Adam", loss_mean(MLP)),
         "+ mse_loss": direct_step("+ mse_loss", loss_mse(MLP)),
         "hnnbench": direct_step("hnnbench", loss_mse(TrainingMLP)),
-        "hnnbench + flush denormals": direct_step("hnnbench + flush denormals",
-                                                  loss_mse(TrainingMLP), ftz=True),
-        **({"hnnbench + oneDNN tanh": direct_step("hnnbench + oneDNN tanh",
-                                                  loss_mse(TrainingMLP), tanh=onednn_tanh)}
-           if torch.backends.mkldnn.is_available() else {}),  # a build without oneDNN
-        "hnnbench + sigmoid tanh": direct_step("hnnbench + sigmoid tanh",
-                                               loss_mse(TrainingMLP), tanh=sigmoid_tanh_),
-        **({"hnnbench + fused linear-tanh": direct_step(
-            "hnnbench + fused linear-tanh", with_fused_linear_tanh(loss_mse(TrainingMLP)))}
-           if torch.backends.mkldnn.is_available() else {}),
+        "hnnbench + flush denormals": direct_step(
+            "hnnbench + flush denormals", loss_mse(TrainingMLP), ftz=True
+        ),
+        **(
+            {
+                "hnnbench + oneDNN tanh": direct_step(
+                    "hnnbench + oneDNN tanh", loss_mse(TrainingMLP), tanh=onednn_tanh
+                )
+            }
+            if torch.backends.mkldnn.is_available()
+            else {}
+        ),  # a build without oneDNN
+        "hnnbench + sigmoid tanh": direct_step(
+            "hnnbench + sigmoid tanh", loss_mse(TrainingMLP), tanh=sigmoid_tanh_
+        ),
+        **(
+            {
+                "hnnbench + fused linear-tanh": direct_step(
+                    "hnnbench + fused linear-tanh", with_fused_linear_tanh(loss_mse(TrainingMLP))
+                )
+            }
+            if torch.backends.mkldnn.is_available()
+            else {}
+        ),
         "torch.func.grad": func_grad_step("torch.func.grad", loss_mse(MLP)),
         "no autograd": manual_step("no autograd"),
-        "no autograd + sigmoid tanh": manual_step("no autograd + sigmoid tanh",
-                                                  sigmoid_tanh_),
+        "no autograd + sigmoid tanh": manual_step("no autograd + sigmoid tanh", sigmoid_tanh_),
     }
     compile_s = float("nan")
     if compile_mode is not None:
-        compiled = torch.compile(optimizer_step("torch.compile", loss_mean(MLP)),
-                                 mode=compile_mode)
+        compiled = torch.compile(optimizer_step("torch.compile", loss_mean(MLP)), mode=compile_mode)
         start = time.perf_counter()
         compiled()
         compile_s = time.perf_counter() - start
-        print(f"  torch.compile of the {'hnn' if hnn else 'mlp'} step ({n} x {d}): "
-              f"{compile_s:.1f} s (not counted)", flush=True)
+        print(
+            f"  torch.compile of the {'hnn' if hnn else 'mlp'} step ({n} x {d}): "
+            f"{compile_s:.1f} s (not counted)",
+            flush=True,
+        )
         variants["torch.compile"] = compiled
-    for swapped, plain in (("hnnbench + sigmoid tanh", "hnnbench"),
-                           ("hnnbench + fused linear-tanh", "hnnbench"),
-                           ("no autograd + sigmoid tanh", "no autograd")):
+    for swapped, plain in (
+        ("hnnbench + sigmoid tanh", "hnnbench"),
+        ("hnnbench + fused linear-tanh", "hnnbench"),
+        ("no autograd + sigmoid tanh", "no autograd"),
+    ):
         if swapped in grads and all(
-                torch.equal(a, b) for a, b in zip(grads[swapped], grads[plain], strict=True)):
-            raise RuntimeError(f"{swapped!r} computed {plain!r}'s gradient bit for bit: "
-                               "its tanh kernel was not used")
+            torch.equal(a, b) for a, b in zip(grads[swapped], grads[plain], strict=True)
+        ):
+            raise RuntimeError(
+                f"{swapped!r} computed {plain!r}'s gradient bit for bit: "
+                "its tanh kernel was not used"
+            )
     reference = grads["a47bd0f"]
-    diffs = {name: max(float((a - b).abs().max() / b.abs().max())
-                       for a, b in zip(g, reference, strict=True))
-             for name, g in grads.items()}
+    diffs = {
+        name: max(
+            float((a - b).abs().max() / b.abs().max()) for a, b in zip(g, reference, strict=True)
+        )
+        for name, g in grads.items()
+    }
     return variants, diffs, compile_s
 
 
@@ -356,8 +409,10 @@ def jax_step(n: int, d: int, hnn: bool, chunk: int = 10) -> Step:
     x = jnp.asarray(rng.normal(size=(n, d)), jnp.float32)
     y = jnp.asarray(rng.normal(size=(n, d)), jnp.float32)
     arrays = initial_arrays(d, 1 if hnn else d)
-    params = [jnp.asarray(arrays[f"f.linears.{i}.{kind}"], jnp.float32) for i, kind in (
-        (0, "weight"), (0, "bias"), (1, "weight"), (1, "bias"), (2, "weight"))]
+    params = [
+        jnp.asarray(arrays[f"f.linears.{i}.{kind}"], jnp.float32)
+        for i, kind in ((0, "weight"), (0, "bias"), (1, "weight"), (1, "bias"), (2, "weight"))
+    ]
 
     def net(ps: list[Any], xi: Any) -> Any:
         w1, b1, w2, b2, w3 = ps
@@ -366,7 +421,7 @@ def jax_step(n: int, d: int, hnn: bool, chunk: int = 10) -> Step:
     def loss(ps: list[Any]) -> Any:
         if hnn:
             g = jax.vmap(jax.grad(lambda xi: net(ps, xi)[0]))(x)
-            f = jnp.concatenate([g[:, d // 2:], -g[:, :d // 2]], axis=1)
+            f = jnp.concatenate([g[:, d // 2 :], -g[:, : d // 2]], axis=1)
         else:
             f = jax.vmap(lambda xi: net(ps, xi))(x)
         return jnp.mean((f - y) ** 2)
@@ -436,25 +491,40 @@ def op_timings(n: int, d: int) -> None:
     rows = {
         f"torch.tanh ({n}, {HIDDEN})": best_us(lambda: torch.tanh(a)),
         f"XLA tanh ({n}, {HIDDEN})": best_us(lambda: jtanh(ja).block_until_ready()),
-        **({f"oneDNN tanh ({n}, {HIDDEN}), with both layout conversions":
-            best_us(lambda: onednn_tanh(a))}
-           if torch.backends.mkldnn.is_available() else {}),
-        f"2 sigmoid(2a) - 1 in place ({n}, {HIDDEN}), with a copy":
-            best_us(lambda: sigmoid_tanh_(a.clone())),
+        **(
+            {
+                f"oneDNN tanh ({n}, {HIDDEN}), with both layout conversions": best_us(
+                    lambda: onednn_tanh(a)
+                )
+            }
+            if torch.backends.mkldnn.is_available()
+            else {}
+        ),
+        f"2 sigmoid(2a) - 1 in place ({n}, {HIDDEN}), with a copy": best_us(
+            lambda: sigmoid_tanh_(a.clone())
+        ),
         f"  the copy alone ({n}, {HIDDEN})": best_us(lambda: a.clone()),
         f"torch.sigmoid ({n}, {HIDDEN})": best_us(lambda: torch.sigmoid(a)),
         f"a hidden layer ({n},{HIDDEN})x({HIDDEN},{HIDDEN}) + b: addmm": best_us(
-            lambda: torch.addmm(b_hid, a, w_hid.t())),
+            lambda: torch.addmm(b_hid, a, w_hid.t())
+        ),
         "  the same, then ATen tanh_ (hnnbench's)": best_us(
-            lambda: torch.addmm(b_hid, a, w_hid.t()).tanh_()),
-        **({"  the same as one oneDNN call with a tanh post-op": best_us(
-            lambda: torch.ops.mkldnn._linear_pointwise(a, w_hid, b_hid, "tanh", [], ""))}
-           if torch.backends.mkldnn.is_available() else {}),
-        f"({n},{HIDDEN})x({HIDDEN},{d}) as h @ w.t() (F.linear's)":
-            best_us(lambda: a @ w_out.t()),
+            lambda: torch.addmm(b_hid, a, w_hid.t()).tanh_()
+        ),
+        **(
+            {
+                "  the same as one oneDNN call with a tanh post-op": best_us(
+                    lambda: torch.ops.mkldnn._linear_pointwise(a, w_hid, b_hid, "tanh", [], "")
+                )
+            }
+            if torch.backends.mkldnn.is_available()
+            else {}
+        ),
+        f"({n},{HIDDEN})x({HIDDEN},{d}) as h @ w.t() (F.linear's)": best_us(lambda: a @ w_out.t()),
         "the same as (w @ h.t()).t()": best_us(lambda: (w_out @ a.t()).t()),
-        f"({HIDDEN},{n})x({n},{d}) as g.t() @ x (a weight gradient)":
-            best_us(lambda: a.t() @ a[:, :d]),
+        f"({HIDDEN},{n})x({n},{d}) as g.t() @ x (a weight gradient)": best_us(
+            lambda: a.t() @ a[:, :d]
+        ),
         "the same as (x.t() @ g).t()": best_us(lambda: (a[:, :d].t() @ a).t()),
     }
     print(f"\n  ops, best of 5 x 300, microseconds ({n} rows, d = {d}):")
@@ -462,13 +532,17 @@ def op_timings(n: int, d: int) -> None:
         print(f"    {name:58s} {us:8.1f}")
     grid = torch.linspace(-10.0, 10.0, 200_001)
     exact = torch.tanh(grid.double())
-    kernels = {"torch.tanh": torch.tanh(grid),
-               "XLA tanh": torch.as_tensor(np.array(jtanh(jnp.asarray(grid.numpy())))),
-               "2 sigmoid(2a) - 1": sigmoid_tanh_(grid.clone())}
+    kernels = {
+        "torch.tanh": torch.tanh(grid),
+        "XLA tanh": torch.as_tensor(np.array(jtanh(jnp.asarray(grid.numpy())))),
+        "2 sigmoid(2a) - 1": sigmoid_tanh_(grid.clone()),
+    }
     if torch.backends.mkldnn.is_available():
         kernels["oneDNN tanh"] = onednn_tanh(grid)
-    print("\n  float32 tanh against float64 tanh on 200001 points of [-10, 10]: "
-          "largest absolute error, largest relative error (|tanh| >= 1e-30):")
+    print(
+        "\n  float32 tanh against float64 tanh on 200001 points of [-10, 10]: "
+        "largest absolute error, largest relative error (|tanh| >= 1e-30):"
+    )
     for name, value in kernels.items():
         err = (value.double() - exact).abs()
         rel = (err / exact.abs().clamp_min(1e-30)).max()
@@ -480,23 +554,33 @@ def main() -> int:
     parser.add_argument("--shapes", nargs="+", choices=list(SHAPES), default=list(SHAPES))
     parser.add_argument("--steps", type=int, default=200)
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--cpu", type=int, default=None,
-                        help="the core to pin to (default: the first allowed one)")
-    parser.add_argument("--no-compile", action="store_true",
-                        help="leave out torch.compile (its compilation takes 10-60 s)")
-    parser.add_argument("--compile-mode", default="default",
-                        help="torch.compile's mode (default, reduce-overhead, "
-                        "max-autotune-no-cudagraphs)")
+    parser.add_argument(
+        "--cpu", type=int, default=None, help="the core to pin to (default: the first allowed one)"
+    )
+    parser.add_argument(
+        "--no-compile",
+        action="store_true",
+        help="leave out torch.compile (its compilation takes 10-60 s)",
+    )
+    parser.add_argument(
+        "--compile-mode",
+        default="default",
+        help="torch.compile's mode (default, reduce-overhead, max-autotune-no-cudagraphs)",
+    )
     args = parser.parse_args()
     cpu = _pin(args.cpu)
-    print(f"load average {os.getloadavg()[0]:.2f}; {args.steps} steps x {args.repeats} "
-          f"repeats, pinned to core {cpu}, one thread", flush=True)
+    print(
+        f"load average {os.getloadavg()[0]:.2f}; {args.steps} steps x {args.repeats} "
+        f"repeats, pinned to core {cpu}, one thread",
+        flush=True,
+    )
     summary = []
     for shape in args.shapes:
         n, d = SHAPES[shape]
         for family, hnn in (("mlp", False), ("hnn", True)):
             variants, diffs, compile_s = torch_variants(
-                n, d, hnn, None if args.no_compile else args.compile_mode)
+                n, d, hnn, None if args.no_compile else args.compile_mode
+            )
             variants["JAX"] = jax_step(n, d, hnn)
             times: dict[str, list[float]] = {k: [] for k in variants}
             for fn in variants.values():  # warm-up
@@ -506,31 +590,41 @@ def main() -> int:
                     times[name].append(time_steps(fn, args.steps))
             jax_ms = statistics.median(times["JAX"])
             base = statistics.median(times["a47bd0f"])
-            print(f"\n  {shape} ({n} x {d}) {family} step: ms median / best, "
-                  "vs a47bd0f, vs JAX (medians), gradient vs a47bd0f's")
+            print(
+                f"\n  {shape} ({n} x {d}) {family} step: ms median / best, "
+                "vs a47bd0f, vs JAX (medians), gradient vs a47bd0f's"
+            )
             for name, values in times.items():
                 ms = statistics.median(values)
                 diff = diffs.get(name)
-                print(f"    {name:28s} {ms:7.3f} / {min(values):7.3f}   {ms / base:5.2f}x   "
-                      f"{ms / jax_ms:5.2f}x   {'—' if diff is None else f'{diff:.1e}'}")
+                print(
+                    f"    {name:28s} {ms:7.3f} / {min(values):7.3f}   {ms / base:5.2f}x   "
+                    f"{ms / jax_ms:5.2f}x   {'—' if diff is None else f'{diff:.1e}'}"
+                )
                 summary.append((shape, family, name, ms, ms / jax_ms))
             if "torch.compile" in times:
-                saved = (statistics.median(times["hnnbench"])
-                         - statistics.median(times["torch.compile"]))
-                print(f"    torch.compile saves {saved:.3f} ms per step against hnnbench's "
-                      f"step: its {compile_s:.1f} s of compilation pay off after "
-                      + (f"{compile_s / saved * 1e3:,.0f} steps" if saved > 0 else "never"))
+                saved = statistics.median(times["hnnbench"]) - statistics.median(
+                    times["torch.compile"]
+                )
+                print(
+                    f"    torch.compile saves {saved:.3f} ms per step against hnnbench's "
+                    f"step: its {compile_s:.1f} s of compilation pay off after "
+                    + (f"{compile_s / saved * 1e3:,.0f} steps" if saved > 0 else "never")
+                )
         op_timings(n, d)
-    print("\n| shape | family | " + " | ".join(dict.fromkeys(r[2] for r in summary))
-          + " |")
+    print("\n| shape | family | " + " | ".join(dict.fromkeys(r[2] for r in summary)) + " |")
     names = list(dict.fromkeys(r[2] for r in summary))
     print("|---|---|" + "---|" * len(names))
     for shape in args.shapes:
         for family in ("mlp", "hnn"):
             cells = {r[2]: r for r in summary if r[0] == shape and r[1] == family}
-            print(f"| {shape} | {family} | " + " | ".join(
-                f"{cells[k][3]:.3f} ({cells[k][4]:.2f}×)" if k in cells else "—"
-                for k in names) + " |")
+            print(
+                f"| {shape} | {family} | "
+                + " | ".join(
+                    f"{cells[k][3]:.3f} ({cells[k][4]:.2f}×)" if k in cells else "—" for k in names
+                )
+                + " |"
+            )
     return 0
 
 

@@ -45,11 +45,14 @@ print("hnnbench", hnnbench.__version__, "- records go to", os.path.relpath(OUT))
 # %%
 records = {}
 for model in ("mlp_jax", "hnn_jax"):
-    records[model] = hnnbench.run("spring", model, seed=0, profile="quick",
-                                  out=OUT / "spring" / model)
+    records[model] = hnnbench.run(
+        "spring", model, seed=0, profile="quick", out=OUT / "spring" / model
+    )
     m = records[model]["metrics"]
-    print(f"{model:8s} status={records[model]['status']}  test_loss={m['test_loss']['mean']:.3g}"
-          f"  energy_mse={m['energy_mse']['mean']:.3g}")
+    print(
+        f"{model:8s} status={records[model]['status']}  test_loss={m['test_loss']['mean']:.3g}"
+        f"  energy_mse={m['energy_mse']['mean']:.3g}"
+    )
 
 # %% [markdown]
 # ## 2. The true energy along each rollout
@@ -81,8 +84,13 @@ plt.show()
 # directories of records back, one row per record.
 
 # %%
-board = hnnbench.sweep(["spring", "pendulum"], ["mlp_jax", "hnn_jax", "oracle"],
-                       seeds=[0, 1], profile="quick", out=OUT / "sweep")
+board = hnnbench.sweep(
+    ["spring", "pendulum"],
+    ["mlp_jax", "hnn_jax", "oracle"],
+    seeds=[0, 1],
+    profile="quick",
+    out=OUT / "sweep",
+)
 board[["system", "model", "n_seeds", "test_loss_mean", "energy_mse_mean", "energy_mse_std"]]
 
 # %%
@@ -97,6 +105,7 @@ frame.groupby(["system", "model"])["energy_mse"].describe()[["count", "mean", "m
 # to this process (a package would declare an entry point instead: docs/PLUGINS.md);
 # from then on it is a model like any other, with every metric computed by the core.
 
+
 # %%
 class Linear(hnnbench.Model):
     """dx/dt = A x + b by least squares (no training loop)."""
@@ -110,15 +119,21 @@ class Linear(hnnbench.Model):
         return x @ self.coef[:-1] + self.coef[-1]
 
     def rollout(self, x0, t, rtol=1e-9, atol=1e-9):
-        return hnnbench.solve_batch(self.time_derivative, x0, t, rtol=rtol, atol=atol,
-                                    method="RK45")
+        return hnnbench.solve_batch(
+            self.time_derivative, x0, t, rtol=rtol, atol=atol, method="RK45"
+        )
 
 
 hnnbench.register("model", "linear", Linear)
 
 # %%
-board = hnnbench.sweep(["spring", "pendulum"], ["linear", "mlp_jax", "hnn_jax"], seeds=[0, 1],
-                       profile="quick", out=OUT / "sweep")  # resumes: only `linear` runs
+board = hnnbench.sweep(
+    ["spring", "pendulum"],
+    ["linear", "mlp_jax", "hnn_jax"],
+    seeds=[0, 1],
+    profile="quick",
+    out=OUT / "sweep",
+)  # resumes: only `linear` runs
 board[["system", "model", "status", "test_loss_mean", "energy_mse_mean"]]
 
 # %% [markdown]

@@ -62,8 +62,9 @@ def energy_error_per_traj(energy_hat: np.ndarray, energy_true: np.ndarray) -> np
     return np.mean((np.asarray(energy_hat) - np.asarray(energy_true)) ** 2, axis=1)
 
 
-def state_difference(x_hat: np.ndarray, x_true: np.ndarray,
-                     angles: tuple[int, ...] = ()) -> np.ndarray:
+def state_difference(
+    x_hat: np.ndarray, x_true: np.ndarray, angles: tuple[int, ...] = ()
+) -> np.ndarray:
     """``x_hat - x_true`` (any shape ``(..., D)``), with the columns ``angles`` (the
     system's angle positions, :attr:`hnnbench.System.angles`) taken modulo 2π into
     ``[-π, π)``: an angle off by a whole turn is the same configuration, not an error
@@ -73,19 +74,22 @@ def state_difference(x_hat: np.ndarray, x_true: np.ndarray,
         cols = list(angles)
         with np.errstate(invalid="ignore"):
             diff[..., cols] = diff[..., cols] - 2.0 * np.pi * np.floor(
-                (diff[..., cols] + np.pi) / (2.0 * np.pi))
+                (diff[..., cols] + np.pi) / (2.0 * np.pi)
+            )
     return diff
 
 
-def rollout_error_per_traj(x_hat: np.ndarray, x_true: np.ndarray,
-                           angles: tuple[int, ...] = ()) -> np.ndarray:
+def rollout_error_per_traj(
+    x_hat: np.ndarray, x_true: np.ndarray, angles: tuple[int, ...] = ()
+) -> np.ndarray:
     """``(M,)`` mean over time and coordinates of ``(x_hat - x)^2`` for ``(M, T, D)``,
     angle differences modulo 2π (:func:`state_difference`)."""
     return np.mean(state_difference(x_hat, x_true, angles) ** 2, axis=(1, 2))
 
 
-def rollout_skill_per_traj(x_hat: np.ndarray, x_true: np.ndarray,
-                           angles: tuple[int, ...] = ()) -> np.ndarray:
+def rollout_skill_per_traj(
+    x_hat: np.ndarray, x_true: np.ndarray, angles: tuple[int, ...] = ()
+) -> np.ndarray:
     """``(M,)`` skill of a rollout over standing still: ``1 - e / e_static``, with ``e``
     the rollout's mean squared state error (:func:`rollout_error_per_traj`) and
     ``e_static`` that of holding each trajectory's initial state. 1: exact; 0: no better
@@ -93,8 +97,7 @@ def rollout_skill_per_traj(x_hat: np.ndarray, x_true: np.ndarray,
     (``e_static == 0``) scores 1 if the rollout is exact there, else ``-inf``."""
     x_true = np.asarray(x_true, dtype=np.float64)
     err = rollout_error_per_traj(x_hat, x_true, angles)
-    static = rollout_error_per_traj(np.broadcast_to(x_true[:, :1], x_true.shape), x_true,
-                                    angles)
+    static = rollout_error_per_traj(np.broadcast_to(x_true[:, :1], x_true.shape), x_true, angles)
     with np.errstate(divide="ignore", invalid="ignore"):
         skill = 1.0 - err / static
     still = static == 0
@@ -109,7 +112,10 @@ def reversibility_per_traj(x_back: np.ndarray, x0: np.ndarray) -> np.ndarray:
 
 
 def valid_prediction_time(
-    x_hat: np.ndarray, x_true: np.ndarray, t: np.ndarray, threshold: float = 0.1,
+    x_hat: np.ndarray,
+    x_true: np.ndarray,
+    t: np.ndarray,
+    threshold: float = 0.1,
     angles: tuple[int, ...] = (),
 ) -> np.ndarray:
     """``(M,)`` time until the relative error first exceeds ``threshold``.
@@ -177,8 +183,9 @@ def _rollout_skill(ctx: EvalContext) -> np.ndarray:
 
 
 def _vpt(ctx: EvalContext) -> np.ndarray:
-    return valid_prediction_time(ctx.states_hat(), ctx.traj.states, ctx.traj.t,
-                                 ctx.cfg.vpt_threshold, ctx.system.angles)
+    return valid_prediction_time(
+        ctx.states_hat(), ctx.traj.states, ctx.traj.t, ctx.cfg.vpt_threshold, ctx.system.angles
+    )
 
 
 def _vpt_censored(ctx: EvalContext) -> Any:
@@ -233,88 +240,190 @@ def _pixels(system: System) -> bool:
 
 
 TRAIN_LOSS = Metric(
-    "train_loss", "MSE of predicted vs target dx/dt on the training set, at the inputs "
+    "train_loss",
+    "MSE of predicted vs target dx/dt on the training set, at the inputs "
     "the model trained on (noise included; pixels: the training objective). The zero "
-    "field scores the mean squared target", _loss("train"), check=CheckRule(2, 1e-12), order=10,
-    errors_fail_job=True, domain=NONNEGATIVE)
+    "field scores the mean squared target",
+    _loss("train"),
+    check=CheckRule(2, 1e-12),
+    order=10,
+    errors_fail_job=True,
+    domain=NONNEGATIVE,
+)
 VAL_LOSS = Metric(
-    "val_loss", "MSE of predicted vs target dx/dt on the validation set, carved from the "
+    "val_loss",
+    "MSE of predicted vs target dx/dt on the validation set, carved from the "
     "training data, at the clean inputs where the system adds noise (pixels: the training "
     "objective); on every simulated state system the checkpoint selection criterion "
     "(selection.criterion) at the scored checkpoint. The zero field scores the mean "
     "squared target",
-    _valid_loss, check=CheckRule(2, 1e-12), order=15,
-    errors_fail_job=True, domain=NONNEGATIVE, selects=True)
+    _valid_loss,
+    check=CheckRule(2, 1e-12),
+    order=15,
+    errors_fail_job=True,
+    domain=NONNEGATIVE,
+    selects=True,
+)
 TEST_LOSS = Metric(
-    "test_loss", "MSE of predicted vs target dx/dt on the test set, at the clean inputs "
+    "test_loss",
+    "MSE of predicted vs target dx/dt on the test set, at the clean inputs "
     "where the system adds noise to them (so the true field scores 0, not the noise "
     "floor; pixels: the training objective). The zero field scores the mean squared "
-    "target", _loss("test", clean=True), check=CheckRule(2, 1e-12), order=20,
-    figures=("data_efficiency",), log=True, headline=True,
-    errors_fail_job=True, domain=NONNEGATIVE)
+    "target",
+    _loss("test", clean=True),
+    check=CheckRule(2, 1e-12),
+    order=20,
+    figures=("data_efficiency",),
+    log=True,
+    headline=True,
+    errors_fail_job=True,
+    domain=NONNEGATIVE,
+)
 ENERGY_MSE = Metric(
-    "energy_mse", "Mean squared error of the true energy along the model's rollout vs "
+    "energy_mse",
+    "Mean squared error of the true energy along the model's rollout vs "
     "along the true trajectory. A model that does not move (the zero field) scores the "
     "true trajectory's own energy change: 0 on conservative systems, so it is marked "
-    "best only among rollouts that beat standing still (rollout_skill > 0)", _energy_mse,
-    check=CheckRule(10, 1e-10), order=30,
-    figures=("heatmap", "data_efficiency"), log=True, headline=True,
-    errors_fail_job=True, domain=NONNEGATIVE, best_requires=("rollout_skill", 0.0))
+    "best only among rollouts that beat standing still (rollout_skill > 0)",
+    _energy_mse,
+    check=CheckRule(10, 1e-10),
+    order=30,
+    figures=("heatmap", "data_efficiency"),
+    log=True,
+    headline=True,
+    errors_fail_job=True,
+    domain=NONNEGATIVE,
+    best_requires=("rollout_skill", 0.0),
+)
 ROLLOUT_MSE = Metric(
-    "rollout_mse", "Mean squared state error along the rollout (angles modulo 2 pi). The "
+    "rollout_mse",
+    "Mean squared state error along the rollout (angles modulo 2 pi). The "
     "zero field scores the mean squared displacement of the true trajectory from its "
-    "start", _rollout_mse,
-    check=CheckRule(3, 1e-8), order=40, figures=("heatmap", "data_efficiency"),
-    errors_fail_job=True, beat_reference=True, evidence="rollout", domain=NONNEGATIVE,
-    headline=True)
+    "start",
+    _rollout_mse,
+    check=CheckRule(3, 1e-8),
+    order=40,
+    figures=("heatmap", "data_efficiency"),
+    errors_fail_job=True,
+    beat_reference=True,
+    evidence="rollout",
+    domain=NONNEGATIVE,
+    headline=True,
+)
 ROLLOUT_SKILL = Metric(
-    "rollout_skill", "Skill of the rollout over standing still: 1 - rollout error / the "
+    "rollout_skill",
+    "Skill of the rollout over standing still: 1 - rollout error / the "
     "error of holding the initial state, per trajectory (angles modulo 2 pi). 1: exact; "
-    "0: the zero field (no motion); negative: worse than not moving", _rollout_skill,
-    better="higher", scale="linear", check=CheckRule(3, 0.0), order=45,
-    errors_fail_job=True, beat_reference=True, evidence="rollout", domain=(-math.inf, 1.0))
+    "0: the zero field (no motion); negative: worse than not moving",
+    _rollout_skill,
+    better="higher",
+    scale="linear",
+    check=CheckRule(3, 0.0),
+    order=45,
+    errors_fail_job=True,
+    beat_reference=True,
+    evidence="rollout",
+    domain=(-math.inf, 1.0),
+)
 REVERSIBILITY_ERROR = Metric(
-    "reversibility_error", "Time-reversal test of the learned flow: mean |R Phi_T R Phi_T "
+    "reversibility_error",
+    "Time-reversal test of the learned flow: mean |R Phi_T R Phi_T "
     "x0 - x0|^2 (R flips momenta; pixels: latent momenta). A diagnostic, never marked "
-    "best: the zero field (no motion) scores exactly 0", _reversibility,
-    check=CheckRule(10, 1e-10), applies=_time_reversible, order=50, ranked=False,
-    errors_fail_job=True, domain=NONNEGATIVE)
+    "best: the zero field (no motion) scores exactly 0",
+    _reversibility,
+    check=CheckRule(10, 1e-10),
+    applies=_time_reversible,
+    order=50,
+    ranked=False,
+    errors_fail_job=True,
+    domain=NONNEGATIVE,
+)
 VALID_PREDICTION_TIME = Metric(
-    "valid_prediction_time", "Time until the rollout's relative state error first exceeds "
+    "valid_prediction_time",
+    "Time until the rollout's relative state error first exceeds "
     "evaluation.vpt_threshold (angles modulo 2 pi, also in the state's norm); capped at "
     "the horizon (vpt_censored says how often). The zero field scores the time the true "
-    "state takes to move threshold x its norm from its start", _vpt, better="higher",
+    "state takes to move threshold x its norm from its start",
+    _vpt,
+    better="higher",
     scale="linear",
-    check=CheckRule(3, 0.0), order=60,
-    errors_fail_job=True, beat_reference=True, evidence="rollout", domain=NONNEGATIVE)
+    check=CheckRule(3, 0.0),
+    order=60,
+    errors_fail_job=True,
+    beat_reference=True,
+    evidence="rollout",
+    domain=NONNEGATIVE,
+)
 VPT_CENSORED = Metric(
-    "vpt_censored", "Share of evaluation trajectories whose valid prediction time reached "
+    "vpt_censored",
+    "Share of evaluation trajectories whose valid prediction time reached "
     "the horizon (there it is a lower bound; the horizon caps valid_prediction_time). A "
-    "diagnostic, never marked best", _vpt_censored, better="higher", scale="linear",
+    "diagnostic, never marked best",
+    _vpt_censored,
+    better="higher",
+    scale="linear",
     # A share of a handful of trajectories moves in steps of 1/M: as a ratio, 0 against
     # one trajectory in 15 is infinitely apart. Shares below 0.25 count as 0.25, so the
     # check fails only when one run censors most trajectories and the other almost none.
-    check=CheckRule(3, 0.25), order=65, ranked=False, domain=(0.0, 1.0))
+    check=CheckRule(3, 0.25),
+    order=65,
+    ranked=False,
+    domain=(0.0, 1.0),
+)
 VPT_LYAPUNOV = Metric(
-    "vpt_lyapunov", "Valid prediction time in Lyapunov times (chaotic systems); as "
+    "vpt_lyapunov",
+    "Valid prediction time in Lyapunov times (chaotic systems); as "
     "valid_prediction_time for a degenerate model",
-    _vpt_lyapunov, better="higher", scale="linear", check=CheckRule(3, 0.0),
-    applies=_has_lyapunov_time, order=70,
-    errors_fail_job=True, beat_reference=True, evidence="rollout", domain=NONNEGATIVE)
+    _vpt_lyapunov,
+    better="higher",
+    scale="linear",
+    check=CheckRule(3, 0.0),
+    applies=_has_lyapunov_time,
+    order=70,
+    errors_fail_job=True,
+    beat_reference=True,
+    evidence="rollout",
+    domain=NONNEGATIVE,
+)
 ENERGY_DRIFT_LONG = Metric(
-    "energy_drift_long", f"Relative true-energy drift at the end of a rollout "
+    "energy_drift_long",
+    f"Relative true-energy drift at the end of a rollout "
     f"{LONG_HORIZON_FACTOR}x the evaluation horizon (conservative systems). The zero "
     "field scores 0, so it is marked best only among rollouts that beat standing still "
     "(rollout_skill > 0)",
-    _energy_drift_long, check=CheckRule(10, 1e-10), applies=_conservative, required=False,
-    order=80, domain=NONNEGATIVE, best_requires=("rollout_skill", 0.0))
+    _energy_drift_long,
+    check=CheckRule(10, 1e-10),
+    applies=_conservative,
+    required=False,
+    order=80,
+    domain=NONNEGATIVE,
+    best_requires=("rollout_skill", 0.0),
+)
 PIXEL_MSE = Metric(
-    "pixel_mse", "MSE of the decoded latent rollout against the true frames. A decoder "
+    "pixel_mse",
+    "MSE of the decoded latent rollout against the true frames. A decoder "
     "of the mean frame scores the frames' variance",
-    _pixel_mse, check=CheckRule(2, 1e-12), applies=_pixels, summary=False, order=90,
-    errors_fail_job=True, domain=NONNEGATIVE)
+    _pixel_mse,
+    check=CheckRule(2, 1e-12),
+    applies=_pixels,
+    summary=False,
+    order=90,
+    errors_fail_job=True,
+    domain=NONNEGATIVE,
+)
 
 #: hnnbench's own metrics, in table order (registered by entry points, not from here).
-BUILTIN = (TRAIN_LOSS, VAL_LOSS, TEST_LOSS, ENERGY_MSE, ROLLOUT_MSE, ROLLOUT_SKILL,
-           REVERSIBILITY_ERROR,
-           VALID_PREDICTION_TIME, VPT_CENSORED, VPT_LYAPUNOV, ENERGY_DRIFT_LONG, PIXEL_MSE)
+BUILTIN = (
+    TRAIN_LOSS,
+    VAL_LOSS,
+    TEST_LOSS,
+    ENERGY_MSE,
+    ROLLOUT_MSE,
+    ROLLOUT_SKILL,
+    REVERSIBILITY_ERROR,
+    VALID_PREDICTION_TIME,
+    VPT_CENSORED,
+    VPT_LYAPUNOV,
+    ENERGY_DRIFT_LONG,
+    PIXEL_MSE,
+)

@@ -53,13 +53,13 @@ class RolloutCrashModel(NaNModel):
         raise RuntimeError("boom: the rollout crashed on purpose")
 '''
 
-NO_BACKEND = '''
+NO_BACKEND = """
 from hnnbench._contracts.errors import require_backend
 
 require_backend("hnnbench_no_such_backend_xyz", "jax")
 
 from hnnbench_fakeplug import NaNModel as NeedsBackend  # noqa: E402
-'''
+"""
 
 ENTRY_POINTS = """[hnnbench.models]
 nan_model = hnnbench_fakeplug:NaNModel

@@ -39,8 +39,9 @@ def _isolated_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
     os.environ.setdefault("HNNBENCH_PROGRESS", "log")
 
 
-def install_test_package(name: str, tmp_path_factory: pytest.TempPathFactory
-                         ) -> tuple[Path, dict[str, str]]:
+def install_test_package(
+    name: str, tmp_path_factory: pytest.TempPathFactory
+) -> tuple[Path, dict[str, str]]:
     """pip-install ``tests/<name>`` (built from a copy, so the source tree stays clean)
     into a temporary site directory; returns it and the environment that puts it on
     ``PYTHONPATH`` for a subprocess."""
@@ -48,20 +49,38 @@ def install_test_package(name: str, tmp_path_factory: pytest.TempPathFactory
     build = tmp_path_factory.mktemp(f"{name}-src")
     subprocess.run(["cp", "-r", str(REPO / "tests" / name), str(build)], check=True)
     subprocess.run(
-        [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
-         "--no-index", "--target", str(site), str(build / name)],
-        check=True, capture_output=True, text=True,
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--no-deps",
+            "--no-build-isolation",
+            "--no-index",
+            "--target",
+            str(site),
+            str(build / name),
+        ],
+        check=True,
+        capture_output=True,
+        text=True,
     )
     path = os.pathsep.join(p for p in (str(site), os.environ.get("PYTHONPATH", "")) if p)
     return site, {"PYTHONPATH": path}
 
 
-def hnnbench(*args: str, cwd: Path | None = None, env: dict | None = None,
-             timeout: float = 900) -> subprocess.CompletedProcess:
+def hnnbench(
+    *args: str, cwd: Path | None = None, env: dict | None = None, timeout: float = 900
+) -> subprocess.CompletedProcess:
     """Run the installed console script."""
     exe = Path(sys.executable).parent / "hnnbench"
     return subprocess.run(
-        [str(exe), *args], cwd=cwd, capture_output=True, text=True, timeout=timeout,
+        [str(exe), *args],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
         env={**os.environ, **(env or {})},
     )
 
@@ -85,8 +104,9 @@ def compose_job(overrides: list[str] | None = None, **kwargs):
 
     overrides = list(overrides or [])
     keys = {o.lstrip("+~").split("=", 1)[0] for o in overrides}
-    defaults = [f"{k}={v}" for k, v in (("system", "spring"), ("model", "hnn_torch"))
-                if k not in keys]
+    defaults = [
+        f"{k}={v}" for k, v in (("system", "spring"), ("model", "hnn_torch")) if k not in keys
+    ]
     return compose(defaults + overrides, **kwargs)
 
 
@@ -97,8 +117,10 @@ def with_pair(argv: list[str] | tuple[str, ...]) -> list[str]:
     if argv and argv[0] in ("list", "report", "check", "-h", "--help", "help"):
         return argv
     keys = {a.lstrip("+~").split("=", 1)[0] for a in argv if "=" in a}
-    return [*(f"{k}={v}" for k, v in (("system", "spring"), ("model", "hnn_torch"))
-              if k not in keys), *argv]
+    return [
+        *(f"{k}={v}" for k, v in (("system", "spring"), ("model", "hnn_torch")) if k not in keys),
+        *argv,
+    ]
 
 
 def sweep_records(directory: Path) -> dict:
@@ -151,8 +173,10 @@ def _restore_logging():
     line writes to a closed stream."""
     import logging
 
-    loggers = [logging.getLogger(), *(logging.getLogger(name) for name in
-                                      list(logging.Logger.manager.loggerDict))]
+    loggers = [
+        logging.getLogger(),
+        *(logging.getLogger(name) for name in list(logging.Logger.manager.loggerDict)),
+    ]
     saved = {id(lg): (lg, lg.handlers[:], lg.level, lg.propagate) for lg in loggers}
     yield
     for lg, handlers, level, propagate in saved.values():

@@ -21,27 +21,68 @@ NAN = float("nan")
 
 #: (system, model) -> metric means of seed 0; seed s multiplies errors by (1 + 0.1 s).
 BASE: dict[tuple[str, str], dict[str, float]] = {
-    ("spring", "mlp_torch"): {"train_loss": 3.7e-2, "test_loss": 3.8e-2, "energy_mse": 4e-3,
-                              "rollout_mse": 0.2, "reversibility_error": 1e-8,
-                              "time_reversal_error": 3e-2, "valid_prediction_time": 1.2},
-    ("spring", "hnn_torch"): {"train_loss": 3.6e-2, "test_loss": 3.7e-2, "energy_mse": 2e-5,
-                              "rollout_mse": 0.1, "reversibility_error": 4e-8,
-                              "time_reversal_error": 3e-4, "valid_prediction_time": 4.0},
-    ("spring", "oracle"): {"train_loss": 4e-2, "test_loss": 4e-2, "energy_mse": 2e-16,
-                           "rollout_mse": 4e-17, "reversibility_error": 1e-8,
-                           "time_reversal_error": 1e-15, "valid_prediction_time": 20.0},
-    ("spring", "dhnn_torch"): {"train_loss": 3.6e-2, "test_loss": 3.8e-2, "energy_mse": 4e-4,
-                               "rollout_mse": 0.15, "reversibility_error": 4e-6,
-                               "time_reversal_error": 3e-3, "valid_prediction_time": 2.0},
-    ("pendulum", "mlp_torch"): {"train_loss": 5e-2, "test_loss": 5e-2, "energy_mse": 5e-2,
-                                "rollout_mse": 1.0, "reversibility_error": 2e-6,
-                                "time_reversal_error": 4.0, "valid_prediction_time": 3.7},
-    ("pendulum", "hnn_torch"): {"train_loss": 3.4e-2, "test_loss": 3.4e-2, "energy_mse": 1e-3,
-                                "rollout_mse": 8e-2, "reversibility_error": 2e-6,
-                                "time_reversal_error": 0.14, "valid_prediction_time": 3.9},
+    ("spring", "mlp_torch"): {
+        "train_loss": 3.7e-2,
+        "test_loss": 3.8e-2,
+        "energy_mse": 4e-3,
+        "rollout_mse": 0.2,
+        "reversibility_error": 1e-8,
+        "time_reversal_error": 3e-2,
+        "valid_prediction_time": 1.2,
+    },
+    ("spring", "hnn_torch"): {
+        "train_loss": 3.6e-2,
+        "test_loss": 3.7e-2,
+        "energy_mse": 2e-5,
+        "rollout_mse": 0.1,
+        "reversibility_error": 4e-8,
+        "time_reversal_error": 3e-4,
+        "valid_prediction_time": 4.0,
+    },
+    ("spring", "oracle"): {
+        "train_loss": 4e-2,
+        "test_loss": 4e-2,
+        "energy_mse": 2e-16,
+        "rollout_mse": 4e-17,
+        "reversibility_error": 1e-8,
+        "time_reversal_error": 1e-15,
+        "valid_prediction_time": 20.0,
+    },
+    ("spring", "dhnn_torch"): {
+        "train_loss": 3.6e-2,
+        "test_loss": 3.8e-2,
+        "energy_mse": 4e-4,
+        "rollout_mse": 0.15,
+        "reversibility_error": 4e-6,
+        "time_reversal_error": 3e-3,
+        "valid_prediction_time": 2.0,
+    },
+    ("pendulum", "mlp_torch"): {
+        "train_loss": 5e-2,
+        "test_loss": 5e-2,
+        "energy_mse": 5e-2,
+        "rollout_mse": 1.0,
+        "reversibility_error": 2e-6,
+        "time_reversal_error": 4.0,
+        "valid_prediction_time": 3.7,
+    },
+    ("pendulum", "hnn_torch"): {
+        "train_loss": 3.4e-2,
+        "test_loss": 3.4e-2,
+        "energy_mse": 1e-3,
+        "rollout_mse": 8e-2,
+        "reversibility_error": 2e-6,
+        "time_reversal_error": 0.14,
+        "valid_prediction_time": 3.9,
+    },
 }
-BACKEND = {"mlp_torch": "torch", "hnn_torch": "torch", "mlp_jax": "jax", "hnn_jax": "jax",
-           "oracle": "numpy"}
+BACKEND = {
+    "mlp_torch": "torch",
+    "hnn_torch": "torch",
+    "mlp_jax": "jax",
+    "hnn_jax": "jax",
+    "oracle": "numpy",
+}
 HIGHER_BETTER = {"valid_prediction_time"}
 
 
@@ -54,8 +95,9 @@ def seed_metrics(system: str, model: str, seed: int) -> dict[str, float]:
     return out
 
 
-def _arrays(system: str, model: str, seed: int, n_traj: int = 3, n_t: int = 25,
-            steps: int = 20) -> dict[str, np.ndarray]:
+def _arrays(
+    system: str, model: str, seed: int, n_traj: int = 3, n_t: int = 25, steps: int = 20
+) -> dict[str, np.ndarray]:
     rng = np.random.default_rng(seed)
     t = np.linspace(0.0, 5.0, n_t)
     r = 0.2 + 0.8 * rng.random(n_traj)
@@ -66,8 +108,11 @@ def _arrays(system: str, model: str, seed: int, n_traj: int = 3, n_t: int = 25,
     drift = 0.0 if model == "oracle" else (0.02 if model.startswith("hnn") else 0.1)
     hat = true * (1.0 + drift * t[None, :, None] / t[-1])
     arrays: dict[str, np.ndarray] = {
-        "t": t, "states_true": true, "states_hat": hat,
-        "energy_true": np.sum(true**2, axis=-1), "energy_hat": np.sum(hat**2, axis=-1),
+        "t": t,
+        "states_true": true,
+        "states_hat": hat,
+        "energy_true": np.sum(true**2, axis=-1),
+        "energy_hat": np.sum(hat**2, axis=-1),
     }
     if model.startswith("hnn") or model == "oracle":
         arrays["learned_energy"] = np.sum(hat**2, axis=-1) + 0.3
@@ -95,17 +140,26 @@ def _config_text(system: str, model: str, profile: str, overrides: tuple[str, ..
     return json.dumps(records.encode(OmegaConf.to_container(cfg, resolve=True)))
 
 
-def job_config(system: str, model: str, seed: int, profile: str = "quick",
-               overrides: tuple[str, ...] = ()) -> dict[str, Any]:
+def job_config(
+    system: str, model: str, seed: int, profile: str = "quick", overrides: tuple[str, ...] = ()
+) -> dict[str, Any]:
     """The resolved config a job of these settings stores in its record."""
     config = json.loads(_config_text(system, model, profile, tuple(overrides)))
     config["seed"] = seed
     return config
 
 
-def write_run(root: Path, system: str, model: str, seed: int, status: str = "ok",
-              metrics: dict[str, float] | None = None, profile: str = "quick",
-              rollout: bool = True, overrides: tuple[str, ...] = ()) -> Path:
+def write_run(
+    root: Path,
+    system: str,
+    model: str,
+    seed: int,
+    status: str = "ok",
+    metrics: dict[str, float] | None = None,
+    profile: str = "quick",
+    rollout: bool = True,
+    overrides: tuple[str, ...] = (),
+) -> Path:
     """One job directory like ``run.py`` writes it; returns the directory. ``overrides``
     are the job's extra command-line overrides (its variant)."""
     directory = Path(root) / system / model / f"seed{seed}"
@@ -115,42 +169,66 @@ def write_run(root: Path, system: str, model: str, seed: int, status: str = "ok"
     values = seed_metrics(system, model, seed) if metrics is None else metrics
     if status == "diverged" and metrics is None:
         # what a diverged job records: each rollout metric's worst value (Metric.worst)
-        values = {k: (v if k.endswith("_loss") else 0.0 if k in HIGHER_BETTER else INF)
-                  for k, v in values.items()}
+        values = {
+            k: (v if k.endswith("_loss") else 0.0 if k in HIGHER_BETTER else INF)
+            for k, v in values.items()
+        }
     if status in ("failed", "skipped"):
         values = {}
     record: dict[str, Any] = {
-        "schema_version": records.SCHEMA_VERSION, "system": system,
+        "schema_version": records.SCHEMA_VERSION,
+        "system": system,
         "system_version": _installed_version("system", system),
-        "model": model, "model_version": _installed_version("model", model),
+        "model": model,
+        "model_version": _installed_version("model", model),
         "backend": BACKEND.get(model, model.rsplit("_", 1)[-1]),
         "family": model.rsplit("_", 1)[0] if model != "oracle" else None,
         "ranked": model != "oracle",
-        "seed": seed, "profile": profile, "status": status,
+        "seed": seed,
+        "profile": profile,
+        "status": status,
         "error": None if status == "ok" else f"synthetic {status}",
         "metrics": {k: {"mean": v, "sem": 0.1 * v} for k, v in values.items()},
-        "timings": {"data_s": 0.1, "fit_s": 2.0 + seed, "eval_s": 1.0, "total_s": 3.1 + seed,
-                    "cpu_s": 2.1 + seed},
-        "steps": 20, "device": "cpu", "data": {},
+        "timings": {
+            "data_s": 0.1,
+            "fit_s": 2.0 + seed,
+            "eval_s": 1.0,
+            "total_s": 3.1 + seed,
+            "cpu_s": 2.1 + seed,
+        },
+        "steps": 20,
+        "device": "cpu",
+        "data": {},
         "command": f"hnnbench -m system={system} seed={seed}",
         "overrides": [f"system={system}", f"model={model}", f"seed={seed}", *overrides],
         "config": job_config(system, model, seed, profile, overrides),
-        "plugins": {"system": plugin_provenance("system", system),
-                    "model": plugin_provenance("model", model)},
-        "environment": records.environment(), "created_at": records.now_iso(),
+        "plugins": {
+            "system": plugin_provenance("system", system),
+            "model": plugin_provenance("model", model),
+        },
+        "environment": records.environment(),
+        "created_at": records.now_iso(),
     }
     records.write_record(directory, record)
     if rollout and status in ("ok", "diverged"):
         arrays = _arrays(system, model, seed)
         if status == "diverged":
-            arrays = {k: v for k, v in arrays.items()
-                      if k in ("t", "states_true") or k.startswith("history.")}
+            arrays = {
+                k: v
+                for k, v in arrays.items()
+                if k in ("t", "states_true") or k.startswith("history.")
+            }
         np.savez_compressed(directory / "rollout.npz", **arrays)
     return directory
 
 
-PAIRS = (("spring", "mlp_torch"), ("spring", "hnn_torch"), ("spring", "oracle"),
-         ("pendulum", "mlp_torch"), ("pendulum", "hnn_torch"))
+PAIRS = (
+    ("spring", "mlp_torch"),
+    ("spring", "hnn_torch"),
+    ("spring", "oracle"),
+    ("pendulum", "mlp_torch"),
+    ("pendulum", "hnn_torch"),
+)
 
 
 def make_sweep(root: Path, pairs=PAIRS, seeds=(0, 1), **kwargs: Any) -> Path:
@@ -177,7 +255,6 @@ def set_status(root: Path, system: str, model: str, seed: int, status: str) -> N
     import shutil
 
     directory = Path(root) / system / model / f"seed{seed}"
-    profile = (records.read_record(directory / records.RECORD_NAME) or {}).get("profile",
-                                                                                "quick")
+    profile = (records.read_record(directory / records.RECORD_NAME) or {}).get("profile", "quick")
     shutil.rmtree(directory)
     write_run(root, system, model, seed, status=status, profile=profile)

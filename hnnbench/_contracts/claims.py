@@ -124,8 +124,9 @@ class ClaimSet:
     def definition(self, system: str, metric: str) -> str:
         """How our ``metric`` on ``system`` differs from the source's (``""``: the same
         definition)."""
-        return "; ".join(how for s, m, how in self.definitions
-                         if s == system and m in (metric, "*"))
+        return "; ".join(
+            how for s, m, how in self.definitions if s == system and m in (metric, "*")
+        )
 
 
 @dataclass(frozen=True)
@@ -181,9 +182,9 @@ Pairs = Mapping[str, Mapping[str, str]]
 Untrained = Callable[[str, str], Optional[str]]
 
 
-def evaluate_claims(lookup: Lookup, claims: Iterable[Claim],
-                    pairs: Pairs, untrained: Optional[Untrained] = None
-                    ) -> list[ClaimResult]:
+def evaluate_claims(
+    lookup: Lookup, claims: Iterable[Claim], pairs: Pairs, untrained: Optional[Untrained] = None
+) -> list[ClaimResult]:
     """Evaluate each claim per backend that has both families' models (``pairs``:
     ``{backend: {family: model}}``, e.g. :func:`hnnbench._registry.groups.family_models`); a
     claim with no run anywhere gives one ``not run`` result with backend ``"-"``. Where
@@ -201,19 +202,33 @@ def evaluate_claims(lookup: Lookup, claims: Iterable[Claim],
             if a is None or b is None:
                 continue
             found = True
-            why = next((w for w in (untrained(claim.system, str(n)) if untrained else None
-                                    for n in names) if w), None)
+            why = next(
+                (
+                    w
+                    for w in (untrained(claim.system, str(n)) if untrained else None for n in names)
+                    if w
+                ),
+                None,
+            )
             if why is not None:
                 outcome, ratio, note = NOT_TRAINED, math.nan, why
             else:
                 outcome, ratio, note = claim.judge(a, b)
             if claim.recipe:
-                note = "; ".join(x for x in (note, f"protocol track: {claim.recipe} not run")
-                                 if x)
+                note = "; ".join(x for x in (note, f"protocol track: {claim.recipe} not run") if x)
             out.append(ClaimResult(claim, backend, outcome, a, b, ratio, note))
         if not found:
-            out.append(ClaimResult(claim, "-", NOT_RUN, math.nan, math.nan, math.nan,
-                                   "no run of this system with both models"))
+            out.append(
+                ClaimResult(
+                    claim,
+                    "-",
+                    NOT_RUN,
+                    math.nan,
+                    math.nan,
+                    math.nan,
+                    "no run of this system with both models",
+                )
+            )
     return out
 
 
@@ -225,6 +240,7 @@ def published_results(claim_set: ClaimSet) -> list[ClaimResult]:
         return index.get((system, family, metric))
 
     families = {f for c in claim_set.claims for f in c.families}
-    results = evaluate_claims(lookup, claim_set.claims,
-                              pairs={"published": {f: f for f in families}})
+    results = evaluate_claims(
+        lookup, claim_set.claims, pairs={"published": {f: f for f in families}}
+    )
     return [r for r in results if r.backend == "published"]

@@ -114,9 +114,10 @@ def verify(path: Path, sha256: str, *, fix: str = "") -> Path:
         ) from None
     if actual != sha256.lower():
         raise _mismatch(
-            path, sha256, actual,
-            fix or f"Replace it with the original {path.name} (or delete it and fetch it "
-            "again).",
+            path,
+            sha256,
+            actual,
+            fix or f"Replace it with the original {path.name} (or delete it and fetch it again).",
         )
     _verified[key] = actual
     return path
@@ -215,15 +216,16 @@ class _Transfer:
             reason = getattr(exc, "reason", None) or exc
             raise DataError(
                 f"Download of {self.dest.name} from {url} failed: {_one_line(reason)}. "
-                + (self.fix or f"Copy the file to {self.dest} instead, or set {DATA_ENV} "
-                   "to a directory holding it.")
+                + (
+                    self.fix
+                    or f"Copy the file to {self.dest} instead, or set {DATA_ENV} "
+                    "to a directory holding it."
+                )
             ) from None
         self.sha256 = sink.digest.hexdigest()
 
 
-def download(
-    url: str, dest: Path, *, sha256: str, timeout_s: float = 30.0, fix: str = ""
-) -> Path:
+def download(url: str, dest: Path, *, sha256: str, timeout_s: float = 30.0, fix: str = "") -> Path:
     """Fetch ``url`` to ``dest`` with pooch, atomically, checking its SHA-256; raise
     DataError on any failure (bad URL, network error, timeout, too large, hash
     mismatch, unwritable cache).
@@ -254,8 +256,13 @@ def download(
     transfer = _Transfer(dest, timeout_s, fix)
     token = _in_download.set(True)
     try:
-        pooch.retrieve(url, known_hash=f"sha256:{sha256.lower()}", fname=dest.name,
-                       path=dest.parent, downloader=transfer)
+        pooch.retrieve(
+            url,
+            known_hash=f"sha256:{sha256.lower()}",
+            fname=dest.name,
+            path=dest.parent,
+            downloader=transfer,
+        )
     except DataError:
         raise
     except ValueError:  # pooch's hash check: the transfer itself raises only DataError
@@ -263,8 +270,11 @@ def download(
         raise DataError(
             f"Downloaded {dest.name} from {url} does not match the expected file: its "
             f"SHA-256 is {actual[:12]}..., expected {sha256.lower()[:12]}.... "
-            + (fix or "The mirror holds a different version; use another URL or copy the "
-               f"original file to {dest}.")
+            + (
+                fix
+                or "The mirror holds a different version; use another URL or copy the "
+                f"original file to {dest}."
+            )
         ) from None
     except OSError as exc:  # pooch's temporary file or the move into place
         raise unwritable(exc) from None
@@ -312,8 +322,9 @@ def locate(
                 f"exist. Fix the path, or unset {explicit_key} to use {DATA_ENV} or the "
                 f"cache ({cache})."
             )
-        return verify(path, sha256, fix=f"Replace it with the original {filename} or fix "
-                      f"{explicit_key}.")
+        return verify(
+            path, sha256, fix=f"Replace it with the original {filename} or fix {explicit_key}."
+        )
 
     looked: list[str] = []
     for name, directory in paths.data_dirs():
@@ -326,8 +337,7 @@ def locate(
         looked.append(f"{name} ({path})")
 
     if cache.is_file():
-        return verify(cache, sha256, fix=f"Delete it and copy the original {filename} to "
-                      f"{cache}.")
+        return verify(cache, sha256, fix=f"Delete it and copy the original {filename} to {cache}.")
     looked.append(f"the cache ({cache})")
 
     if url:
@@ -343,25 +353,29 @@ def locate(
     )
 
 
-def from_archive(archive: DataArchive, filename: str, *, sha256: str,
-                 timeout_s: float = 30.0) -> Path:
+def from_archive(
+    archive: DataArchive, filename: str, *, sha256: str, timeout_s: float = 30.0
+) -> Path:
     """``<cache>/<filename>`` extracted from ``archive``: the archive from the cache
     (``archive.cached()``) or downloaded there (checked against ``archive.sha256``),
     then the member named ``filename`` checked against ``sha256``. Raises a one-line
     DataError that says what to fetch and from where when the archive cannot be had."""
     path = archive.cached()
-    fetch = (f"Fetch {archive.url} (SHA-256 {archive.sha256.lower()}) and save it as "
-             f"{path} (hnnbench extracts {filename} from it), or set {DATA_ENV}="
-             f"<directory holding {filename}>.")
+    fetch = (
+        f"Fetch {archive.url} (SHA-256 {archive.sha256.lower()}) and save it as "
+        f"{path} (hnnbench extracts {filename} from it), or set {DATA_ENV}="
+        f"<directory holding {filename}>."
+    )
     if path.is_file():
         verify(path, archive.sha256, fix=f"Delete it to download it again. {fetch}")
     else:
         try:
-            download(archive.url, path, sha256=archive.sha256, timeout_s=timeout_s,
-                     fix=fetch)
+            download(archive.url, path, sha256=archive.sha256, timeout_s=timeout_s, fix=fetch)
         except DataError as err:
-            raise DataError(f"Data file {filename} is not on this machine and its archive "
-                            f"could not be fetched: {err}") from None
+            raise DataError(
+                f"Data file {filename} is not on this machine and its archive "
+                f"could not be fetched: {err}"
+            ) from None
     return extract(path, filename, sha256=sha256, dest=cache_dir() / filename)
 
 
@@ -371,37 +385,45 @@ def extract(archive: Path, filename: str, *, sha256: str, dest: Path) -> Path:
     atomically, checked against ``sha256``; raise a one-line DataError otherwise."""
     try:
         with zipfile.ZipFile(archive) as zf:
-            members = [m for m in zf.infolist() if not m.is_dir()
-                       and m.filename.replace("\\", "/").rsplit("/", 1)[-1] == filename]
+            members = [
+                m
+                for m in zf.infolist()
+                if not m.is_dir() and m.filename.replace("\\", "/").rsplit("/", 1)[-1] == filename
+            ]
             if not members:
-                raise DataError(f"Archive {archive} holds no file named {filename}: it is "
-                                "not the expected archive. Delete it to download it again.")
+                raise DataError(
+                    f"Archive {archive} holds no file named {filename}: it is "
+                    "not the expected archive. Delete it to download it again."
+                )
             found: list[str] = []
             for member in members:
                 if member.file_size > MAX_DOWNLOAD_BYTES:
-                    found.append(f"{member.filename} is larger than {MAX_DOWNLOAD_BYTES} "
-                                 "bytes")
+                    found.append(f"{member.filename} is larger than {MAX_DOWNLOAD_BYTES} bytes")
                     continue
                 digest = _extract_member(zf, member, dest, sha256)
                 if digest == sha256.lower():
                     _remember(dest, digest)
                     return dest
                 found.append(f"{member.filename} has SHA-256 {digest[:12]}...")
-    except (zipfile.BadZipFile, EOFError, NotImplementedError, RuntimeError,
-            zlib.error) as exc:
-        raise DataError(f"Archive {archive} is not a readable zip file ({_one_line(exc)}). "
-                        "Delete it to download it again.") from None
+    except (zipfile.BadZipFile, EOFError, NotImplementedError, RuntimeError, zlib.error) as exc:
+        raise DataError(
+            f"Archive {archive} is not a readable zip file ({_one_line(exc)}). "
+            "Delete it to download it again."
+        ) from None
     except OSError as exc:
-        raise DataError(f"Cannot extract {filename} from {archive} into {dest.parent}: "
-                        f"{_one_line(exc.strerror or exc)}. Set {paths.CACHE_KEY}=<dir> or "
-                        f"{CACHE_ENV} to a writable directory.") from None
-    raise DataError(f"Archive {archive} holds no copy of {filename} with the expected "
-                    f"SHA-256 {sha256.lower()[:12]}... ({'; '.join(found)}). Delete it to "
-                    "download it again.")
+        raise DataError(
+            f"Cannot extract {filename} from {archive} into {dest.parent}: "
+            f"{_one_line(exc.strerror or exc)}. Set {paths.CACHE_KEY}=<dir> or "
+            f"{CACHE_ENV} to a writable directory."
+        ) from None
+    raise DataError(
+        f"Archive {archive} holds no copy of {filename} with the expected "
+        f"SHA-256 {sha256.lower()[:12]}... ({'; '.join(found)}). Delete it to "
+        "download it again."
+    )
 
 
-def _extract_member(zf: zipfile.ZipFile, member: zipfile.ZipInfo, dest: Path,
-                    sha256: str) -> str:
+def _extract_member(zf: zipfile.ZipFile, member: zipfile.ZipInfo, dest: Path, sha256: str) -> str:
     """Write ``member`` to a temporary file beside ``dest`` and move it into place if
     its SHA-256 is ``sha256`` (nothing is left behind otherwise); return its hex
     SHA-256."""

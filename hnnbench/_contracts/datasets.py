@@ -245,7 +245,10 @@ def trajectory_dataset(
 
     def make(rows: np.ndarray) -> Split:
         return Split(
-            x=take(x, rows), dxdt=take(dxdt, rows), traj=take(ids, rows), t=take(times, rows),
+            x=take(x, rows),
+            dxdt=take(dxdt, rows),
+            traj=take(ids, rows),
+            t=take(times, rows),
             extras={key: take(value, rows) for key, value in extras.items()},
         )
 
@@ -256,15 +259,24 @@ def validation_rule(data: Dataset) -> str:
     """The rule :func:`with_validation` applies to ``data``, in words (for records)."""
     n = len(np.unique(data.train.traj))
     if n >= MIN_VALID_TRAJECTORIES:
-        return (f"{VALID_FRACTION:g} of the {n} training trajectories, whole, drawn from "
-                f"seed stream {VALID_STREAM}")
-    return (f"the last {VALID_FRACTION:g} of the points of each of the {n} training "
-            "trajectories (time order)")
+        return (
+            f"{VALID_FRACTION:g} of the {n} training trajectories, whole, drawn from "
+            f"seed stream {VALID_STREAM}"
+        )
+    return (
+        f"the last {VALID_FRACTION:g} of the points of each of the {n} training "
+        "trajectories (time order)"
+    )
 
 
 def _subset(split: Split, rows: np.ndarray) -> Split:
-    return Split(x=split.x[rows], dxdt=split.dxdt[rows], traj=split.traj[rows],
-                 t=split.t[rows], extras={k: v[rows] for k, v in split.extras.items()})
+    return Split(
+        x=split.x[rows],
+        dxdt=split.dxdt[rows],
+        traj=split.traj[rows],
+        t=split.t[rows],
+        extras={k: v[rows] for k, v in split.extras.items()},
+    )
 
 
 def with_validation(data: Dataset, seed: int) -> Dataset:
@@ -291,8 +303,10 @@ def with_validation(data: Dataset, seed: int) -> Dataset:
         held = np.isin(ids, chosen)
     else:
         if len(train) < 2:
-            raise ValueError(f"a training split of {len(train)} point(s) leaves no "
-                             "validation: a system needs at least 2 training points")
+            raise ValueError(
+                f"a training split of {len(train)} point(s) leaves no "
+                "validation: a system needs at least 2 training points"
+            )
         held = np.zeros(len(train), dtype=bool)
         times = np.asarray(train.t)
         for traj in unique:
@@ -300,9 +314,12 @@ def with_validation(data: Dataset, seed: int) -> Dataset:
             rows = rows[np.argsort(times[rows], kind="stable")]
             k = min(max(1, round(VALID_FRACTION * len(rows))), len(rows) - 1)
             if k > 0:
-                held[rows[len(rows) - k:]] = True
+                held[rows[len(rows) - k :]] = True
         if held.all() or not held.any():  # one single-point trajectory, or none held
             held[:] = False
             held[-1] = True
-    return dataclasses.replace(data, train=_subset(train, np.flatnonzero(~held)),
-                               valid=_subset(train, np.flatnonzero(held)))
+    return dataclasses.replace(
+        data,
+        train=_subset(train, np.flatnonzero(~held)),
+        valid=_subset(train, np.flatnonzero(held)),
+    )

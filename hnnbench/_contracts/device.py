@@ -21,8 +21,7 @@ def device_request(requested: str) -> tuple[str, int]:
     :class:`ConfigError` saying what is accepted."""
     match = _DEVICE.fullmatch(str(requested))
     if match is None:
-        raise ConfigError(
-            f"device={requested} is invalid: expected auto, cpu, cuda or cuda:N.")
+        raise ConfigError(f"device={requested} is invalid: expected auto, cpu, cuda or cuda:N.")
     text, index = match.group(1), match.group(2)
     if text in ("auto", "cpu"):
         return text, 0

@@ -44,10 +44,14 @@ def solve_batch(
         return np.asarray(f(y.reshape(m, d)), dtype=np.float64).reshape(-1)
 
     sol = solve_ivp(
-        rhs, (float(t[0]), float(t[-1])), x0.reshape(-1), t_eval=t, rtol=rtol, atol=atol,
+        rhs,
+        (float(t[0]), float(t[-1])),
+        x0.reshape(-1),
+        t_eval=t,
+        rtol=rtol,
+        atol=atol,
         method=method,
     )
     if not sol.success or sol.y.shape[1] != t.shape[0] or not np.all(np.isfinite(sol.y)):
         raise RolloutDiverged(f"scipy {method} failed: {sol.message}")
     return sol.y.T.reshape(t.shape[0], m, d).transpose(1, 0, 2)
-

@@ -121,8 +121,7 @@ class MassMatrixKinematics(Kinematics):
 
     def to_velocity(self, x: np.ndarray) -> np.ndarray:
         q, p = _split(x)
-        return np.concatenate([q, np.linalg.solve(self.mass(q), p[..., None])[..., 0]],
-                              axis=-1)
+        return np.concatenate([q, np.linalg.solve(self.mass(q), p[..., None])[..., 0]], axis=-1)
 
     def to_canonical(self, v: np.ndarray) -> np.ndarray:
         q, qdot = _split(v)

@@ -180,16 +180,18 @@ class Metric:
 
     def __post_init__(self) -> None:
         low, high = self.domain
-        if not (isinstance(low, (int, float)) and isinstance(high, (int, float))
-                and low <= high):
-            raise ValueError(f"metric {self.name!r}: domain must be (low, high) numbers "
-                             f"with low <= high, not {self.domain!r}")
+        if not (isinstance(low, (int, float)) and isinstance(high, (int, float)) and low <= high):
+            raise ValueError(
+                f"metric {self.name!r}: domain must be (low, high) numbers "
+                f"with low <= high, not {self.domain!r}"
+            )
         if self.headline and not self.ranked:
-            raise ValueError(f"metric {self.name!r}: a headline metric must be ranked "
-                             "(ranked=True); a diagnostic is never a verdict")
+            raise ValueError(
+                f"metric {self.name!r}: a headline metric must be ranked "
+                "(ranked=True); a diagnostic is never a verdict"
+            )
         if self.check.better != self.better:  # the metric's direction is the rule's
-            object.__setattr__(self, "check", dataclasses.replace(self.check,
-                                                                  better=self.better))
+            object.__setattr__(self, "check", dataclasses.replace(self.check, better=self.better))
 
     @property
     def decides_status(self) -> bool:
@@ -211,13 +213,19 @@ class Metric:
         low, high = self.domain
         if not isinstance(mean, (int, float)) or isinstance(mean, bool):
             return f"mean {mean!r} is not a number"
-        if not (math.isnan(mean) or mean == self.worst()
-                or (math.isfinite(mean) and low <= mean <= high)):
-            return (f"mean {mean!r} is outside the domain [{low:g}, {high:g}] of "
-                    f"{self.name}" + ("" if math.isfinite(mean) else
-                                      f" (a diverged run records {self.worst():g})"))
-        if not isinstance(sem, (int, float)) or isinstance(sem, bool) \
-                or not (math.isnan(sem) or sem >= 0):
+        if not (
+            math.isnan(mean)
+            or mean == self.worst()
+            or (math.isfinite(mean) and low <= mean <= high)
+        ):
+            return f"mean {mean!r} is outside the domain [{low:g}, {high:g}] of {self.name}" + (
+                "" if math.isfinite(mean) else f" (a diverged run records {self.worst():g})"
+            )
+        if (
+            not isinstance(sem, (int, float))
+            or isinstance(sem, bool)
+            or not (math.isnan(sem) or sem >= 0)
+        ):
             return f"sem {sem!r} is not a standard error (>= 0)"
         return None
 
@@ -299,8 +307,9 @@ class EvalContext:
         pixels: whether the model sees observations (its rollouts are latents).
     """
 
-    def __init__(self, system: System, model: Model, data: Dataset, traj: Trajectories,
-                 cfg: EvaluationConfig) -> None:
+    def __init__(
+        self, system: System, model: Model, data: Dataset, traj: Trajectories, cfg: EvaluationConfig
+    ) -> None:
         self.system, self.model, self.data, self.traj, self.cfg = system, model, data, traj, cfg
         self.pixels = traj.observations is not None
         self._memo: dict[str, Any] = {}
@@ -329,8 +338,13 @@ class EvalContext:
         data = getattr(self.data, split)
         if self.system.observation == "state":
             x = data.extras.get(CLEAN_INPUTS, data.x) if clean else data.x
-            pred = checked(self.model, "time_derivative", self.model.time_derivative(x),
-                           np.shape(data.dxdt), "(N, D) like its targets")
+            pred = checked(
+                self.model,
+                "time_derivative",
+                self.model.time_derivative(x),
+                np.shape(data.dxdt),
+                "(N, D) like its targets",
+            )
             return per_point_squared_error(pred, data.dxdt)
         loss = checked_scalar(self.model, "loss", self.model.loss(data.x, data.dxdt))
         return {"mean": loss, "sem": math.nan}
@@ -338,33 +352,51 @@ class EvalContext:
     # -- rollouts ---------------------------------------------------------------------
     def z0(self) -> np.ndarray:
         """Initial states in the model's coordinates (latents for pixel models)."""
+
         def make() -> np.ndarray:
             obs = self.traj.observations
             if obs is not None:
-                return checked(self.model, "encode", self.model.encode(obs[:, 0]),
-                               (obs.shape[0], None), "(N, k)", float64=False)
+                return checked(
+                    self.model,
+                    "encode",
+                    self.model.encode(obs[:, 0]),
+                    (obs.shape[0], None),
+                    "(N, k)",
+                    float64=False,
+                )
             return self.traj.x0
+
         return self._once("z0", make)
 
     def probe(self) -> Optional[LinearProbe]:
         """The latent -> state probe of pixel models, fitted on the training set."""
+
         def make() -> Optional[LinearProbe]:
             if not self.pixels:
                 return None
             x = self.data.train.x
-            latents = checked(self.model, "encode", self.model.encode(x),
-                              (len(x), np.shape(self.z0())[-1]), "(N, k) like the rollout's",
-                              float64=False)
+            latents = checked(
+                self.model,
+                "encode",
+                self.model.encode(x),
+                (len(x), np.shape(self.z0())[-1]),
+                "(N, k) like the rollout's",
+                float64=False,
+            )
             return LinearProbe.fit(latents, self.data.train.extras["state"])
+
         return self._once("probe", make)
 
     def roll(self, z0: np.ndarray, t: np.ndarray) -> np.ndarray:
         """A rollout of the model (``(M, T, d)``); non-finite states, or states beyond
         the bound (:meth:`state_bound`), raise :class:`RolloutDiverged`."""
-        out = checked(self.model, "rollout",
-                      self.model.rollout(z0, t, rtol=self.cfg.rtol, atol=self.cfg.atol),
-                      (len(z0), len(t), np.shape(z0)[-1]),
-                      "(M, T, d): M initial states, T times, d their width")
+        out = checked(
+            self.model,
+            "rollout",
+            self.model.rollout(z0, t, rtol=self.cfg.rtol, atol=self.cfg.atol),
+            (len(z0), len(t), np.shape(z0)[-1]),
+            "(M, T, d): M initial states, T times, d their width",
+        )
         if not np.all(np.isfinite(out)):
             raise RolloutDiverged("rollout produced non-finite states")
         bound = self.state_bound()
@@ -376,7 +408,8 @@ class EvalContext:
                     f"the rollout left the state bound at t={float(t[k]):g}: |x| = "
                     f"{float(norms[i, k]):.3g} > {bound:.3g} ({STATE_BOUND:g} x the largest "
                     "|x| of the training inputs and the true evaluation states, angles "
-                    "left out)")
+                    "left out)"
+                )
         return out
 
     def _bounded(self, x: np.ndarray) -> np.ndarray:
@@ -394,9 +427,12 @@ class EvalContext:
             return None
 
         def make() -> float:
-            scale = max(float(np.linalg.norm(self._bounded(self.data.train.x), axis=-1).max()),
-                        float(np.linalg.norm(self._bounded(self.traj.states), axis=-1).max()))
+            scale = max(
+                float(np.linalg.norm(self._bounded(self.data.train.x), axis=-1).max()),
+                float(np.linalg.norm(self._bounded(self.traj.states), axis=-1).max()),
+            )
             return STATE_BOUND * scale
+
         return float(self._once("state_bound", make))
 
     def rollout(self) -> np.ndarray:
@@ -417,21 +453,29 @@ class EvalContext:
         if not self.pixels:
             return self.system.reverse(z)
         out = np.array(z, dtype=np.float64, copy=True)
-        out[..., out.shape[-1] // 2:] *= -1.0
+        out[..., out.shape[-1] // 2 :] *= -1.0
         return out
 
     def states_hat(self) -> np.ndarray:
         """``(M, T, 2n)`` physical states along the main rollout."""
+
         def make() -> np.ndarray:
             states = self.to_states(self.rollout())
             self.arrays["states_hat"] = states
             flat = self.rollout().reshape(-1, self.rollout().shape[-1])
-            learned = checked(self.model, "energy", self.model.energy(flat), (len(flat),),
-                              "(N,) or None", optional=True)
+            learned = checked(
+                self.model,
+                "energy",
+                self.model.energy(flat),
+                (len(flat),),
+                "(N,) or None",
+                optional=True,
+            )
             if learned is not None:
                 m, t_len = states.shape[:2]
                 self.arrays["learned_energy"] = np.asarray(learned).reshape(m, t_len)
             return states
+
         return self._once("states_hat", make)
 
     def _energies(self, states: np.ndarray) -> np.ndarray:
@@ -441,16 +485,20 @@ class EvalContext:
 
     def energy_true(self) -> np.ndarray:
         """``(M, T)`` true energy along the true trajectories."""
+
         def make() -> np.ndarray:
             self.arrays["energy_true"] = self._energies(self.traj.states)
             return self.arrays["energy_true"]
+
         return self._once("energy_true", make)
 
     def energy_hat(self) -> np.ndarray:
         """``(M, T)`` true energy along the model's rollout."""
+
         def make() -> np.ndarray:
             self.arrays["energy_hat"] = self._energies(self.states_hat())
             return self.arrays["energy_hat"]
+
         return self._once("energy_hat", make)
 
     def pixel_errors(self) -> Optional[np.ndarray]:
@@ -461,9 +509,15 @@ class EvalContext:
         z = self.rollout()
         m, t_len, d = z.shape
         obs = self.traj.observations.reshape(m * t_len, -1)
-        decoded = checked(self.model, "decode", self.model.decode(z.reshape(m * t_len, d)),
-                          obs.shape, "(N, D_obs) like the frames", float64=False,
-                          optional=True)
+        decoded = checked(
+            self.model,
+            "decode",
+            self.model.decode(z.reshape(m * t_len, d)),
+            obs.shape,
+            "(N, D_obs) like the frames",
+            float64=False,
+            optional=True,
+        )
         if decoded is None:
             return None
         return np.mean(((decoded - obs) ** 2).reshape(m, -1), axis=1)

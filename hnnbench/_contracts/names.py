@@ -10,10 +10,27 @@ from functools import lru_cache
 from typing import Any, Optional
 
 __all__ = [
-    "BOARD_KEY", "DEFAULT_TRACK", "DERIVED_COLUMNS", "FAMILY_KEY", "FRAME_COLUMNS",
-    "ID_COLUMNS", "JOB_FIELDS", "LOADER_FIELDS", "NAME_PATTERN", "ORACLE", "PROVENANCE_COLUMNS",
-    "REFERENCES", "RESERVED", "STANDING_STILL", "STATUSES", "STATUS_COLUMNS", "TIMINGS",
-    "TRACKS", "metric_name_problem", "name_problem", "pattern_matches",
+    "BOARD_KEY",
+    "DEFAULT_TRACK",
+    "DERIVED_COLUMNS",
+    "FAMILY_KEY",
+    "FRAME_COLUMNS",
+    "ID_COLUMNS",
+    "JOB_FIELDS",
+    "LOADER_FIELDS",
+    "NAME_PATTERN",
+    "ORACLE",
+    "PROVENANCE_COLUMNS",
+    "REFERENCES",
+    "RESERVED",
+    "STANDING_STILL",
+    "STATUSES",
+    "STATUS_COLUMNS",
+    "TIMINGS",
+    "TRACKS",
+    "metric_name_problem",
+    "name_problem",
+    "pattern_matches",
 ]
 
 
@@ -48,8 +65,15 @@ TIMINGS = ("fit_s", "eval_s", "total_s", "cpu_s")
 #: Identity and status columns of a leaderboard, in order (``reason``: why runs of the
 #: pair were not ``ok``, from their records' ``error``).
 ID_COLUMNS = ("profile", "system", "model", "backend", "family", "ranked", "reference")
-STATUS_COLUMNS = ("n_seeds", "seeds", *(f"n_{s}" for s in STATUSES), "n_untrained",
-                  "n_unconverged", "status", "reason")
+STATUS_COLUMNS = (
+    "n_seeds",
+    "seeds",
+    *(f"n_{s}" for s in STATUSES),
+    "n_untrained",
+    "n_unconverged",
+    "status",
+    "reason",
+)
 #: What a leaderboard row is of (and its ``variant``, where runs differ in settings).
 BOARD_KEY = ("profile", "system", "model")
 #: What a family row is of (one competitor per family: its backends are twins; and its
@@ -63,23 +87,40 @@ PROVENANCE_COLUMNS = ("git_commits", "machines", "dates")
 DERIVED_COLUMNS = {
     "variant": "the settings this run differs in from the others (from overrides)",
     "track": "the record's track (protocol where the record has none)",
-    "tuning_cpu_s": "tuning.cpu_s: the CPU seconds of the tuning that chose a tuned "
-                    "run's settings",
+    "tuning_cpu_s": "tuning.cpu_s: the CPU seconds of the tuning that chose a tuned run's settings",
     "git_commit": "environment.git_commit",
     "machine": "environment.host, else environment.platform",
     "trained": "selection.trained (false: the run did not train; None: no selection)",
     "reference": "the record's reference role (zero_field, true_field; records before "
-                 "schema 3: the installed model's), empty for a competitor",
+    "schema 3: the installed model's), empty for a competitor",
     "converged": "selection.converged (whether the criterion stopped improving over the "
-                 "last 20% of steps; None: not measured)",
+    "last 20% of steps; None: not measured)",
 }
 #: The columns of a records frame that are not metrics or timings, in order: record
 #: fields, loader fields and :data:`DERIVED_COLUMNS`.
-FRAME_COLUMNS = ("system", "model", "variant", "track", "backend", "family", "ranked",
-                 "reference", "seed",
-                 "profile", "status", "error", "steps", "device", *LOADER_FIELDS,
-                 "git_commit", "machine", "trained", "converged", "created_at",
-                 "tuning_cpu_s")
+FRAME_COLUMNS = (
+    "system",
+    "model",
+    "variant",
+    "track",
+    "backend",
+    "family",
+    "ranked",
+    "reference",
+    "seed",
+    "profile",
+    "status",
+    "error",
+    "steps",
+    "device",
+    *LOADER_FIELDS,
+    "git_commit",
+    "machine",
+    "trained",
+    "converged",
+    "created_at",
+    "tuning_cpu_s",
+)
 #: Columns of a records frame that are not metrics.
 RESERVED = frozenset(FRAME_COLUMNS)
 
@@ -108,8 +149,10 @@ def name_problem(kind: str, name: Any) -> Optional[str]:
     ``None``: it must match :data:`NAME_PATTERN`."""
     if isinstance(name, str) and pattern_matches(NAME_PATTERN, name):
         return None
-    return (f"{shown_value(name)} is not a {kind} name: use 1 to 64 lower-case letters, digits "
-            "and '_', starting with a letter")
+    return (
+        f"{shown_value(name)} is not a {kind} name: use 1 to 64 lower-case letters, digits "
+        "and '_', starting with a letter"
+    )
 
 
 def metric_name_problem(name: str) -> Optional[str]:
@@ -118,12 +161,16 @@ def metric_name_problem(name: str) -> Optional[str]:
     ``_mean``/``_std`` columns built from them, so a metric may not take those names."""
     taken = RESERVED | set(STATUS_COLUMNS) | set(PROVENANCE_COLUMNS) | set(TIMINGS)
     if name_problem("metric", name):
-        return (f"{shown_value(name)} is not a metric name: use 1 to 64 lower-case letters, "
-                "digits and '_', starting with a letter")
+        return (
+            f"{shown_value(name)} is not a metric name: use 1 to 64 lower-case letters, "
+            "digits and '_', starting with a letter"
+        )
     if name in taken:
         return f"the metric name '{name}' is a leaderboard column; choose another name"
     for suffix in ("_s", "_sem", "_mean", "_std"):
         if name.endswith(suffix):
-            return (f"the metric name '{name}' ends in '{suffix}', which tables reserve "
-                    "for timings and aggregates; choose another name")
+            return (
+                f"the metric name '{name}' ends in '{suffix}', which tables reserve "
+                "for timings and aggregates; choose another name"
+            )
     return None

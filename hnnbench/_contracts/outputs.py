@@ -30,8 +30,15 @@ def _owner(model: Any) -> str:
     return str(name) if name else type(model).__name__
 
 
-def checked(model: Any, method: str, value: Any, shape: Sequence[Dim], meaning: str,
-            float64: bool = True, optional: bool = False) -> Any:
+def checked(
+    model: Any,
+    method: str,
+    value: Any,
+    shape: Sequence[Dim],
+    meaning: str,
+    float64: bool = True,
+    optional: bool = False,
+) -> Any:
     """``value``, the output of ``model.<method>``, if it has ``shape`` (``None``: any
     size) and a float64 dtype (``float64=False``: any real floating dtype); raise
     :class:`ModelOutputError` otherwise. ``meaning`` spells the expected shape in the
@@ -41,28 +48,34 @@ def checked(model: Any, method: str, value: Any, shape: Sequence[Dim], meaning: 
         return None
     owner = f"{_owner(model)}.{method}"
     if value is None:
-        raise ModelOutputError(f"{owner} returned None; expected an array of shape "
-                               f"{meaning} = {shape_text(shape)}")
+        raise ModelOutputError(
+            f"{owner} returned None; expected an array of shape {meaning} = {shape_text(shape)}"
+        )
     arr = value
     if not (hasattr(arr, "shape") and hasattr(arr, "dtype")):
         try:
             arr = np.asarray(value)
         except Exception:
-            raise ModelOutputError(f"{owner} returned a {type(value).__name__}; expected "
-                                   f"an array of shape {meaning} = {shape_text(shape)}"
-                                   ) from None
+            raise ModelOutputError(
+                f"{owner} returned a {type(value).__name__}; expected "
+                f"an array of shape {meaning} = {shape_text(shape)}"
+            ) from None
     actual = tuple(int(d) for d in arr.shape)
-    if len(actual) != len(shape) or any(e is not None and e != a
-                                        for e, a in zip(shape, actual, strict=False)):
+    if len(actual) != len(shape) or any(
+        e is not None and e != a for e, a in zip(shape, actual, strict=False)
+    ):
         raise ModelOutputError(
             f"{owner} returned shape {shape_text(actual)}, expected {meaning} = "
-            f"{shape_text(shape)} (docs/PLUGINS.md)")
+            f"{shape_text(shape)} (docs/PLUGINS.md)"
+        )
     dtype = np.dtype(arr.dtype)
     ok = dtype == np.float64 if float64 else np.issubdtype(dtype, np.floating)
     if not ok:
         want = "float64" if float64 else "a floating dtype"
-        raise ModelOutputError(f"{owner} returned dtype {dtype} (shape {shape_text(actual)}), "
-                               f"expected {want} (docs/PLUGINS.md)")
+        raise ModelOutputError(
+            f"{owner} returned dtype {dtype} (shape {shape_text(actual)}), "
+            f"expected {want} (docs/PLUGINS.md)"
+        )
     return arr
 
 
@@ -77,6 +90,7 @@ def checked_scalar(model: Any, method: str, value: Any) -> float:
     try:
         out = float(value)
     except (TypeError, ValueError):
-        raise ModelOutputError(f"{owner} returned a {type(value).__name__}, expected a "
-                               "real scalar") from None
+        raise ModelOutputError(
+            f"{owner} returned a {type(value).__name__}, expected a real scalar"
+        ) from None
     return out

@@ -174,10 +174,16 @@ def safe_join(root: PathLike, *names: str) -> Path:
     """
     base = Path(root)
     for name in names:
-        if not isinstance(name, str) or name in ("", ".", "..") \
-                or any(c in _UNSAFE_CHARS for c in name) or os.path.isabs(name):
-            raise UnsafePathError(f"refusing the path component {name!r} under {base}: "
-                                  "a name must be one plain file-name component")
+        if (
+            not isinstance(name, str)
+            or name in ("", ".", "..")
+            or any(c in _UNSAFE_CHARS for c in name)
+            or os.path.isabs(name)
+        ):
+            raise UnsafePathError(
+                f"refusing the path component {name!r} under {base}: "
+                "a name must be one plain file-name component"
+            )
     path = base.joinpath(*names)
     inside, target = base.resolve(), path.resolve()
     if target != inside and inside not in target.parents:

@@ -168,10 +168,10 @@ class ModelConfig:
         """Raise :class:`ConfigError` on an invalid value. Extend in subclasses."""
         check_positive("model", steps=self.steps, batch_size=self.batch_size, lr=self.lr)
         if self.weight_decay is not None and not (
-                self.weight_decay >= 0 and math.isfinite(self.weight_decay)):
+            self.weight_decay >= 0 and math.isfinite(self.weight_decay)
+        ):
             raise ConfigError(
-                f"model.weight_decay={self.weight_decay} is invalid: expected a finite "
-                "number >= 0."
+                f"model.weight_decay={self.weight_decay} is invalid: expected a finite number >= 0."
             )
 
 
@@ -274,8 +274,13 @@ class Dataset:
                 for key, value in arrays.items()
                 if key.startswith(f"{prefix}.extras.")
             }
-            return Split(x=arrays[f"{prefix}.x"], dxdt=arrays[f"{prefix}.dxdt"],
-                         traj=arrays[f"{prefix}.traj"], t=arrays[f"{prefix}.t"], extras=extras)
+            return Split(
+                x=arrays[f"{prefix}.x"],
+                dxdt=arrays[f"{prefix}.dxdt"],
+                traj=arrays[f"{prefix}.traj"],
+                t=arrays[f"{prefix}.t"],
+                extras=extras,
+            )
 
         valid = split("valid") if "valid.x" in arrays else None
         return cls(train=split("train"), test=split("test"), meta=meta, valid=valid)
@@ -537,9 +542,7 @@ class Model(ABC):
         return None
 
     @abstractmethod
-    def fit(
-        self, data: Dataset, train: TrainSettings, seed: int, progress: Progress
-    ) -> FitResult:
+    def fit(self, data: Dataset, train: TrainSettings, seed: int, progress: Progress) -> FitResult:
         """Train on ``data.train``; report losses through ``progress``.
 
         Training that diverges (a non-finite loss) is reported in the result's
@@ -547,8 +550,11 @@ class Model(ABC):
         """
 
     def fit_seeds(
-        self, data: Sequence[Dataset], train: TrainSettings, seeds: Sequence[int],
-        progress: Progress
+        self,
+        data: Sequence[Dataset],
+        train: TrainSettings,
+        seeds: Sequence[int],
+        progress: Progress,
     ) -> list[tuple[Model, FitResult]]:
         """Train one model per seed (seed ``seeds[k]`` on ``data[k]``, the system's
         dataset of that seed), in order: ``[(trained model, result)]``.
@@ -582,8 +588,13 @@ class Model(ABC):
     def loss(self, x: np.ndarray, dxdt: np.ndarray) -> float:
         """The loss reported as train/test loss: MSE of ``dx/dt`` (override for
         models whose objective is more than that, e.g. autoencoders)."""
-        pred = checked(self, "time_derivative", self.time_derivative(x), np.shape(dxdt),
-                       "(N, D) like its targets")
+        pred = checked(
+            self,
+            "time_derivative",
+            self.time_derivative(x),
+            np.shape(dxdt),
+            "(N, D) like its targets",
+        )
         return float(np.mean((pred - dxdt) ** 2))
 
     def energy(self, x: np.ndarray) -> Optional[np.ndarray]:
@@ -622,8 +633,10 @@ HISTORY_STEP, HISTORY_TRAIN, HISTORY_VALID = "step", "train_loss", "val_loss"
 #: The rule of :class:`Selection` (the record's ``selection.rule``): the last checkpoint is
 #: scored unless an earlier one beats it on the validation criterion by more than
 #: :data:`SELECTION_Z` paired standard errors (docs/METRICS.md, "Checkpoint selection").
-SELECTION_RULE = ("the final checkpoint, unless an earlier one is lower on the criterion "
-                  "by more than 2 paired standard errors")
+SELECTION_RULE = (
+    "the final checkpoint, unless an earlier one is lower on the criterion "
+    "by more than 2 paired standard errors"
+)
 #: How many paired standard errors an earlier checkpoint must win by to be scored.
 SELECTION_Z = 2.0
 #: The share of training whose criterion change says whether a run converged: the
@@ -686,8 +699,7 @@ class Selection:
         """Whether the criterion stopped improving over the last :data:`LATE_FRACTION`
         of training: ``late - final`` is at most :data:`SELECTION_Z` paired standard
         errors (``None``: not measured, e.g. no late checkpoint or no standard error)."""
-        if self.late_step is None or self.final_step is None \
-                or self.late_step >= self.final_step:
+        if self.late_step is None or self.final_step is None or self.late_step >= self.final_step:
             return None
         change, se = self.late_value - self.final_value, self.late_se
         if not (math.isfinite(change) and math.isfinite(se)):
@@ -698,17 +710,30 @@ class Selection:
         """The record's ``selection`` field."""
         num = float  # non-finite values: the record writer encodes them
         out: dict[str, Any] = {
-            "rule": SELECTION_RULE, "criterion": self.criterion, "step": self.step,
-            "validation_loss": num(self.val_loss), "evaluations": self.evaluations,
-            "first_step": self.first_step, "trained": self.trained,
-            "stopped": self.stopped}
+            "rule": SELECTION_RULE,
+            "criterion": self.criterion,
+            "step": self.step,
+            "validation_loss": num(self.val_loss),
+            "evaluations": self.evaluations,
+            "first_step": self.first_step,
+            "trained": self.trained,
+            "stopped": self.stopped,
+        }
         if self.best_step is not None:
-            out.update({
-                "points": self.points, "best_step": self.best_step,
-                "best_value": num(self.best_value), "final_step": self.final_step,
-                "final_value": num(self.final_value), "final_se": num(self.final_se),
-                "late_step": self.late_step, "late_value": num(self.late_value),
-                "late_se": num(self.late_se), "converged": self.converged})
+            out.update(
+                {
+                    "points": self.points,
+                    "best_step": self.best_step,
+                    "best_value": num(self.best_value),
+                    "final_step": self.final_step,
+                    "final_value": num(self.final_value),
+                    "final_se": num(self.final_se),
+                    "late_step": self.late_step,
+                    "late_value": num(self.late_value),
+                    "late_se": num(self.late_se),
+                    "converged": self.converged,
+                }
+            )
         return out
 
 

@@ -32,8 +32,7 @@ FORBIDDEN_SETTINGS = ("name", "steps")
 
 
 def _number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) \
-        and math.isfinite(value)
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 @dataclass(frozen=True)
@@ -119,8 +118,7 @@ class Categorical:
             return f"Categorical({choices!r}) needs a non-empty tuple of choices"
         for value in choices:
             if not (isinstance(value, (str, bool)) or _number(value)):
-                return (f"Categorical choice {value!r} is not a string, a finite number "
-                        "or a boolean")
+                return f"Categorical choice {value!r} is not a string, a finite number or a boolean"
         if len({(type(v), v) for v in choices}) != len(choices):
             return f"Categorical({choices!r}) repeats a choice"
         return None
@@ -167,22 +165,32 @@ def space_problem(space: Any, config_cls: type) -> Optional[str]:
     :data:`FORBIDDEN_SETTINGS`) to distributions, each valid, whose bounds and choices
     the config accepts (its ``validate()``)."""
     if not isinstance(space, Mapping):
-        return f"search_space must be a mapping of setting -> distribution, not " \
-               f"{type(space).__name__}"
+        return (
+            f"search_space must be a mapping of setting -> distribution, not {type(space).__name__}"
+        )
     if not space:
         return "search_space is empty: declare at least one setting, or None"
-    fields = {f.name for f in dataclasses.fields(config_cls)} \
-        if dataclasses.is_dataclass(config_cls) else set()
+    fields = (
+        {f.name for f in dataclasses.fields(config_cls)}
+        if dataclasses.is_dataclass(config_cls)
+        else set()
+    )
     for name, dist in space.items():
         if not isinstance(name, str) or name not in fields:
-            return (f"search_space names {name!r}, which is not a setting of "
-                    f"{config_cls.__name__} (settings: {', '.join(sorted(fields))})")
+            return (
+                f"search_space names {name!r}, which is not a setting of "
+                f"{config_cls.__name__} (settings: {', '.join(sorted(fields))})"
+            )
         if name in FORBIDDEN_SETTINGS:
-            return (f"search_space names {name!r}: the step budget and the name are the "
-                    "tuning track's, the same for every model; remove it")
+            return (
+                f"search_space names {name!r}: the step budget and the name are the "
+                "tuning track's, the same for every model; remove it"
+            )
         if not isinstance(dist, _KINDS):
-            return (f"search_space[{name!r}] is {dist!r}: expected LogUniform, Uniform, "
-                    "IntRange or Categorical")
+            return (
+                f"search_space[{name!r}] is {dist!r}: expected LogUniform, Uniform, "
+                "IntRange or Categorical"
+            )
         problem = dist.problem()
         if problem is not None:
             return f"search_space[{name!r}]: {problem}"
@@ -191,6 +199,8 @@ def space_problem(space: Any, config_cls: type) -> Optional[str]:
                 config_cls(**{name: value}).validate()
             except Exception as err:  # noqa: BLE001 - any refusal of the config
                 message = " ".join(str(err).split()) or type(err).__name__
-                return (f"search_space[{name!r}]: the value {value!r} is refused by "
-                        f"{config_cls.__name__}: {message}")
+                return (
+                    f"search_space[{name!r}]: the value {value!r} is refused by "
+                    f"{config_cls.__name__}: {message}"
+                )
     return None

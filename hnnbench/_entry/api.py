@@ -56,8 +56,10 @@ def _out_dir(out: Union[str, Path]) -> str:
         raise TypeError(f"out= must be a path (str or pathlib.Path), not {type(out).__name__}")
     path = str(Path(out).resolve())
     if "${" in path:
-        raise ConfigError(f"out={str(out)!r}: a directory whose path holds '${{' cannot be "
-                          "used (Hydra reads it as an interpolation); choose another")
+        raise ConfigError(
+            f"out={str(out)!r}: a directory whose path holds '${{' cannot be "
+            "used (Hydra reads it as an interpolation); choose another"
+        )
     return path
 
 
@@ -67,8 +69,14 @@ def _command(function: str, checked: Any) -> str:
     return shlex.join(["hnnbench", *checked.argv]) + f"  # via hnnbench.{function}()"
 
 
-def run(system: str, model: str, seed: int = 0, profile: str = "paper",
-        out: Optional[Union[str, Path]] = None, **overrides: Any) -> dict[str, Any]:
+def run(
+    system: str,
+    model: str,
+    seed: int = 0,
+    profile: str = "paper",
+    out: Optional[Union[str, Path]] = None,
+    **overrides: Any,
+) -> dict[str, Any]:
     """Run one job, as ``hnnbench system=... model=... seed=... profile=...``; return
     its record (``result.json``, decoded).
 
@@ -88,8 +96,13 @@ def run(system: str, model: str, seed: int = 0, profile: str = "paper",
     from hnnbench._sweeping.plan import request
 
     typed, raw = _settings(overrides)
-    single: dict[str, Any] = {"system": system, "model": model, "seed": seed,
-                              "profile": profile, **typed}
+    single: dict[str, Any] = {
+        "system": system,
+        "model": model,
+        "seed": seed,
+        "profile": profile,
+        **typed,
+    }
     if out is not None:
         single["hydra.run.dir"] = _out_dir(out)
     checked = request(single=single, raw=raw, multirun=False)
@@ -98,9 +111,15 @@ def run(system: str, model: str, seed: int = 0, profile: str = "paper",
     return result.records[0]
 
 
-def sweep(systems: Names, models: Names, seeds: Iterable[int] = (0,),
-          profile: str = "quick", launcher: str = "basic",
-          out: Optional[Union[str, Path]] = None, **overrides: Any) -> pd.DataFrame:
+def sweep(
+    systems: Names,
+    models: Names,
+    seeds: Iterable[int] = (0,),
+    profile: str = "quick",
+    launcher: str = "basic",
+    out: Optional[Union[str, Path]] = None,
+    **overrides: Any,
+) -> pd.DataFrame:
     """Run a sweep, as ``hnnbench -m system=... model=... seed=...``; return its
     leaderboard (one row per system x model, mean and std over seeds) of this sweep's
     jobs (records kept from an earlier run of the same sweep included).
@@ -127,10 +146,11 @@ def sweep(systems: Names, models: Names, seeds: Iterable[int] = (0,),
     out = _out_dir(out)
     typed, raw = _settings(overrides)
     checked = request(
-        single={"profile": profile, "hydra/launcher": launcher, "hydra.sweep.dir": out,
-                **typed},
+        single={"profile": profile, "hydra/launcher": launcher, "hydra.sweep.dir": out, **typed},
         swept={"system": _names(systems), "model": _names(models), "seed": seeds},
-        raw=raw, multirun=True)
+        raw=raw,
+        multirun=True,
+    )
     command = _command("sweep", checked)
     result = run_plan(checked, command)
     board = leaderboard(result.records)
@@ -138,10 +158,19 @@ def sweep(systems: Names, models: Names, seeds: Iterable[int] = (0,),
     return board
 
 
-def tune(system: str, models: Names, trials: int, seeds: Iterable[int] = (0, 1, 2, 3, 4),
-         profile: str = "paper", out: Optional[Union[str, Path]] = None,
-         steps: Optional[int] = None, pruner: str = "successive_halving",
-         trial_seed: int = 0, sampler_seed: int = 0, **overrides: Any) -> pd.DataFrame:
+def tune(
+    system: str,
+    models: Names,
+    trials: int,
+    seeds: Iterable[int] = (0, 1, 2, 3, 4),
+    profile: str = "paper",
+    out: Optional[Union[str, Path]] = None,
+    steps: Optional[int] = None,
+    pruner: str = "successive_halving",
+    trial_seed: int = 0,
+    sampler_seed: int = 0,
+    **overrides: Any,
+) -> pd.DataFrame:
     """The tuned track of one system, as ``hnnbench tune system=... model=...
     trials=...``: every model gets ``trials`` trials of ``steps`` steps over its
     declared search space, selected on validation, and the selected settings train on
@@ -172,21 +201,31 @@ def tune(system: str, models: Names, trials: int, seeds: Iterable[int] = (0, 1, 
 
     typed, raw = _settings(overrides)
     passed = [f"{k}={hydra_value(v)}" for k, v in typed.items()] + [
-        f"{k}={v}" for k, v in raw.items()]
+        f"{k}={v}" for k, v in raw.items()
+    ]
     for text in passed:
         key = text.split("=", 1)[0]
         if not (key.startswith(PASSED_PREFIXES) or key in PASSED_KEYS):
-            raise ConfigError(f"tune(): {key} cannot be set here (model settings are what "
-                              "is tuned; the step budget is steps=)")
+            raise ConfigError(
+                f"tune(): {key} cannot be set here (model settings are what "
+                "is tuned; the step budget is steps=)"
+            )
     request = TuneRequest(
-        system=system, models=_names(models), trials=int(trials),
-        seeds=[int(s) for s in seeds], profile=profile,
-        out=Path(_out_dir(out)) if out is not None else None, steps=steps, pruner=pruner,
-        trial_seed=int(trial_seed), sampler_seed=int(sampler_seed), overrides=passed,
-        command=f"hnnbench.tune({system!r}, {_names(models)!r}, trials={trials})")
+        system=system,
+        models=_names(models),
+        trials=int(trials),
+        seeds=[int(s) for s in seeds],
+        profile=profile,
+        out=Path(_out_dir(out)) if out is not None else None,
+        steps=steps,
+        pruner=pruner,
+        trial_seed=int(trial_seed),
+        sampler_seed=int(sampler_seed),
+        overrides=passed,
+        command=f"hnnbench.tune({system!r}, {_names(models)!r}, trials={trials})",
+    )
     if request.trials < 1 or pruner not in PRUNERS:
-        raise ConfigError(f"tune(): trials must be >= 1 and pruner one of "
-                          f"{', '.join(PRUNERS)}")
+        raise ConfigError(f"tune(): trials must be >= 1 and pruner one of {', '.join(PRUNERS)}")
     studies = run_tuning(request)
     board = leaderboard([r for s in studies for r in s.finals])
     board.attrs["tuning_dir"] = str(request.directory.resolve())
@@ -225,11 +264,15 @@ def _records_given(value: Any) -> list[dict[str, Any]]:
     was expected instead of pandas' or a ``KeyError`` from deep inside."""
     from hnnbench._contracts.errors import HnnbenchError
 
-    expected = ("leaderboard() takes the frame of hnnbench.load(DIR) or a list of records "
-                "(dicts, as hnnbench.run returns)")
+    expected = (
+        "leaderboard() takes the frame of hnnbench.load(DIR) or a list of records "
+        "(dicts, as hnnbench.run returns)"
+    )
     if isinstance(value, (str, Path)):
-        raise TypeError(f"{expected}, not a path: for the records under {str(value)!r} use "
-                        f"hnnbench.leaderboard(hnnbench.load({str(value)!r}))")
+        raise TypeError(
+            f"{expected}, not a path: for the records under {str(value)!r} use "
+            f"hnnbench.leaderboard(hnnbench.load({str(value)!r}))"
+        )
     if isinstance(value, dict):
         raise TypeError(f"{expected}, not one record: pass [record]")
     try:
@@ -241,6 +284,8 @@ def _records_given(value: Any) -> list[dict[str, Any]]:
             raise TypeError(f"{expected}; item {i} is {type(item).__name__}, not a dict")
         missing = [k for k in ("system", "model", "seed", "status") if k not in item]
         if missing:
-            raise HnnbenchError(f"{expected}; item {i} is not a record: it has no "
-                                f"{', '.join(repr(k) for k in missing)}")
+            raise HnnbenchError(
+                f"{expected}; item {i} is not a record: it has no "
+                f"{', '.join(repr(k) for k in missing)}"
+            )
     return items

@@ -41,8 +41,18 @@ Hydra's own options: hnnbench --hydra-help. Docs: README.md, docs/.
 """
 
 #: Commands that only print (a listing, a config): ``| head`` may close the pipe early.
-_PRINT_ONLY = ("list", "--cfg", "-c", "--info", "-i", "--help", "-h", "help", "--hydra-help",
-               "--version")
+_PRINT_ONLY = (
+    "list",
+    "--cfg",
+    "-c",
+    "--info",
+    "-i",
+    "--help",
+    "-h",
+    "help",
+    "--hydra-help",
+    "--version",
+)
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -80,16 +90,23 @@ def run(argv: list[str]) -> int:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
     except KeyboardInterrupt:
-        how = ("the same command (same out=)" if argv and argv[0] == "tune" else
-               "the same command with hydra.sweep.dir=<dir>")
-        print(f"hnnbench: interrupted; finished jobs keep their records. Re-run {how} to "
-              "resume.", file=sys.stderr)
+        how = (
+            "the same command (same out=)"
+            if argv and argv[0] == "tune"
+            else "the same command with hydra.sweep.dir=<dir>"
+        )
+        print(
+            f"hnnbench: interrupted; finished jobs keep their records. Re-run {how} to resume.",
+            file=sys.stderr,
+        )
         return 130
     except Exception as err:  # a bug, not a user error: still one line, then the way on
         if _full_error():
             raise
-        _error_line(f"unexpected {type(err).__name__}: {err} (set HYDRA_FULL_ERROR=1 for the "
-                    "traceback, and please report it)")
+        _error_line(
+            f"unexpected {type(err).__name__}: {err} (set HYDRA_FULL_ERROR=1 for the "
+            "traceback, and please report it)"
+        )
         return 1
 
 
@@ -136,13 +153,24 @@ def cmd_list(args: list[str]) -> int:
     out: dict[str, list[dict[str, Any]]] = {}
     for kind in ("system", "model", "metric", "claims"):
         out[kind] = [
-            {"name": i.name, "version": i.version, "backend": i.backend,
-             "family": i.family,
-             "package": f"{i.distribution} {i.dist_version}" if i.distribution else "?",
-             "status": "ok" if i.ok else "error", "description": i.description,
-             "error": i.error,
-             **({"search_space": space_json(i.search_space) if i.search_space else None,
-                 "recipe": i.recipe} if kind == "model" else {})}
+            {
+                "name": i.name,
+                "version": i.version,
+                "backend": i.backend,
+                "family": i.family,
+                "package": f"{i.distribution} {i.dist_version}" if i.distribution else "?",
+                "status": "ok" if i.ok else "error",
+                "description": i.description,
+                "error": i.error,
+                **(
+                    {
+                        "search_space": space_json(i.search_space) if i.search_space else None,
+                        "recipe": i.recipe,
+                    }
+                    if kind == "model"
+                    else {}
+                ),
+            }
             for i in registry.discover(kind).values()
         ]
     if "--json" in args:
@@ -155,18 +183,27 @@ def cmd_list(args: list[str]) -> int:
         "claims": ("Claim sets", ["name", "package", "description"]),
     }
     for kind, (title, headers) in layouts.items():
-        rows = [[r[h] if h != "description" or r["status"] == "ok" else f"ERROR: {r['error']}"
-                 for h in headers] for r in out[kind]]
+        rows = [
+            [
+                r[h] if h != "description" or r["status"] == "ok" else f"ERROR: {r['error']}"
+                for h in headers
+            ]
+            for r in out[kind]
+        ]
         print(f"{title} (entry points: {registry.GROUPS[kind]})")
         print(tabulate(rows, headers=headers, tablefmt="simple"))
         print()
     # A family's backends declare one space and one recipe: each shown once per family.
-    _per_family("Search spaces (hnnbench tune; docs/TUNING.md)", "space",
-                lambda i: describe(i.search_space) if i.search_space else None)
-    _per_family("Recipes (track=recipe: the defaults a paper's own recipe sets; "
-                "docs/TUNING.md)", "recipe",
-                lambda i: " ".join(f"{k}={v}" for k, v in i.recipe.items()) if i.recipe
-                else None)
+    _per_family(
+        "Search spaces (hnnbench tune; docs/TUNING.md)",
+        "space",
+        lambda i: describe(i.search_space) if i.search_space else None,
+    )
+    _per_family(
+        "Recipes (track=recipe: the defaults a paper's own recipe sets; docs/TUNING.md)",
+        "recipe",
+        lambda i: " ".join(f"{k}={v}" for k, v in i.recipe.items()) if i.recipe else None,
+    )
     print("Profiles: " + ", ".join(registry.PROFILES))
     return 0
 
@@ -176,20 +213,27 @@ def _per_family(title: str, header: str, describe: Callable[[Any], Optional[str]
     family, for the installed models where ``describe`` gives a text."""
     from tabulate import tabulate
 
-    rows = [(i.family if i.family != "-" else i.name, text)
-            for i in registry.discover("model").values()
-            if (text := describe(i)) is not None]
+    rows = [
+        (i.family if i.family != "-" else i.name, text)
+        for i in registry.discover("model").values()
+        if (text := describe(i)) is not None
+    ]
     if rows:
         print(title)
-        print(tabulate(list(dict.fromkeys(rows)), headers=["family or model", header],
-                       tablefmt="simple"))
+        print(
+            tabulate(
+                list(dict.fromkeys(rows)), headers=["family or model", header], tablefmt="simple"
+            )
+        )
         print()
 
 
 #: The module whose ``main(args)`` runs each subcommand (imported when it is run).
-SUBCOMMANDS = {"report": "hnnbench._results.report.cli",
-               "check": "hnnbench._results.check.command",
-               "tune": "hnnbench._tuning.command"}
+SUBCOMMANDS = {
+    "report": "hnnbench._results.report.cli",
+    "check": "hnnbench._results.check.command",
+    "tune": "hnnbench._tuning.command",
+}
 
 
 def _subcommand(name: str, args: list[str]) -> int:
@@ -241,7 +285,6 @@ def _report_single(record: dict) -> int:
     print(tabulate(summary_rows(record), headers=["metric", "mean", "sem"], floatfmt=".4g"))
     print(f"status: {status}" + (f" ({record.get('error')})" if record.get("error") else ""))
     return 0 if status in ("ok", "skipped") else 1
-
 
 
 def summary_rows(record: dict) -> list[list[Any]]:

@@ -63,12 +63,16 @@ def depth_problems(data: Any, limit: int = MAX_DEPTH) -> list[str]:
     level: list[tuple[Any, int]] = [(data, 1)]
     while level:
         value, depth = level.pop()
-        children = value.values() if isinstance(value, dict) else \
-            value if isinstance(value, list) else None
+        children = (
+            value.values()
+            if isinstance(value, dict)
+            else value
+            if isinstance(value, list)
+            else None
+        )
         if children is None:
             continue
         if depth > limit:
             return [f"JSON nested deeper than {limit} levels"]
-        level.extend((child, depth + 1) for child in children
-                     if isinstance(child, (dict, list)))
+        level.extend((child, depth + 1) for child in children if isinstance(child, (dict, list)))
     return []

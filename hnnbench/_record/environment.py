@@ -38,8 +38,11 @@ def git_commit() -> str | None:
         if out.returncode != 0:
             return None
         dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"], cwd=here,
-            capture_output=True, text=True, timeout=5,
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=here,
+            capture_output=True,
+            text=True,
+            timeout=5,
         ).stdout.strip()
     except (OSError, subprocess.SubprocessError):  # no git, or a slow one: not recorded
         return None
@@ -56,8 +59,22 @@ def environment(extra: Iterable[str] = ()) -> dict[str, Any]:
         "host": platform.node(),
         "git_commit": git_commit(),
     }
-    for dist in ("numpy", "scipy", "torch", "torchdiffeq", "safetensors", "jax", "jaxlib",
-                 "equinox", "optax", "diffrax", "rebound", "hydra-core", "omegaconf", *extra):
+    for dist in (
+        "numpy",
+        "scipy",
+        "torch",
+        "torchdiffeq",
+        "safetensors",
+        "jax",
+        "jaxlib",
+        "equinox",
+        "optax",
+        "diffrax",
+        "rebound",
+        "hydra-core",
+        "omegaconf",
+        *extra,
+    ):
         env[dist] = _version(dist)
     return env
 

@@ -69,8 +69,10 @@ def load(*directories: Path | str, strict: bool = False) -> Loaded:
             try:
                 record = _load_one(path, strict)
             except Exception as err:  # noqa: BLE001 - one bad file never stops the others
-                record = f"invalid record: cannot be checked ({type(err).__name__}: " \
-                         f"{' '.join(str(err).split())[:200]})"
+                record = (
+                    f"invalid record: cannot be checked ({type(err).__name__}: "
+                    f"{' '.join(str(err).split())[:200]})"
+                )
             if isinstance(record, str):
                 out.problems.append(Unreadable(path, record))
                 continue

@@ -26,8 +26,16 @@ from hnnbench._record.validation import (
 )
 
 __all__ = [
-    "InvalidRecord", "MAX_RECORD_BYTES", "MAX_ROLLOUT_BYTES", "UnsafeFile", "atomic_path",
-    "atomic_write_text", "load_arrays", "open_regular", "read_record", "write_record",
+    "InvalidRecord",
+    "MAX_RECORD_BYTES",
+    "MAX_ROLLOUT_BYTES",
+    "UnsafeFile",
+    "atomic_path",
+    "atomic_write_text",
+    "load_arrays",
+    "open_regular",
+    "read_record",
+    "write_record",
 ]
 
 
@@ -113,8 +121,12 @@ def open_regular(path: Path | str, limit: int) -> Iterator[Any]:
     path = Path(path)
     if path.is_symlink():
         raise UnsafeFile("it is a symbolic link (not followed)")
-    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0) \
+    flags = (
+        os.O_RDONLY
+        | getattr(os, "O_NOFOLLOW", 0)
+        | getattr(os, "O_NONBLOCK", 0)
         | getattr(os, "O_BINARY", 0)
+    )
     try:
         fd = os.open(path, flags)
     except OSError as err:
@@ -126,8 +138,7 @@ def open_regular(path: Path | str, limit: int) -> Iterator[Any]:
         if not stat.S_ISREG(info.st_mode):
             raise UnsafeFile("it is not a regular file (not read)")
         if info.st_size > limit:
-            raise UnsafeFile(f"it is {info.st_size} bytes, over the limit of {limit} "
-                             "(not read)")
+            raise UnsafeFile(f"it is {info.st_size} bytes, over the limit of {limit} (not read)")
         fh = os.fdopen(fd, "rb")
     except BaseException:
         os.close(fd)
@@ -198,25 +209,29 @@ def load_arrays(path: Path | str, limit: int | None = None) -> dict[str, Any]:
         members = zf.infolist()
         declared = sum(m.file_size for m in members)
         if declared > limit:
-            raise UnsafeFile(f"its arrays would take {declared} bytes decompressed, over "
-                             f"the limit of {limit} (not read)")
+            raise UnsafeFile(
+                f"its arrays would take {declared} bytes decompressed, over "
+                f"the limit of {limit} (not read)"
+            )
         for member in members:
             if not member.filename.endswith(".npy"):
                 continue
             with zf.open(member) as raw:
                 version = npy.read_magic(raw)
                 if version not in ((1, 0), (2, 0)):
-                    raise UnsafeFile(f"{member.filename}: .npy format {version} is not "
-                                     "read")
-                header = npy.read_array_header_1_0 if version == (1, 0) else \
-                    npy.read_array_header_2_0
+                    raise UnsafeFile(f"{member.filename}: .npy format {version} is not read")
+                header = (
+                    npy.read_array_header_1_0 if version == (1, 0) else npy.read_array_header_2_0
+                )
                 shape, _, dtype = header(raw)
                 if dtype.hasobject:
                     raise UnsafeFile(f"{member.filename} holds objects (not read)")
                 size = int(np.prod(shape, dtype=np.float64)) * dtype.itemsize
                 if size > member.file_size:
-                    raise UnsafeFile(f"{member.filename} declares {size} bytes of data in "
-                                     f"a member of {member.file_size} (not read)")
+                    raise UnsafeFile(
+                        f"{member.filename} declares {size} bytes of data in "
+                        f"a member of {member.file_size} (not read)"
+                    )
             with zf.open(member) as raw:
                 out[member.filename[:-4]] = npy.read_array(raw, allow_pickle=False)
     return out

@@ -10,7 +10,12 @@ from typing import Any, Optional
 from hnnbench._contracts.names import DEFAULT_TRACK, shown_value
 
 __all__ = [
-    "SELECTED_ON", "STEPS_SETTING", "TRACK_KEYS", "track_of", "track_problem", "tuned_settings",
+    "SELECTED_ON",
+    "STEPS_SETTING",
+    "TRACK_KEYS",
+    "track_of",
+    "track_problem",
+    "tuned_settings",
 ]
 
 
@@ -63,14 +68,18 @@ def track_problem(record: Mapping[str, Any]) -> Optional[str]:
     if not isinstance(tuning, Mapping):
         return "tuning: a tuned record must say how it was tuned (hnnbench tune writes it)"
     if tuning.get("selected_on") != SELECTED_ON:
-        return (f"tuning.selected_on: {shown_value(tuning.get('selected_on'))}, but the tuned "
-                f"track selects on {SELECTED_ON} only")
+        return (
+            f"tuning.selected_on: {shown_value(tuning.get('selected_on'))}, but the tuned "
+            f"track selects on {SELECTED_ON} only"
+        )
     selected = tuning.get("selected")
     for key in ("trials", "steps"):
         value = tuning.get(key)
         if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
-            return (f"tuning.{key}: {shown_value(value)}; a tuned result states its budget "
-                    "(a tuner's trial record is not a result)")
+            return (
+                f"tuning.{key}: {shown_value(value)}; a tuned result states its budget "
+                "(a tuner's trial record is not a result)"
+            )
     if not isinstance(selected, Mapping) or not selected:
         return "tuning.selected: missing; a tuned result states the settings it selected"
     for key, value in {**selected, STEPS_SETTING: tuning["steps"]}.items():
@@ -78,6 +87,8 @@ def track_problem(record: Mapping[str, Any]) -> Optional[str]:
         for part in str(key).split("."):
             node = node.get(part) if isinstance(node, Mapping) else None
         if node != value or type(node) is bool and type(value) is not bool:
-            return (f"tuning.selected: {key}={shown_value(value)}, but the record's config has "
-                    f"{shown_value(node)}")
+            return (
+                f"tuning.selected: {key}={shown_value(value)}, but the record's config has "
+                f"{shown_value(node)}"
+            )
     return None

@@ -17,9 +17,19 @@ from hnnbench._record.codec import depth_problems, encode
 from hnnbench._record.fields import FIELDS, REQUIRED, json_schema
 
 __all__ = [
-    "FUTURE_SKEW", "STRICT_CHECKS", "VARIANT_TOKEN_PATTERN", "created_at_problem",
-    "created_at_problems", "history_problems", "is_date_time", "metric_domain_problems",
-    "schema", "shape_problems", "strict_problems", "validate", "variant_problem",
+    "FUTURE_SKEW",
+    "STRICT_CHECKS",
+    "VARIANT_TOKEN_PATTERN",
+    "created_at_problem",
+    "created_at_problems",
+    "history_problems",
+    "is_date_time",
+    "metric_domain_problems",
+    "schema",
+    "shape_problems",
+    "strict_problems",
+    "validate",
+    "variant_problem",
 ]
 
 
@@ -30,7 +40,11 @@ VARIANT_TOKEN_PATTERN = '^[A-Za-z_][A-Za-z0-9_.]{0,127}=[A-Za-z0-9_.,:+\\-\\[\\]
 #: How far in the future (the reader's clock) a ``created_at`` may be: clocks differ.
 FUTURE_SKEW = _dt.timedelta(hours=1)
 _TYPES: dict[str, Any] = {
-    "object": dict, "array": list, "string": str, "boolean": bool, "null": type(None),
+    "object": dict,
+    "array": list,
+    "string": str,
+    "boolean": bool,
+    "null": type(None),
 }
 
 
@@ -50,8 +64,11 @@ def _value_problem(where: str, value: Any, schema: Mapping[str, Any]) -> Optiona
             return f"{where}: {shown_value(value)} is not of type {', '.join(map(repr, kinds))}"
     if "enum" in schema and value not in schema["enum"]:
         return f"{where}: {shown_value(value)} is not one of {list(schema['enum'])!r}"
-    if isinstance(value, str) and "pattern" in schema \
-            and not pattern_matches(schema["pattern"], value):
+    if (
+        isinstance(value, str)
+        and "pattern" in schema
+        and not pattern_matches(schema["pattern"], value)
+    ):
         return f"{where}: {shown_value(value)} does not match {schema['pattern']!r}"
     return None
 
@@ -61,8 +78,7 @@ def _item_problem(where: str, value: Any, schema: Mapping[str, Any]) -> Optional
     problem = _value_problem(where, value, schema)
     if problem is None and isinstance(value, dict):
         for key, inner in (schema.get("properties") or {}).items():
-            if key in value and (problem := _value_problem(f"{where}.{key}", value[key],
-                                                           inner)):
+            if key in value and (problem := _value_problem(f"{where}.{key}", value[key], inner)):
                 break
     return problem
 
@@ -75,8 +91,11 @@ def shape_problems(record: Mapping[str, Any]) -> list[str]:
     values, each timing a number, each override a string). A quick check, for every
     record loaded; the full JSON Schema is checked on write and by strict loading
     (``hnnbench._record``)."""
-    out = [f"'{f.name}' is a required property" for f in FIELDS
-           if f.presence == REQUIRED and f.name not in record]
+    out = [
+        f"'{f.name}' is a required property"
+        for f in FIELDS
+        if f.presence == REQUIRED and f.name not in record
+    ]
     for f in FIELDS:
         if f.name not in record:
             continue
@@ -97,8 +116,14 @@ def shape_problems(record: Mapping[str, Any]) -> list[str]:
         elif problem is None and isinstance(value, list):
             inner = f.schema.get("items")
             if isinstance(inner, Mapping):
-                problem = next((p for i, item in enumerate(value)
-                                if (p := _value_problem(f"{f.name}.{i}", item, inner))), None)
+                problem = next(
+                    (
+                        p
+                        for i, item in enumerate(value)
+                        if (p := _value_problem(f"{f.name}.{i}", item, inner))
+                    ),
+                    None,
+                )
         if problem is not None:
             out.append(problem)
     return out
@@ -120,11 +145,15 @@ def history_problems(history: Any) -> list[str]:
         if not isinstance(values, list):
             return [f"history.{key}: {shown_value(values)} is not of type 'array'"]
         for i, value in enumerate(values):
-            if value is None or type(value) in _HISTORY_TYPES \
-                    or (type(value) is str and value in _HISTORY_STRINGS):
+            if (
+                value is None
+                or type(value) in _HISTORY_TYPES
+                or (type(value) is str and value in _HISTORY_STRINGS)
+            ):
                 continue
-            return [f"history.{key}.{i}: {shown_value(value)} is not a number, null, 'inf' or "
-                    "'-inf'"]
+            return [
+                f"history.{key}.{i}: {shown_value(value)} is not a number, null, 'inf' or '-inf'"
+            ]
     return []
 
 
@@ -135,13 +164,17 @@ def variant_problem(label: str) -> Optional[str]:
         return f"the variant {shown_value(label)} is not a short text"
     for token in label.split(" ") if label else ():
         if not pattern_matches(VARIANT_TOKEN_PATTERN, token):
-            return (f"the variant setting {shown_value(token)} is not key=value of safe "
-                    "characters (letters, digits, _ . , : + - [ ] { } \")")
+            return (
+                f"the variant setting {shown_value(token)} is not key=value of safe "
+                'characters (letters, digits, _ . , : + - [ ] { } ")'
+            )
     return None
 
 
-_DATE_TIME = re.compile(r"\d{4}-\d{2}-\d{2}[Tt]\d{2}:\d{2}:\d{2}(\.\d{1,9})?"
-                        r"([Zz]|[+-]\d{2}:\d{2})")
+_DATE_TIME = re.compile(
+    r"\d{4}-\d{2}-\d{2}[Tt]\d{2}:\d{2}:\d{2}(\.\d{1,9})?"
+    r"([Zz]|[+-]\d{2}:\d{2})"
+)
 
 
 def _parse_date_time(text: str) -> Optional[_dt.datetime]:
@@ -175,7 +208,7 @@ def created_at_problem(value: Any, now: Optional[_dt.datetime] = None) -> Option
         return f"created_at: {shown_value(value)} is not an RFC 3339 date-time"
     now = now if now is not None else _dt.datetime.now(_dt.timezone.utc)
     if when > now + FUTURE_SKEW:
-        return (f"created_at: {value} is in the future (now {now.isoformat(timespec='seconds')})")
+        return f"created_at: {value} is in the future (now {now.isoformat(timespec='seconds')})"
     return None
 
 
@@ -207,8 +240,9 @@ def schema_problems(data: Any) -> list[str]:
     rest = {k: v for k, v in data.items() if k != "history"}
     out = []
     if not validator.is_valid(rest):
-        for err in sorted(validator.iter_errors(rest),
-                          key=lambda e: list(map(str, e.absolute_path))):
+        for err in sorted(
+            validator.iter_errors(rest), key=lambda e: list(map(str, e.absolute_path))
+        ):
             where = ".".join(str(p) for p in err.absolute_path)
             message = " ".join(str(err.message).split())
             message = message if len(message) <= 300 else message[:297] + "..."
@@ -247,8 +281,9 @@ def metric_domain_problems(record: dict[str, Any]) -> list[str]:
             continue  # the schema names it
         metric = declared.get(name) or Metric(name, "", lambda ctx: None)
         mean, sem = value.get("mean", math.nan), value.get("sem", math.nan)
-        problem = metric.value_problem(math.nan if mean is None else mean,
-                                       math.nan if sem is None else sem)
+        problem = metric.value_problem(
+            math.nan if mean is None else mean, math.nan if sem is None else sem
+        )
         if problem:
             return [f"metrics.{name}: {problem}"]
     return []
@@ -257,7 +292,9 @@ def metric_domain_problems(record: dict[str, Any]) -> list[str]:
 #: The checks of a strict load after the JSON Schema, in order (each: a decoded record
 #: -> its problems, one line each).
 STRICT_CHECKS: tuple[Callable[[dict[str, Any]], list[str]], ...] = (
-    created_at_problems, metric_domain_problems)
+    created_at_problems,
+    metric_domain_problems,
+)
 
 
 def decoded_problems(record: dict[str, Any]) -> list[str]:

@@ -22,8 +22,15 @@ from hnnbench._contracts.space import SearchSpace, space_problem
 
 log = logging.getLogger("hnnbench")
 
-__all__ = ["PROFILES", "PluginGroup", "PluginInfo", "default_config", "generation", "guarded",
-           "refresh_all"]
+__all__ = [
+    "PROFILES",
+    "PluginGroup",
+    "PluginInfo",
+    "default_config",
+    "generation",
+    "guarded",
+    "refresh_all",
+]
 
 
 T = TypeVar("T")
@@ -74,8 +81,11 @@ class PluginInfo(Generic[T]):
     def description(self) -> str:
         if self.cls is None:
             return ""
-        doc = getattr(self.cls, "description", "") or getattr(self.cls, "title", "") or (
-            self.cls.__doc__ or "")
+        doc = (
+            getattr(self.cls, "description", "")
+            or getattr(self.cls, "title", "")
+            or (self.cls.__doc__ or "")
+        )
         return doc.strip().splitlines()[0] if doc.strip() else ""
 
     @property
@@ -160,11 +170,11 @@ class PluginGroup(Generic[T]):
                     if other.target != ep.value:
                         other.error = (
                             f"name '{ep.name}' is declared twice ({other.target} and "
-                            f"{ep.value}); uninstall one of the plugins")
+                            f"{ep.value}); uninstall one of the plugins"
+                        )
                         other.cls = None
                     continue
-                found[ep.name] = self._load(ep.name, ep.value, getattr(ep, "dist", None),
-                                            ep.load)
+                found[ep.name] = self._load(ep.name, ep.value, getattr(ep, "dist", None), ep.load)
             for name, obj in self._registered.items():
                 source = _InProcess(name, obj)
                 found[name] = self._load(name, source.value, None, source.load)
@@ -194,8 +204,7 @@ class PluginGroup(Generic[T]):
         if info is None:
             raise UnknownNameError(self.kind, name, self.available())
         if info.cls is None:
-            raise HnnbenchError(f"The {self.kind} '{name}' is installed but unusable: "
-                                f"{info.error}")
+            raise HnnbenchError(f"The {self.kind} '{name}' is installed but unusable: {info.error}")
         return info.cls
 
     def ordered(self, names: Iterable[str]) -> list[str]:
@@ -215,8 +224,10 @@ class PluginGroup(Generic[T]):
         """See :func:`register`."""
         installed = {ep.name for ep in metadata.entry_points(group=self.group)}
         if name in installed:
-            raise ConfigError(f"register: the {self.kind} name '{name}' is taken by an "
-                              "installed plugin; choose another name")
+            raise ConfigError(
+                f"register: the {self.kind} name '{name}' is taken by an "
+                "installed plugin; choose another name"
+            )
         source = _InProcess(name, obj)
         info = self._load(name, source.value, None, source.load)
         if info.cls is None:
@@ -227,7 +238,9 @@ class PluginGroup(Generic[T]):
     # -- loading one ----------------------------------------------------------------
     def _load(self, name: str, target: str, dist: Any, load: Any) -> PluginInfo[T]:
         info: PluginInfo[T] = PluginInfo(
-            kind=self.kind, name=name, target=target,
+            kind=self.kind,
+            name=name,
+            target=target,
             distribution=dist.metadata["Name"] if dist is not None else None,
             dist_version=dist.version if dist is not None else None,
         )
@@ -237,12 +250,14 @@ class PluginGroup(Generic[T]):
         if info.error is not None:
             info.error = f"{target}: {info.error}"
             return info
-        obj, info.error = guarded(f"the {self.kind} '{name}' ({target})", "import failed",
-                                   load)
+        obj, info.error = guarded(f"the {self.kind} '{name}' ({target})", "import failed", load)
         if info.error is not None:
             return info
-        problem, error = guarded(f"the {self.kind} '{name}' ({target})", "check failed",
-                                  lambda: self._problem(name, target, obj))
+        problem, error = guarded(
+            f"the {self.kind} '{name}' ({target})",
+            "check failed",
+            lambda: self._problem(name, target, obj),
+        )
         info.error = error or problem
         if info.error is None:
             info.cls = obj
@@ -256,8 +271,10 @@ class PluginGroup(Generic[T]):
             if not isinstance(obj, base):
                 return f"{target} is not a {base.__module__}.{base.__name__}"
             if getattr(obj, "name", None) != name:
-                return (f"{target} is named '{getattr(obj, 'name', '?')}' but is "
-                        f"registered as '{name}': use the same name")
+                return (
+                    f"{target} is named '{getattr(obj, 'name', '?')}' but is "
+                    f"registered as '{name}': use the same name"
+                )
             if self.kind == "metric" and (problem := metric_name_problem(name)):
                 return f"{target}: {problem}"
             return f"{target}: {order_problem}" if order_problem else None
@@ -268,25 +285,32 @@ class PluginGroup(Generic[T]):
         config_cls = getattr(obj, "Config", None)
         config_base = self.config_base
         if config_base is not None and not (
-                isinstance(config_cls, type) and dataclasses.is_dataclass(config_cls)
-                and issubclass(config_cls, config_base)):
-            return (f"{target}.Config must be a dataclass subclassing "
-                    f"hnnbench.{config_base.__name__}")
+            isinstance(config_cls, type)
+            and dataclasses.is_dataclass(config_cls)
+            and issubclass(config_cls, config_base)
+        ):
+            return (
+                f"{target}.Config must be a dataclass subclassing hnnbench.{config_base.__name__}"
+            )
         profiles = getattr(obj, "profiles", {}) or {}
         if not isinstance(profiles, dict):
             return f"{target}.profiles must be a dict of profile name -> config overrides"
         unknown_profiles = sorted(set(profiles) - set(PROFILES))
         if unknown_profiles:
-            return (f"{target}.profiles declares {unknown_profiles}, but hnnbench's "
-                    f"profiles are {', '.join(PROFILES)}; rename or remove them")
+            return (
+                f"{target}.profiles declares {unknown_profiles}, but hnnbench's "
+                f"profiles are {', '.join(PROFILES)}; rename or remove them"
+            )
         space = getattr(obj, "search_space", None)
         if space is not None and isinstance(config_cls, type):
             problem = space_problem(space, config_cls)
             if problem is not None:
                 return f"{target}.{problem}"
-        missing, error = guarded(f"the {self.kind} '{name}' ({target})",
-                                  "requirements_missing() raised",
-                                  getattr(obj, "requirements_missing", lambda: None))
+        missing, error = guarded(
+            f"the {self.kind} '{name}' ({target})",
+            "requirements_missing() raised",
+            getattr(obj, "requirements_missing", lambda: None),
+        )
         if error is not None:
             return error
         if missing:
@@ -295,16 +319,22 @@ class PluginGroup(Generic[T]):
             tracks = [DEFAULT_TRACK, *(["recipe"] if getattr(obj, "recipe", None) else [])]
             for profile in PROFILES:
                 for track in tracks:
-                    what = f"its {profile} config" + (" on the recipe track"
-                                                      if track == "recipe" else "")
-                    _, error = guarded(f"the {self.kind} '{name}' ({target})",
-                                        f"{what} cannot be built",
-                                        functools.partial(default_config, self.kind, name,
-                                                          obj, profile, check=True,
-                                                          track=track))
+                    what = f"its {profile} config" + (
+                        " on the recipe track" if track == "recipe" else ""
+                    )
+                    _, error = guarded(
+                        f"the {self.kind} '{name}' ({target})",
+                        f"{what} cannot be built",
+                        functools.partial(
+                            default_config, self.kind, name, obj, profile, check=True, track=track
+                        ),
+                    )
                     if error is not None:
-                        return (f"{target}.recipe (track=recipe): {error}"
-                                if track == "recipe" and "recipe" not in error else error)
+                        return (
+                            f"{target}.recipe (track=recipe): {error}"
+                            if track == "recipe" and "recipe" not in error
+                            else error
+                        )
         return None
 
 
@@ -330,9 +360,12 @@ def guarded(what: str, failure: str, call: Callable[[], Any]) -> tuple[Any, Opti
     printed = captured.getvalue()
     if printed.strip():
         lines = printed.strip().splitlines()
-        log.warning("%s printed %d line(s) to stdout while loading (shown here, on "
-                    "stderr): %s", what, len(lines), " | ".join(lines[:5])
-                    + (" | ..." if len(lines) > 5 else ""))
+        log.warning(
+            "%s printed %d line(s) to stdout while loading (shown here, on stderr): %s",
+            what,
+            len(lines),
+            " | ".join(lines[:5]) + (" | ..." if len(lines) > 5 else ""),
+        )
     return result, error
 
 
@@ -344,8 +377,7 @@ def _order_problem(obj: Any) -> Optional[str]:
         return f"reading its order raised {type(err).__name__}"
     if order is None:
         return None
-    if isinstance(order, bool) or not isinstance(order, (int, float)) \
-            or math.isnan(float(order)):
+    if isinstance(order, bool) or not isinstance(order, (int, float)) or math.isnan(float(order)):
         return f"order must be a number (lower first), not {order!r}"
     return None
 
@@ -365,8 +397,9 @@ def _sorted_by_order(found: dict[str, PluginInfo[Any]]) -> list[str]:
     return sorted(found, key=key)
 
 
-def default_config(kind: str, name: str, cls: Any, profile: str, check: bool = False,
-                    track: str = DEFAULT_TRACK) -> Any:
+def default_config(
+    kind: str, name: str, cls: Any, profile: str, check: bool = False, track: str = DEFAULT_TRACK
+) -> Any:
     """:func:`config_defaults` of the plugin class ``cls``; ``check``: also run the
     config's ``validate()`` (at discovery: a plugin whose own defaults are invalid is
     refused with the reason)."""
@@ -377,14 +410,21 @@ def default_config(kind: str, name: str, cls: Any, profile: str, check: bool = F
         # the smoke profile shortens training through the system's steps: a recipe's
         # own training length (a model field, which takes precedence) is left out
         recipe = {k: v for k, v in recipe.items() if k != "steps"}
-    declared = [("recipe", "recipe", recipe or {}),
-                (f"profile '{profile}' overrides", "profiles",
-                 (getattr(cls, "profiles", {}) or {}).get(profile, {}))]
+    declared = [
+        ("recipe", "recipe", recipe or {}),
+        (
+            f"profile '{profile}' overrides",
+            "profiles",
+            (getattr(cls, "profiles", {}) or {}).get(profile, {}),
+        ),
+    ]
     for what, attribute, values in declared:
         if not isinstance(values, dict):
-            raise ConfigError(f"The {kind} '{name}' declares its {what} as "
-                              f"{type(values).__name__}: expected a dict of config field -> "
-                              f"value; fix {cls.__module__}.{cls.__name__}.{attribute}")
+            raise ConfigError(
+                f"The {kind} '{name}' declares its {what} as "
+                f"{type(values).__name__}: expected a dict of config field -> "
+                f"value; fix {cls.__module__}.{cls.__name__}.{attribute}"
+            )
         unknown = sorted(set(values) - fields)
         if unknown:
             raise ConfigError(

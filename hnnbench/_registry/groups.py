@@ -21,21 +21,39 @@ from hnnbench._registry.discovery import (
 )
 
 __all__ = [
-    "CLAIMS", "GROUPS", "Kind", "METRICS", "MODELS", "SYSTEMS", "all_claims", "available",
-    "baseline_families", "claim_sets", "config_defaults", "discover", "family_models",
-    "get_class", "group", "metrics", "ordered", "refresh", "register", "validate_profile",
+    "CLAIMS",
+    "GROUPS",
+    "Kind",
+    "METRICS",
+    "MODELS",
+    "SYSTEMS",
+    "all_claims",
+    "available",
+    "baseline_families",
+    "claim_sets",
+    "config_defaults",
+    "discover",
+    "family_models",
+    "get_class",
+    "group",
+    "metrics",
+    "ordered",
+    "refresh",
+    "register",
+    "validate_profile",
 ]
 
 
 Kind = Literal["system", "model", "metric", "claims"]
 #: The four plugin groups.
 SYSTEMS: PluginGroup[type[System]] = PluginGroup(
-    "system", "hnnbench.systems", System, config_base=SystemConfig)
+    "system", "hnnbench.systems", System, config_base=SystemConfig
+)
 MODELS: PluginGroup[type[Model]] = PluginGroup(
-    "model", "hnnbench.models", Model, config_base=ModelConfig)
+    "model", "hnnbench.models", Model, config_base=ModelConfig
+)
 METRICS: PluginGroup[Metric] = PluginGroup("metric", "hnnbench.metrics", Metric, instances=True)
-CLAIMS: PluginGroup[ClaimSet] = PluginGroup("claims", "hnnbench.claims", ClaimSet,
-                                            instances=True)
+CLAIMS: PluginGroup[ClaimSet] = PluginGroup("claims", "hnnbench.claims", ClaimSet, instances=True)
 _GROUPS: dict[str, PluginGroup[Any]] = {g.kind: g for g in (SYSTEMS, MODELS, METRICS, CLAIMS)}
 #: kind -> entry-point group name.
 GROUPS: dict[str, str] = {kind: g.group for kind, g in _GROUPS.items()}
@@ -46,8 +64,9 @@ def group(kind: str) -> PluginGroup[Any]:
     try:
         return _GROUPS[kind]
     except KeyError:
-        raise ConfigError(f"unknown plugin kind '{kind}'; expected one of "
-                          f"{', '.join(_GROUPS)}") from None
+        raise ConfigError(
+            f"unknown plugin kind '{kind}'; expected one of {', '.join(_GROUPS)}"
+        ) from None
 
 
 def register(kind: Kind, name: str, obj: Any) -> None:
@@ -63,8 +82,7 @@ def register(kind: Kind, name: str, obj: Any) -> None:
             plugin of ``kind`` (the message says why).
     """
     if kind not in _GROUPS:
-        raise ConfigError(f"register: unknown kind '{kind}'; expected one of "
-                          f"{', '.join(_GROUPS)}")
+        raise ConfigError(f"register: unknown kind '{kind}'; expected one of {', '.join(_GROUPS)}")
     _GROUPS[kind].register(name, obj)
 
 
@@ -104,8 +122,9 @@ def validate_profile(name: str) -> None:
         raise UnknownNameError("profile", name, PROFILES)
 
 
-def config_defaults(kind: str, name: str, profile: str = "paper",
-                    track: str = DEFAULT_TRACK) -> Any:
+def config_defaults(
+    kind: str, name: str, profile: str = "paper", track: str = DEFAULT_TRACK
+) -> Any:
     """The plugin's config dataclass instance for ``profile`` and ``track``: its
     defaults, with a model's declared :attr:`~hnnbench.Model.recipe` on the recipe
     track, and the plugin's own profile overrides on top."""
@@ -127,9 +146,13 @@ def baseline_families() -> list[str]:
     (:attr:`hnnbench.neural.Family.baseline`: the family the aggregate across systems
     normalises against), in listing order."""
     models = MODELS.discover()
-    return list(dict.fromkeys(models[name].family for name in MODELS.ordered(models)
-                              if models[name].ok and models[name].baseline
-                              and models[name].family != "-"))
+    return list(
+        dict.fromkeys(
+            models[name].family
+            for name in MODELS.ordered(models)
+            if models[name].ok and models[name].baseline and models[name].family != "-"
+        )
+    )
 
 
 def claim_sets() -> list[ClaimSet]:

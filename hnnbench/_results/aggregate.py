@@ -38,14 +38,52 @@ def profile_taus(scores: np.ndarray) -> np.ndarray:
     high = min(1.0, math.ceil(float(np.max(finite)) * 10) / 10)
     return np.linspace(low, max(high, low + 0.1), N_TAUS)
 
-SCALE_COLUMNS = [*SCOPE_KEY, "metric", "system", "baseline", "floor", "floor_from", "used",
-                 "why_not"]
-IQM_COLUMNS = [*SCOPE_KEY, "metric", "family", "iqm", "iqm_low", "iqm_high", "n_systems",
-               "n_runs", "systems"]
-IMPROVEMENT_COLUMNS = [*SCOPE_KEY, "metric", "family", "other", "p", "p_low", "p_high",
-                       "n_systems", "min_seeds", "claimable"]
-RANK_COLUMNS = [*SCOPE_KEY, "metric", "family", "mean_rank", "rank_low", "rank_high",
-                "n_families", "n_systems", "systems", "left_out"]
+
+SCALE_COLUMNS = [
+    *SCOPE_KEY,
+    "metric",
+    "system",
+    "baseline",
+    "floor",
+    "floor_from",
+    "used",
+    "why_not",
+]
+IQM_COLUMNS = [
+    *SCOPE_KEY,
+    "metric",
+    "family",
+    "iqm",
+    "iqm_low",
+    "iqm_high",
+    "n_systems",
+    "n_runs",
+    "systems",
+]
+IMPROVEMENT_COLUMNS = [
+    *SCOPE_KEY,
+    "metric",
+    "family",
+    "other",
+    "p",
+    "p_low",
+    "p_high",
+    "n_systems",
+    "min_seeds",
+    "claimable",
+]
+RANK_COLUMNS = [
+    *SCOPE_KEY,
+    "metric",
+    "family",
+    "mean_rank",
+    "rank_low",
+    "rank_high",
+    "n_families",
+    "n_systems",
+    "systems",
+    "left_out",
+]
 #: The second floor the secondary (normalised) view is also computed with: this share of
 #: the best family's mean on the system (lower-is-better metrics), to show how much the
 #: order hangs on the floor.
@@ -93,12 +131,13 @@ class Aggregate:
 
     iqm: pd.DataFrame = field(default_factory=lambda: pd.DataFrame(columns=IQM_COLUMNS))
     improvement: pd.DataFrame = field(
-        default_factory=lambda: pd.DataFrame(columns=IMPROVEMENT_COLUMNS))
+        default_factory=lambda: pd.DataFrame(columns=IMPROVEMENT_COLUMNS)
+    )
     scales: pd.DataFrame = field(default_factory=lambda: pd.DataFrame(columns=SCALE_COLUMNS))
     scores: pd.DataFrame = field(default_factory=pd.DataFrame)
-    profiles: dict[tuple[str, str], tuple[np.ndarray, dict[str, tuple[np.ndarray, np.ndarray,
-                                                                        np.ndarray]]]] = \
-        field(default_factory=dict)
+    profiles: dict[
+        tuple[str, str], tuple[np.ndarray, dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]]
+    ] = field(default_factory=dict)
     ranks: pd.DataFrame = field(default_factory=lambda: pd.DataFrame(columns=RANK_COLUMNS))
     #: per (scope, metric): the IQM order of the families under the floor of
     #: :data:`ALT_FLOOR_SHARE` (``;``-joined, best first), and under the main floor
@@ -116,8 +155,7 @@ def _floor(rows: pd.DataFrame, metric: str, rule: CheckRule) -> tuple[float, str
     refs = rows[~rows["ranked"].fillna(True).astype(bool)] if "ranked" in rows else rows[:0]
     if "reference" in refs:  # standing still is a reference to beat, never the floor
         refs = refs[refs["reference"].fillna("").astype(str) != STANDING_STILL]
-    values = pd.to_numeric(refs.get(f"{metric}_mean", pd.Series(dtype=float)),
-                           errors="coerce")
+    values = pd.to_numeric(refs.get(f"{metric}_mean", pd.Series(dtype=float)), errors="coerce")
     values = values[np.isfinite(values)]
     if len(values):
         i = values.idxmax() if rule.better == "higher" else values.idxmin()
@@ -130,21 +168,28 @@ def _floor(rows: pd.DataFrame, metric: str, rule: CheckRule) -> tuple[float, str
     return math.nan, "no reference model ran, and the metric declares no noise floor"
 
 
-def _runs(fams: Families, scope: tuple[str, ...], system: str, family: str, metric: str
-          ) -> tuple[np.ndarray, np.ndarray]:
+def _runs(
+    fams: Families, scope: tuple[str, ...], system: str, family: str, metric: str
+) -> tuple[np.ndarray, np.ndarray]:
     """A family's seeds and per-seed values on a system (skipped runs left out)."""
     sel = select(fams.runs, SCOPE_KEY, scope)
     sel = sel[(sel["system"] == system) & (sel["family"] == family)]
     if "variant" in sel:
         sel = sel[sel["variant"].fillna("").astype(str) == ""]
     sel = sel[sel["status"] != "skipped"]
-    values = pd.to_numeric(sel[metric], errors="coerce") if metric in sel else \
-        pd.Series(math.nan, index=sel.index)
+    values = (
+        pd.to_numeric(sel[metric], errors="coerce")
+        if metric in sel
+        else pd.Series(math.nan, index=sel.index)
+    )
     return sel["seed"].to_numpy(), values.to_numpy(dtype=float)
 
 
-def aggregate(fams: Families, metrics: Optional[Sequence[str]] = None,
-              improvement_metrics: Optional[Sequence[str]] = None) -> Aggregate:
+def aggregate(
+    fams: Families,
+    metrics: Optional[Sequence[str]] = None,
+    improvement_metrics: Optional[Sequence[str]] = None,
+) -> Aggregate:
     """The aggregate (:class:`Aggregate`) of ``fams`` over ``metrics`` (default: every
     ranked metric of the board); probabilities of improvement and performance profiles
     over ``improvement_metrics`` (default: :func:`headline_metrics`)."""
@@ -162,11 +207,15 @@ def aggregate(fams: Families, metrics: Optional[Sequence[str]] = None,
         improvement_metrics = headline_metrics()
     baselines = registry.baseline_families()
     if not baselines:
-        return Aggregate(note="no installed model family declares itself the baseline "
-                              "(hnnbench.neural.Family(baseline=True))")
+        return Aggregate(
+            note="no installed model family declares itself the baseline "
+            "(hnnbench.neural.Family(baseline=True))"
+        )
     if len(baselines) > 1:
-        return Aggregate(note=f"several families declare themselves the baseline "
-                              f"({', '.join(baselines)}); exactly one may")
+        return Aggregate(
+            note=f"several families declare themselves the baseline "
+            f"({', '.join(baselines)}); exactly one may"
+        )
     baseline = baselines[0]
     order = family_order(board)
     scales, scores = [], []
@@ -181,19 +230,39 @@ def aggregate(fams: Families, metrics: Optional[Sequence[str]] = None,
                 if values.isna().all():
                     continue  # not applicable on this system
                 base_rows = rows[rows["family"] == baseline]
-                base = float(pd.to_numeric(base_rows[f"{metric}_mean"], errors="coerce")
-                             .iloc[0]) if len(base_rows) else math.nan
+                base = (
+                    float(pd.to_numeric(base_rows[f"{metric}_mean"], errors="coerce").iloc[0])
+                    if len(base_rows)
+                    else math.nan
+                )
                 floor, source = _floor(rows, metric, rule)
                 scale = stats.normalisation_scale(base, floor, rule)
-                why = "" if scale is not None else (
-                    f"no {baseline} (baseline) value" if math.isnan(base) else
-                    f"{baseline} (baseline) is not finite" if not math.isfinite(base) else
-                    source if math.isnan(floor) else
-                    f"{baseline} (baseline) is within the metric's tolerance "
-                    f"({rule.factor:g}x) of the floor")
-                scales.append({**where, "metric": metric, "system": system, "baseline": base,
-                               "floor": floor, "floor_from": source,
-                               "used": scale is not None, "why_not": why})
+                why = (
+                    ""
+                    if scale is not None
+                    else (
+                        f"no {baseline} (baseline) value"
+                        if math.isnan(base)
+                        else f"{baseline} (baseline) is not finite"
+                        if not math.isfinite(base)
+                        else source
+                        if math.isnan(floor)
+                        else f"{baseline} (baseline) is within the metric's tolerance "
+                        f"({rule.factor:g}x) of the floor"
+                    )
+                )
+                scales.append(
+                    {
+                        **where,
+                        "metric": metric,
+                        "system": system,
+                        "baseline": base,
+                        "floor": floor,
+                        "floor_from": source,
+                        "used": scale is not None,
+                        "why_not": why,
+                    }
+                )
                 if scale is None:
                     continue
                 for family in rows[rows["ranked"].fillna(True).astype(bool)]["family"]:
@@ -202,13 +271,23 @@ def aggregate(fams: Families, metrics: Optional[Sequence[str]] = None,
                         continue
                     normalised = stats.normalised_scores(runs, base, floor, rule)
                     assert normalised is not None
-                    scores += [{**where, "metric": metric, "system": system,
-                                "family": str(family), "seed": int(seed), "score": float(v)}
-                               for seed, v in zip(seeds, normalised, strict=True)]
-    scores_frame = pd.DataFrame(scores, columns=[*SCOPE_KEY, "metric", "system", "family",
-                                                 "seed", "score"])
-    out = Aggregate(scales=pd.DataFrame(scales, columns=SCALE_COLUMNS), scores=scores_frame,
-                    baseline=baseline)
+                    scores += [
+                        {
+                            **where,
+                            "metric": metric,
+                            "system": system,
+                            "family": str(family),
+                            "seed": int(seed),
+                            "score": float(v),
+                        }
+                        for seed, v in zip(seeds, normalised, strict=True)
+                    ]
+    scores_frame = pd.DataFrame(
+        scores, columns=[*SCOPE_KEY, "metric", "system", "family", "seed", "score"]
+    )
+    out = Aggregate(
+        scales=pd.DataFrame(scales, columns=SCALE_COLUMNS), scores=scores_frame, baseline=baseline
+    )
     if scores_frame.empty:
         out.note = "no (system, metric) with a scale: every one lacks a baseline or a floor"
         return out
@@ -222,16 +301,28 @@ def aggregate(fams: Families, metrics: Optional[Sequence[str]] = None,
         families = [f for f in order if f in strata]
         for family in families:
             point, low, high = stats.stratified_interval(list(strata[family].values()))
-            iqm_rows.append({**where, "metric": metric, "family": family,
-                             "iqm": point, "iqm_low": low, "iqm_high": high,
-                             "n_systems": len(strata[family]),
-                             "n_runs": int(sum(v.size for v in strata[family].values())),
-                             "systems": ";".join(strata[family])})
+            iqm_rows.append(
+                {
+                    **where,
+                    "metric": metric,
+                    "family": family,
+                    "iqm": point,
+                    "iqm_low": low,
+                    "iqm_high": high,
+                    "n_systems": len(strata[family]),
+                    "n_runs": int(sum(v.size for v in strata[family].values())),
+                    "systems": ";".join(strata[family]),
+                }
+            )
         taus = profile_taus(group["score"].to_numpy(float))
         label = scope_name(names)
-        out.profiles[(label, metric)] = (taus, {
-            family: stats.performance_profile(list(strata[family].values()), taus)
-            for family in families})
+        out.profiles[(label, metric)] = (
+            taus,
+            {
+                family: stats.performance_profile(list(strata[family].values()), taus)
+                for family in families
+            },
+        )
     out.iqm = pd.DataFrame(iqm_rows, columns=IQM_COLUMNS)
     rank_rows: list[dict[str, object]] = []
     for _, mine in board.groupby(list(SCOPE_KEY), sort=False, dropna=False):
@@ -245,8 +336,7 @@ def aggregate(fams: Families, metrics: Optional[Sequence[str]] = None,
                 continue
             rank_rows += _ranks(values, declared[metric].better, where, metric)
             poi_rows += _improvements(values, declared[metric].better, where, metric)
-            moved = _alt_order(fams, scope, mine, metric, declared[metric].check, baseline,
-                               order)
+            moved = _alt_order(fams, scope, mine, metric, declared[metric].check, baseline, order)
             if moved is not None:
                 out.orders[(scope_name(scope), metric)] = moved
     out.ranks = pd.DataFrame(rank_rows, columns=RANK_COLUMNS)
@@ -257,8 +347,9 @@ def aggregate(fams: Families, metrics: Optional[Sequence[str]] = None,
 Values = dict[str, dict[str, dict[int, float]]]  # system -> family -> seed -> value
 
 
-def _raw_values(fams: Families, scope: tuple[str, ...], board: pd.DataFrame, metric: str,
-                order: list[str]) -> Values:
+def _raw_values(
+    fams: Families, scope: tuple[str, ...], board: pd.DataFrame, metric: str, order: list[str]
+) -> Values:
     """Every ranked family's per-seed values of ``metric`` on each system where it
     applies (a family row with a finite or infinite mean): ``{system: {family: {seed:
     value}}}``."""
@@ -285,8 +376,9 @@ def _badness(value: float, better: str) -> float:
     return value if better == "lower" else -value
 
 
-def _ranks(values: Values, better: str, where: dict[str, str], metric: str
-           ) -> list[dict[str, object]]:
+def _ranks(
+    values: Values, better: str, where: dict[str, str], metric: str
+) -> list[dict[str, object]]:
     """The mean rank rows (:attr:`Aggregate.ranks`) of one (scope, metric)."""
     families = list(dict.fromkeys(f for per in values.values() for f in per))
     common = [s for s, per in values.items() if all(f in per for f in families)]
@@ -305,15 +397,26 @@ def _ranks(values: Values, better: str, where: dict[str, str], metric: str
     rng = np.random.default_rng(stats.BOOTSTRAP_SEED)
     draws = np.empty((RANK_RESAMPLES, len(families)))
     for b in range(RANK_RESAMPLES):
-        draws[b] = np.mean([t[rng.integers(0, len(t), len(t))].mean(axis=0) for t in tables],
-                           axis=0)
+        draws[b] = np.mean(
+            [t[rng.integers(0, len(t), len(t))].mean(axis=0) for t in tables], axis=0
+        )
     tail = (1.0 - stats.CONFIDENCE) / 2.0
     low, high = np.quantile(draws, tail, axis=0), np.quantile(draws, 1.0 - tail, axis=0)
-    return [{**where, "metric": metric, "family": f, "mean_rank": float(point[j]),
-             "rank_low": float(low[j]), "rank_high": float(high[j]),
-             "n_families": len(families), "n_systems": len(common),
-             "systems": ";".join(common), "left_out": ";".join(left_out)}
-            for j, f in enumerate(families)]
+    return [
+        {
+            **where,
+            "metric": metric,
+            "family": f,
+            "mean_rank": float(point[j]),
+            "rank_low": float(low[j]),
+            "rank_high": float(high[j]),
+            "n_families": len(families),
+            "n_systems": len(common),
+            "systems": ";".join(common),
+            "left_out": ";".join(left_out),
+        }
+        for j, f in enumerate(families)
+    ]
 
 
 def _rank_row(costs: np.ndarray) -> np.ndarray:
@@ -321,12 +424,12 @@ def _rank_row(costs: np.ndarray) -> np.ndarray:
     rank)."""
     from scipy.stats import rankdata
 
-    return np.asarray(rankdata(np.where(np.isinf(costs), np.finfo(float).max, costs)),
-                      dtype=float)
+    return np.asarray(rankdata(np.where(np.isinf(costs), np.finfo(float).max, costs)), dtype=float)
 
 
-def _improvements(values: Values, better: str, where: dict[str, str], metric: str
-                  ) -> list[dict[str, object]]:
+def _improvements(
+    values: Values, better: str, where: dict[str, str], metric: str
+) -> list[dict[str, object]]:
     """P(A better than B) rows (:attr:`Aggregate.improvement`) of one (scope, metric),
     from the values themselves: over the systems both ran, each system's runs of A
     against its runs of B (a tie counts one half)."""
@@ -336,26 +439,56 @@ def _improvements(values: Values, better: str, where: dict[str, str], metric: st
         common = [s for s, per in values.items() if a in per and b in per]
         if not common:
             continue
-        goods = [[-_badness(v, better) for v in values[s][f].values()] for f in (a, b)
-                 for s in common]
-        xs, ys = goods[:len(common)], goods[len(common):]
+        goods = [
+            [-_badness(v, better) for v in values[s][f].values()] for f in (a, b) for s in common
+        ]
+        xs, ys = goods[: len(common)], goods[len(common) :]
         p, low, high = stats.probability_of_improvement(
             [np.nan_to_num(np.asarray(x), neginf=-np.finfo(float).max) for x in xs],
-            [np.nan_to_num(np.asarray(y), neginf=-np.finfo(float).max) for y in ys])
+            [np.nan_to_num(np.asarray(y), neginf=-np.finfo(float).max) for y in ys],
+        )
         fewest = min(min(len(values[s][a]), len(values[s][b])) for s in common)
         claim = fewest >= stats.MIN_SEPARABLE_SEEDS
-        rows.append({**where, "metric": metric, "family": a, "other": b, "p": p,
-                     "p_low": low, "p_high": high, "n_systems": len(common),
-                     "min_seeds": fewest, "claimable": claim})
-        rows.append({**where, "metric": metric, "family": b, "other": a, "p": 1.0 - p,
-                     "p_low": 1.0 - high, "p_high": 1.0 - low, "n_systems": len(common),
-                     "min_seeds": fewest, "claimable": claim})
+        rows.append(
+            {
+                **where,
+                "metric": metric,
+                "family": a,
+                "other": b,
+                "p": p,
+                "p_low": low,
+                "p_high": high,
+                "n_systems": len(common),
+                "min_seeds": fewest,
+                "claimable": claim,
+            }
+        )
+        rows.append(
+            {
+                **where,
+                "metric": metric,
+                "family": b,
+                "other": a,
+                "p": 1.0 - p,
+                "p_low": 1.0 - high,
+                "p_high": 1.0 - low,
+                "n_systems": len(common),
+                "min_seeds": fewest,
+                "claimable": claim,
+            }
+        )
     return rows
 
 
-def _alt_order(fams: Families, scope: tuple[str, ...], board: pd.DataFrame, metric: str,
-               rule: CheckRule, baseline: str, order: list[str]
-               ) -> Optional[tuple[list[str], list[str]]]:
+def _alt_order(
+    fams: Families,
+    scope: tuple[str, ...],
+    board: pd.DataFrame,
+    metric: str,
+    rule: CheckRule,
+    baseline: str,
+    order: list[str],
+) -> Optional[tuple[list[str], list[str]]]:
     """The families' IQM order under the main floor and under a second one
     (:data:`ALT_FLOOR_SHARE` of the best ranked family's mean on each system), best
     first; ``None`` for a higher-is-better metric or where no system has a scale."""
@@ -384,13 +517,13 @@ def _alt_order(fams: Families, scope: tuple[str, ...], board: pd.DataFrame, metr
                 continue
             for family in ranked["family"].astype(str):
                 _, runs = _runs(fams, scope, system, family, metric)
-                scores = stats.normalised_scores(runs, base, floor, rule) if len(runs) \
-                    else None
+                scores = stats.normalised_scores(runs, base, floor, rule) if len(runs) else None
                 if scores is not None:
                     strata.setdefault(family, []).append(scores)
         if not strata:
             return None
         points = {f: float(stats.iqm(np.concatenate(v))) for f, v in strata.items()}
-        orders.append(sorted(points, key=lambda f: (-points[f], order.index(f)
-                                                    if f in order else 0)))
+        orders.append(
+            sorted(points, key=lambda f: (-points[f], order.index(f) if f in order else 0))
+        )
     return orders[0], orders[1]

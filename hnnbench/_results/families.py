@@ -69,8 +69,11 @@ SCOPE_KEY = (*(k for k in FAMILY_KEY if k not in ("system", "family")), "track")
 def scope_name(names: Sequence[str]) -> str:
     """``paper``, ``paper/tuned``: a scope's :data:`SCOPE_KEY` values joined, the
     protocol track (the default) left out."""
-    return "/".join(str(n) for k, n in zip(SCOPE_KEY, names, strict=True)
-                    if not (k == "track" and n in ("", DEFAULT_TRACK)))
+    return "/".join(
+        str(n)
+        for k, n in zip(SCOPE_KEY, names, strict=True)
+        if not (k == "track" and n in ("", DEFAULT_TRACK))
+    )
 
 
 def _with_track(frame: pd.DataFrame) -> pd.DataFrame:
@@ -138,8 +141,12 @@ def _variant(frame: pd.DataFrame) -> pd.Series:
 
 def _primary_key(row: Any) -> tuple[Any, ...]:
     n_ok = row.get("n_ok", 0)
-    return (-int(row.get("n_seeds", 0) or 0), -int(0 if pd.isna(n_ok) else n_ok),
-            str(row.get("backend") or ""), str(row["model"]))
+    return (
+        -int(row.get("n_seeds", 0) or 0),
+        -int(0 if pd.isna(n_ok) else n_ok),
+        str(row.get("backend") or ""),
+        str(row["model"]),
+    )
 
 
 def primary_rows(board: pd.DataFrame) -> pd.DataFrame:
@@ -168,10 +175,10 @@ def family_order(board: pd.DataFrame) -> list[str]:
     """The families of a family board in listing order: each at the registry position
     of its first model."""
     position: dict[str, int] = {}
-    models = registry.ordered("model", [m for ms in board["models"].astype(str)
-                                        for m in ms.split(";") if m])
-    for family, ms in zip(board["family"].astype(str), board["models"].astype(str),
-                          strict=True):
+    models = registry.ordered(
+        "model", [m for ms in board["models"].astype(str) for m in ms.split(";") if m]
+    )
+    for family, ms in zip(board["family"].astype(str), board["models"].astype(str), strict=True):
         first = min((models.index(m) for m in ms.split(";") if m in models), default=10**6)
         position[family] = min(position.get(family, 10**6), first)
     return sorted(position, key=lambda f: (position[f], f))
@@ -188,8 +195,9 @@ def _fmt_factor(x: float) -> str:
     return "inf" if math.isinf(x) else f"{x:.3g}"
 
 
-def _compare(a: pd.DataFrame, b: pd.DataFrame, metrics: Sequence[str],
-             rules: dict[str, CheckRule]) -> dict[str, Any]:
+def _compare(
+    a: pd.DataFrame, b: pd.DataFrame, metrics: Sequence[str], rules: dict[str, CheckRule]
+) -> dict[str, Any]:
     """Twin ``b`` against ``a`` on their shared seeds: the largest factor apart per
     metric (``<metric>_apart``), whether they agree, and the disagreements in words."""
     shared = sorted(set(a["seed"].dropna().astype(int)) & set(b["seed"].dropna().astype(int)))
@@ -202,8 +210,12 @@ def _compare(a: pd.DataFrame, b: pd.DataFrame, metrics: Sequence[str],
     problems: list[tuple[str, str]] = []
     for seed in shared:
         if a.at[seed, "status"] != b.at[seed, "status"]:
-            problems.append(("status", f"status at seed {seed}: {a.at[seed, 'status']} vs "
-                                       f"{b.at[seed, 'status']}"))
+            problems.append(
+                (
+                    "status",
+                    f"status at seed {seed}: {a.at[seed, 'status']} vs {b.at[seed, 'status']}",
+                )
+            )
             break
     for metric in metrics:
         rule = rules.get(metric, CheckRule())
@@ -213,21 +225,33 @@ def _compare(a: pd.DataFrame, b: pd.DataFrame, metrics: Sequence[str],
             y = pd.to_numeric(b.at[seed, metric], errors="coerce") if metric in b else math.nan
             if pd.isna(x) and pd.isna(y):
                 continue
-            apart = math.inf if (pd.isna(x) or pd.isna(y)) else max(
-                rule.worsening(float(x), float(y)), rule.worsening(float(y), float(x)))
+            apart = (
+                math.inf
+                if (pd.isna(x) or pd.isna(y))
+                else max(rule.worsening(float(x), float(y)), rule.worsening(float(y), float(x)))
+            )
             if math.isnan(worst) or apart > worst:
                 worst, where = apart, seed
         out[f"{metric}_apart"] = worst
         if not math.isnan(worst) and worst > rule.factor:
-            problems.append((metric, f"{metric} {_fmt_factor(worst)}x apart at seed {where} "
-                                     f"(tolerance {rule.factor:g}x)"))
-    out.update(agree=not problems, disagree=";".join(p[0] for p in problems),
-               difference="; ".join(p[1] for p in problems))
+            problems.append(
+                (
+                    metric,
+                    f"{metric} {_fmt_factor(worst)}x apart at seed {where} "
+                    f"(tolerance {rule.factor:g}x)",
+                )
+            )
+    out.update(
+        agree=not problems,
+        disagree=";".join(p[0] for p in problems),
+        difference="; ".join(p[1] for p in problems),
+    )
     return out
 
 
-def twin_agreement(frame: pd.DataFrame, primaries: pd.DataFrame,
-                   metrics: Sequence[str]) -> pd.DataFrame:
+def twin_agreement(
+    frame: pd.DataFrame, primaries: pd.DataFrame, metrics: Sequence[str]
+) -> pd.DataFrame:
     """One row per (family row, other twin): ``profile``, ``system``, ``family``,
     ``variant``, ``model`` (the primary), ``twin``, ``shared_seeds``, ``agree`` (True,
     False, or None without a shared seed), ``disagree`` (the metrics, and ``status``,
@@ -246,12 +270,23 @@ def twin_agreement(frame: pd.DataFrame, primaries: pd.DataFrame,
         for twin in models:
             if twin == fam["seeds_from"]:
                 continue
-            row = {**dict(zip(ROW_KEY, key_of(fam, ROW_KEY), strict=True)),
-                   "model": fam["seeds_from"], "twin": twin}
+            row = {
+                **dict(zip(ROW_KEY, key_of(fam, ROW_KEY), strict=True)),
+                "model": fam["seeds_from"],
+                "twin": twin,
+            }
             row.update(_compare(base, mine[mine["model"] == twin], metrics, rules))
             rows.append(row)
-    columns = [*ROW_KEY, "model", "twin", "shared_seeds", "agree", "disagree", "difference",
-               *(f"{m}_apart" for m in metrics)]
+    columns = [
+        *ROW_KEY,
+        "model",
+        "twin",
+        "shared_seeds",
+        "agree",
+        "disagree",
+        "difference",
+        *(f"{m}_apart" for m in metrics),
+    ]
     return pd.DataFrame(rows, columns=columns)
 
 
@@ -285,8 +320,7 @@ def _per_seed(runs: pd.DataFrame, metric: str) -> dict[int, float]:
     if metric not in runs:
         return {int(s): math.nan for s in runs["seed"].dropna()}
     values = pd.to_numeric(runs[metric], errors="coerce")
-    return {int(s): float(v) for s, v in zip(runs["seed"], values, strict=True)
-            if not pd.isna(s)}
+    return {int(s): float(v) for s, v in zip(runs["seed"], values, strict=True) if not pd.isna(s)}
 
 
 def _passes_guard(group: pd.DataFrame, i: Any, decl: Any) -> bool:
@@ -325,10 +359,16 @@ def mark_best(board: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
         board[f"{m}_effect_vs"] = ""
     if board.empty:
         return board
-    ranked = board["ranked"].fillna(True).astype(bool) if "ranked" in board else \
-        pd.Series(True, index=board.index)
-    full = (board["n_ok"] == board["n_seeds"]) if {"n_ok", "n_seeds"} <= set(board) else \
-        pd.Series(True, index=board.index)
+    ranked = (
+        board["ranked"].fillna(True).astype(bool)
+        if "ranked" in board
+        else pd.Series(True, index=board.index)
+    )
+    full = (
+        (board["n_ok"] == board["n_seeds"])
+        if {"n_ok", "n_seeds"} <= set(board)
+        else pd.Series(True, index=board.index)
+    )
     runs = runs.assign(variant=_variant(runs))
     board["variant"] = _variant(board)
     still_rows = _standing_still(board)
@@ -341,9 +381,12 @@ def mark_best(board: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
         for metric in metrics:
             decl = declared[metric]
             means = pd.to_numeric(group[f"{metric}_mean"], errors="coerce")
-            cand = [i for i in group.index
-                    if _in_domain(float(means[i]), decl.domain, decl.worst())
-                    and _passes_guard(group, i, decl)]
+            cand = [
+                i
+                for i in group.index
+                if _in_domain(float(means[i]), decl.domain, decl.worst())
+                and _passes_guard(group, i, decl)
+            ]
             eligible = [i for i in cand if full[i] and math.isfinite(float(means[i]))]
             if len(cand) < 2 or not eligible:
                 continue
@@ -353,16 +396,19 @@ def mark_best(board: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
                 # Marked only where the leader beats standing still on this metric.
                 if still.empty:
                     continue  # no reference row: nothing is claimed
-                floor = float(pd.to_numeric(still[f"{metric}_mean"],
-                                            errors="coerce").iloc[0]) \
-                    if f"{metric}_mean" in still else math.nan
+                floor = (
+                    float(pd.to_numeric(still[f"{metric}_mean"], errors="coerce").iloc[0])
+                    if f"{metric}_mean" in still
+                    else math.nan
+                )
                 if math.isfinite(floor) and not sign * float(means[leader]) < sign * floor:
                     board.at[still.index[0], f"{metric}_mark"] = UNBEATEN
                     continue
                 if not math.isfinite(floor):
                     continue
-            seeds = {i: _per_seed(mine[mine["family"] == board.at[i, "family"]], metric)
-                     for i in cand}
+            seeds = {
+                i: _per_seed(mine[mine["family"] == board.at[i, "family"]], metric) for i in cand
+            }
             others = [i for i in cand if i != leader]
             shared = {i: sorted(set(seeds[leader]) & set(seeds[i])) for i in others}
             fewest = min(len(v) for v in shared.values())
@@ -371,40 +417,55 @@ def mark_best(board: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
                 board.at[leader, f"{metric}_mark"] = TOO_FEW
                 continue
             ps, separated = _holm(seeds, leader, others, shared, decl.better)
-            board.at[leader, f"{metric}_mark"] = "best" if all(separated.values()) \
-                else "tied"
+            board.at[leader, f"{metric}_mark"] = "best" if all(separated.values()) else "tied"
             board.at[leader, f"{metric}_p"] = max(ps.values())
             for i in others:
                 board.at[i, f"{metric}_p"] = ps[i]
                 if not separated[i]:
                     board.at[i, f"{metric}_mark"] = "tied"
-            runner = min(others, key=lambda i: sign * float(means[i])
-                         if math.isfinite(float(means[i])) else math.inf)
-            effect = stats.paired_effect([seeds[leader][s] for s in shared[runner]],
-                                         [seeds[runner][s] for s in shared[runner]],
-                                         decl.better, decl.scale)
-            board.at[leader, f"{metric}_effect"], board.at[leader, f"{metric}_effect_low"], \
-                board.at[leader, f"{metric}_effect_high"] = effect[:3]
+            runner = min(
+                others,
+                key=lambda i: (
+                    sign * float(means[i]) if math.isfinite(float(means[i])) else math.inf
+                ),
+            )
+            effect = stats.paired_effect(
+                [seeds[leader][s] for s in shared[runner]],
+                [seeds[runner][s] for s in shared[runner]],
+                decl.better,
+                decl.scale,
+            )
+            (
+                board.at[leader, f"{metric}_effect"],
+                board.at[leader, f"{metric}_effect_low"],
+                board.at[leader, f"{metric}_effect_high"],
+            ) = effect[:3]
             board.at[leader, f"{metric}_effect_vs"] = str(board.at[runner, "family"])
     return board
 
 
-def _holm(seeds: dict[Any, dict[int, float]], leader: Any, others: list[Any],
-          shared: dict[Any, list[int]], better: str) -> tuple[dict[Any, float],
-                                                               dict[Any, bool]]:
+def _holm(
+    seeds: dict[Any, dict[int, float]],
+    leader: Any,
+    others: list[Any],
+    shared: dict[Any, list[int]],
+    better: str,
+) -> tuple[dict[Any, float], dict[Any, bool]]:
     """:func:`hnnbench._results.stats.leader_test` of the leader against ``others``, each on the
     seeds it shares with the leader: ``({other: Holm-adjusted p}, {other: separated})``."""
     raw = {}
     for i in others:
-        p, _, n = stats.sign_test([seeds[leader][s] for s in shared[i]],
-                                  [seeds[i][s] for s in shared[i]], better)
+        p, _, n = stats.sign_test(
+            [seeds[leader][s] for s in shared[i]], [seeds[i][s] for s in shared[i]], better
+        )
         raw[i] = min(1.0, 2.0 * p) if n else 1.0
     adjusted, separated = stats.holm(list(raw.values()))
     return dict(zip(others, adjusted, strict=True)), dict(zip(others, separated, strict=True))
 
 
-def simulate_marks(families: int, seeds: int, draws: int, metric: str,
-                   effect: float = 0.0, seed: int = 0) -> dict[str, float]:
+def simulate_marks(
+    families: int, seeds: int, draws: int, metric: str, effect: float = 0.0, seed: int = 0
+) -> dict[str, float]:
     """How :func:`mark_best` marks ``draws`` simulated cells of ``families`` families over
     ``seeds`` paired seeds (docs/STATISTICS.md, "The leader test, simulated").
 
@@ -424,22 +485,41 @@ def simulate_marks(families: int, seeds: int, draws: int, metric: str,
         for j, name in enumerate(names):
             own = rng.normal(size=seeds) - (sign * effect if j == 0 else 0.0)
             values = np.exp(shared + own)
-            rows.append({"profile": "sim", "system": f"d{d}", "family": name, "variant": "",
-                         "ranked": True, "n_seeds": seeds, "n_ok": seeds,
-                         f"{metric}_mean": float(np.mean(values))})
-            runs += [{"profile": "sim", "system": f"d{d}", "family": name, "variant": "",
-                      "seed": k, "status": "ok", metric: float(v)}
-                     for k, v in enumerate(values)]
+            rows.append(
+                {
+                    "profile": "sim",
+                    "system": f"d{d}",
+                    "family": name,
+                    "variant": "",
+                    "ranked": True,
+                    "n_seeds": seeds,
+                    "n_ok": seeds,
+                    f"{metric}_mean": float(np.mean(values)),
+                }
+            )
+            runs += [
+                {
+                    "profile": "sim",
+                    "system": f"d{d}",
+                    "family": name,
+                    "variant": "",
+                    "seed": k,
+                    "status": "ok",
+                    metric: float(v),
+                }
+                for k, v in enumerate(values)
+            ]
     board = mark_best(pd.DataFrame(rows), pd.DataFrame(runs))
     marks = board[f"{metric}_mark"].astype(str)
     best = board[marks == "best"]
-    return {"any_best": len(best) / draws,
-            "power": float((best["family"] == names[0]).sum()) / draws,
-            "too_few": float((marks == TOO_FEW).sum()) / draws}
+    return {
+        "any_best": len(best) / draws,
+        "power": float((best["family"] == names[0]).sum()) / draws,
+        "too_few": float((marks == TOO_FEW).sum()) / draws,
+    }
 
 
-def _by_key(frame: pd.DataFrame, keys: Sequence[str]) -> dict[tuple[str, ...],
-                                                               pd.DataFrame]:
+def _by_key(frame: pd.DataFrame, keys: Sequence[str]) -> dict[tuple[str, ...], pd.DataFrame]:
     """``frame``'s rows grouped by their :func:`key_of` ``keys`` (one pass, not a filter
     per group)."""
     if frame.empty:
@@ -480,16 +560,19 @@ def families(frame: pd.DataFrame, board: Optional[pd.DataFrame] = None) -> Famil
         disagree.append(d)
     primaries["twins"], primaries["twins_disagree"] = words, disagree
     keep = {(*key_of(r, RANKING_KEY), str(r["seeds_from"])) for _, r in primaries.iterrows()}
-    runs = frame[[(*key_of(r, RANKING_KEY), str(r["model"])) in keep
-                  for _, r in frame.iterrows()]]
+    runs = frame[[(*key_of(r, RANKING_KEY), str(r["model"])) in keep for _, r in frame.iterrows()]]
     board_out = mark_best(primaries, runs)
     order = family_order(board_out)
     systems = registry.ordered("system", board_out["system"].astype(str))
 
     def key(i: int) -> tuple[Any, ...]:
         r = board_out.iloc[i]
-        return (key_of(r, SCOPE_KEY), systems.index(str(r["system"])),
-                order.index(str(r["family"])), variant_sort_key(r["variant"]))
+        return (
+            key_of(r, SCOPE_KEY),
+            systems.index(str(r["system"])),
+            order.index(str(r["family"])),
+            variant_sort_key(r["variant"]),
+        )
 
     board_out = board_out.iloc[sorted(range(len(board_out)), key=key)].reset_index(drop=True)
     head = [c for c in (*ROW_KEY, "seeds_from", "models", "backends") if c in board_out]

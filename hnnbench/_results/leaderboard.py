@@ -51,6 +51,7 @@ __all__ = [
     "variant_labels",
 ]
 
+
 def summary_metrics() -> list[str]:
     """The metrics shown in the end-of-sweep summary table, in table order."""
     return [m.name for m in registry.metrics() if m.summary]
@@ -94,8 +95,11 @@ def variant_overrides(record: dict[str, Any]) -> list[str]:
     """The record's overrides that may define its variant: a tuned record's selected
     settings are its track's definition (``tuning.selected``), not a variant."""
     tuned = tuned_settings(record)
-    return [o for o in record.get("overrides") or ()
-            if str(o).lstrip("+~").split("=", 1)[0] not in tuned]
+    return [
+        o
+        for o in record.get("overrides") or ()
+        if str(o).lstrip("+~").split("=", 1)[0] not in tuned
+    ]
 
 
 def _variant_items(overrides: Iterable[str] | None) -> dict[str, str]:
@@ -147,12 +151,12 @@ def _has_variants(frame: pd.DataFrame) -> bool:
 def _has_tracks(frame: pd.DataFrame) -> bool:
     """Whether some run is of another track than the protocol (the leaderboard then
     shows a ``track`` column and the tuning's CPU seconds)."""
-    return "track" in frame and bool(
-        (frame["track"].fillna(DEFAULT_TRACK) != DEFAULT_TRACK).any())
+    return "track" in frame and bool((frame["track"].fillna(DEFAULT_TRACK) != DEFAULT_TRACK).any())
 
 
-def records_frame(records: Iterable[dict[str, Any]],
-                  variants: Sequence[str] | None = None) -> pd.DataFrame:
+def records_frame(
+    records: Iterable[dict[str, Any]], variants: Sequence[str] | None = None
+) -> pd.DataFrame:
     """One row per record: the identity and status columns of
     :data:`hnnbench._contracts.names.FRAME_COLUMNS` (``variant``: ``variants``, one per record,
     e.g. derived from the records' configs by ``hnnbench check``; default: from their
@@ -185,8 +189,9 @@ def records_frame(records: Iterable[dict[str, Any]],
             "machine": env.get("host") or env.get("platform"),
             "trained": _selection_field(rec, "trained"),
         }
-        row: dict[str, Any] = {name: derived[name] if name in derived else rec.get(name)
-                               for name in FRAME_COLUMNS}
+        row: dict[str, Any] = {
+            name: derived[name] if name in derived else rec.get(name) for name in FRAME_COLUMNS
+        }
         for name, value in (rec.get("metrics") or {}).items():
             row[name] = value.get("mean")
             row[f"{name}_sem"] = value.get("sem")
@@ -210,8 +215,7 @@ def _reference(rec: dict[str, Any]) -> str:
     if "reference" in rec:
         return str(rec["reference"] or "")
     info = registry.discover("model").get(str(rec.get("model")))
-    return str(getattr(info.cls, "reference", None) or "") if info is not None and info.ok \
-        else ""
+    return str(getattr(info.cls, "reference", None) or "") if info is not None and info.ok else ""
 
 
 def _ranked(rec: dict[str, Any]) -> bool:
@@ -229,26 +233,37 @@ def summary_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None) -> 
     ``variant`` column only when some run has one."""
     if frame.empty:
         return frame
-    ids = ["system", "model", *(["variant"] if _has_variants(frame) else []),
-           *(["track"] if _has_tracks(frame) else []), "seed"]
+    ids = [
+        "system",
+        "model",
+        *(["variant"] if _has_variants(frame) else []),
+        *(["track"] if _has_tracks(frame) else []),
+        "seed",
+    ]
     cols = [*ids, "status"]
     names = metric_names(frame) if metrics is None else list(metrics)
     cols += [m for m in names if m in frame.columns]
     cols += [c for c in (COST_COLUMN,) if c in frame.columns]
     out = frame[cols].reset_index(drop=True)
     if "error" in frame and (frame["status"] != "ok").any():
-        out.insert(out.columns.get_loc("status") + 1, "reason",
-                   frame["error"].where(frame["status"] != "ok").reset_index(drop=True))
+        out.insert(
+            out.columns.get_loc("status") + 1,
+            "reason",
+            frame["error"].where(frame["status"] != "ok").reset_index(drop=True),
+        )
     systems = registry.ordered("system", out["system"].astype(str))
     models = registry.ordered("model", out["model"].astype(str))
 
     def key(i: int) -> tuple[Any, ...]:  # leaderboard order, then variant, then seed
         r = out.iloc[i]
         seed = pd.to_numeric(r["seed"], errors="coerce")
-        return (systems.index(str(r["system"])), models.index(str(r["model"])),
-                variant_sort_key(r["variant"]) if "variant" in out else (),
-                _track_rank(str(r["track"])) if "track" in out else (),
-                math.inf if pd.isna(seed) else float(seed))
+        return (
+            systems.index(str(r["system"])),
+            models.index(str(r["model"])),
+            variant_sort_key(r["variant"]) if "variant" in out else (),
+            _track_rank(str(r["track"])) if "track" in out else (),
+            math.inf if pd.isna(seed) else float(seed),
+        )
 
     return out.iloc[sorted(range(len(out)), key=key)].reset_index(drop=True)
 
@@ -271,8 +286,11 @@ def linear_metrics() -> frozenset[str]:
 def metric_names(frame: pd.DataFrame) -> list[str]:
     """Metric names present in a records frame, in the registry's table order (metrics
     no installed plugin declares follow, by name)."""
-    found = [c for c in frame.columns if c not in RESERVED and not c.endswith("_sem")
-             and not c.endswith("_s")]
+    found = [
+        c
+        for c in frame.columns
+        if c not in RESERVED and not c.endswith("_sem") and not c.endswith("_s")
+    ]
     declared = [m.name for m in registry.metrics()]
     return [m for m in declared if m in found] + sorted(m for m in found if m not in declared)
 
@@ -309,8 +327,11 @@ def reason_text(group: pd.DataFrame) -> str:
         errors = sel["error"] if "error" in sel else pd.Series([None] * len(sel))
         by_error: dict[str, list[str]] = {}
         for seed, error in zip(sel["seed"], errors, strict=True):
-            text = " ".join(str(error).split()) if error is not None and not pd.isna(error) \
+            text = (
+                " ".join(str(error).split())
+                if error is not None and not pd.isna(error)
                 else "no reason recorded"
+            )
             by_error.setdefault(text, []).append("?" if pd.isna(seed) else str(int(seed)))
         for text, seeds in by_error.items():
             label = "seed" if len(seeds) == 1 else "seeds"
@@ -326,8 +347,9 @@ def status_text(counts: dict[str, int]) -> str:
     return ", ".join(f"{n} {s}" for s, n in present.items())
 
 
-def leaderboard(records: Iterable[dict[str, Any]],
-                variants: Sequence[str] | None = None) -> pd.DataFrame:
+def leaderboard(
+    records: Iterable[dict[str, Any]], variants: Sequence[str] | None = None
+) -> pd.DataFrame:
     """The leaderboard of run records (see :func:`leaderboard_frame`; ``variants``:
     as :func:`records_frame`)."""
     return leaderboard_frame(records_frame(list(records), variants))
@@ -340,13 +362,17 @@ def _refuse_repeated_seeds(group: pd.DataFrame) -> None:
     if repeated.empty:
         return
     first = repeated.iloc[0]
-    paths = repeated.loc[repeated["seed"] == first["seed"], "path"] if "path" in repeated \
+    paths = (
+        repeated.loc[repeated["seed"] == first["seed"], "path"]
+        if "path" in repeated
         else pd.Series([])
+    )
     where = " and ".join(str(p) for p in paths.dropna()) or "two records"
     raise HnnbenchError(
         f"{first['system']} x {first['model']} seed {first['seed']} ({first['profile']} "
         f"profile) is recorded twice ({where}): the leaderboard would count it twice; "
-        "move one of them out of the directories given")
+        "move one of them out of the directories given"
+    )
 
 
 def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None) -> pd.DataFrame:
@@ -385,34 +411,43 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
     frame = frame.copy()
     frame["profile"] = frame["profile"].fillna("?")
     frame["variant"] = frame["variant"].fillna("") if "variant" in frame else ""
-    frame["track"] = frame["track"].fillna(DEFAULT_TRACK) if "track" in frame \
-        else DEFAULT_TRACK
+    frame["track"] = frame["track"].fillna(DEFAULT_TRACK) if "track" in frame else DEFAULT_TRACK
     rows = []
     samples: list[np.ndarray] = []  # every cell's values over seeds, in (row, metric) order
     for (profile, system, model, variant, track), group in frame.groupby(
-            [*BOARD_KEY, "variant", "track"], dropna=False, sort=False):
+        [*BOARD_KEY, "variant", "track"], dropna=False, sort=False
+    ):
         _refuse_repeated_seeds(group)
         counts = {s: int((group["status"] == s).sum()) for s in STATUSES}
         seeds = sorted({int(s) for s in group["seed"].dropna()})
         backends = [b for b in group["backend"].dropna().unique()] if "backend" in group else []
         families = [f for f in group["family"].dropna().unique()] if "family" in group else []
         ranked = bool(group["ranked"].fillna(True).all()) if "ranked" in group else True
-        roles = [r for r in group["reference"].fillna("").unique() if r] \
-            if "reference" in group else []
+        roles = (
+            [r for r in group["reference"].fillna("").unique() if r] if "reference" in group else []
+        )
         row: dict[str, Any] = {
-            "profile": profile, "system": system, "model": model, "variant": variant,
+            "profile": profile,
+            "system": system,
+            "model": model,
+            "variant": variant,
             "track": track,
             "backend": backends[0] if backends else "",
-            "family": families[0] if families else "", "ranked": ranked,
+            "family": families[0] if families else "",
+            "ranked": ranked,
             "reference": roles[0] if roles else "",
-            "n_seeds": len(group), "seeds": ";".join(str(s) for s in seeds),
+            "n_seeds": len(group),
+            "seeds": ";".join(str(s) for s in seeds),
             **{f"n_{s}": counts[s] for s in STATUSES},
             "n_untrained": int((group["trained"] == False).sum())  # noqa: E712
-            if "trained" in group else 0,
+            if "trained" in group
+            else 0,
             # seeds whose criterion still fell over the last 20% of steps
             "n_unconverged": int((group["converged"] == False).sum())  # noqa: E712
-            if "converged" in group else 0,
-            "status": status_text(counts), "reason": reason_text(group),
+            if "converged" in group
+            else 0,
+            "status": status_text(counts),
+            "reason": reason_text(group),
         }
         use = group[group["status"] == "ok"]
         if use.empty:
@@ -426,13 +461,17 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
             vals = pd.to_numeric(timed[t], errors="coerce") if t in timed else pd.Series([])
             row[f"{t}_mean"] = float(vals.mean()) if vals.notna().any() else math.nan
         if tracks:  # the tuning's CPU seconds: one study per pair, in each of its records
-            cpu = pd.to_numeric(group["tuning_cpu_s"], errors="coerce") \
-                if "tuning_cpu_s" in group else pd.Series([], dtype=float)
+            cpu = (
+                pd.to_numeric(group["tuning_cpu_s"], errors="coerce")
+                if "tuning_cpu_s" in group
+                else pd.Series([], dtype=float)
+            )
             row["tuning_cpu_s"] = float(cpu.max()) if cpu.notna().any() else math.nan
         row["git_commits"] = _distinct(group.get("git_commit"))
         row["machines"] = _distinct(group.get("machine"))
-        row["dates"] = _distinct(None if "created_at" not in group else
-                                 group["created_at"].astype(str).str[:10])
+        row["dates"] = _distinct(
+            None if "created_at" not in group else group["created_at"].astype(str).str[:10]
+        )
         rows.append(row)
     intervals = iter(stats.mean_intervals(samples))
     for row in rows:
@@ -441,11 +480,16 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
     out = pd.DataFrame(rows, columns=columns)
     systems = registry.ordered("system", out["system"].astype(str))
     models = registry.ordered("model", out["model"].astype(str))
-    keys = out.apply(lambda r: (str(r["profile"]),
-                                _track_rank(str(r["track"])) if tracks else (),
-                                systems.index(str(r["system"])),
-                                models.index(str(r["model"])),
-                                variant_sort_key(r["variant"]) if variants else ()), axis=1)
+    keys = out.apply(
+        lambda r: (
+            str(r["profile"]),
+            _track_rank(str(r["track"])) if tracks else (),
+            systems.index(str(r["system"])),
+            models.index(str(r["model"])),
+            variant_sort_key(r["variant"]) if variants else (),
+        ),
+        axis=1,
+    )
     return out.iloc[sorted(range(len(out)), key=lambda i: keys.iloc[i])].reset_index(drop=True)
 
 
@@ -458,12 +502,14 @@ def _distinct(values: Any) -> str:
     """Distinct non-empty values, sorted, ``;``-joined."""
     if values is None:
         return ""
-    return ";".join(sorted({str(v) for v in values if v is not None and str(v) not in
-                            ("", "nan", "None")}))
+    return ";".join(
+        sorted({str(v) for v in values if v is not None and str(v) not in ("", "nan", "None")})
+    )
 
 
 def format_value(mean: float, std: float = math.nan, linear: bool = False) -> str:
     """``3.7e-02 ± 1.1e-03``; ``inf``; ``—`` for no value; mean alone for one seed."""
+
     def one(x: float) -> str:
         if math.isinf(x):
             return "inf" if x > 0 else "-inf"
@@ -477,14 +523,21 @@ def format_value(mean: float, std: float = math.nan, linear: bool = False) -> st
     return text
 
 
-def format_interval(mean: float, low: float = math.nan, high: float = math.nan,
-                    linear: bool = False) -> str:
+def format_interval(
+    mean: float, low: float = math.nan, high: float = math.nan, linear: bool = False
+) -> str:
     """``3.7e-02 [3.5e-02, 3.9e-02]`` (the mean over seeds and its interval); the mean
     alone where there is no interval (one seed; ``inf``: a diverged rollout); ``—`` for
     no value."""
     text = format_value(mean, linear=linear)
-    if text == "—" or math.isinf(float(mean)) or low is None or high is None \
-            or pd.isna(low) or pd.isna(high):
+    if (
+        text == "—"
+        or math.isinf(float(mean))
+        or low is None
+        or high is None
+        or pd.isna(low)
+        or pd.isna(high)
+    ):
         return text
     return f"{text} [{format_value(low, linear=linear)}, {format_value(high, linear=linear)}]"
 
@@ -501,12 +554,16 @@ def short_reason(text: Any, width: int = 72) -> str:
 def board_metrics(board: pd.DataFrame) -> list[str]:
     """The metrics of a leaderboard (its ``<metric>_mean`` columns, timings apart), in
     column order."""
-    return [c[: -len("_mean")] for c in board.columns
-            if c.endswith("_mean") and c[: -len("_mean")] not in TIMINGS]
+    return [
+        c[: -len("_mean")]
+        for c in board.columns
+        if c.endswith("_mean") and c[: -len("_mean")] not in TIMINGS
+    ]
 
 
-def display_frame(board: pd.DataFrame, timings: bool = True,
-                  ids: Sequence[str] = ("system", "model")) -> pd.DataFrame:
+def display_frame(
+    board: pd.DataFrame, timings: bool = True, ids: Sequence[str] = ("system", "model")
+) -> pd.DataFrame:
     """The leaderboard with ``mean [low, high]`` strings (:func:`format_interval`), for
     Markdown and HTML: the ``ids`` columns, ``variant`` where the board has one,
     ``n_seeds``, ``status``, ``reason`` (cut short: :func:`short_reason`; only when some
@@ -527,11 +584,14 @@ def display_frame(board: pd.DataFrame, timings: bool = True,
         for m in metrics:
             if board[f"{m}_mean"].isna().all():  # not applicable anywhere
                 continue
-            row[m] = format_interval(r[f"{m}_mean"], r.get(f"{m}_ci_low", math.nan),
-                                     r.get(f"{m}_ci_high", math.nan), linear=m in linear)
+            row[m] = format_interval(
+                r[f"{m}_mean"],
+                r.get(f"{m}_ci_low", math.nan),
+                r.get(f"{m}_ci_high", math.nan),
+                linear=m in linear,
+            )
         if timings:
-            row[COST_COLUMN] = format_value(r.get(f"{COST_COLUMN}_mean", math.nan),
-                                            linear=True)
+            row[COST_COLUMN] = format_value(r.get(f"{COST_COLUMN}_mean", math.nan), linear=True)
         if timings and "tuning_cpu_s" in board:
             row["tuning_cpu_s"] = format_value(r.get("tuning_cpu_s", math.nan), linear=True)
         rows.append(row)

@@ -68,13 +68,13 @@ def _defaults_text(system: str, model: str, profile: str, track: str) -> str:
 
     from hnnbench._running.compose import compose
 
-    cfg = compose([f"system={system}", f"model={model}", f"profile={profile}",
-                   f"track={track}"])
+    cfg = compose([f"system={system}", f"model={model}", f"profile={profile}", f"track={track}"])
     return json.dumps(encode(OmegaConf.to_container(cfg, resolve=True)), sort_keys=True)
 
 
-def default_config(system: str, model: str, profile: str,
-                   track: str = DEFAULT_TRACK) -> dict[str, Any]:
+def default_config(
+    system: str, model: str, profile: str, track: str = DEFAULT_TRACK
+) -> dict[str, Any]:
     """The resolved job config of (``system``, ``model``, ``profile``, ``track``) with
     nothing else set, as a record stores it (strict JSON values; on the recipe track the
     model's declared recipe is part of the defaults); composed once per process.
@@ -82,8 +82,11 @@ def default_config(system: str, model: str, profile: str,
     Raises:
         HnnbenchError: a name that is not installed (the one-line message).
     """
-    return dict(json.loads(_defaults_text(system, model, profile,
-                                          track if track in TRACKS else DEFAULT_TRACK)))
+    return dict(
+        json.loads(
+            _defaults_text(system, model, profile, track if track in TRACKS else DEFAULT_TRACK)
+        )
+    )
 
 
 def value_text(value: Any) -> str:
@@ -102,8 +105,9 @@ def _same(a: Any, b: Any) -> bool:
     return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
 
 
-def _diff(record: dict[str, Any], default: dict[str, Any], prefix: str,
-          out: dict[str, tuple[Any, Any]]) -> None:
+def _diff(
+    record: dict[str, Any], default: dict[str, Any], prefix: str, out: dict[str, tuple[Any, Any]]
+) -> None:
     """Settings of ``record`` whose value differs from ``default``: ``{path: (record's,
     default)}``. A setting the record lacks is not compared: a job run from the stored
     config (``--rerun``) takes the default for it."""
@@ -159,10 +163,12 @@ class Variant:
         first = self.undeclared[0]
         mine, default = self.settings[first]
         more = len(self.undeclared) - 1
-        return (f"config.{first} is {value_text(mine)} but the {profile} profile's default "
-                f"is {value_text(default)}, and the record's overrides do not set it"
-                + (f" (nor {more} other setting(s))" if more else "")
-                + f": a variant ({self.label}), not the main row")
+        return (
+            f"config.{first} is {value_text(mine)} but the {profile} profile's default "
+            f"is {value_text(default)}, and the record's overrides do not set it"
+            + (f" (nor {more} other setting(s))" if more else "")
+            + f": a variant ({self.label}), not the main row"
+        )
 
 
 def config_variant(record: dict[str, Any], fallback: str = "") -> Variant:
@@ -171,32 +177,48 @@ def config_variant(record: dict[str, Any], fallback: str = "") -> Variant:
     config = record.get("config")
     system, model = record.get("system"), record.get("model")
     profile = record.get("profile") or "paper"
-    if not (isinstance(config, dict) and isinstance(config.get("system"), dict)
-            and isinstance(config.get("model"), dict)):
-        return Variant(fallback, {}, problem="the record holds no resolved config "
-                       "(config.system, config.model): its variant cannot be verified")
-    identity = (("system", system, config["system"].get("name")),
-                ("model", model, config["model"].get("name")),
-                ("profile", profile, (config.get("profile") or {}).get("name", profile)),
-                ("seed", record.get("seed"), config.get("seed", record.get("seed"))))
+    if not (
+        isinstance(config, dict)
+        and isinstance(config.get("system"), dict)
+        and isinstance(config.get("model"), dict)
+    ):
+        return Variant(
+            fallback,
+            {},
+            problem="the record holds no resolved config "
+            "(config.system, config.model): its variant cannot be verified",
+        )
+    identity = (
+        ("system", system, config["system"].get("name")),
+        ("model", model, config["model"].get("name")),
+        ("profile", profile, (config.get("profile") or {}).get("name", profile)),
+        ("seed", record.get("seed"), config.get("seed", record.get("seed"))),
+    )
     wrong = [f"{key}: record {a}, config {b}" for key, a, b in identity if not _same(a, b)]
     try:
         default = default_config(str(system), str(model), str(profile), track_of(record))
     except HnnbenchError as err:
-        installed = _installed("system", str(system)) is not None and \
-            _installed("model", str(model)) is not None
-        return Variant(fallback, {}, problem=f"its variant cannot be verified: {err}",
-                       installed=installed, mismatch="; ".join(wrong) or None)
+        installed = (
+            _installed("system", str(system)) is not None
+            and _installed("model", str(model)) is not None
+        )
+        return Variant(
+            fallback,
+            {},
+            problem=f"its variant cannot be verified: {err}",
+            installed=installed,
+            mismatch="; ".join(wrong) or None,
+        )
     settings: dict[str, tuple[Any, Any]] = {}
     _diff(config, default, "", settings)
     # A tuned record's selected settings and step budget define its track, not a variant.
     tuned = tuned_settings(record)
     settings = {path: pair for path, pair in settings.items() if path not in tuned}
-    label = " ".join(f"{path}={value_text(mine)}" for path, (mine, _) in sorted(
-        settings.items()))
+    label = " ".join(f"{path}={value_text(mine)}" for path, (mine, _) in sorted(settings.items()))
     declared = _declared(record.get("overrides"))
-    undeclared = tuple(p for p in sorted(settings)
-                       if not any(p == k or p.startswith(f"{k}.") for k in declared))
+    undeclared = tuple(
+        p for p in sorted(settings) if not any(p == k or p.startswith(f"{k}.") for k in declared)
+    )
     return Variant(label, settings, undeclared, mismatch="; ".join(wrong) or None)
 
 
@@ -204,8 +226,11 @@ def _installed(kind: Literal["system", "model"], name: str) -> Optional[dict[str
     info = registry.discover(kind).get(name)
     if info is None or not info.ok:
         return None
-    return {"version": info.version, "distribution": info.distribution,
-            "distribution_version": info.dist_version}
+    return {
+        "version": info.version,
+        "distribution": info.distribution,
+        "distribution_version": info.dist_version,
+    }
 
 
 KINDS: tuple[Literal["system", "model"], ...] = ("system", "model")
@@ -233,8 +258,14 @@ def plugin_problems(record: dict[str, Any]) -> list[tuple[str, str, str, bool]]:
             continue
         entry = plugins.get(kind)
         if not isinstance(entry, dict):
-            out.append((f"plugins.{kind}", "missing", f"{have['distribution']} "
-                        f"{have['distribution_version']}", True))
+            out.append(
+                (
+                    f"plugins.{kind}",
+                    "missing",
+                    f"{have['distribution']} {have['distribution_version']}",
+                    True,
+                )
+            )
             continue
         if entry.get("name") != name:
             out.append((f"plugins.{kind}.name", str(entry.get("name")), name, True))
@@ -258,6 +289,8 @@ def reserved_key_problem(record: dict[str, Any]) -> Optional[str]:
     for name in timings if isinstance(timings, dict) else ():
         name = str(name)
         if name in TAKEN or name in metrics or not re.fullmatch(r"[a-z][a-z0-9_]*_s", name):
-            return (f"timings key '{name}' is not a timing name (lower-case, ending in '_s', "
-                    "and no table column): it would replace a column of the tables")
+            return (
+                f"timings key '{name}' is not a timing name (lower-case, ending in '_s', "
+                "and no table column): it would replace a column of the tables"
+            )
     return None

@@ -80,23 +80,32 @@ MIN_SEPARABLE_SEEDS = min_separable_seeds()
 # --------------------------------------------------------------------------- cells
 
 
-def _bootstrap(data: Any, statistic: Callable[..., Any], method: str,
-               n_resamples: Optional[int] = None) -> tuple[np.ndarray, np.ndarray]:
+def _bootstrap(
+    data: Any, statistic: Callable[..., Any], method: str, n_resamples: Optional[int] = None
+) -> tuple[np.ndarray, np.ndarray]:
     from scipy import stats
 
     n_resamples = N_RESAMPLES if n_resamples is None else n_resamples
 
     with warnings.catch_warnings():  # a degenerate row gives NaN, handled by the caller
         warnings.simplefilter("ignore")
-        res = stats.bootstrap(data, statistic, n_resamples=n_resamples, method=method,
-                              confidence_level=CONFIDENCE, vectorized=True, axis=-1,
-                              rng=np.random.default_rng(BOOTSTRAP_SEED))
-    return (np.asarray(res.confidence_interval.low, dtype=float),
-            np.asarray(res.confidence_interval.high, dtype=float))
+        res = stats.bootstrap(
+            data,
+            statistic,
+            n_resamples=n_resamples,
+            method=method,
+            confidence_level=CONFIDENCE,
+            vectorized=True,
+            axis=-1,
+            rng=np.random.default_rng(BOOTSTRAP_SEED),
+        )
+    return (
+        np.asarray(res.confidence_interval.low, dtype=float),
+        np.asarray(res.confidence_interval.high, dtype=float),
+    )
 
 
-def mean_intervals(samples: Sequence[Sequence[float] | np.ndarray]
-                   ) -> list[tuple[float, float]]:
+def mean_intervals(samples: Sequence[Sequence[float] | np.ndarray]) -> list[tuple[float, float]]:
     """The :data:`CELL_METHOD` bootstrap interval (:data:`CONFIDENCE`) of the mean of each
     sample (its values over seeds), as ``(low, high)``; ``(nan, nan)`` for fewer than two
     values or a non-finite one (a diverged rollout's ``inf``: no interval), ``(v, v)``
@@ -117,9 +126,8 @@ def mean_intervals(samples: Sequence[Sequence[float] | np.ndarray]
         by_length.setdefault(arr.size, []).append(i)
     for indices in by_length.values():
         for start in range(0, len(indices), _CHUNK):
-            chunk = indices[start:start + _CHUNK]
-            low, high = _bootstrap((np.stack([arrays[i] for i in chunk]),), np.mean,
-                                   CELL_METHOD)
+            chunk = indices[start : start + _CHUNK]
+            low, high = _bootstrap((np.stack([arrays[i] for i in chunk]),), np.mean, CELL_METHOD)
             for i, lo, hi in zip(chunk, np.atleast_1d(low), np.atleast_1d(high), strict=True):
                 if not (math.isfinite(lo) and math.isfinite(hi)):  # BCa degenerate: percentile
                     (lo,), (hi,) = _bootstrap((arrays[i][None, :],), np.mean, "percentile")
@@ -130,8 +138,9 @@ def mean_intervals(samples: Sequence[Sequence[float] | np.ndarray]
 # --------------------------------------------------------------------------- paired test
 
 
-def sign_test(a: Sequence[float] | np.ndarray, b: Sequence[float] | np.ndarray,
-              better: str = "lower") -> tuple[float, int, int]:
+def sign_test(
+    a: Sequence[float] | np.ndarray, b: Sequence[float] | np.ndarray, better: str = "lower"
+) -> tuple[float, int, int]:
     """One-sided exact sign test that ``a`` is better than ``b`` over paired seeds
     (``a[k]``, ``b[k]``: the same seed). A seed counts for ``a`` only where ``a[k]`` is a
     number strictly better than ``b[k]`` (``b[k]`` NaN: no result, which ``a`` beats); a
@@ -139,21 +148,23 @@ def sign_test(a: Sequence[float] | np.ndarray, b: Sequence[float] | np.ndarray,
     ``p = P(Binomial(n, 1/2) >= wins)``; ``p = 1`` without shared seeds."""
     x, y = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     if x.shape != y.shape:
-        raise ValueError(f"sign_test: paired values need one shape, got {x.shape} and "
-                         f"{y.shape}")
+        raise ValueError(f"sign_test: paired values need one shape, got {x.shape} and {y.shape}")
     n = int(x.size)
     if n == 0:
         return 1.0, 0, 0
     with np.errstate(invalid="ignore"):
         strictly = x > y if better == "higher" else x < y
     wins = int(np.sum(~np.isnan(x) & (strictly | np.isnan(y))))
-    p = float(sum(math.comb(n, k) for k in range(wins, n + 1)) / 2.0 ** n)
+    p = float(sum(math.comb(n, k) for k in range(wins, n + 1)) / 2.0**n)
     return p, wins, n
 
 
-def leader_test(leader: Sequence[float] | np.ndarray,
-                others: Sequence[Sequence[float] | np.ndarray], better: str = "lower",
-                alpha: float = ALPHA) -> tuple[list[float], list[bool]]:
+def leader_test(
+    leader: Sequence[float] | np.ndarray,
+    others: Sequence[Sequence[float] | np.ndarray],
+    better: str = "lower",
+    alpha: float = ALPHA,
+) -> tuple[list[float], list[bool]]:
     """The leader against each of ``others`` (values paired seed by seed with
     ``leader``'s: ``others[j][k]`` and ``leader[k]`` share a seed; NaN where a run has
     no value): a two-sided exact sign test each (:func:`sign_test`'s counting, its p
@@ -162,8 +173,7 @@ def leader_test(leader: Sequence[float] | np.ndarray,
     and other ``j`` are alike" at ``alpha``. The leader is best when every one is."""
     raw = []
     for other in others:
-        p, _, n = sign_test(np.asarray(leader, dtype=float), np.asarray(other, dtype=float),
-                            better)
+        p, _, n = sign_test(np.asarray(leader, dtype=float), np.asarray(other, dtype=float), better)
         raw.append(min(1.0, 2.0 * p) if n else 1.0)
     return holm(raw, alpha)
 
@@ -181,9 +191,12 @@ def holm(p_values: Sequence[float], alpha: float = ALPHA) -> tuple[list[float], 
     return adjusted, [a <= alpha for a in adjusted]
 
 
-def paired_effect(leader: Sequence[float] | np.ndarray, other: Sequence[float] | np.ndarray,
-                  better: str = "lower", scale: str = "log"
-                  ) -> tuple[float, float, float, float]:
+def paired_effect(
+    leader: Sequence[float] | np.ndarray,
+    other: Sequence[float] | np.ndarray,
+    better: str = "lower",
+    scale: str = "log",
+) -> tuple[float, float, float, float]:
     """How much better the leader is than ``other``, seed by seed (paired): on a log
     scale ``log10(other / leader)`` for a lower-is-better metric (``log10(leader /
     other)`` for higher), on a linear scale the difference in the leader's favour;
@@ -203,20 +216,21 @@ def paired_effect(leader: Sequence[float] | np.ndarray, other: Sequence[float] |
     for i, (a, b) in enumerate(zip(x, y, strict=True)):
         good_a, good_b = math.isfinite(a), math.isfinite(b)
         if good_a and good_b:
-            effects[i] = sign * (math.log10(max(b, tiny)) - math.log10(max(a, tiny))
-                                 if scale == "log" else b - a)
+            effects[i] = sign * (
+                math.log10(max(b, tiny)) - math.log10(max(a, tiny)) if scale == "log" else b - a
+            )
         else:  # a side without a usable value loses the seed outright
             effects[i] = math.inf if good_a else (-math.inf if good_b else 0.0)
     values = np.sort(effects)
     n = values.size
     k = 1
     for candidate in range(1, n // 2 + 1):
-        tail = sum(math.comb(n, j) for j in range(candidate)) / 2.0 ** n
+        tail = sum(math.comb(n, j) for j in range(candidate)) / 2.0**n
         if 1.0 - 2.0 * tail >= CONFIDENCE:
             k = candidate
         else:
             break
-    coverage = 1.0 - 2.0 * sum(math.comb(n, j) for j in range(k)) / 2.0 ** n
+    coverage = 1.0 - 2.0 * sum(math.comb(n, j) for j in range(k)) / 2.0**n
     return float(np.median(values)), float(values[k - 1]), float(values[n - k]), coverage
 
 
@@ -245,8 +259,9 @@ def normalisation_scale(base: float, floor: float, rule: CheckRule) -> Optional[
     return math.log(worse)
 
 
-def normalised_scores(values: Any, base: float, floor: float, rule: CheckRule
-                      ) -> Optional[np.ndarray]:
+def normalised_scores(
+    values: Any, base: float, floor: float, rule: CheckRule
+) -> Optional[np.ndarray]:
     """Each value's normalised score: ``1 - log W(floor, v) / log W(floor, base)``: 1 at
     the floor, 0 at the baseline, negative where worse than the baseline (``W``:
     :meth:`CheckRule.worsening`), clipped to :data:`SCORE_RANGE`; a NaN or infinite
@@ -265,8 +280,9 @@ def normalised_scores(values: Any, base: float, floor: float, rule: CheckRule
     return np.clip(out, *SCORE_RANGE)
 
 
-def _bootstrap_strata(arrays: Sequence[np.ndarray], statistic: Callable[..., Any],
-                      n_resamples: Optional[int] = None) -> tuple[np.ndarray, np.ndarray]:
+def _bootstrap_strata(
+    arrays: Sequence[np.ndarray], statistic: Callable[..., Any], n_resamples: Optional[int] = None
+) -> tuple[np.ndarray, np.ndarray]:
     """:data:`AGGREGATE_METHOD` interval of ``statistic(*arrays, axis=-1)``, each array
     resampled independently; an array of one value (nothing to resample: scipy needs
     two) stays as it is in every resample."""
@@ -275,12 +291,13 @@ def _bootstrap_strata(arrays: Sequence[np.ndarray], statistic: Callable[..., Any
     def wrapped(*samples: np.ndarray, axis: int = -1) -> Any:
         batch = samples[0].shape[:-1]
         given = iter(samples)
-        full = [next(given) if i in varying else
-                np.broadcast_to(a, (*batch, a.size)) for i, a in enumerate(arrays)]
+        full = [
+            next(given) if i in varying else np.broadcast_to(a, (*batch, a.size))
+            for i, a in enumerate(arrays)
+        ]
         return statistic(*full, axis=axis)
 
-    return _bootstrap(tuple(arrays[i] for i in varying), wrapped, AGGREGATE_METHOD,
-                      n_resamples)
+    return _bootstrap(tuple(arrays[i] for i in varying), wrapped, AGGREGATE_METHOD, n_resamples)
 
 
 def _pooled_iqm(*strata: np.ndarray, axis: int = -1) -> np.ndarray:
@@ -288,9 +305,10 @@ def _pooled_iqm(*strata: np.ndarray, axis: int = -1) -> np.ndarray:
     return iqm(np.concatenate(strata, axis=axis), axis=axis)
 
 
-def stratified_interval(strata: Sequence[Sequence[float] | np.ndarray],
-                        statistic: Callable[..., Any] = _pooled_iqm,
-                        ) -> tuple[float, float, float]:
+def stratified_interval(
+    strata: Sequence[Sequence[float] | np.ndarray],
+    statistic: Callable[..., Any] = _pooled_iqm,
+) -> tuple[float, float, float]:
     """``(point, low, high)`` of ``statistic(*strata, axis=-1)`` (default: the IQM of
     every run pooled), the interval a :data:`AGGREGATE_METHOD` bootstrap (:data:`CONFIDENCE`)
     that resamples each stratum (a system's seeds) independently and keeps every stratum:
@@ -315,8 +333,9 @@ def _improvement(*strata: np.ndarray, axis: int = -1) -> np.ndarray:
     return np.mean(np.stack(probs, axis=0), axis=0)
 
 
-def probability_of_improvement(x: Sequence[np.ndarray], y: Sequence[np.ndarray]
-                               ) -> tuple[float, float, float]:
+def probability_of_improvement(
+    x: Sequence[np.ndarray], y: Sequence[np.ndarray]
+) -> tuple[float, float, float]:
     """``(point, low, high)``: the probability that a run of X scores higher than a run
     of Y on the same system (Mann-Whitney: a tie counts one half), averaged over the
     systems both ran (``x[i]``, ``y[i]``: scores of system ``i``), with the stratified
@@ -332,8 +351,9 @@ def probability_of_improvement(x: Sequence[np.ndarray], y: Sequence[np.ndarray]
     return stratified_interval(strata, _improvement)
 
 
-def performance_profile(strata: Sequence[np.ndarray], taus: np.ndarray
-                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def performance_profile(
+    strata: Sequence[np.ndarray], taus: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(fraction, low, high)`` over ``taus``: the share of runs whose score exceeds
     each ``tau``, each system weighted equally (the mean over systems of its share of
     seeds), with the stratified bootstrap interval of each point (Agarwal et al. 2021,
@@ -361,45 +381,53 @@ def performance_profile(strata: Sequence[np.ndarray], taus: np.ndarray
 
 def cell_rule() -> str:
     """What a cell's interval is (Markdown, one sentence part)."""
-    return (f"mean over seeds [{CONFIDENCE:.0%} {CELL_METHOD} bootstrap interval of the mean "
-            f"over seeds, `scipy.stats.bootstrap`, {N_RESAMPLES} resamples; none for one "
-            "seed or an `inf`]")
+    return (
+        f"mean over seeds [{CONFIDENCE:.0%} {CELL_METHOD} bootstrap interval of the mean "
+        f"over seeds, `scipy.stats.bootstrap`, {N_RESAMPLES} resamples; none for one "
+        "seed or an `inf`]"
+    )
 
 
 def best_rule() -> str:
     """When a cell is marked best or tied (Markdown, one sentence)."""
-    return (f"**Bold**: best, separated from every other family with a value by "
-            f"two-sided exact sign tests over their shared seeds, Holm-adjusted, at "
-            f"{ALPHA:g} (a tie or a missing value counts against it; with n shared seeds "
-            f"p >= 2 x 0.5^n, so it takes at least {MIN_SEPARABLE_SEEDS} seeds, each one "
-            "better; the false-best rate of this rule, leader's choice included, is "
-            "simulated in docs/STATISTICS.md); *italics*: tied for best, i.e. the leader "
-            "(the best mean among the families whose every seed is `ok`) and every family "
-            "it is not separated from (tied means not separated, not equivalent); `×r` or "
-            "`+d` beside a leader: its median paired effect over the runner-up.")
+    return (
+        f"**Bold**: best, separated from every other family with a value by "
+        f"two-sided exact sign tests over their shared seeds, Holm-adjusted, at "
+        f"{ALPHA:g} (a tie or a missing value counts against it; with n shared seeds "
+        f"p >= 2 x 0.5^n, so it takes at least {MIN_SEPARABLE_SEEDS} seeds, each one "
+        "better; the false-best rate of this rule, leader's choice included, is "
+        "simulated in docs/STATISTICS.md); *italics*: tied for best, i.e. the leader "
+        "(the best mean among the families whose every seed is `ok`) and every family "
+        "it is not separated from (tied means not separated, not equivalent); `×r` or "
+        "`+d` beside a leader: its median paired effect over the runner-up."
+    )
 
 
 def rank_rule() -> str:
     """How the headline across systems is made (Markdown, a few sentences)."""
-    return ("Headline, free of any normalisation: each family's mean rank among the "
-            "families (1 = best; a run without a finite value last; ties share the mean "
-            "rank) on each system and seed, averaged over the seeds and then over the "
-            f"systems every family ran, with a {CONFIDENCE:.0%} interval from a stratified "
-            "bootstrap (seeds resampled within each system). P(A > B) below: the "
-            "probability that a run of A is better than a run of B on the same system, "
-            "from the metric's own values, averaged over the systems both ran; a claim "
-            f"needs at least {MIN_SEPARABLE_SEEDS} seeds of each on every such system and "
-            "an interval above 0.5.")
+    return (
+        "Headline, free of any normalisation: each family's mean rank among the "
+        "families (1 = best; a run without a finite value last; ties share the mean "
+        "rank) on each system and seed, averaged over the seeds and then over the "
+        f"systems every family ran, with a {CONFIDENCE:.0%} interval from a stratified "
+        "bootstrap (seeds resampled within each system). P(A > B) below: the "
+        "probability that a run of A is better than a run of B on the same system, "
+        "from the metric's own values, averaged over the systems both ran; a claim "
+        f"needs at least {MIN_SEPARABLE_SEEDS} seeds of each on every such system and "
+        "an interval above 0.5."
+    )
 
 
 def aggregate_rule(baseline: str = "the baseline") -> str:
     """How the aggregate across systems is made (Markdown, a few sentences)."""
-    return (f"Per system and metric, each run scores 1 - log W(floor, v) / log W(floor, "
-            f"{baseline}), where W is how many times worse than the floor (the oracle, or "
-            f"the metric's noise floor where no oracle ran, never below it) a value is: "
-            f"0 at {baseline}'s mean, 1 at the floor, below 0 worse than {baseline}; a "
-            f"diverged or failed run scores {SCORE_RANGE[0]:g}. Per family: the "
-            f"interquartile mean (IQM) of its runs over every system, with a "
-            f"{CONFIDENCE:.0%} {AGGREGATE_METHOD} interval from a stratified bootstrap "
-            f"(seeds resampled within each system; `scipy.stats.bootstrap`, "
-            f"{N_RESAMPLES} resamples; Agarwal et al. 2021).")
+    return (
+        f"Per system and metric, each run scores 1 - log W(floor, v) / log W(floor, "
+        f"{baseline}), where W is how many times worse than the floor (the oracle, or "
+        f"the metric's noise floor where no oracle ran, never below it) a value is: "
+        f"0 at {baseline}'s mean, 1 at the floor, below 0 worse than {baseline}; a "
+        f"diverged or failed run scores {SCORE_RANGE[0]:g}. Per family: the "
+        f"interquartile mean (IQM) of its runs over every system, with a "
+        f"{CONFIDENCE:.0%} {AGGREGATE_METHOD} interval from a stratified bootstrap "
+        f"(seeds resampled within each system; `scipy.stats.bootstrap`, "
+        f"{N_RESAMPLES} resamples; Agarwal et al. 2021)."
+    )

@@ -62,8 +62,11 @@ def claim_core(lock_dir: Optional[Path] = None) -> Optional[int]:
     try:
         return _claim(lock_dir)
     except OSError as err:
-        log.warning("hnnbench: could not pin this job to one CPU core (%s); it runs "
-                    "unpinned, and JAX results may then differ in the last bits", err)
+        log.warning(
+            "hnnbench: could not pin this job to one CPU core (%s); it runs "
+            "unpinned, and JAX results may then differ in the last bits",
+            err,
+        )
         return None
 
 

@@ -18,7 +18,11 @@ from hnnbench._running import configstore
 from hnnbench._running.config import RunConfig, hydra_error_line, needs_running_hydra, not_a_setting
 
 __all__ = [
-    "HYDRA_PLUGIN_PACKAGES", "check_hydra_node", "compose", "profile_of", "track_of_overrides",
+    "HYDRA_PLUGIN_PACKAGES",
+    "check_hydra_node",
+    "compose",
+    "profile_of",
+    "track_of_overrides",
 ]
 
 
@@ -65,8 +69,9 @@ def track_of_overrides(overrides: list[str]) -> str:
     recipe track's model defaults are each model's declared recipe."""
     track = _single_choice(overrides, "track", DEFAULT_TRACK)
     if track not in TRACKS:
-        raise ConfigError(f"track={track} is invalid: expected one of {', '.join(TRACKS)} "
-                          "(docs/TUNING.md).")
+        raise ConfigError(
+            f"track={track} is invalid: expected one of {', '.join(TRACKS)} (docs/TUNING.md)."
+        )
     return track
 
 
@@ -102,13 +107,13 @@ def compose(
     try:
         with context:
             _check_hydra_groups(overrides)
-            return hydra_compose(config_name, overrides=overrides,
-                                 return_hydra_config=return_hydra_config)
+            return hydra_compose(
+                config_name, overrides=overrides, return_hydra_config=return_hydra_config
+            )
     except ConfigError:
         raise
     except Exception as err:
-        raise (_unknown_setting(err, overrides) or ConfigError(hydra_error_line(err))) \
-            from None
+        raise (_unknown_setting(err, overrides) or ConfigError(hydra_error_line(err))) from None
     finally:
         GlobalHydra.instance().clear()
 
@@ -121,8 +126,10 @@ def _refuse_name_overrides(overrides: list[str]) -> None:
         kind = key.split(".", 1)[0]
         if key in ("system.name", "model.name"):
             shown = value if sep and value else "<name>"
-            raise ConfigError(f"{key} cannot be set: it follows the {kind} chosen; choose "
-                              f"the {kind} with {kind}={shown}")
+            raise ConfigError(
+                f"{key} cannot be set: it follows the {kind} chosen; choose "
+                f"the {kind} with {kind}={shown}"
+            )
 
 
 _NOT_IN = re.compile(r"Key '([^']+)' not in '([^']+)'")
@@ -150,14 +157,18 @@ def _unknown_setting(err: BaseException, overrides: list[str]) -> ConfigError | 
         for name in candidates:
             info = plugins.get(name)
             config = getattr(info.cls, "Config", None) if info is not None else None
-            if info is not None and info.ok and config is not None \
-                    and config.__name__ == config_name:
+            if (
+                info is not None
+                and info.ok
+                and config is not None
+                and config.__name__ == config_name
+            ):
                 known = [f.name for f in fields(config)]
-                return not_a_setting(f"{full_key} is not a setting of {kind} '{name}'", key,
-                                      known)
+                return not_a_setting(f"{full_key} is not a setting of {kind} '{name}'", key, known)
     if config_name == RunConfig.__name__:
-        return not_a_setting(f"{key} is not an hnnbench setting", key,
-                              [f.name for f in fields(RunConfig)])
+        return not_a_setting(
+            f"{key} is not an hnnbench setting", key, [f.name for f in fields(RunConfig)]
+        )
     return None
 
 
@@ -195,8 +206,11 @@ def _check_hydra_groups(overrides: list[str]) -> None:
         if group not in groups:
             raise UnknownNameError("Hydra config group", group, groups)
         options = options_of(group)
-        values = [str(v) for v in ov.sweep_string_iterator()] if ov.is_sweep_override() else [
-            ov.get_value_element_as_str()]
+        values = (
+            [str(v) for v in ov.sweep_string_iterator()]
+            if ov.is_sweep_override()
+            else [ov.get_value_element_as_str()]
+        )
         kind = f"Hydra {group.split('/', 1)[1]}"
         for value in values:
             if value in options:

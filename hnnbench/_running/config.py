@@ -22,8 +22,16 @@ from hnnbench._contracts.plugin import Model, ModelConfig, System, SystemConfig
 from hnnbench._running import tracking
 
 __all__ = [
-    "Job", "MAX_SEED", "ProfileConfig", "RUN_ONLY_KEYS", "RunConfig", "SweeperConfig",
-    "fingerprint", "hydra_error_line", "prepare_job", "validate_run",
+    "Job",
+    "MAX_SEED",
+    "ProfileConfig",
+    "RUN_ONLY_KEYS",
+    "RunConfig",
+    "SweeperConfig",
+    "fingerprint",
+    "hydra_error_line",
+    "prepare_job",
+    "validate_run",
 ]
 
 
@@ -31,10 +39,22 @@ __all__ = [
 #: finished record is reused on resume whatever they are, they define no leaderboard
 #: variant, and they are left out of a sweep job's directory name (conf/config.yaml's
 #: ``override_dirname.exclude_keys``, which tests/unit/test_config.py holds to this list).
-RUN_ONLY_KEYS = frozenset({
-    "rerun", "device", "threads", "pin_cpu", "save_model", "cache_dir", "data_dir",
-    "seeds_per_job", "seed_batch", "timeout_s", "log_to", "mlflow_uri",
-})
+RUN_ONLY_KEYS = frozenset(
+    {
+        "rerun",
+        "device",
+        "threads",
+        "pin_cpu",
+        "save_model",
+        "cache_dir",
+        "data_dir",
+        "seeds_per_job",
+        "seed_batch",
+        "timeout_s",
+        "log_to",
+        "mlflow_uri",
+    }
+)
 #: Seeds must fit every backend's generator (torch, numpy, JAX keys): 0 <= seed < 2**32.
 MAX_SEED = 2**32 - 1
 
@@ -136,8 +156,10 @@ def validate_run(cfg: Any) -> None:
             raise not_a_setting(f"{key} is not an hnnbench setting", key, known)
     for key in ("system", "model"):  # the shipped config names no plugin
         if key not in cfg or cfg.get(key) is None:
-            raise ConfigError(f"no {key} chosen: add {key}=<name> to the command line "
-                              f"(`hnnbench list` shows the {key}s; {key}=all for every one)")
+            raise ConfigError(
+                f"no {key} chosen: add {key}=<name> to the command line "
+                f"(`hnnbench list` shows the {key}s; {key}=all for every one)"
+            )
     for key in known:
         if key not in cfg:
             raise ConfigError(f"{key} is missing (removed with ~{key}?): hnnbench needs it.")
@@ -179,17 +201,25 @@ def validate_run(cfg: Any) -> None:
     batch = cfg.get("seed_batch")
     if batch is not None:
         values = list(batch)
-        if not values or any(isinstance(v, bool) or not isinstance(v, int)
-                             or not 0 <= v <= MAX_SEED for v in values):
-            raise ConfigError(f"seed_batch={values} is invalid: expected a list of seeds, "
-                              "e.g. seed_batch=[0,1,2] (normally set by seeds_per_job).")
+        if not values or any(
+            isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= MAX_SEED for v in values
+        ):
+            raise ConfigError(
+                f"seed_batch={values} is invalid: expected a list of seeds, "
+                "e.g. seed_batch=[0,1,2] (normally set by seeds_per_job)."
+            )
         if len(set(values)) != len(values) or values[0] != seed:
-            raise ConfigError(f"seed_batch={values} must hold distinct seeds starting with "
-                              f"seed={seed}; let seeds_per_job set it.")
+            raise ConfigError(
+                f"seed_batch={values} must hold distinct seeds starting with "
+                f"seed={seed}; let seeds_per_job set it."
+            )
     device_request(str(cfg.device))  # a ConfigError saying what is accepted
     limit = cfg.get("timeout_s")
-    if limit is not None and (isinstance(limit, bool) or not isinstance(limit, (int, float))
-                              or not (limit >= 0 and math.isfinite(limit))):
+    if limit is not None and (
+        isinstance(limit, bool)
+        or not isinstance(limit, (int, float))
+        or not (limit >= 0 and math.isfinite(limit))
+    ):
         raise ConfigError(
             f"timeout_s={limit} is invalid: expected seconds >= 0 (0 or null: no limit), "
             "e.g. timeout_s=3600."
@@ -200,9 +230,7 @@ def validate_run(cfg: Any) -> None:
     for key in ("rtol", "atol", "vpt_threshold"):
         value = getattr(ev, key)
         if not (value > 0 and math.isfinite(value)):
-            raise ConfigError(
-                f"evaluation.{key}={value} is invalid: expected a finite number > 0."
-            )
+            raise ConfigError(f"evaluation.{key}={value} is invalid: expected a finite number > 0.")
     chosen = ev.get("metrics")
     if chosen is not None:
         names = registry.available("metric")
@@ -211,12 +239,16 @@ def validate_run(cfg: Any) -> None:
                 raise UnknownNameError("metric", str(name), names)
     track = cfg.get("track")
     if track not in TRACKS:
-        raise ConfigError(f"track={track} is invalid: expected one of {', '.join(TRACKS)} "
-                          "(protocol: the shared protocol, the default).")
+        raise ConfigError(
+            f"track={track} is invalid: expected one of {', '.join(TRACKS)} "
+            "(protocol: the shared protocol, the default)."
+        )
     tuning = cfg.get("tuning")
     if tuning is not None and (track != "tuned" or not isinstance(tuning, DictConfig)):
-        raise ConfigError("tuning is set by hnnbench tune for track=tuned only (a mapping); "
-                          "remove it from the command line.")
+        raise ConfigError(
+            "tuning is set by hnnbench tune for track=tuned only (a mapping); "
+            "remove it from the command line."
+        )
     tracking.check(cfg.get("log_to"), cfg.get("mlflow_uri"))
 
 
@@ -230,13 +262,14 @@ def _instantiate_config(kind: str, node: Any) -> Any:
     for raw_key, value in values.items():
         key = str(raw_key)
         if key not in known:
-            raise not_a_setting(f"{kind}.{key} is not a setting of {kind} '{name}'",
-                                 key, known)
+            raise not_a_setting(f"{kind}.{key} is not a setting of {kind} '{name}'", key, known)
         # No plugin setting means anything with NaN or an infinity (a finite bound
         # works where "no bound" is meant); plugins check their own ranges.
         if isinstance(value, float) and not math.isfinite(value):
-            raise ConfigError(f"{kind}.{key}={value} is invalid: expected a finite number. "
-                              f"Fix it with {kind}.{key}=<finite value>.")
+            raise ConfigError(
+                f"{kind}.{key}={value} is invalid: expected a finite number. "
+                f"Fix it with {kind}.{key}=<finite value>."
+            )
     try:
         return cls.Config(**{str(k): v for k, v in values.items()})
     except TypeError as err:
@@ -250,9 +283,12 @@ def _instantiate_config(kind: str, node: Any) -> Any:
 def _plugin_raised(kind: str, name: str, where: str, err: BaseException) -> str:
     """One line: the plugin's config code raised (a bug of the plugin, named)."""
     text = " ".join(str(err).split())
-    return (f"{kind} '{name}': its {where} raised {type(err).__name__}"
-            + (f": {text}" if text else "") + " (a bug of the plugin: check its settings or "
-            "report it to its authors)")
+    return (
+        f"{kind} '{name}': its {where} raised {type(err).__name__}"
+        + (f": {text}" if text else "")
+        + " (a bug of the plugin: check its settings or "
+        "report it to its authors)"
+    )
 
 
 @dataclass
@@ -304,12 +340,12 @@ def prepare_job(cfg: DictConfig) -> Job:
             raise
         except (TypeError, ValueError, ArithmeticError) as err:  # a value validate() chokes on
             raise ConfigError(
-                f"{kind} '{typed.name}': invalid config ({type(err).__name__}: {err})"
-                .replace("\n", " ")
+                f"{kind} '{typed.name}': invalid config ({type(err).__name__}: {err})".replace(
+                    "\n", " "
+                )
             ) from None
         except BaseException as err:  # noqa: BLE001 - any other: the plugin's bug, named
-            raise ConfigError(_plugin_raised(kind, str(typed.name), "validate()", err)) \
-                from None
+            raise ConfigError(_plugin_raised(kind, str(typed.name), "validate()", err)) from None
     return Job(cfg, system_cls, system_cfg, model_cls, model_cfg)
 
 

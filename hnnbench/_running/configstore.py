@@ -31,8 +31,7 @@ def register(profile: str = "paper", track: str = DEFAULT_TRACK) -> None:
     registry.validate_profile(profile)
     store = ConfigStore.instance()
     store.store(name="hnnbench_schema", node=RunConfig, provider="hnnbench")
-    store.store(group="hydra/sweeper", name="hnnbench", node=SweeperConfig,
-                provider="hnnbench")
+    store.store(group="hydra/sweeper", name="hnnbench", node=SweeperConfig, provider="hnnbench")
     key = (profile, track, registry.generation())
     if _stored.get("key") == key and store.repo.get("system", {}):  # already there
         return
@@ -42,8 +41,8 @@ def register(profile: str = "paper", track: str = DEFAULT_TRACK) -> None:
             node, error = registry.guarded(
                 f"the {plugins.kind} '{name}' ({info.target})",
                 f"its {profile} config cannot be built",
-                functools.partial(registry.config_defaults, plugins.kind, name, profile,
-                                  track))
+                functools.partial(registry.config_defaults, plugins.kind, name, profile, track),
+            )
             if error is not None:
                 info.error, info.cls = error, None
                 continue

@@ -44,9 +44,9 @@ def _nan() -> dict[str, float]:
     return {"mean": math.nan, "sem": math.nan}
 
 
-def failed_metrics(system: System, metrics: Sequence[Metric],
-                   keep: Optional[dict[str, dict[str, float]]] = None
-                   ) -> dict[str, dict[str, float]]:
+def failed_metrics(
+    system: System, metrics: Sequence[Metric], keep: Optional[dict[str, dict[str, float]]] = None
+) -> dict[str, dict[str, float]]:
     """The record of a model that diverged: each applicable metric's worst value (NaN
     where it does not apply); values in ``keep`` (e.g. finite losses) stay."""
     out: dict[str, dict[str, float]] = {}
@@ -65,9 +65,15 @@ def failed_metrics(system: System, metrics: Sequence[Metric],
 MetricProgress = Callable[[str, int, int, Optional[float]], None]
 
 
-def evaluate(system: System, model: Model, data: Dataset, traj: Trajectories,
-             cfg: EvaluationConfig, metrics: Optional[Sequence[Metric]] = None,
-             progress: Optional[MetricProgress] = None) -> Evaluation:
+def evaluate(
+    system: System,
+    model: Model,
+    data: Dataset,
+    traj: Trajectories,
+    cfg: EvaluationConfig,
+    metrics: Optional[Sequence[Metric]] = None,
+    progress: Optional[MetricProgress] = None,
+) -> Evaluation:
     """Compute every metric (default: all registered) of ``model`` on ``system``;
     ``progress`` is told as each metric that applies starts and is done."""
     if metrics is None:
@@ -119,8 +125,10 @@ def evaluate(system: System, model: Model, data: Dataset, traj: Trajectories,
         if values is None:
             result[metric.name] = _nan()
         elif isinstance(values, dict):
-            result[metric.name] = {"mean": float(values["mean"]),
-                                   "sem": float(values.get("sem", math.nan))}
+            result[metric.name] = {
+                "mean": float(values["mean"]),
+                "sem": float(values.get("sem", math.nan)),
+            }
         else:
             result[metric.name] = summarize(np.asarray(values, dtype=np.float64))
         mean = result[metric.name]["mean"]

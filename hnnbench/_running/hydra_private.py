@@ -32,8 +32,15 @@ from hydra.plugins.sweeper import Sweeper as HydraSweeper
 
 from hnnbench._contracts.errors import HnnbenchError
 
-__all__ = ["HydraSweeper", "args_parser", "basic_sweeper_class", "group_lister",
-           "one_line_errors", "runs_in_process", "waiting_for_every_submitit_job"]
+__all__ = [
+    "HydraSweeper",
+    "args_parser",
+    "basic_sweeper_class",
+    "group_lister",
+    "one_line_errors",
+    "runs_in_process",
+    "waiting_for_every_submitit_job",
+]
 
 
 def basic_sweeper_class() -> type:
@@ -50,7 +57,9 @@ def runs_in_process(launcher: Any) -> bool:
     module again), which runs each job in this process."""
     kind = type(launcher)
     return (kind.__module__, kind.__name__) == (
-        "hydra._internal.core_plugins.basic_launcher", "BasicLauncher")
+        "hydra._internal.core_plugins.basic_launcher",
+        "BasicLauncher",
+    )
 
 
 def args_parser() -> argparse.ArgumentParser:
@@ -61,8 +70,9 @@ def args_parser() -> argparse.ArgumentParser:
 
 
 @contextlib.contextmanager
-def one_line_errors(to_line: Callable[[BaseException], str], enabled: bool = True
-                    ) -> Iterator[None]:
+def one_line_errors(
+    to_line: Callable[[BaseException], str], enabled: bool = True
+) -> Iterator[None]:
     """While active, an exception Hydra reports from ``run_and_report`` (composition
     errors found after hnnbench's own checks) is raised as a one-line
     :class:`HnnbenchError` built by ``to_line``."""
@@ -88,8 +98,9 @@ def one_line_errors(to_line: Callable[[BaseException], str], enabled: bool = Tru
         hydra_utils.run_and_report = original
 
 
-def group_lister(loader: Any, extra_paths: list[str]
-                 ) -> tuple[Callable[[str], list[str]], Callable[[str], list[str]]]:
+def group_lister(
+    loader: Any, extra_paths: list[str]
+) -> tuple[Callable[[str], list[str]], Callable[[str], list[str]]]:
     """``(list_groups(parent), group_options(group))`` over ``loader``'s search path
     (a Hydra config loader) plus ``extra_paths`` (``hydra.searchpath`` entries)."""
     from hydra._internal.config_repository import ConfigRepository
@@ -101,8 +112,10 @@ def group_lister(loader: Any, extra_paths: list[str]
     for entry in extra_paths:
         search_path.append(provider="hydra.searchpath (command line)", path=entry)
     repo = ConfigRepository(config_search_path=search_path)
-    return (lambda parent: repo.get_group_options(parent, ObjectType.GROUP),
-            lambda group: repo.get_group_options(group, ObjectType.CONFIG))
+    return (
+        lambda parent: repo.get_group_options(parent, ObjectType.GROUP),
+        lambda group: repo.get_group_options(group, ObjectType.CONFIG),
+    )
 
 
 @contextlib.contextmanager

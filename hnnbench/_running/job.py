@@ -47,8 +47,14 @@ from hnnbench._running.progress import EvaluationProgress, TrainingProgress
 
 log = logging.getLogger("hnnbench")
 
-__all__ = ["SeedOutcome", "config_change", "plugin_provenance", "run_job", "seed_directory",
-           "time_limit"]
+__all__ = [
+    "SeedOutcome",
+    "config_change",
+    "plugin_provenance",
+    "run_job",
+    "seed_directory",
+    "time_limit",
+]
 
 
 def _set_threads(threads: int) -> None:
@@ -90,9 +96,11 @@ def _warn_if_xla_started() -> None:
     bridge = sys.modules.get("jax._src.xla_bridge")
     if not getattr(bridge, "_backends", None):
         return
-    log.warning("JAX was started in this process before the job pinned it to one core: "
-                "its JAX results may differ in the last bits from the hnnbench command's; "
-                "for records comparable bit for bit, run from a fresh process or the CLI")
+    log.warning(
+        "JAX was started in this process before the job pinned it to one core: "
+        "its JAX results may differ in the last bits from the hnnbench command's; "
+        "for records comparable bit for bit, run from a fresh process or the CLI"
+    )
 
 
 def _select(cfg: DictConfig, key: str) -> Any:
@@ -136,9 +144,12 @@ def plugin_provenance(kind: Literal["system", "model"], name: str) -> dict[str, 
     info = registry.discover(kind).get(name)
     cls = getattr(info, "cls", None)
     version = getattr(cls, "version", None)
-    return {"name": name, "version": None if version is None else str(version),
-            "distribution": getattr(info, "distribution", None),
-            "distribution_version": getattr(info, "dist_version", None)}
+    return {
+        "name": name,
+        "version": None if version is None else str(version),
+        "distribution": getattr(info, "distribution", None),
+        "distribution_version": getattr(info, "dist_version", None),
+    }
 
 
 def _base_record(cfg: DictConfig, overrides: list[str] | None) -> dict[str, Any]:
@@ -159,8 +170,7 @@ def _base_record(cfg: DictConfig, overrides: list[str] | None) -> dict[str, Any]
         # these are the command lines that produced it).
         overrides=list(overrides) if overrides is not None else None,
         command=command,
-        rerun_command=shlex.join(["hnnbench", *job_overrides])
-        if overrides is not None else None,
+        rerun_command=shlex.join(["hnnbench", *job_overrides]) if overrides is not None else None,
         environment=records.environment(),
         created_at=records.now_iso(),
         # A bad value fails the job (prepare_job); its record stays valid meanwhile.
@@ -245,8 +255,7 @@ def _seed_config(cfg: DictConfig, seed: int) -> DictConfig:
 def _seed_overrides(overrides: list[str] | None, seed: int) -> list[str] | None:
     if overrides is None:
         return None
-    keep = [o for o in overrides
-            if o.lstrip("+~").split("=", 1)[0] not in ("seed", "seed_batch")]
+    keep = [o for o in overrides if o.lstrip("+~").split("=", 1)[0] not in ("seed", "seed_batch")]
     return [*keep, f"seed={seed}"]
 
 
@@ -265,13 +274,17 @@ def time_limit(seconds: Optional[float]) -> Iterator[bool]:
     if not seconds or seconds <= 0:
         yield False
         return
-    if not hasattr(signal, "setitimer") \
-            or threading.current_thread() is not threading.main_thread():
+    if (
+        not hasattr(signal, "setitimer")
+        or threading.current_thread() is not threading.main_thread()
+    ):
         if not _unlimited_warned:
             _unlimited_warned = True
-            log.warning("timeout_s=%g is not enforced here: the time limit needs a job "
-                        "run in a process's main thread on Unix, and this one is not",
-                        seconds)
+            log.warning(
+                "timeout_s=%g is not enforced here: the time limit needs a job "
+                "run in a process's main thread on Unix, and this one is not",
+                seconds,
+            )
         yield False
         return
     armed = [True]
@@ -320,7 +333,10 @@ class SeedOutcome:
 
 
 def run_job(
-    cfg: DictConfig, directory: Path, index: int | None = None, total: int | None = None,
+    cfg: DictConfig,
+    directory: Path,
+    index: int | None = None,
+    total: int | None = None,
     overrides: list[str] | None = None,
 ) -> list[SeedOutcome]:
     """Run the job's seed, or its batch of seeds (``seed_batch``, from
@@ -346,21 +362,29 @@ def run_job(
     kept: set[int] = set()
     for seed in seeds:
         existing = records.read_record(dirs[seed] / records.RECORD_NAME)
-        if not existing or existing.get("status") not in records.FINISHED \
-                or _select(cfg, "rerun"):
+        if not existing or existing.get("status") not in records.FINISHED or _select(cfg, "rerun"):
             continue
-        change = config_change(existing.get("config"),
-                               _config_container(_seed_config(cfg, seed) if batch else cfg))
+        change = config_change(
+            existing.get("config"), _config_container(_seed_config(cfg, seed) if batch else cfg)
+        )
         if change is None:
-            log.info("%s%s x %s seed=%s: already finished (%s), skipped; rerun=true redoes it",
-                     count, system, model, seed, existing["status"])
+            log.info(
+                "%s%s x %s seed=%s: already finished (%s), skipped; rerun=true redoes it",
+                count,
+                system,
+                model,
+                seed,
+                existing["status"],
+            )
             done[seed] = existing
             kept.add(seed)
             continue
         # A record of other settings is not this job's result, and is not overwritten.
-        message = (f"{dirs[seed]} holds a finished record of other settings ({change}): "
-                   "resume with the settings it was run with, choose another "
-                   "hydra.sweep.dir, or add rerun=true to replace it")
+        message = (
+            f"{dirs[seed]} holds a finished record of other settings ({change}): "
+            "resume with the settings it was run with, choose another "
+            "hydra.sweep.dir, or add rerun=true to replace it"
+        )
         log.error("%s%s x %s seed=%s: not run: %s", count, system, model, seed, message)
         done[seed] = {**_base_record(cfg, overrides), "seed": seed, "error": message}
     pending = [s for s in seeds if s not in done]
@@ -373,13 +397,13 @@ def run_job(
     for seed in pending:
         _clean_stale(dirs[seed])
         one_cfg = _seed_config(cfg, seed) if batch else cfg
-        runs[seed] = _base_record(one_cfg, _seed_overrides(overrides, seed) if batch
-                                  else overrides)
+        runs[seed] = _base_record(one_cfg, _seed_overrides(overrides, seed) if batch else overrides)
         if len(seeds) > 1:
             runs[seed]["seed_batch"] = seeds
     start, cpu_start = time.perf_counter(), time.process_time()
-    log.info("%s%s x %s seed=%s: start%s", count, system, model,
-             ",".join(map(str, pending)), batch_text)
+    log.info(
+        "%s%s x %s seed=%s: start%s", count, system, model, ",".join(map(str, pending)), batch_text
+    )
     limit = _timeout_seconds(cfg)
     limit = limit * len(pending) if limit else None  # per seed: a batch gets N times it
     try:
@@ -419,15 +443,22 @@ def run_job(
         try:
             records.write_record(dirs[seed], record)
         except Exception as err:  # e.g. a full disk: say so, and let the sweep go on
-            log.error("%s%s: could not write %s: %s", count, tags[seed],
-                      dirs[seed] / records.RECORD_NAME, err)
+            log.error(
+                "%s%s: could not write %s: %s",
+                count,
+                tags[seed],
+                dirs[seed] / records.RECORD_NAME,
+                err,
+            )
         else:  # the record is written: hand it to the trackers asked for (never raises)
             if _select(cfg, "log_to"):
-                tracking.export(record, dirs[seed], _select(cfg, "log_to"),
-                                _select(cfg, "mlflow_uri"))
+                tracking.export(
+                    record, dirs[seed], _select(cfg, "log_to"), _select(cfg, "mlflow_uri")
+                )
         _log_outcome(count, tags[seed], record)
-    return [SeedOutcome(done[s], s in kept) if s in done else SeedOutcome(runs[s], False)
-            for s in seeds]
+    return [
+        SeedOutcome(done[s], s in kept) if s in done else SeedOutcome(runs[s], False) for s in seeds
+    ]
 
 
 def _prepared(cfg: DictConfig) -> Optional[Job]:
@@ -452,26 +483,43 @@ def _timeout_seconds(cfg: DictConfig) -> Optional[float]:
     return float(value) if value > 0 and value < float("inf") else None
 
 
-def _execute(job: Job, cfg: DictConfig, seeds: list[int], dirs: dict[int, Path],
-             runs: dict[int, dict[str, Any]]) -> None:
+def _execute(
+    job: Job,
+    cfg: DictConfig,
+    seeds: list[int],
+    dirs: dict[int, Path],
+    runs: dict[int, dict[str, Any]],
+) -> None:
     system = job.system_cls(job.system_cfg)
     family = getattr(job.model_cls, "family", None)
     for record in runs.values():
-        record.update(system_version=system.version, model_version=job.model_cls.version,
-                      backend=job.model_cls.backend, family=getattr(family, "name", None),
-                      ranked=bool(getattr(job.model_cls, "ranked", True)),
-                      reference=getattr(job.model_cls, "reference", None),
-                      plugins={"system": plugin_provenance("system", str(cfg.system.name)),
-                               "model": plugin_provenance("model", str(cfg.model.name))})
+        record.update(
+            system_version=system.version,
+            model_version=job.model_cls.version,
+            backend=job.model_cls.backend,
+            family=getattr(family, "name", None),
+            ranked=bool(getattr(job.model_cls, "ranked", True)),
+            reference=getattr(job.model_cls, "reference", None),
+            plugins={
+                "system": plugin_provenance("system", str(cfg.system.name)),
+                "model": plugin_provenance("model", str(cfg.model.name)),
+            },
+        )
     reason = job.model_cls.unsupported_reason(system)
-    if reason is None and cfg.get("track") == "recipe" and not getattr(job.model_cls, "recipe",
-                                                                       None):
-        reason = ("it declares no published recipe, so it has no recipe-track row "
-                  "(docs/TUNING.md, 'Recipes'; hnnbench list shows the models with one)")
+    if (
+        reason is None
+        and cfg.get("track") == "recipe"
+        and not getattr(job.model_cls, "recipe", None)
+    ):
+        reason = (
+            "it declares no published recipe, so it has no recipe-track row "
+            "(docs/TUNING.md, 'Recipes'; hnnbench list shows the models with one)"
+        )
     if reason is not None:
         for record in runs.values():
-            record.update(status="skipped",
-                          error=f"{cfg.model.name} on {cfg.system.name}: {reason}")
+            record.update(
+                status="skipped", error=f"{cfg.model.name} on {cfg.system.name}: {reason}"
+            )
         return
     _set_threads(int(cfg.threads))
     pin = cfg.get("pin_cpu")
@@ -486,10 +534,15 @@ def _execute(job: Job, cfg: DictConfig, seeds: list[int], dirs: dict[int, Path],
     for seed in seeds:
         t0 = time.perf_counter()
         data, data_path, data_hit = dataset_cache.cached(
-            system, seed, "dataset", functools.partial(system.dataset, seed), Dataset.load)
+            system, seed, "dataset", functools.partial(system.dataset, seed), Dataset.load
+        )
         traj, traj_path, _ = dataset_cache.cached(
-            system, seed, "evaluation", functools.partial(system.evaluation, seed),
-            Trajectories.load)
+            system,
+            seed,
+            "evaluation",
+            functools.partial(system.evaluation, seed),
+            Trajectories.load,
+        )
         if data.valid is None:
             rule = datasets.validation_rule(data)
             data = datasets.with_validation(data, seed)  # carved from train, not test
@@ -530,7 +583,8 @@ def _execute(job: Job, cfg: DictConfig, seeds: list[int], dirs: dict[int, Path],
     except RolloutDiverged as err:  # the contract: divergence comes back in FitResult
         raise HnnbenchError(
             f"{cfg.model.name}.fit raised RolloutDiverged ({err}); a model reports training "
-            "divergence as FitResult(diverged=...) instead (docs/PLUGINS.md)") from None
+            "divergence as FitResult(diverged=...) instead (docs/PLUGINS.md)"
+        ) from None
     fit_s = (time.perf_counter() - t0) / len(seeds)
     for seed, (trained, fit) in zip(seeds, fits, strict=True):
         record = runs[seed]
@@ -541,8 +595,16 @@ def _execute(job: Job, cfg: DictConfig, seeds: list[int], dirs: dict[int, Path],
         _finish(record, system, trained, fit, datas[seed], trajs[seed], cfg, dirs[seed])
 
 
-def _finish(record: dict[str, Any], system: Any, model: Any, fit: FitResult, data: Dataset,
-            traj: Trajectories, cfg: DictConfig, directory: Path) -> None:
+def _finish(
+    record: dict[str, Any],
+    system: Any,
+    model: Any,
+    fit: FitResult,
+    data: Dataset,
+    traj: Trajectories,
+    cfg: DictConfig,
+    directory: Path,
+) -> None:
     """Record one trained seed: its training log, weights, evaluation and status."""
     timings: dict[str, float] = record["timings"]
     if fit.diverged is not None:
@@ -566,8 +628,9 @@ def _finish(record: dict[str, Any], system: Any, model: Any, fit: FitResult, dat
     t0 = time.perf_counter()
     ev = EvaluationConfig(**OmegaConf.to_container(cfg.evaluation, resolve=True))  # type: ignore[arg-type]
     # evaluation.metrics: only those (a tuner's trial: the metric it selects on alone).
-    chosen = None if ev.metrics is None else [
-        m for m in registry.metrics() if m.name in set(ev.metrics)]
+    chosen = (
+        None if ev.metrics is None else [m for m in registry.metrics() if m.name in set(ev.metrics)]
+    )
     label = f"{cfg.system.name}/{cfg.model.name} s{record.get('seed')}"
     with EvaluationProgress(label) as shown:
         result = evaluate(system, model, data, traj, ev, chosen, progress=shown.update)
@@ -610,8 +673,11 @@ def _log_outcome(count: str, tag: str, record: dict[str, Any]) -> None:
     secs = record["timings"].get("total_s", 0.0)
     if status == "ok":
         m = record["metrics"]
-        shown = "  ".join(f"{metric.name}={m[metric.name]['mean']:.3g}"
-                          for metric in registry.metrics() if metric.log and metric.name in m)
+        shown = "  ".join(
+            f"{metric.name}={m[metric.name]['mean']:.3g}"
+            for metric in registry.metrics()
+            if metric.log and metric.name in m
+        )
         log.info("%s%s: ok in %.1f s  %s", count, tag, secs, shown)
     else:
         log.warning("%s%s: %s in %.1f s: %s", count, tag, status, secs, record.get("error"))

@@ -76,8 +76,9 @@ class TrainingProgress:
         if self.mode == "bar":
             from tqdm.auto import tqdm
 
-            self._bar = tqdm(total=self.total, desc=self.label, leave=False, dynamic_ncols=True,
-                             unit="step")
+            self._bar = tqdm(
+                total=self.total, desc=self.label, leave=False, dynamic_ncols=True, unit="step"
+            )
         return self
 
     def update(self, step: int, losses: Mapping[str, float]) -> Optional[bool]:
@@ -87,8 +88,11 @@ class TrainingProgress:
             if launch_context.abandoned():
                 # A launcher worker whose command was killed alone: nothing waits for
                 # this job or this process. Exit now; no record, so a re-run redoes it.
-                log.warning("%s: the hnnbench command that started this job has gone; "
-                            "exiting (re-run the command to resume the sweep)", self.label)
+                log.warning(
+                    "%s: the hnnbench command that started this job has gone; "
+                    "exiting (re-run the command to resume the sweep)",
+                    self.label,
+                )
                 logging.shutdown()
                 os._exit(130)
         if self._bar is not None:
@@ -102,7 +106,9 @@ class TrainingProgress:
         return None if _observer is None else _observer(step, losses)
 
     def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None,
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
         if self._bar is not None:
@@ -133,16 +139,24 @@ class EvaluationProgress:
         if time.monotonic() >= self._next_check:
             self._next_check = time.monotonic() + CHECK_EVERY_S
             if launch_context.abandoned():  # as TrainingProgress: nobody waits for this job
-                log.warning("%s: the hnnbench command that started this job has gone; "
-                            "exiting (re-run the command to resume the sweep)", self.label)
+                log.warning(
+                    "%s: the hnnbench command that started this job has gone; "
+                    "exiting (re-run the command to resume the sweep)",
+                    self.label,
+                )
                 logging.shutdown()
                 os._exit(130)
         if self.mode == "bar":
             from tqdm.auto import tqdm
 
             if self._bar is None:
-                self._bar = tqdm(total=total, desc=f"{self.label} evaluation", leave=False,
-                                 dynamic_ncols=True, unit="metric")
+                self._bar = tqdm(
+                    total=total,
+                    desc=f"{self.label} evaluation",
+                    leave=False,
+                    dynamic_ncols=True,
+                    unit="metric",
+                )
             bar: Any = self._bar
             if seconds is None:
                 bar.set_postfix_str(metric, refresh=True)
@@ -152,11 +166,14 @@ class EvaluationProgress:
             if seconds is None and index == 1:
                 log.info("  %s evaluation: %d metrics", self.label, total)
             elif seconds is not None and seconds >= LOG_METRIC_S:
-                log.info("  %s evaluation %d/%d %s %.1f s", self.label, index, total, metric,
-                         seconds)
+                log.info(
+                    "  %s evaluation %d/%d %s %.1f s", self.label, index, total, metric, seconds
+                )
 
     def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None,
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
         if self._bar is not None:

@@ -38,8 +38,7 @@ from typing import Any, Optional
 
 from hnnbench._contracts.errors import ConfigError
 
-__all__ = ["INSTALL_HINT", "TRACKERS", "check", "default_mlflow_uri", "export",
-           "parse_log_to"]
+__all__ = ["INSTALL_HINT", "TRACKERS", "check", "default_mlflow_uri", "export", "parse_log_to"]
 
 log = logging.getLogger("hnnbench")
 
@@ -70,16 +69,20 @@ def parse_log_to(value: Any) -> tuple[str, ...]:
     names: list[str] = []
     for item in items:
         if not isinstance(item, str):
-            raise ConfigError(f"log_to={value} is invalid: expected tracker names, e.g. "
-                              f"log_to=[{','.join(TRACKERS)}].")
+            raise ConfigError(
+                f"log_to={value} is invalid: expected tracker names, e.g. "
+                f"log_to=[{','.join(TRACKERS)}]."
+            )
         name = item.strip()
         if not name:
             continue
         if name not in TRACKERS:
             close = difflib.get_close_matches(name, list(TRACKERS), n=1)
             hint = f" Did you mean '{close[0]}'?" if close else ""
-            raise ConfigError(f"log_to: unknown tracker '{name}'.{hint} Available: "
-                              f"{', '.join(TRACKERS)} (e.g. log_to=[mlflow,tensorboard]).")
+            raise ConfigError(
+                f"log_to: unknown tracker '{name}'.{hint} Available: "
+                f"{', '.join(TRACKERS)} (e.g. log_to=[mlflow,tensorboard])."
+            )
         if name not in names:
             names.append(name)
     return tuple(names)
@@ -89,15 +92,20 @@ def check(log_to: Any, mlflow_uri: Any) -> tuple[str, ...]:
     """Validate the ``log_to`` and ``mlflow_uri`` settings and that the trackers named
     are installed (one-line ConfigError with the install hint); return the trackers."""
     trackers = parse_log_to(log_to)
-    missing = [f"{name} needs {TRACKERS[name]}" for name in trackers
-               if find_spec(TRACKERS[name]) is None]
+    missing = [
+        f"{name} needs {TRACKERS[name]}" for name in trackers if find_spec(TRACKERS[name]) is None
+    ]
     if missing:
-        raise ConfigError(f"log_to={','.join(trackers)}: {'; '.join(missing)}, which is not "
-                          f"installed: {INSTALL_HINT}")
+        raise ConfigError(
+            f"log_to={','.join(trackers)}: {'; '.join(missing)}, which is not "
+            f"installed: {INSTALL_HINT}"
+        )
     if mlflow_uri is not None and (not isinstance(mlflow_uri, str) or not mlflow_uri.strip()):
-        raise ConfigError(f"mlflow_uri={mlflow_uri} is invalid: expected an MLflow tracking "
-                          "URI, e.g. mlflow_uri=sqlite:////path/to/mlflow.db, or null for "
-                          "<sweep dir>/mlflow.db.")
+        raise ConfigError(
+            f"mlflow_uri={mlflow_uri} is invalid: expected an MLflow tracking "
+            "URI, e.g. mlflow_uri=sqlite:////path/to/mlflow.db, or null for "
+            "<sweep dir>/mlflow.db."
+        )
     return trackers
 
 
@@ -115,8 +123,9 @@ def default_mlflow_uri(job_dir: Path) -> str:
     return f"sqlite:///{(where.resolve() / 'mlflow.db').as_posix()}"
 
 
-def export(record: Mapping[str, Any], directory: Path, log_to: Any,
-           mlflow_uri: Optional[str] = None) -> list[str]:
+def export(
+    record: Mapping[str, Any], directory: Path, log_to: Any, mlflow_uri: Optional[str] = None
+) -> list[str]:
     """Send a finished job's ``record`` (written in ``directory``) to the trackers of
     ``log_to``; never raises. Returns the warnings (each also logged)."""
     warnings: list[str] = []
@@ -127,15 +136,18 @@ def export(record: Mapping[str, Any], directory: Path, log_to: Any,
     for name in trackers:
         try:
             if name == "mlflow":
-                _to_mlflow(record, Path(directory),
-                           mlflow_uri or default_mlflow_uri(Path(directory)))
+                _to_mlflow(
+                    record, Path(directory), mlflow_uri or default_mlflow_uri(Path(directory))
+                )
             else:
                 _to_tensorboard(record, Path(directory) / TENSORBOARD_DIR)
         except Exception as err:  # noqa: BLE001 - an exporter must not fail the job
             reason = " ".join(f"{type(err).__name__}: {err}".split())[:300]
             hint = f" ({INSTALL_HINT})" if isinstance(err, ImportError) else ""
-            warnings.append(f"could not export {_label(record)} to {name}: {reason}{hint}; "
-                            "the record is unaffected")
+            warnings.append(
+                f"could not export {_label(record)} to {name}: {reason}{hint}; "
+                "the record is unaffected"
+            )
     for text in warnings:
         log.warning("%s", text)
     return warnings
@@ -194,8 +206,11 @@ def scalars(record: Mapping[str, Any]) -> tuple[dict[str, float], dict[str, Seri
     for column, values in history.items():
         if column == "step" or not isinstance(values, list) or len(values) != len(steps):
             continue
-        points = [(int(s), v) for s, raw in zip(steps, values, strict=True)
-                  if (v := _finite(raw)) is not None]
+        points = [
+            (int(s), v)
+            for s, raw in zip(steps, values, strict=True)
+            if (v := _finite(raw)) is not None
+        ]
         if points:
             series[f"history/{column}"] = points
     return final, series
@@ -203,9 +218,11 @@ def scalars(record: Mapping[str, Any]) -> tuple[dict[str, float], dict[str, Seri
 
 def _tags(record: Mapping[str, Any], directory: Path) -> dict[str, str]:
     env = record.get("environment") or {}
-    tags = {f"hnnbench.{k}": str(record.get(k)) for k in
-            ("system", "model", "seed", "profile", "track", "status", "backend", "family")
-            if record.get(k) is not None}
+    tags = {
+        f"hnnbench.{k}": str(record.get(k))
+        for k in ("system", "model", "seed", "profile", "track", "status", "backend", "family")
+        if record.get(k) is not None
+    }
     tags["hnnbench.record"] = str(Path(directory).resolve() / "result.json")
     tags["hnnbench.version"] = str(env.get("hnnbench", ""))
     if record.get("error"):
@@ -244,11 +261,14 @@ def _to_mlflow(record: Mapping[str, Any], directory: Path, uri: str) -> None:
 
     final, series = scalars(record)
     now = int(time.time() * 1000)
-    last = max([int(s) for s in (record.get("history") or {}).get("step") or []] or
-               [int(record.get("steps") or 0)])
+    last = max(
+        [int(s) for s in (record.get("history") or {}).get("step") or []]
+        or [int(record.get("steps") or 0)]
+    )
     metrics = [Metric(key, value, now, last) for key, value in final.items()]
-    metrics += [Metric(key, value, now, step) for key, points in series.items()
-                for step, value in points]
+    metrics += [
+        Metric(key, value, now, step) for key, points in series.items() for step, value in points
+    ]
     params = [Param(k, v) for k, v in _flat(record.get("config") or {}).items()]
     failed = record.get("status") in ("failed", "timeout")
     with _store_lock(uri):
@@ -259,16 +279,16 @@ def _to_mlflow(record: Mapping[str, Any], directory: Path, uri: str) -> None:
         else:
             artifacts = None
             if uri.startswith("sqlite:///"):
-                artifacts = (Path(uri.removeprefix("sqlite:///")).parent
-                             / "mlartifacts").as_uri()
+                artifacts = (Path(uri.removeprefix("sqlite:///")).parent / "mlartifacts").as_uri()
             experiment_id = client.create_experiment(EXPERIMENT, artifact_location=artifacts)
-        run = client.create_run(experiment_id, run_name=_label(record),
-                                tags=_tags(record, directory))
+        run = client.create_run(
+            experiment_id, run_name=_label(record), tags=_tags(record, directory)
+        )
         run_id = run.info.run_id
         for i in range(0, len(params), _MAX_PARAMS):
-            client.log_batch(run_id, params=params[i:i + _MAX_PARAMS])
+            client.log_batch(run_id, params=params[i : i + _MAX_PARAMS])
         for i in range(0, len(metrics), _MAX_METRICS):
-            client.log_batch(run_id, metrics=metrics[i:i + _MAX_METRICS])
+            client.log_batch(run_id, metrics=metrics[i : i + _MAX_METRICS])
         client.log_batch(run_id, tags=[RunTag("hnnbench.exported_at", str(now))])
         client.set_terminated(run_id, status="FAILED" if failed else "FINISHED")
 
@@ -280,8 +300,10 @@ def _to_tensorboard(record: Mapping[str, Any], logdir: Path) -> None:
     from tensorboardX import SummaryWriter
 
     final, series = scalars(record)
-    last = max([step for points in series.values() for step, _ in points] or
-               [int(record.get("steps") or 0)])
+    last = max(
+        [step for points in series.values() for step, _ in points]
+        or [int(record.get("steps") or 0)]
+    )
     writer = SummaryWriter(logdir=str(logdir))
     try:
         for key, points in series.items():
@@ -289,8 +311,7 @@ def _to_tensorboard(record: Mapping[str, Any], logdir: Path) -> None:
                 writer.add_scalar(key, value, step)
         for key, value in final.items():
             writer.add_scalar(key if "/" in key else f"metrics/{key}", value, last)
-        config = json.dumps(record.get("config") or {}, indent=1, sort_keys=True,
-                            default=str)
+        config = json.dumps(record.get("config") or {}, indent=1, sort_keys=True, default=str)
         writer.add_text("config", "```\n" + config + "\n```", 0)
         tags = "\n".join(f"- {k}: {v}" for k, v in _tags(record, logdir.parent).items())
         writer.add_text("record", tags, 0)

@@ -27,8 +27,16 @@ from importlib import resources
 from pathlib import Path
 from typing import Optional, TextIO
 
-__all__ = ["COLUMNS", "COSTS_FILE", "JobKey", "SweepProgress", "duration_text", "estimate_line",
-           "job_key", "load_costs"]
+__all__ = [
+    "COLUMNS",
+    "COSTS_FILE",
+    "JobKey",
+    "SweepProgress",
+    "duration_text",
+    "estimate_line",
+    "job_key",
+    "load_costs",
+]
 
 #: The resource file of job costs (``hnnbench/resources``).
 COSTS_FILE = "job_costs.csv"
@@ -48,8 +56,11 @@ def load_costs(path: Optional[Path] = None) -> dict[JobKey, float]:
         else:
             text = Path(path).read_text("utf-8")
         rows = list(csv.DictReader(text.splitlines()))
-        return {(r["profile"], r["system"], r["model"]): float(r["seconds"]) for r in rows
-                if float(r["seconds"]) >= 0}
+        return {
+            (r["profile"], r["system"], r["model"]): float(r["seconds"])
+            for r in rows
+            if float(r["seconds"]) >= 0
+        }
     except (OSError, KeyError, ValueError, TypeError):
         return {}
 
@@ -97,13 +108,16 @@ def duration_text(seconds: float) -> str:
 
 
 #: What the estimate rests on, said with it: the machines of the published runs.
-ESTIMATE_BASIS = ("estimated from the published runs: median wall time per job, one core "
-                  "each, on the project's 2-core CPU machines "
-                  f"(hnnbench/resources/{COSTS_FILE}); yours may differ")
+ESTIMATE_BASIS = (
+    "estimated from the published runs: median wall time per job, one core "
+    "each, on the project's 2-core CPU machines "
+    f"(hnnbench/resources/{COSTS_FILE}); yours may differ"
+)
 
 
-def estimate_line(keys: Sequence[Optional[JobKey]], costs: Mapping[JobKey, float],
-                  workers: Optional[int]) -> Optional[str]:
+def estimate_line(
+    keys: Sequence[Optional[JobKey]], costs: Mapping[JobKey, float], workers: Optional[int]
+) -> Optional[str]:
     """What the published runs of these jobs took, and what that rests on
     (:data:`ESTIMATE_BASIS`), or ``None`` when none is known (or no job will run)."""
     known = [costs[k] for k in keys if k is not None and k in costs]
@@ -169,8 +183,7 @@ class SweepProgress:
                 self._kept.add(job)
         if self._thread is None:
             self._start = time.monotonic()
-            self._thread = threading.Thread(target=self._run, name="hnnbench-progress",
-                                            daemon=True)
+            self._thread = threading.Thread(target=self._run, name="hnnbench-progress", daemon=True)
             self._thread.start()
 
     @property
@@ -202,8 +215,11 @@ class SweepProgress:
                 self.out.write(f"hnnbench: {self.line()}\n")
                 self.out.flush()
                 self._pending = True
-            if (self._pending and self.on_new is not None
-                    and time.monotonic() - self._last_on_new >= self.on_new_every_s):
+            if (
+                self._pending
+                and self.on_new is not None
+                and time.monotonic() - self._last_on_new >= self.on_new_every_s
+            ):
                 self._call_on_new()
 
     def _call_on_new(self) -> None:

@@ -42,9 +42,16 @@ def hydra_task(cfg) -> list[dict[str, Any]]:  # noqa: ANN001 - Hydra passes a Di
     multirun = hc.mode == RunMode.MULTIRUN
     context = launch_context.current()
     total = context.n_jobs if context is not None else None
-    outcomes = [o.as_outcome() for o in run_job(
-        cfg, Path(hc.runtime.output_dir), hc.job.num if multirun else None, total,
-        overrides=list(hc.overrides.task))]
+    outcomes = [
+        o.as_outcome()
+        for o in run_job(
+            cfg,
+            Path(hc.runtime.output_dir),
+            hc.job.num if multirun else None,
+            total,
+            overrides=list(hc.overrides.task),
+        )
+    ]
     collector = launch_context.local()
     if not multirun and collector is not None:
         for outcome in outcomes:
@@ -89,10 +96,13 @@ class Execution:
         tail = f"; {kept} kept from an earlier run" if kept else ""
         if failed or timeout:
             parts = ([f"{failed} failed"] if failed else []) + (
-                [f"{timeout} timed out"] if timeout else [])
+                [f"{timeout} timed out"] if timeout else []
+            )
             lost_text = f" ({lost} returned no record)" if lost else ""
-            return True, (f"{' and '.join(parts)} of {new} job(s){lost_text} (see the log "
-                          f"and each record's error){tail}")
+            return True, (
+                f"{' and '.join(parts)} of {new} job(s){lost_text} (see the log "
+                f"and each record's error){tail}"
+            )
         shown = ", ".join(f"{n} {s}" for s, n in sorted(counts.items())) or "none run"
         return False, f"{new} job(s): {shown}{tail}"
 
@@ -117,32 +127,41 @@ def run_plan(checked: Plan, command: str) -> Execution:
     # editable install; registering the class makes hydra/sweeper=hnnbench work in both.
     Plugins.instance().register(HnnbenchSweeper)
     shell = "--shell-completion" in checked.argv
-    configstore.register("paper" if shell else profile_of(checked.overrides),
-                         DEFAULT_TRACK if shell else track_of_overrides(checked.overrides))
+    configstore.register(
+        "paper" if shell else profile_of(checked.overrides),
+        DEFAULT_TRACK if shell else track_of_overrides(checked.overrides),
+    )
     if checked.multirun and checked.n_jobs:
         print(f"hnnbench: {checked.n_jobs} job(s)", file=sys.stderr)
     # The jobs see the command line, the sweep's size, and that the hnnbench command
     # started them (they then pin a core); this process's jobs also take the jobs the
     # plan validated, and every job's outcomes are collected here.
     context = launch_context.LaunchContext(
-        command=command, n_jobs=checked.n_jobs or None, cli_pid=os.getpid(),
-        host=socket.gethostname(), pinned=checked.pinned or None,
-        prepared=dict(checked.validated))
+        command=command,
+        n_jobs=checked.n_jobs or None,
+        cli_pid=os.getpid(),
+        host=socket.gethostname(),
+        pinned=checked.pinned or None,
+        prepared=dict(checked.validated),
+    )
     saved = sys.argv
     sys.argv = [saved[0] if saved else "hnnbench", *checked.hydra_argv]
     try:
         with launch_context.launched(context), _one_line_hydra_errors():
-            hydra.main(version_base="1.3", config_path="pkg://hnnbench_conf",
-                       config_name="config")(hydra_task)()
+            hydra.main(version_base="1.3", config_path="pkg://hnnbench_conf", config_name="config")(
+                hydra_task
+            )()
     finally:
         sys.argv = saved
     outcomes = [o for o in context.outcomes if "record" in o]
     shows_only = ("--help", "--hydra-help", "--info", "--cfg", "--shell-completion")
-    return Execution(multirun=checked.multirun,
-                     records=[records.decode(o["record"]) for o in outcomes],
-                     kept=[bool(o.get("kept")) for o in outcomes],
-                     lost=[str(o["lost"]) for o in context.outcomes if "lost" in o],
-                     sweep=checked.multirun and not any(a in shows_only for a in checked.argv))
+    return Execution(
+        multirun=checked.multirun,
+        records=[records.decode(o["record"]) for o in outcomes],
+        kept=[bool(o.get("kept")) for o in outcomes],
+        lost=[str(o["lost"]) for o in context.outcomes if "lost" in o],
+        sweep=checked.multirun and not any(a in shows_only for a in checked.argv),
+    )
 
 
 def _one_line_hydra_errors() -> contextlib.AbstractContextManager[None]:

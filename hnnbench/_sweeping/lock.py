@@ -1,5 +1,4 @@
-"""The sweep directory's lock: one sweep at a time writes into a directory.
-"""
+"""The sweep directory's lock: one sweep at a time writes into a directory."""
 
 from __future__ import annotations
 
@@ -47,8 +46,17 @@ def sweep_lock(directory: Path, command: Optional[str] = None) -> Iterator[None]
             ) from None
         fh.seek(0)
         fh.truncate()
-        fh.write(json.dumps({"pid": os.getpid(), "host": socket.gethostname(),
-                             "started": records.now_iso(), "command": command}) + "\n")
+        fh.write(
+            json.dumps(
+                {
+                    "pid": os.getpid(),
+                    "host": socket.gethostname(),
+                    "started": records.now_iso(),
+                    "command": command,
+                }
+            )
+            + "\n"
+        )
         fh.flush()
         try:
             yield

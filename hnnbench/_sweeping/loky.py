@@ -40,9 +40,13 @@ def worker_growth() -> int:
     if megabytes >= 1:
         return megabytes * 1_000_000
     if not _growth_warned:  # once per process, not once per job
-        log.warning("%s=%r is invalid: expected a whole number of megabytes >= 1 (300 is "
-                    "loky's own limit); using %d", WORKER_GROWTH_ENV, text,
-                    WORKER_GROWTH // 1_000_000)
+        log.warning(
+            "%s=%r is invalid: expected a whole number of megabytes >= 1 (300 is "
+            "loky's own limit); using %d",
+            WORKER_GROWTH_ENV,
+            text,
+            WORKER_GROWTH // 1_000_000,
+        )
         _growth_warned = True
     return WORKER_GROWTH
 

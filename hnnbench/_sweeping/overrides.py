@@ -43,9 +43,17 @@ def parse_flags(argv: list[str]) -> argparse.Namespace:
 
     parser.error = error  # type: ignore[method-assign]
     ns = parser.parse_intermixed_args(argv)
-    commands = [name for name, on in (
-        ("--run", ns.run), ("--multirun", ns.multirun), ("--cfg", ns.cfg is not None),
-        ("--info", ns.info is not None), ("--shell-completion", ns.shell_completion)) if on]
+    commands = [
+        name
+        for name, on in (
+            ("--run", ns.run),
+            ("--multirun", ns.multirun),
+            ("--cfg", ns.cfg is not None),
+            ("--info", ns.info is not None),
+            ("--shell-completion", ns.shell_completion),
+        )
+        if on
+    ]
     if len(commands) > 1:
         raise ConfigError(
             f"{' and '.join(commands)} cannot be combined: give one of --run, --multirun (-m), "
@@ -75,21 +83,32 @@ def parse_flags(argv: list[str]) -> argparse.Namespace:
             f"--experimental-rerun {ns.experimental_rerun} is refused: it unpickles the "
             "file, which can run any code. Re-run a sweep with its command line (a "
             "record's rerun_command; the same hydra.sweep.dir resumes it), or check it "
-            "with hnnbench check DIR --rerun")
+            "with hnnbench check DIR --rerun"
+        )
     return ns
 
 
 def flag_args(ns: argparse.Namespace) -> list[str]:
     """The parsed flags as Hydra expects them, in canonical spelling."""
     out: list[str] = []
-    for name, flag in (("help", "--help"), ("hydra_help", "--hydra-help"), ("run", "--run"),
-                       ("multirun", "--multirun"), ("shell_completion", "--shell-completion"),
-                       ("resolve", "--resolve")):
+    for name, flag in (
+        ("help", "--help"),
+        ("hydra_help", "--hydra-help"),
+        ("run", "--run"),
+        ("multirun", "--multirun"),
+        ("shell_completion", "--shell-completion"),
+        ("resolve", "--resolve"),
+    ):
         if getattr(ns, name):
             out.append(flag)
-    for name, flag in (("cfg", "--cfg"), ("package", "--package"),
-                       ("config_path", "--config-path"), ("config_name", "--config-name"),
-                       ("config_dir", "--config-dir"), ("info", "--info")):
+    for name, flag in (
+        ("cfg", "--cfg"),
+        ("package", "--package"),
+        ("config_path", "--config-path"),
+        ("config_name", "--config-name"),
+        ("config_dir", "--config-dir"),
+        ("info", "--info"),
+    ):
         if getattr(ns, name) is not None:
             out += [flag, getattr(ns, name)]
     return out
@@ -162,8 +181,10 @@ def batch_seeds(entries: list[Entry]) -> list[Entry]:
     each batch (its records' directories stay ``seed<k>``; hnnbench._running.job.seed_directory)."""
     given = next((e for e in entries if e.key == "seed_batch"), None)
     if given is not None:
-        raise ConfigError(f"{given.text}: seed_batch is set by seeds_per_job; give the seeds "
-                          "with seed, e.g. -m seed=0,1,2 seeds_per_job=3")
+        raise ConfigError(
+            f"{given.text}: seed_batch is set by seeds_per_job; give the seeds "
+            "with seed, e.g. -m seed=0,1,2 seeds_per_job=3"
+        )
     per_job = [e for e in entries if e.key == "seeds_per_job" and not e.sweep and e.values]
     if not per_job:
         return entries
@@ -182,11 +203,11 @@ def batch_seeds(entries: list[Entry]) -> list[Entry]:
         values = [int(str(v)) for v in seed.values]
     except ValueError:
         raise ConfigError(f"{seed.text}: seeds must be integers, e.g. seed=0,1,2") from None
-    groups = [values[k:k + size] for k in range(0, len(values), size)]
+    groups = [values[k : k + size] for k in range(0, len(values), size)]
     texts = ["[" + ",".join(map(str, g)) + "]" for g in groups]
     batch = Entry(f"seed_batch={','.join(texts)}", "", "seed_batch", texts, len(texts) > 1)
     leader = Entry("seed=${seed_batch.0}", "", "seed", ["${seed_batch.0}"], False)
-    return [*entries[:i], leader, batch, *entries[i + 1:]]
+    return [*entries[:i], leader, batch, *entries[i + 1 :]]
 
 
 def trial_overrides(entries: list[Entry], choice: dict[int, Any]) -> list[str]:
@@ -225,6 +246,5 @@ def hydra_value(value: Any) -> str:
     text = re.sub(r"(\\*)\$\{", lambda m: m.group(1) * 2 + "\\${", text)
     # In Hydra's quoted value, backslashes are literal except right before a quote or
     # the closing quote: those are doubled, and a quote is escaped.
-    text = re.sub(r"(\\*)('|\Z)",
-                  lambda m: m.group(1) * 2 + ("\\'" if m.group(2) else ""), text)
+    text = re.sub(r"(\\*)('|\Z)", lambda m: m.group(1) * 2 + ("\\'" if m.group(2) else ""), text)
     return "'" + text + "'"

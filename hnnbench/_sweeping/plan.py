@@ -68,8 +68,12 @@ def plan(argv: list[str]) -> Plan:
     flags = flag_args(ns)
     multirun = bool(ns.multirun)
     if ns.shell_completion:  # its arguments (install=bash) are not config overrides
-        return Plan(argv=flags + list(ns.overrides), multirun=False, n_jobs=None,
-                    overrides=list(ns.overrides))
+        return Plan(
+            argv=flags + list(ns.overrides),
+            multirun=False,
+            n_jobs=None,
+            overrides=list(ns.overrides),
+        )
     profile_of(list(ns.overrides))
     track_of_overrides(list(ns.overrides))
     parser = OverridesParser.create()
@@ -79,19 +83,23 @@ def plan(argv: list[str]) -> Plan:
             if not any(e.key == kind and not e.text.startswith("~") for e in entries):
                 raise ConfigError(
                     f"no {kind} chosen: add {kind}=<name> to the command line (`hnnbench "
-                    f"list` shows the {kind}s; {kind}=all for every one)")
+                    f"list` shows the {kind}s; {kind}=all for every one)"
+                )
     if multirun:
         entries = batch_seeds(entries)
     rewritten = [e.text for e in entries]
-    sweeps = {i: e for i, e in enumerate(entries) if e.sweep and (e.values is None
-                                                                  or len(e.values) > 1)}
+    sweeps = {
+        i: e for i, e in enumerate(entries) if e.sweep and (e.values is None or len(e.values) > 1)
+    }
     if sweeps and not multirun:
         e = next(iter(sweeps.values()))
         vals = [str(v) for v in e.values or []]
         shown = f" ({', '.join(vals[:4])}{', ...' if len(vals) > 4 else ''})" if vals else ""
         if ns.cfg is not None or ns.info is not None:
-            raise ConfigError(f"{e.key} has several values{shown}: --cfg and --info show one "
-                              "config, so give one value per key")
+            raise ConfigError(
+                f"{e.key} has several values{shown}: --cfg and --info show one "
+                "config, so give one value per key"
+            )
         raise ConfigError(
             f"{e.key} has {len(vals) or 'several'} values{shown}: that is a sweep, so add -m, "
             f"e.g. hnnbench -m {' '.join(rewritten)}"
@@ -160,22 +168,38 @@ def plan(argv: list[str]) -> Plan:
         n_jobs = None if n_jobs is None or count is None else n_jobs * count
     pinned = {}
     for e in sweeps.values():
-        if (e.key in ("system", "model", "profile") and not e.prefix and e.values
-                and any(o.key.startswith(f"{e.key}.") for o in entries)):
+        if (
+            e.key in ("system", "model", "profile")
+            and not e.prefix
+            and e.values
+            and any(o.key.startswith(f"{e.key}.") for o in entries)
+        ):
             pinned[f"{e.key}={e.values[0]}"] = e.text
-    return Plan(argv=flags + rewritten, multirun=multirun, n_jobs=n_jobs, overrides=rewritten,
-                pinned=pinned, validated=validated)
+    return Plan(
+        argv=flags + rewritten,
+        multirun=multirun,
+        n_jobs=n_jobs,
+        overrides=rewritten,
+        pinned=pinned,
+        validated=validated,
+    )
 
 
-def request(*, single: Mapping[str, Any], swept: Mapping[str, Sequence[Any]] = {},
-            raw: Mapping[str, str] = {}, multirun: bool) -> Plan:
+def request(
+    *,
+    single: Mapping[str, Any],
+    swept: Mapping[str, Sequence[Any]] = {},
+    raw: Mapping[str, str] = {},
+    multirun: bool,
+) -> Plan:
     """The plan of a Python API call, with no command line built by the caller:
     ``single`` settings take one value each (quoted for Hydra by :func:`hydra_value`),
     ``swept`` settings a list of values (a sweep), ``raw`` settings are Hydra override
     values as written (e.g. ``"100,200"`` to sweep). Keys use dots (``model.steps``)
     or a Hydra group (``hydra/launcher``)."""
     overrides = [f"{key}={hydra_value(value)}" for key, value in single.items()]
-    overrides += [f"{key}={','.join(hydra_value(v) for v in values)}"
-                  for key, values in swept.items()]
+    overrides += [
+        f"{key}={','.join(hydra_value(v) for v in values)}" for key, values in swept.items()
+    ]
     overrides += [f"{key}={value}" for key, value in raw.items()]
     return plan((["-m"] if multirun else []) + overrides)

@@ -23,8 +23,7 @@ def _this_run() -> list[dict[str, Any]] | None:
     return None if context is None else list(context.outcomes)
 
 
-def _counts_line(total: int, outcomes: list[dict[str, Any]] | None,
-                 counts: dict[str, int]) -> str:
+def _counts_line(total: int, outcomes: list[dict[str, Any]] | None, counts: dict[str, int]) -> str:
     """``N jobs: ...`` of the directory, or of this run when its outcomes are known:
     this run's jobs by status, those kept from an earlier run, and how many records the
     directory holds when it holds others (another sweep's, or other settings')."""
@@ -44,8 +43,9 @@ def _counts_line(total: int, outcomes: list[dict[str, Any]] | None,
     if lost:
         new["returned no record"] = lost
     ran = sum(new.values())
-    line = f"this run: {ran} jobs: " + (", ".join(f"{n} {s}" for s, n in sorted(new.items()))
-                                        or "none run")
+    line = f"this run: {ran} jobs: " + (
+        ", ".join(f"{n} {s}" for s, n in sorted(new.items())) or "none run"
+    )
     if kept:
         line += f"; {kept} kept from an earlier run"
     if total != ran - lost + kept:  # other sweeps' records, or other settings'

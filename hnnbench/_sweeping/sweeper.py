@@ -41,8 +41,9 @@ class Sweeper(HydraSweeper):
     It wraps a basic sweeper rather than subclassing it: Hydra's plugin scan executes
     its module again, which would leave a subclass with a stale base."""
 
-    def __init__(self, max_batch_size: Optional[int] = None,
-                 params: Optional[dict[str, str]] = None) -> None:
+    def __init__(
+        self, max_batch_size: Optional[int] = None, params: Optional[dict[str, str]] = None
+    ) -> None:
         self._args = (max_batch_size, params)
         self._basic: Any = None
         self._config: Any = None
@@ -51,8 +52,7 @@ class Sweeper(HydraSweeper):
     def setup(self, *, hydra_context: Any, task_function: Any, config: Any) -> None:
         self._basic = basic_sweeper_class()(*self._args)
         self._basic.validate_batch_is_legal = lambda batch: None  # validated by plan()
-        self._basic.setup(hydra_context=hydra_context, task_function=task_function,
-                          config=config)
+        self._basic.setup(hydra_context=hydra_context, task_function=task_function, config=config)
         self._config = config
         launcher = self._basic.launcher
         launch_batch = launcher.launch
@@ -79,15 +79,24 @@ class Sweeper(HydraSweeper):
         arguments = [pinned.get(arg, arg) for arg in arguments]  # Plan.pinned
         directory = Path(str(self._config.hydra.sweep.dir))
         # Progress lines with an ETA, for the hnnbench command and API (hnnbench._sweeping.eta).
-        self._progress = None if context is None else eta.SweepProgress(
-            directory, default_profile=str(self._config.profile.name),
-            costs=eta.load_costs(), on_new=lambda: _partial_report(directory))
+        self._progress = (
+            None
+            if context is None
+            else eta.SweepProgress(
+                directory,
+                default_profile=str(self._config.profile.name),
+                costs=eta.load_costs(),
+                on_new=lambda: _partial_report(directory),
+            )
+        )
         # Jobs in this process read the context set here; a launcher's other processes
         # read it from the environment.
         exported = None if runs_in_process(self._basic.launcher) else context
         try:
-            with sweep_lock(directory, context.command if context is not None else None), \
-                    launch_context.exported(exported):
+            with (
+                sweep_lock(directory, context.command if context is not None else None),
+                launch_context.exported(exported),
+            ):
                 return self._basic.sweep(arguments)
         finally:
             if self._progress is not None:
@@ -104,8 +113,14 @@ class Sweeper(HydraSweeper):
         if first and todo:
             keys = [eta.job_key(o, self._progress.default_profile) for o in todo]
             launcher = self._config.hydra.launcher
-            workers = next((int(launcher[k]) for k in ("n_jobs", "array_parallelism")
-                            if isinstance(launcher.get(k), int) and launcher[k] > 0), None)
+            workers = next(
+                (
+                    int(launcher[k])
+                    for k in ("n_jobs", "array_parallelism")
+                    if isinstance(launcher.get(k), int) and launcher[k] > 0
+                ),
+                None,
+            )
             line = eta.estimate_line(keys, self._progress.costs, workers)
             if line:
                 print(f"hnnbench: {line}", file=sys.stderr, flush=True)

@@ -1,5 +1,4 @@
-"""``hnnbench tune ...``: the command (docs/TUNING.md, "Running the tuned track").
-"""
+"""``hnnbench tune ...``: the command (docs/TUNING.md, "Running the tuned track")."""
 
 from __future__ import annotations
 
@@ -23,17 +22,30 @@ def main(args: Sequence[str]) -> int:
         print(USAGE)
         return 0
     if not logging.getLogger().handlers:
-        logging.basicConfig(level=logging.INFO, stream=sys.stderr,
-                            format="[%(asctime)s] %(message)s", datefmt="%H:%M:%S")
+        logging.basicConfig(
+            level=logging.INFO,
+            stream=sys.stderr,
+            format="[%(asctime)s] %(message)s",
+            datefmt="%H:%M:%S",
+        )
     studies = run_tuning(parse(args))
-    failed = [f"{s.model} seed {r.get('seed')}" for s in studies for r in s.finals
-              if r.get("status") in ("failed", "timeout")]
+    failed = [
+        f"{s.model} seed {r.get('seed')}"
+        for s in studies
+        for r in s.finals
+        if r.get("status") in ("failed", "timeout")
+    ]
     for study in studies:
         statuses = ", ".join(str(r.get("status")) for r in study.finals) or "no final runs"
-        print(f"{study.model}: {len(study.trials)} trial(s), tuning CPU {study.cpu_s:.0f} s, "
-              f"final: {statuses}", file=sys.stderr)
+        print(
+            f"{study.model}: {len(study.trials)} trial(s), tuning CPU {study.cpu_s:.0f} s, "
+            f"final: {statuses}",
+            file=sys.stderr,
+        )
     if failed:
-        print(f"hnnbench tune: {len(failed)} final run(s) failed: {', '.join(failed)}",
-              file=sys.stderr)
+        print(
+            f"hnnbench tune: {len(failed)} final run(s) failed: {', '.join(failed)}",
+            file=sys.stderr,
+        )
         return 1
     return 0

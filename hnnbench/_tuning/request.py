@@ -17,8 +17,14 @@ if TYPE_CHECKING:
     pass
 
 __all__ = [
-    "ARGUMENTS", "DEFAULT_SEEDS", "PASSED_KEYS", "PASSED_PREFIXES", "PRUNERS", "TuneRequest",
-    "USAGE", "parse",
+    "ARGUMENTS",
+    "DEFAULT_SEEDS",
+    "PASSED_KEYS",
+    "PASSED_PREFIXES",
+    "PRUNERS",
+    "TuneRequest",
+    "USAGE",
+    "parse",
 ]
 
 
@@ -29,8 +35,18 @@ PRUNERS = ("successive_halving", "none")
 PASSED_PREFIXES = ("system.", "evaluation.")
 PASSED_KEYS = ("timeout_s", "cache_dir", "data_dir", "device", "threads", "pin_cpu")
 #: The tuner's own arguments, ``key=value``.
-ARGUMENTS = ("system", "model", "trials", "seeds", "profile", "out", "steps", "pruner",
-             "trial_seed", "sampler_seed")
+ARGUMENTS = (
+    "system",
+    "model",
+    "trials",
+    "seeds",
+    "profile",
+    "out",
+    "steps",
+    "pruner",
+    "trial_seed",
+    "sampler_seed",
+)
 #: The seeds the selected settings train on unless ``seeds=`` says otherwise: five, as
 #: the paired sign test cannot separate two families on fewer (docs/TUNING.md).
 DEFAULT_SEEDS = (0, 1, 2, 3, 4)
@@ -83,8 +99,11 @@ class TuneRequest:
 
     @property
     def directory(self) -> Path:
-        return Path(self.out) if self.out is not None else \
-            Path("results") / "runs" / f"tuned_{self.profile}"
+        return (
+            Path(self.out)
+            if self.out is not None
+            else Path("results") / "runs" / f"tuned_{self.profile}"
+        )
 
 
 def _int(key: str, value: str, low: int) -> int:
@@ -93,8 +112,9 @@ def _int(key: str, value: str, low: int) -> int:
     except ValueError:
         number = low - 1
     if number < low:
-        raise ConfigError(f"{key}={value} is invalid: expected an integer >= {low}, "
-                          f"e.g. {key}={max(low, 1)}.")
+        raise ConfigError(
+            f"{key}={value} is invalid: expected an integer >= {low}, e.g. {key}={max(low, 1)}."
+        )
     return number
 
 
@@ -108,31 +128,39 @@ def parse(args: Sequence[str]) -> TuneRequest:
         if arg in ("-h", "--help", "help"):
             raise ConfigError(" ".join(USAGE.split()))
         if not sep or not key:
-            raise ConfigError(f"hnnbench tune: '{arg}' is not KEY=VALUE, e.g. trials=20 "
-                              "(hnnbench tune --help)")
+            raise ConfigError(
+                f"hnnbench tune: '{arg}' is not KEY=VALUE, e.g. trials=20 (hnnbench tune --help)"
+            )
         if key in ARGUMENTS:
             values[key] = value
         elif key.startswith("model."):
-            raise ConfigError(f"hnnbench tune: {arg}: model settings are what the tuner "
-                              "searches (each model's declared space) or the model's "
-                              "defaults; the step budget is steps=N")
+            raise ConfigError(
+                f"hnnbench tune: {arg}: model settings are what the tuner "
+                "searches (each model's declared space) or the model's "
+                "defaults; the step budget is steps=N"
+            )
         elif key.startswith(PASSED_PREFIXES) or key in PASSED_KEYS:
             overrides.append(arg)
         elif key.lstrip("+~") == "track":
-            raise ConfigError(f"hnnbench tune: {arg}: the tuner writes the tuned track "
-                              "(track=tuned); a paper's recipe runs as hnnbench -m ... "
-                              "track=recipe (docs/TUNING.md, 'Recipes')")
+            raise ConfigError(
+                f"hnnbench tune: {arg}: the tuner writes the tuned track "
+                "(track=tuned); a paper's recipe runs as hnnbench -m ... "
+                "track=recipe (docs/TUNING.md, 'Recipes')"
+            )
         else:
             known = ", ".join([*ARGUMENTS, *(f"{p}*" for p in PASSED_PREFIXES), *PASSED_KEYS])
-            raise ConfigError(f"hnnbench tune: unknown argument '{key}'; expected one of "
-                              f"{known}")
+            raise ConfigError(f"hnnbench tune: unknown argument '{key}'; expected one of {known}")
     for key in ("system", "model", "trials"):
         if not values.get(key):
-            raise ConfigError(f"hnnbench tune: {key}= is required, e.g. hnnbench tune "
-                              "system=pendulum model=hnn_jax,mlp_jax trials=20")
+            raise ConfigError(
+                f"hnnbench tune: {key}= is required, e.g. hnnbench tune "
+                "system=pendulum model=hnn_jax,mlp_jax trials=20"
+            )
     if "," in values["system"]:
-        raise ConfigError(f"system={values['system']}: one system per tuning (its "
-                          "models share the budget); run one command per system")
+        raise ConfigError(
+            f"system={values['system']}: one system per tuning (its "
+            "models share the budget); run one command per system"
+        )
     pruner = values.get("pruner", "successive_halving")
     if pruner not in PRUNERS:
         raise ConfigError(f"pruner={pruner} is invalid: expected one of {', '.join(PRUNERS)}")
@@ -170,8 +198,10 @@ def resolve_models(request: TuneRequest) -> list[str]:
             names = [name]
         for model in names:
             if not registry.discover("model")[model].search_space:
-                raise ConfigError(f"model {model} declares no search space, so it has no "
-                                  "tuned track (hnnbench list shows the spaces)")
+                raise ConfigError(
+                    f"model {model} declares no search space, so it has no "
+                    "tuned track (hnnbench list shows the spaces)"
+                )
             if model not in out:
                 out.append(model)
     return out

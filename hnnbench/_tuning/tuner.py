@@ -105,7 +105,8 @@ def objective_metric() -> Metric:
             "hnnbench tune selects on the one registered metric that declares "
             f"selects=True, but {len(found)} do"
             + (f" ({', '.join(m.name for m in found)})" if found else "")
-            + ": check the installed metric plugins (hnnbench list)")
+            + ": check the installed metric plugins (hnnbench list)"
+        )
     return found[0]
 
 
@@ -177,16 +178,28 @@ class Tuner:
         self.objective = objective_metric()
 
     # -- jobs ------------------------------------------------------------------------
-    def _overrides(self, model: str, seed: int, settings: Mapping[str, Any],
-                   steps: int) -> list[str]:
-        return [f"system={self.system}", f"model={model}", f"seed={seed}",
-                f"profile={self.request.profile}",
-                f"{STEPS_SETTING}={steps}",
-                *(f"{k}={_override_value(v)}" for k, v in settings.items()),
-                "track=tuned", *self.request.overrides]
+    def _overrides(
+        self, model: str, seed: int, settings: Mapping[str, Any], steps: int
+    ) -> list[str]:
+        return [
+            f"system={self.system}",
+            f"model={model}",
+            f"seed={seed}",
+            f"profile={self.request.profile}",
+            f"{STEPS_SETTING}={steps}",
+            *(f"{k}={_override_value(v)}" for k, v in settings.items()),
+            "track=tuned",
+            *self.request.overrides,
+        ]
 
-    def _job(self, overrides: list[str], directory: Path, tuning: dict[str, Any],
-             extra: Sequence[str] = (), rerun: bool = False) -> dict[str, Any]:
+    def _job(
+        self,
+        overrides: list[str],
+        directory: Path,
+        tuning: dict[str, Any],
+        extra: Sequence[str] = (),
+        rerun: bool = False,
+    ) -> dict[str, Any]:
         """Run one job, as a sweep's Hydra task does (its config composed by
         :func:`~hnnbench._running.compose.compose`, run by the one job entry
         :func:`~hnnbench._running.job.run_job` in this command's launch context), and
@@ -201,8 +214,14 @@ class Tuner:
 
     def protocol_steps(self, model: str) -> int:
         """The system's protocol steps of the profile (the default step budget)."""
-        cfg = compose([f"system={self.system}", f"model={model}",
-                       f"profile={self.request.profile}", *self.request.overrides])
+        cfg = compose(
+            [
+                f"system={self.system}",
+                f"model={model}",
+                f"profile={self.request.profile}",
+                *self.request.overrides,
+            ]
+        )
         job = prepare_job(cfg)
         return TrainSettings.resolve(job.system_cfg, job.model_cfg).steps
 
@@ -216,17 +235,23 @@ class Tuner:
         path = self.root / "tuning" / f"{self.system}.db"
         path.parent.mkdir(parents=True, exist_ok=True)
         return optuna.storages.RDBStorage(
-            f"sqlite:///{path}", engine_kwargs={"connect_args": {"timeout": 60}})
+            f"sqlite:///{path}", engine_kwargs={"connect_args": {"timeout": 60}}
+        )
 
     def _identity(self, model: str, space: SearchSpace, steps: int) -> dict[str, Any]:
         """What a study is of: resuming with anything else is refused."""
-        return {"steps": steps, "profile": self.request.profile,
-                "objective": self.objective.name, "space": space_json(space),
-                "trial_seed": self.request.trial_seed,
-                # what the jobs compute, not how they run
-                "overrides": sorted(o for o in self.request.overrides
-                                    if o.split("=", 1)[0] not in PASSED_KEYS),
-                "pruner": self._pruner_name(space)}
+        return {
+            "steps": steps,
+            "profile": self.request.profile,
+            "objective": self.objective.name,
+            "space": space_json(space),
+            "trial_seed": self.request.trial_seed,
+            # what the jobs compute, not how they run
+            "overrides": sorted(
+                o for o in self.request.overrides if o.split("=", 1)[0] not in PASSED_KEYS
+            ),
+            "pruner": self._pruner_name(space),
+        }
 
     def _pruner_name(self, space: SearchSpace) -> str:
         loss_knobs = [n for n, d in space.items() if d.changes_training_loss]
@@ -242,14 +267,22 @@ class Tuner:
         optuna.logging.set_verbosity(optuna.logging.WARNING)
         identity = self._identity(model, space, steps)
         pruning = identity["pruner"].startswith("successive_halving")
-        pruner = optuna.pruners.SuccessiveHalvingPruner(
-            min_resource=max(1, math.ceil(steps * FIRST_RUNG)),
-            reduction_factor=REDUCTION) if pruning else optuna.pruners.NopPruner()
+        pruner = (
+            optuna.pruners.SuccessiveHalvingPruner(
+                min_resource=max(1, math.ceil(steps * FIRST_RUNG)), reduction_factor=REDUCTION
+            )
+            if pruning
+            else optuna.pruners.NopPruner()
+        )
         storage = self._storage()
         name = self.study_name(model)
-        study = optuna.create_study(storage=storage, study_name=name,
-                                    direction="minimize" if self.objective.better == "lower"
-                                    else "maximize", load_if_exists=True, pruner=pruner)
+        study = optuna.create_study(
+            storage=storage,
+            study_name=name,
+            direction="minimize" if self.objective.better == "lower" else "maximize",
+            load_if_exists=True,
+            pruner=pruner,
+        )
         stored = study.user_attrs.get("identity")
         if stored is None:
             study.set_user_attr("identity", identity)
@@ -258,12 +291,14 @@ class Tuner:
             raise ConfigError(
                 f"{self.root} holds the study {name} made with other settings "
                 f"({', '.join(f'{k}: {stored.get(k)!r} -> {identity[k]!r}' for k in differs)})"
-                "; resume with the settings it was made with, or choose another out=")
+                "; resume with the settings it was made with, or choose another out="
+            )
         # Reseeded on each start by the trials so far (interrupted ones included), so a
         # resumed study does not repeat its first draws.
         study.sampler = optuna.samplers.TPESampler(
             seed=self.request.sampler_seed + len(study.trials),
-            n_startup_trials=min(10, max(1, math.ceil(self.request.trials / 2))))
+            n_startup_trials=min(10, max(1, math.ceil(self.request.trials / 2))),
+        )
         return study
 
     def _trial_dir(self, model: str, number: int) -> Path:
@@ -275,23 +310,31 @@ class Tuner:
         import optuna
 
         for trial in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
-            record = records.read_record(self._trial_dir(model, trial.number) /
-                                         records.RECORD_NAME)
-            if record is not None and record.get("status") in (*records.FINISHED,
-                                                                "failed", "timeout"):
+            record = records.read_record(self._trial_dir(model, trial.number) / records.RECORD_NAME)
+            if record is not None and record.get("status") in (
+                *records.FINISHED,
+                "failed",
+                "timeout",
+            ):
                 state = optuna.trial.TrialState.PRUNED if _pruned(record) else None
-                study.tell(trial.number, None if state else _value(record, self.objective),
-                           state=state)
-                log.info("%s trial %d: recovered from its record", self.study_name(model),
-                         trial.number)
+                study.tell(
+                    trial.number, None if state else _value(record, self.objective), state=state
+                )
+                log.info(
+                    "%s trial %d: recovered from its record", self.study_name(model), trial.number
+                )
                 continue
             study.tell(trial.number, state=optuna.trial.TrialState.FAIL)
             study.enqueue_trial(dict(trial.params), user_attrs={"replays": trial.number})
-            log.info("%s trial %d: interrupted; its settings run again",
-                     self.study_name(model), trial.number)
+            log.info(
+                "%s trial %d: interrupted; its settings run again",
+                self.study_name(model),
+                trial.number,
+            )
 
-    def _run_trial(self, study: optuna.Study, model: str, space: SearchSpace,
-                   steps: int, k: int) -> None:
+    def _run_trial(
+        self, study: optuna.Study, model: str, space: SearchSpace, steps: int, k: int
+    ) -> None:
         import optuna
 
         distributions = {n: _distribution(d) for n, d in space.items()}
@@ -315,14 +358,20 @@ class Tuner:
             return None
 
         directory = self._trial_dir(model, trial.number)
-        tuning = {"selected_on": SELECTED_ON, "objective": self.objective.name,
-                  "trial": trial.number, "study": self.study_name(model)}
+        tuning = {
+            "selected_on": SELECTED_ON,
+            "objective": self.objective.name,
+            "trial": trial.number,
+            "study": self.study_name(model),
+        }
         start = time.perf_counter()
         with progress.observing(observe):
             record = self._job(
                 self._overrides(model, self.request.trial_seed, settings, steps),
-                directory, tuning,
-                extra=[f"evaluation.metrics=[{self.objective.name}]", "save_model=false"])
+                directory,
+                tuning,
+                extra=[f"evaluation.metrics=[{self.objective.name}]", "save_model=false"],
+            )
         cpu = float((record.get("timings") or {}).get("cpu_s") or 0.0)
         trial.set_user_attr("settings", settings)
         trial.set_user_attr("status", record.get("status"))
@@ -337,15 +386,26 @@ class Tuner:
             value = _value(record, self.objective)
             study.tell(trial, value)
             outcome = f"{record.get('status')}, {self.objective.name}={value:.3g}"
-        spent = [float(t.user_attrs.get("cpu_s") or 0.0)
-                 for t in study.get_trials(deepcopy=False) if "cpu_s" in t.user_attrs]
+        spent = [
+            float(t.user_attrs.get("cpu_s") or 0.0)
+            for t in study.get_trials(deepcopy=False)
+            if "cpu_s" in t.user_attrs
+        ]
         left = (self.request.trials - k) * sum(spent) / max(len(spent), 1)
-        log.info("%s trial %d/%d (#%d): %s; %.1f s CPU, %.1f s wall; %s; this study so "
-                 "far %.0f s CPU, about %.0f s CPU to go (at its mean per trial)",
-                 self.study_name(model), k, self.request.trials, trial.number, outcome, cpu,
-                 time.perf_counter() - start,
-                 " ".join(f"{key}={_override_value(v)}" for key, v in settings.items()),
-                 sum(spent), left)
+        log.info(
+            "%s trial %d/%d (#%d): %s; %.1f s CPU, %.1f s wall; %s; this study so "
+            "far %.0f s CPU, about %.0f s CPU to go (at its mean per trial)",
+            self.study_name(model),
+            k,
+            self.request.trials,
+            trial.number,
+            outcome,
+            cpu,
+            time.perf_counter() - start,
+            " ".join(f"{key}={_override_value(v)}" for key, v in settings.items()),
+            sum(spent),
+            left,
+        )
 
     def tune_model(self, model: str) -> Study:
         """Tune ``model`` to the budget (resuming its study), then train its selected
@@ -357,16 +417,24 @@ class Tuner:
         steps = self.request.steps or self.protocol_steps(model)
         optuna_study = self._open(model, space, steps)
         name = self.study_name(model)
-        result = Study(model, space, self.request.trials, steps, self.objective,
-                       self._pruner_name(space))
+        result = Study(
+            model, space, self.request.trials, steps, self.objective, self._pruner_name(space)
+        )
         self._recover(optuna_study, model, space)
         counted = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)
 
         def done() -> int:
             return len(optuna_study.get_trials(deepcopy=False, states=counted))
 
-        log.info("%s: %d/%d trials done; space: %s; %d steps per trial; pruner: %s",
-                 name, done(), self.request.trials, describe(space), steps, result.pruner)
+        log.info(
+            "%s: %d/%d trials done; space: %s; %d steps per trial; pruner: %s",
+            name,
+            done(),
+            self.request.trials,
+            describe(space),
+            steps,
+            result.pruner,
+        )
         skipped: Optional[str] = None
         while done() < self.request.trials:
             try:
@@ -375,19 +443,27 @@ class Tuner:
                 skipped = str(err)
                 log.warning("%s: skipped (%s); no tuning", name, skipped)
                 break
-        result.trials = [_trial_summary(t) for t in optuna_study.get_trials(deepcopy=False)
-                         if t.state in (*counted, optuna.trial.TrialState.FAIL)
-                         and t.user_attrs.get("status") is not None]
+        result.trials = [
+            _trial_summary(t)
+            for t in optuna_study.get_trials(deepcopy=False)
+            if t.state in (*counted, optuna.trial.TrialState.FAIL)
+            and t.user_attrs.get("status") is not None
+        ]
         if skipped is None:
             result.selected = _select(optuna_study, self.objective)
         self._write_summary(result)
         if result.selected is None:
             return result
-        log.info("%s: selected trial %d (%s=%.3g) of %d; tuning CPU %.0f s: %s", name,
-                 result.selected["number"], self.objective.name, result.selected["value"],
-                 len(result.trials), result.cpu_s,
-                 " ".join(f"{k}={_override_value(v)}"
-                          for k, v in result.selected["settings"].items()))
+        log.info(
+            "%s: selected trial %d (%s=%.3g) of %d; tuning CPU %.0f s: %s",
+            name,
+            result.selected["number"],
+            self.objective.name,
+            result.selected["value"],
+            len(result.trials),
+            result.cpu_s,
+            " ".join(f"{k}={_override_value(v)}" for k, v in result.selected["settings"].items()),
+        )
         tuning = result.tuning(name)
         for seed in self.request.seeds:
             directory = self.root / "final" / self.system / model / f"seed{seed}"
@@ -401,19 +477,33 @@ class Tuner:
     def _write_summary(self, study: Study) -> None:
         path = self.root / "tuning" / self.system / f"{study.model}.json"
         path.parent.mkdir(parents=True, exist_ok=True)
-        summary = {"system": self.system, "model": study.model,
-                   "profile": self.request.profile, "trials_budget": study.budget_trials,
-                   "steps": study.steps, "objective": study.objective.name,
-                   "selected_on": SELECTED_ON, "space": space_json(study.space),
-                   "pruner": study.pruner, "cpu_s": round(study.cpu_s, 3),
-                   "selected": study.selected, "trials": study.trials}
+        summary = {
+            "system": self.system,
+            "model": study.model,
+            "profile": self.request.profile,
+            "trials_budget": study.budget_trials,
+            "steps": study.steps,
+            "objective": study.objective.name,
+            "selected_on": SELECTED_ON,
+            "space": space_json(study.space),
+            "pruner": study.pruner,
+            "cpu_s": round(study.cpu_s, 3),
+            "selected": study.selected,
+            "trials": study.trials,
+        }
         records.atomic_write_text(path, json.dumps(records.encode(summary), indent=2) + "\n")
 
     def run(self) -> list[Study]:
         models = resolve_models(self.request)
-        log.info("hnnbench tune: %s, %d model(s) x %d trial(s), seeds %s, profile %s, "
-                 "into %s", self.system, len(models), self.request.trials,
-                 ",".join(map(str, self.request.seeds)), self.request.profile, self.root)
+        log.info(
+            "hnnbench tune: %s, %d model(s) x %d trial(s), seeds %s, profile %s, into %s",
+            self.system,
+            len(models),
+            self.request.trials,
+            ",".join(map(str, self.request.seeds)),
+            self.request.profile,
+            self.root,
+        )
         out = []
         with sweep_lock(self.root / "trials" / self.system, self.request.command):
             for model in models:
@@ -426,11 +516,15 @@ class _Skipped(Exception):
 
 
 def _trial_summary(trial: Any) -> dict[str, Any]:
-    return {"number": trial.number, "state": trial.state.name.lower(),
-            "value": trial.value, "status": trial.user_attrs.get("status"),
-            "settings": trial.user_attrs.get("settings"),
-            "cpu_s": trial.user_attrs.get("cpu_s"),
-            "last_step": trial.last_step}
+    return {
+        "number": trial.number,
+        "state": trial.state.name.lower(),
+        "value": trial.value,
+        "status": trial.user_attrs.get("status"),
+        "settings": trial.user_attrs.get("settings"),
+        "cpu_s": trial.user_attrs.get("cpu_s"),
+        "last_step": trial.last_step,
+    }
 
 
 def _select(study: Any, objective: Metric) -> Optional[dict[str, Any]]:
@@ -439,15 +533,20 @@ def _select(study: Any, objective: Metric) -> Optional[dict[str, Any]]:
     the earliest."""
     import optuna
 
-    complete = [t for t in study.get_trials(deepcopy=False,
-                                            states=(optuna.trial.TrialState.COMPLETE,))
-                if t.value is not None and t.user_attrs.get("settings") is not None]
+    complete = [
+        t
+        for t in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.COMPLETE,))
+        if t.value is not None and t.user_attrs.get("settings") is not None
+    ]
     if not complete:
         return None
     sign = 1.0 if objective.better == "lower" else -1.0
     best = min(complete, key=lambda t: (sign * float(t.value), t.number))
-    return {"number": best.number, "value": float(best.value),
-            "settings": dict(best.user_attrs["settings"])}
+    return {
+        "number": best.number,
+        "value": float(best.value),
+        "settings": dict(best.user_attrs["settings"]),
+    }
 
 
 def run_tuning(request: TuneRequest) -> list[Study]:
@@ -456,14 +555,15 @@ def run_tuning(request: TuneRequest) -> list[Study]:
         import optuna  # noqa: F401
     except ImportError:
         raise BackendMissingError(
-            "hnnbench tune needs optuna, which is not installed: pip install "
-            "'hnnbench[tune]'") from None
+            "hnnbench tune needs optuna, which is not installed: pip install 'hnnbench[tune]'"
+        ) from None
     profile_of([f"profile={request.profile}"])  # an unknown profile: one line
     if request.system not in registry.discover("system"):
         raise UnknownNameError("system", request.system, registry.available("system"))
     registry.get_class("system", request.system)
-    context = launch_context.LaunchContext(command=request.command, cli_pid=os.getpid(),
-                                           host=socket.gethostname())
+    context = launch_context.LaunchContext(
+        command=request.command, cli_pid=os.getpid(), host=socket.gethostname()
+    )
     # Its jobs run in this process, one after the other (a trial's settings depend on
     # the trials before it), and pin it to one core as the command's jobs do.
     with launch_context.launched(context):

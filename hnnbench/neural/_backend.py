@@ -32,8 +32,18 @@ from hnnbench.neural._family import Family
 from hnnbench.neural._loop import Trainer
 from hnnbench.neural._views import Problem
 
-__all__ = ["BACKENDS", "MIN_STEP_FRACTION", "Backend", "Inference", "Weights", "load_backend",
-           "map_plan", "missing_backend", "rollout_min_step", "stall_text"]
+__all__ = [
+    "BACKENDS",
+    "MIN_STEP_FRACTION",
+    "Backend",
+    "Inference",
+    "Weights",
+    "load_backend",
+    "map_plan",
+    "missing_backend",
+    "rollout_min_step",
+    "stall_text",
+]
 
 #: The stall rule of every neural rollout, in both backends (docs/METRICS.md,
 #: "Diverged"): when the adaptive solver's next step size falls below this fraction of
@@ -69,6 +79,7 @@ def stall_text(min_step: float) -> str:
     """How both backends name the stall rule in a diverged rollout's reason."""
     return f"the stall limit {min_step:.3g} ({MIN_STEP_FRACTION:g} of the rollout's span)"
 
+
 #: Flat ``{"<net>.linears.<i>.weight": array, ...}`` of one seed (pixel models add
 #: ``"autoencoder.encoder.<i>.weight"`` etc.), in the training dtype.
 Weights = dict[str, np.ndarray]
@@ -76,8 +87,7 @@ Weights = dict[str, np.ndarray]
 #: backend name -> (module, class, the modules it needs, the pip extra providing them).
 BACKENDS: dict[str, tuple[str, str, tuple[str, ...], str]] = {
     "torch": ("hnnbench.neural.torch", "TorchBackend", ("torch",), "torch"),
-    "jax": ("hnnbench.neural.jax", "JaxBackend", ("jax", "equinox", "optax", "diffrax"),
-            "jax"),
+    "jax": ("hnnbench.neural.jax", "JaxBackend", ("jax", "equinox", "optax", "diffrax"), "jax"),
 }
 
 
@@ -92,8 +102,9 @@ class Inference(Protocol):
         """``(N, d) -> (N,)``: the learned energy (families with ``learned_energy``)."""
         ...
 
-    def rollout(self, z0: np.ndarray, t: np.ndarray, rtol: float, atol: float,
-                max_steps: int) -> np.ndarray:
+    def rollout(
+        self, z0: np.ndarray, t: np.ndarray, rtol: float, atol: float, max_steps: int
+    ) -> np.ndarray:
         """Adaptive Dormand-Prince 5(4) in float64 from ``(M, d)`` over ``(T,)``
         (monotonic, may decrease), the batch integrated as one system; ``(M, T, d)``.
         Raises :class:`~hnnbench._contracts.errors.RolloutDiverged` when the solver gives up: more
@@ -130,8 +141,15 @@ class Backend(Protocol):
     #: Seconds a model wants recorded, e.g. ``{"compile_s": ...}``; accumulated.
     timings: dict[str, float]
 
-    def trainer(self, family: Family, impl: ModuleType, problem: Problem,
-                initial: Sequence[Weights], settings: TrainSettings, layout: Layout) -> Trainer:
+    def trainer(
+        self,
+        family: Family,
+        impl: ModuleType,
+        problem: Problem,
+        initial: Sequence[Weights],
+        settings: TrainSettings,
+        layout: Layout,
+    ) -> Trainer:
         """A trainer of ``len(initial)`` seeds, from their float64 initial weights;
         ``layout``: the family's networks on this system (what each reads, its angle
         embedding)."""
@@ -141,8 +159,9 @@ class Backend(Protocol):
         """The current weights of each seed of ``trainer`` (training dtype)."""
         ...
 
-    def inference(self, family: Family, impl: ModuleType, weights: Weights,
-                  layout: Layout) -> Inference:
+    def inference(
+        self, family: Family, impl: ModuleType, weights: Weights, layout: Layout
+    ) -> Inference:
         """The float64 computations of one seed's trained weights."""
         ...
 
@@ -159,8 +178,10 @@ def missing_backend(name: str) -> Optional[str]:
         except (ImportError, ValueError):  # a parent package missing, or a None entry
             found = False
         if not found:
-            return (f"This model needs {module}, which is not installed. "
-                    f"Install it with: pip install 'hnnbench[{extra}]'")
+            return (
+                f"This model needs {module}, which is not installed. "
+                f"Install it with: pip install 'hnnbench[{extra}]'"
+            )
     return None
 
 

@@ -76,11 +76,14 @@ class NeuralConfig(ModelConfig):
                 f"model.angle_embedding='{self.angle_embedding}' is invalid: expected one "
                 f"of {', '.join(ANGLE_EMBEDDINGS)}."
             )
-        for key, value, allowed in (("loss", self.loss, LOSSES),
-                                    ("lr_schedule", self.lr_schedule, LR_SCHEDULES)):
+        for key, value, allowed in (
+            ("loss", self.loss, LOSSES),
+            ("lr_schedule", self.lr_schedule, LR_SCHEDULES),
+        ):
             if value not in allowed:
-                raise ConfigError(f"model.{key}='{value}' is invalid: expected one of "
-                                  f"{', '.join(allowed)}.")
+                raise ConfigError(
+                    f"model.{key}='{value}' is invalid: expected one of {', '.join(allowed)}."
+                )
         if self.dtype not in DTYPES:
             raise ConfigError(
                 f"model.dtype='{self.dtype}' is invalid: expected one of {', '.join(DTYPES)}."
@@ -98,10 +101,12 @@ class NeuralConfig(ModelConfig):
 #: activation. A family declares ``{**SHARED_SPACE, <its own knobs>}`` (or leaves a
 #: setting out that it cannot use), so that the settings all families share are searched
 #: over the same ranges. Read-only.
-SHARED_SPACE: MappingProxyType[str, Distribution] = MappingProxyType({
-    "lr": LogUniform(1e-4, 1e-2),
-    "weight_decay": Categorical((0.0, 1e-5, 1e-4, 1e-3)),
-    "hidden": Categorical((50, 100, 200, 400)),
-    "layers": IntRange(2, 4),
-    "activation": Categorical(ACTIVATIONS),
-})
+SHARED_SPACE: MappingProxyType[str, Distribution] = MappingProxyType(
+    {
+        "lr": LogUniform(1e-4, 1e-2),
+        "weight_decay": Categorical((0.0, 1e-5, 1e-4, 1e-3)),
+        "hidden": Categorical((50, 100, 200, 400)),
+        "layers": IntRange(2, 4),
+        "activation": Categorical(ACTIVATIONS),
+    }
+)

@@ -82,8 +82,13 @@ class Layout:
         return dict(self.nets)[name]
 
     @staticmethod
-    def build(d: int, shapes: Mapping[str, tuple[int, int]], reads: Mapping[str, str],
-              angles: tuple[int, ...], embedding: str) -> Layout:
+    def build(
+        d: int,
+        shapes: Mapping[str, tuple[int, int]],
+        reads: Mapping[str, str],
+        angles: tuple[int, ...],
+        embedding: str,
+    ) -> Layout:
         """The layout of networks ``shapes`` (``{name: (width, d_out)}``) that read
         ``reads[name]`` (``"z"``, ``"q"`` or ``"p"``; default ``"z"``) of coordinates
         whose first ``d // 2`` are positions, ``angles`` among them."""

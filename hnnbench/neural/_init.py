@@ -64,8 +64,9 @@ def mlp_shapes(d_in: int, d_out: int, cfg: NeuralConfig) -> dict[str, tuple[int,
     return shapes
 
 
-def init_arrays(seed: int, d_in: int, d_out: int, cfg: NeuralConfig,
-                network: int = 0) -> dict[str, np.ndarray]:
+def init_arrays(
+    seed: int, d_in: int, d_out: int, cfg: NeuralConfig, network: int = 0
+) -> dict[str, np.ndarray]:
     """The seeded initial weights of an MLP, float64, keyed as :func:`mlp_shapes`.
 
     Orthogonal weights; biases ``U(-1/sqrt(fan_in), 1/sqrt(fan_in))`` (torch's
@@ -92,8 +93,10 @@ def network_init_arrays(
     """Initial weights of every network of a model: ``{net: {param: array}}`` for
     ``shapes = {net: (d_in, d_out)}``, the k-th network (in ``shapes``' order) drawn with
     ``init_arrays(..., network=k)``."""
-    return {name: init_arrays(seed, d_in, d_out, cfg, network=k)
-            for k, (name, (d_in, d_out)) in enumerate(shapes.items())}
+    return {
+        name: init_arrays(seed, d_in, d_out, cfg, network=k)
+        for k, (name, (d_in, d_out)) in enumerate(shapes.items())
+    }
 
 
 def autoencoder_init_arrays(

@@ -53,8 +53,15 @@ from hnnbench._contracts.plugin import (
 )
 from hnnbench.neural._init import BatchStream
 
-__all__ = ["ONE_CYCLE_FLOOR", "ONE_CYCLE_START", "SeedFit", "Trainer", "chunk_lengths",
-           "lr_factors", "train"]
+__all__ = [
+    "ONE_CYCLE_FLOOR",
+    "ONE_CYCLE_START",
+    "SeedFit",
+    "Trainer",
+    "chunk_lengths",
+    "lr_factors",
+    "train",
+]
 
 #: The one-cycle schedule (:func:`lr_factors`): where on its sin² cycle it starts (a
 #: fraction of the cycle) and its floor (a fraction of the peak ``lr``). The shape of the
@@ -68,8 +75,9 @@ ONE_CYCLE_FLOOR = 1e-4
 class Trainer(Protocol):
     """A backend's training state for ``S`` seeds."""
 
-    def run_chunk(self, indices: Optional[np.ndarray], length: int,
-                  lrs: Optional[np.ndarray]) -> tuple[Any, Any]:
+    def run_chunk(
+        self, indices: Optional[np.ndarray], length: int, lrs: Optional[np.ndarray]
+    ) -> tuple[Any, Any]:
         """Run ``length`` optimizer steps.
 
         Args:
@@ -108,7 +116,8 @@ class SeedFit:
     """
 
     history: dict[str, list[float]] = field(
-        default_factory=lambda: {HISTORY_STEP: [], HISTORY_TRAIN: [], HISTORY_VALID: []})
+        default_factory=lambda: {HISTORY_STEP: [], HISTORY_TRAIN: [], HISTORY_VALID: []}
+    )
     steps: int = 0
     diverged: Optional[str] = None
     selection: Optional[Selection] = None
@@ -159,8 +168,14 @@ def paired_se(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.std(diff, ddof=1) / math.sqrt(diff.size))
 
 
-def _selection(track: _Track, evaluations: int, first_step: int, criterion: Optional[str],
-               stopped: Optional[str], last_available: bool) -> tuple[Selection, bool]:
+def _selection(
+    track: _Track,
+    evaluations: int,
+    first_step: int,
+    criterion: Optional[str],
+    stopped: Optional[str],
+    last_available: bool,
+) -> tuple[Selection, bool]:
     """The scored checkpoint of a seed (the rule of
     :data:`~hnnbench._contracts.plugin.SELECTION_RULE`) and whether it is the last one.
     ``last_available``: the trainer still holds the last checkpoint's weights (not so
@@ -170,17 +185,33 @@ def _selection(track: _Track, evaluations: int, first_step: int, criterion: Opti
     best_value, last_value = float(np.mean(best)), float(np.mean(last))
     final_se = paired_se(last, best)
     earlier = best_step != last_step and (
-        not last_available or not math.isfinite(final_se)
-        or last_value - best_value > SELECTION_Z * final_se)
+        not last_available
+        or not math.isfinite(final_se)
+        or last_value - best_value > SELECTION_Z * final_se
+    )
     step, value = (best_step, best_value) if earlier else (last_step, last_value)
     late_step, late_value, late_se = None, math.nan, math.nan
     if track.late is not None:
         late_step, late_values = track.late
         late_value = float(np.mean(late_values))
         late_se = paired_se(late_values, last)
-    return Selection(step, value, evaluations, first_step, stopped, criterion,
-                     int(np.size(last)), best_step, best_value, last_step, last_value,
-                     final_se, late_step, late_value, late_se), not earlier
+    return Selection(
+        step,
+        value,
+        evaluations,
+        first_step,
+        stopped,
+        criterion,
+        int(np.size(last)),
+        best_step,
+        best_value,
+        last_step,
+        last_value,
+        final_se,
+        late_step,
+        late_value,
+        late_se,
+    ), not earlier
 
 
 def train(
@@ -197,11 +228,13 @@ def train(
     following ``schedule`` (:func:`lr_factors`); one :class:`SeedFit` per seed, in
     ``seeds`` order. ``criterion``: the name of the validation criterion the trainer
     returns (recorded in each :class:`~hnnbench.Selection`)."""
-    rates = None if schedule == "constant" else settings.lr * lr_factors(schedule,
-                                                                         settings.steps)
+    rates = None if schedule == "constant" else settings.lr * lr_factors(schedule, settings.steps)
     batch = settings.batch_size
-    streams = None if batch is None or batch >= n_train else [
-        BatchStream(seed, n_train, int(batch)) for seed in seeds]
+    streams = (
+        None
+        if batch is None or batch >= n_train
+        else [BatchStream(seed, n_train, int(batch)) for seed in seeds]
+    )
 
     def draw(length: int) -> Optional[np.ndarray]:
         if streams is None:
@@ -217,7 +250,7 @@ def train(
     step = 0
     indices = draw(lengths[0])
     for k, length in enumerate(lengths):
-        lrs = None if rates is None else rates[step:step + length]
+        lrs = None if rates is None else rates[step : step + length]
         losses_out, valid_out = trainer.run_chunk(indices, length, lrs)
         if k + 1 < len(lengths):  # drawn while an asynchronous backend computes
             indices = draw(lengths[k + 1])
@@ -252,8 +285,13 @@ def train(
         if improved.any():
             trainer.keep(improved)
         shown = live or list(range(len(seeds)))
-        stop = progress(step, {HISTORY_TRAIN: float(np.mean(losses[shown, -1])),
-                               HISTORY_VALID: float(np.mean(valids[shown]))})
+        stop = progress(
+            step,
+            {
+                HISTORY_TRAIN: float(np.mean(losses[shown, -1])),
+                HISTORY_VALID: float(np.mean(valids[shown])),
+            },
+        )
         if stop is True and live and k + 1 < len(lengths):
             for s in live:
                 stopped[s] = f"{STOPPED_BY_CALLER} at step {step} (a tuner's pruner)"
@@ -271,12 +309,16 @@ def train(
         # non-finite after it.
         why = stopped[s]
         available = why is None or why.startswith(STOPPED_BY_CALLER)
-        fit.selection, final[s] = _selection(tracks[s], evaluations, first_step, criterion,
-                                             stopped[s], available)
+        fit.selection, final[s] = _selection(
+            tracks[s], evaluations, first_step, criterion, stopped[s], available
+        )
     # Keep the last checkpoint where the rule scores it and it is not kept yet.
-    latest = np.array([final[s] and tracks[s].best is not None
-                       and tracks[s].best[0] != tracks[s].last[0]  # type: ignore[index]
-                       for s in range(len(seeds))])
+    latest = np.array(
+        [
+            final[s] and tracks[s].best is not None and tracks[s].best[0] != tracks[s].last[0]  # type: ignore[index]
+            for s in range(len(seeds))
+        ]
+    )
     if latest.any():
         trainer.keep(latest)
     return fits

@@ -57,7 +57,8 @@ class NeuralModel(Model):
     #: (docs/MODELS.md), and a rollout cap: a model that needs more steps than this over
     #: a quick evaluation horizon has diverged in all but name.
     profiles: ClassVar[dict[str, dict[str, Any]]] = {
-        "quick": {"rollout_max_steps": 5000, "hidden": 64}}
+        "quick": {"rollout_max_steps": 5000, "hidden": 64}
+    }
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -65,8 +66,11 @@ class NeuralModel(Model):
         if family is not None:
             cls.observations = tuple(family.observations)
             if family.order is not None and "order" not in cls.__dict__:
-                offset = BACKEND_ORDER.index(cls.backend) if cls.backend in BACKEND_ORDER \
+                offset = (
+                    BACKEND_ORDER.index(cls.backend)
+                    if cls.backend in BACKEND_ORDER
                     else len(BACKEND_ORDER)
+                )
                 cls.order = family.order + 0.1 * offset
             if not cls.__dict__.get("description"):
                 cls.description = f"{family.title} ({cls.backend})"
@@ -77,8 +81,7 @@ class NeuralModel(Model):
 
     @classmethod
     def unsupported_reason(cls, system: System) -> Optional[str]:
-        return super().unsupported_reason(system) or views.unsupported_reason(
-            cls.family, system)
+        return super().unsupported_reason(system) or views.unsupported_reason(cls.family, system)
 
     @classmethod
     def requirements_missing(cls) -> Optional[str]:
@@ -87,17 +90,23 @@ class NeuralModel(Model):
     def __init__(self, cfg: NeuralConfig, system: System, device: str = "auto") -> None:
         super().__init__(cfg, system, device)
         self.view = views.view_for(self.family, system)
-        if cfg.loss != "mse" and (self.family.data != "derivatives"
-                                  or isinstance(self.view, views.PixelView)):
-            trained_on = "pixel observations" if isinstance(self.view, views.PixelView) \
+        if cfg.loss != "mse" and (
+            self.family.data != "derivatives" or isinstance(self.view, views.PixelView)
+        ):
+            trained_on = (
+                "pixel observations"
+                if isinstance(self.view, views.PixelView)
                 else "trajectory windows"
+            )
             raise ConfigError(
                 f"model.loss={cfg.loss}: {self.name} trains on {trained_on} by its own "
                 "objective; the loss choice applies to families trained on derivatives. "
-                "Use model.loss=mse.")
+                "Use model.loss=mse."
+            )
         self._backend = load_backend(self.backend, cfg, device)
-        self._impl = bind(importlib.import_module(self.family.implementations[self.backend]),
-                          self.field_options())
+        self._impl = bind(
+            importlib.import_module(self.family.implementations[self.backend]), self.field_options()
+        )
         self._weights: Optional[Weights] = None
         self._inference: Optional[Inference] = None
         self.timings = self._backend.timings
@@ -117,22 +126,30 @@ class NeuralModel(Model):
         """The family's networks on this system: what each reads, its angles and their
         embedding (``model.angle_embedding``)."""
         d = self.view.dim
-        return Layout.build(d, self.family.networks(d), self.family.network_inputs,
-                            self.view.angles, self.cfg.angle_embedding)
+        return Layout.build(
+            d,
+            self.family.networks(d),
+            self.family.network_inputs,
+            self.view.angles,
+            self.cfg.angle_embedding,
+        )
 
     def network_shapes(self) -> dict[str, tuple[int, int]]:
         """``{net: (input features, d_out)}`` of the family's networks on this system
         (input features: after the angle embedding)."""
         layout = self.layout()
-        return {name: (layout[name].features, d_out)
-                for name, (_, d_out) in self.family.networks(self.view.dim).items()}
+        return {
+            name: (layout[name].features, d_out)
+            for name, (_, d_out) in self.family.networks(self.view.dim).items()
+        }
 
     def initial_weights(self, seed: int, d_obs: Optional[int] = None) -> Weights:
         """The seeded float64 initial weights (flat names), the same for every backend;
         pixel models also need the observation size ``d_obs``."""
         nested = network_init_arrays(seed, self.network_shapes(), self.cfg)
-        flat = {f"{net}.{key}": value for net, arrays in nested.items()
-                for key, value in arrays.items()}
+        flat = {
+            f"{net}.{key}": value for net, arrays in nested.items() for key, value in arrays.items()
+        }
         if isinstance(self.view, views.PixelView):
             if d_obs is None:
                 raise ValueError("pixel models need d_obs for their initial weights")
@@ -160,25 +177,34 @@ class NeuralModel(Model):
     def _check_layout(self, weights: Weights) -> None:
         first = weights.get("autoencoder.encoder.0.weight")
         d_obs = None if first is None else int(np.shape(first)[1])
-        expected = self.initial_weights(0, d_obs) if (
-            d_obs is not None or not isinstance(self.view, views.PixelView)) else None
+        expected = (
+            self.initial_weights(0, d_obs)
+            if (d_obs is not None or not isinstance(self.view, views.PixelView))
+            else None
+        )
         if expected is None:
-            raise ValueError(f"{self.name} is a pixel model: its weights include an "
-                             "autoencoder (autoencoder.encoder.0.weight, ...)")
+            raise ValueError(
+                f"{self.name} is a pixel model: its weights include an "
+                "autoencoder (autoencoder.encoder.0.weight, ...)"
+            )
         if set(weights) != set(expected):
             raise ValueError(
                 f"weights do not match {self.name}: missing {sorted(set(expected) - set(weights))}"
-                f", unexpected {sorted(set(weights) - set(expected))}")
+                f", unexpected {sorted(set(weights) - set(expected))}"
+            )
         for key, value in expected.items():
             if np.shape(weights[key]) != value.shape:
-                raise ValueError(f"weight {key} has shape {np.shape(weights[key])}, expected "
-                                 f"{value.shape} (model.hidden={self.cfg.hidden}, "
-                                 f"model.layers={self.cfg.layers})")
+                raise ValueError(
+                    f"weight {key} has shape {np.shape(weights[key])}, expected "
+                    f"{value.shape} (model.hidden={self.cfg.hidden}, "
+                    f"model.layers={self.cfg.layers})"
+                )
 
     def _infer(self) -> Inference:
         if self._inference is None:
-            self._inference = self._backend.inference(self.family, self._impl,
-                                                      self.get_weights(), self.layout())
+            self._inference = self._backend.inference(
+                self.family, self._impl, self.get_weights(), self.layout()
+            )
         return self._inference
 
     def field_options(self) -> tuple[tuple[str, Any], ...]:
@@ -199,12 +225,22 @@ class NeuralModel(Model):
         """Each seed's training problem; a dataset without a validation split (a fit
         outside a job) gets the job's one (:func:`hnnbench._contracts.datasets.with_validation`)."""
         integrator: Literal["rk4", "map"] = "map" if self.rolls_out_by_map() else "rk4"
-        return [self.view.problem(d if d.valid is not None else with_validation(d, seed),
-                                  *self.training_options(), integrator=integrator)
-                for d, seed in zip(data, seeds, strict=True)]
+        return [
+            self.view.problem(
+                d if d.valid is not None else with_validation(d, seed),
+                *self.training_options(),
+                integrator=integrator,
+            )
+            for d, seed in zip(data, seeds, strict=True)
+        ]
 
-    def _train(self, problems: Sequence[Problem], settings: TrainSettings,
-               seeds: Sequence[int], progress: Progress) -> tuple[list[Any], list[Weights]]:
+    def _train(
+        self,
+        problems: Sequence[Problem],
+        settings: TrainSettings,
+        seeds: Sequence[int],
+        progress: Progress,
+    ) -> tuple[list[Any], list[Weights]]:
         """Train ``seeds`` (seed ``k`` on ``problems[k]``) in one program."""
         problem = problems[0] if len(problems) == 1 else Problem.stack(problems)
         d_obs = problems[0].train[0].shape[1] if problem.kind == "pixels" else None
@@ -213,25 +249,37 @@ class NeuralModel(Model):
             initial = [dict(self.warm_start) for _ in seeds]
         else:
             initial = [self.initial_weights(seed, d_obs) for seed in seeds]
-        trainer = self._backend.trainer(self.family, self._impl, problem, initial, settings,
-                                        self.layout())
-        fits = run_training(trainer, problem.n, settings, seeds,
-                            self.cfg.log_interval(settings.steps), progress,
-                            self.cfg.lr_schedule, problem.criterion_name)
+        trainer = self._backend.trainer(
+            self.family, self._impl, problem, initial, settings, self.layout()
+        )
+        fits = run_training(
+            trainer,
+            problem.n,
+            settings,
+            seeds,
+            self.cfg.log_interval(settings.steps),
+            progress,
+            self.cfg.lr_schedule,
+            problem.criterion_name,
+        )
         if problems[0].kind == "windows":
             self.data_step = float(np.median(problems[0].train[1]))
         return fits, self._backend.weights(trainer)
 
-    def fit(self, data: Dataset, train: TrainSettings, seed: int,
-            progress: Progress) -> FitResult:
-        (fit,), (weights,) = self._train(self._problems([data], [seed]), train, [seed],
-                                         progress)
+    def fit(self, data: Dataset, train: TrainSettings, seed: int, progress: Progress) -> FitResult:
+        (fit,), (weights,) = self._train(self._problems([data], [seed]), train, [seed], progress)
         self.set_weights(weights)
-        return FitResult(history=fit.history, steps=fit.steps, diverged=fit.diverged,
-                         selection=fit.selection)
+        return FitResult(
+            history=fit.history, steps=fit.steps, diverged=fit.diverged, selection=fit.selection
+        )
 
-    def fit_seeds(self, data: Sequence[Dataset], train: TrainSettings, seeds: Sequence[int],
-                  progress: Progress) -> list[tuple[Model, FitResult]]:
+    def fit_seeds(
+        self,
+        data: Sequence[Dataset],
+        train: TrainSettings,
+        seeds: Sequence[int],
+        progress: Progress,
+    ) -> list[tuple[Model, FitResult]]:
         """Train every seed in one program, their networks as one batch (``vmap``): each
         seed starts from its own initial weights and trains on its own data with its own
         minibatches, exactly as when it runs alone. Seeds whose data differ in shape
@@ -246,8 +294,17 @@ class NeuralModel(Model):
             model.set_weights(w)
             if problem.kind == "windows":
                 model.data_step = float(np.median(problem.train[1]))
-            out.append((model, FitResult(history=fit.history, steps=fit.steps,
-                                         diverged=fit.diverged, selection=fit.selection)))
+            out.append(
+                (
+                    model,
+                    FitResult(
+                        history=fit.history,
+                        steps=fit.steps,
+                        diverged=fit.diverged,
+                        selection=fit.selection,
+                    ),
+                )
+            )
         return out
 
     def copy(self) -> NeuralModel:
@@ -280,8 +337,9 @@ class NeuralModel(Model):
         z = self.view.to_model(x)
         return self.view.rate_out(z, self._infer().field(z))
 
-    def rollout(self, x0: np.ndarray, t: np.ndarray, rtol: float = 1e-9,
-                atol: float = 1e-9) -> np.ndarray:
+    def rollout(
+        self, x0: np.ndarray, t: np.ndarray, rtol: float = 1e-9, atol: float = 1e-9
+    ) -> np.ndarray:
         z0 = self.view.to_model(np.atleast_2d(x0))
         times = np.asarray(t, dtype=np.float64) / self.view.time_unit
         start = time.perf_counter()
@@ -290,11 +348,11 @@ class NeuralModel(Model):
             if step is not None:
                 zs = self._infer().map_rollout(z0, times, step)
             else:
-                zs = self._infer().rollout(z0, times, rtol, atol,
-                                           int(self.cfg.rollout_max_steps))
+                zs = self._infer().rollout(z0, times, rtol, atol, int(self.cfg.rollout_max_steps))
         finally:
             self.timings["rollout_s"] = self.timings.get("rollout_s", 0.0) + (
-                time.perf_counter() - start)
+                time.perf_counter() - start
+            )
         out = self.view.from_model(zs)
         if not np.all(np.isfinite(out)):
             raise RolloutDiverged("rollout produced non-finite states")
@@ -306,7 +364,7 @@ class NeuralModel(Model):
         return self._infer().energy(self.view.to_model(x))
 
     def _chunked(self, fn: Any, a: np.ndarray) -> np.ndarray:
-        parts = [fn(a[i:i + CHUNK]) for i in range(0, a.shape[0], CHUNK)]
+        parts = [fn(a[i : i + CHUNK]) for i in range(0, a.shape[0], CHUNK)]
         return np.concatenate(parts).astype(np.float64) if parts else np.zeros((0, 0))
 
     def encode(self, obs: np.ndarray) -> np.ndarray:
@@ -325,16 +383,26 @@ class NeuralModel(Model):
         xs, x_next = self.view.pairs(x, dxdt, {})
         infer, total = self._infer(), 0.0
         for i in range(0, xs.shape[0], CHUNK):
-            total += infer.objective(xs[i:i + CHUNK], x_next[i:i + CHUNK]) * len(xs[i:i + CHUNK])
+            total += infer.objective(xs[i : i + CHUNK], x_next[i : i + CHUNK]) * len(
+                xs[i : i + CHUNK]
+            )
         return total / max(1, xs.shape[0])
 
     # -- persistence ----------------------------------------------------------------
     def _meta(self) -> dict[str, Any]:
         c = self.cfg
-        return {"model": self.name, "family": self.family.name, "backend": self.backend,
-                "dtype": c.dtype, "activation": c.activation, "layers": c.layers,
-                "hidden": c.hidden, "time_unit": self.view.time_unit,
-                "angle_embedding": c.angle_embedding, "data_step": self.data_step}
+        return {
+            "model": self.name,
+            "family": self.family.name,
+            "backend": self.backend,
+            "dtype": c.dtype,
+            "activation": c.activation,
+            "layers": c.layers,
+            "hidden": c.hidden,
+            "time_unit": self.view.time_unit,
+            "angle_embedding": c.angle_embedding,
+            "data_step": self.data_step,
+        }
 
     def save(self, path: Path) -> None:
         """Write the trained weights to ``path`` (safetensors, via numpy; the same
@@ -347,8 +415,10 @@ class NeuralModel(Model):
         for key in ("family", "activation", "angle_embedding"):  # layers, hidden: the
             # layout check says
             if key in meta and meta[key] != mine[key]:
-                raise ValueError(f"{path} holds a model with {key}={meta[key]}, but this "
-                                 f"model has {key}={mine[key]}")
+                raise ValueError(
+                    f"{path} holds a model with {key}={meta[key]}, but this "
+                    f"model has {key}={mine[key]}"
+                )
         self.set_weights(weights)
         if meta.get("data_step") is not None:
             self.data_step = float(meta["data_step"])

@@ -112,9 +112,12 @@ class Problem:
             (other.kind, other.options, other.criterion, other.criterion_options)
             == (first.kind, first.options, first.criterion, first.criterion_options)
             and len(other.train + other.valid) == len(first.train + first.valid)
-            and all(a.shape == b.shape for a, b in zip(other.train + other.valid,
-                                                       first.train + first.valid, strict=True))
-            for other in problems[1:])
+            and all(
+                a.shape == b.shape
+                for a, b in zip(other.train + other.valid, first.train + first.valid, strict=True)
+            )
+            for other in problems[1:]
+        )
 
     @staticmethod
     def stack(problems: Sequence[Problem]) -> Problem:
@@ -125,21 +128,26 @@ class Problem:
                 cannot be trained as one batch).
         """
         if not Problem.stackable(problems):
-            raise ValueError("the seeds' training data differ in kind, options or shape; "
-                             "check Problem.stackable first")
+            raise ValueError(
+                "the seeds' training data differ in kind, options or shape; "
+                "check Problem.stackable first"
+            )
         first = problems[0]
-        return Problem(first.kind,
-                       tuple(np.stack(arrays) for arrays in zip(*(p.train for p in problems),
-                                                                strict=True)),
-                       tuple(np.stack(arrays) for arrays in zip(*(p.valid for p in problems),
-                                                                strict=True)),
-                       first.options, first.criterion, first.criterion_name,
-                       first.criterion_options, stacked=True)
+        return Problem(
+            first.kind,
+            tuple(np.stack(arrays) for arrays in zip(*(p.train for p in problems), strict=True)),
+            tuple(np.stack(arrays) for arrays in zip(*(p.valid for p in problems), strict=True)),
+            first.options,
+            first.criterion,
+            first.criterion_name,
+            first.criterion_options,
+            stacked=True,
+        )
 
 
-def trajectory_windows(split: Split, states: np.ndarray, length: int,
-                       wrapped: tuple[int, ...] = (), stride: int = 1
-                       ) -> tuple[np.ndarray, np.ndarray]:
+def trajectory_windows(
+    split: Split, states: np.ndarray, length: int, wrapped: tuple[int, ...] = (), stride: int = 1
+) -> tuple[np.ndarray, np.ndarray]:
     """Windows of ``length`` consecutive samples of each trajectory.
 
     Rows of ``states`` (``(N, d)``, aligned with ``split``) are grouped by
@@ -169,13 +177,13 @@ def trajectory_windows(split: Split, states: np.ndarray, length: int,
         median = float(np.median(steps))
         good = (steps > median / WINDOW_GAP_FACTOR) & (steps < median * WINDOW_GAP_FACTOR)
         for start in range(0, len(rows) - length + 1, stride):
-            if np.all(good[start:start + length - 1]):
-                window = np.array(states[rows[start:start + length]], dtype=np.float64)
+            if np.all(good[start : start + length - 1]):
+                window = np.array(states[rows[start : start + length]], dtype=np.float64)
                 if wrapped:
                     cols = list(wrapped)
                     window[:, cols] = np.unwrap(window[:, cols], axis=0)
                 windows.append(window)
-                dts.append(steps[start:start + length - 1])
+                dts.append(steps[start : start + length - 1])
     if not windows:
         return np.zeros((0, length, states.shape[1])), np.zeros((0, length - 1))
     return np.stack(windows), np.stack(dts)
@@ -229,9 +237,13 @@ class View:
         system's."""
         return None
 
-    def problem(self, data: Dataset, window: int = 0,
-                options: tuple[tuple[str, Any], ...] = (),
-                integrator: Literal["rk4", "map"] = "rk4") -> Problem:
+    def problem(
+        self,
+        data: Dataset,
+        window: int = 0,
+        options: tuple[tuple[str, Any], ...] = (),
+        integrator: Literal["rk4", "map"] = "rk4",
+    ) -> Problem:
         """The training problem of ``data`` for this family (``window``: states per
         training window, 0 for the family's; ``options``: the family's loss options;
         ``integrator``: how the family rolls out, for the rollout criterion: RK4 on its
@@ -251,15 +263,19 @@ class View:
                     f"the {self.system.name} training data has no {length} consecutive, "
                     "equally spaced samples of one trajectory, which the "
                     f"{self.family.name} family trains on (model.window={length}: a "
-                    "shorter window may fit)")
+                    "shorter window may fit)"
+                )
             return Problem("windows", train, arrays, options, kind, name, criterion_options)
-        return Problem("derivatives", self._pairs(data.train), arrays, options, kind, name,
-                       criterion_options)
+        return Problem(
+            "derivatives", self._pairs(data.train), arrays, options, kind, name, criterion_options
+        )
 
-    def criterion(self, valid: Split, integrator: Literal["rk4", "map"] = "rk4",
-                  options: tuple[tuple[str, Any], ...] = ()
-                  ) -> tuple[tuple[np.ndarray, ...], Criterion, str,
-                             tuple[tuple[str, Any], ...]]:
+    def criterion(
+        self,
+        valid: Split,
+        integrator: Literal["rk4", "map"] = "rk4",
+        options: tuple[tuple[str, Any], ...] = (),
+    ) -> tuple[tuple[np.ndarray, ...], Criterion, str, tuple[tuple[str, Any], ...]]:
         """``(arrays, criterion, name, criterion options)``: the validation arrays of the
         system's selection criterion (:attr:`hnnbench.System.selection`; docs/METRICS.md,
         "Checkpoint selection").
@@ -281,11 +297,16 @@ class View:
             else:
                 raise UnsupportedPair(
                     f"the {self.system.name} validation data has no 2 consecutive, equally "
-                    "spaced samples of one trajectory, which its rollout criterion needs")
+                    "spaced samples of one trajectory, which its rollout criterion needs"
+                )
             if integrator == "map":
                 return windows, "windows:map", f"rollout_q_mse_{steps}", tuple(options)
-            return (windows, "windows:rk4", f"rollout_q_mse_{steps}",
-                    (("substeps", CRITERION_RK4_SUBSTEPS),))
+            return (
+                windows,
+                "windows:rk4",
+                f"rollout_q_mse_{steps}",
+                (("substeps", CRITERION_RK4_SUBSTEPS),),
+            )
         clean = CLEAN_INPUTS in valid.extras
         x = valid.extras[CLEAN_INPUTS] if clean else valid.x
         z, zdot = self._pairs_at(x, valid.dxdt)
@@ -298,8 +319,10 @@ class View:
 
 def _validation(data: Dataset) -> Split:
     if data.valid is None:
-        raise ValueError("the dataset has no validation split: carve one with "
-                         "hnnbench.with_validation(data, seed)")
+        raise ValueError(
+            "the dataset has no validation split: carve one with "
+            "hnnbench.with_validation(data, seed)"
+        )
     return data.valid
 
 
@@ -365,27 +388,32 @@ class PixelView(View):
             raise ConfigError(f"{self.system.name}: pixel datasets must record meta['dt']")
         self.time_unit = float(data.meta["dt"])
 
-    def pairs(self, x: np.ndarray, dxdt: np.ndarray, extras: dict[str, np.ndarray]
-              ) -> tuple[np.ndarray, np.ndarray]:
+    def pairs(
+        self, x: np.ndarray, dxdt: np.ndarray, extras: dict[str, np.ndarray]
+    ) -> tuple[np.ndarray, np.ndarray]:
         """``(x, x_next)``: ``extras["x_next"]`` if present, else ``x + dt * dxdt``."""
         x_next = extras.get("x_next")
         if x_next is None:
             x_next = np.asarray(x) + self.time_unit * np.asarray(dxdt)
         return np.asarray(x), np.asarray(x_next)
 
-    def problem(self, data: Dataset, window: int = 0,
-                options: tuple[tuple[str, Any], ...] = (),
-                integrator: Literal["rk4", "map"] = "rk4") -> Problem:
+    def problem(
+        self,
+        data: Dataset,
+        window: int = 0,
+        options: tuple[tuple[str, Any], ...] = (),
+        integrator: Literal["rk4", "map"] = "rk4",
+    ) -> Problem:
         """The 2019 objective's pairs; the validation criterion is the same objective
         per row (pixel frames are rendered, not measured: there is no input noise to
         average out) on at most :data:`VALID_POINTS` validation rows."""
         self.set_frame_dt(data)
         train = self.pairs(data.train.x, data.train.dxdt, data.train.extras)
         valid = _validation(data)
-        sub = np.unique(np.linspace(0, len(valid) - 1,
-                                    min(len(valid), VALID_POINTS)).astype(int))
-        valid_pairs = self.pairs(valid.x[sub], valid.dxdt[sub],
-                                 {k: v[sub] for k, v in valid.extras.items()})
+        sub = np.unique(np.linspace(0, len(valid) - 1, min(len(valid), VALID_POINTS)).astype(int))
+        valid_pairs = self.pairs(
+            valid.x[sub], valid.dxdt[sub], {k: v[sub] for k, v in valid.extras.items()}
+        )
         return Problem("pixels", train, valid_pairs, (), "pixels", "pixel_objective")
 
 
@@ -409,9 +437,13 @@ def unsupported_reason(family: Family, system: System) -> str | None:
     """Why ``family`` cannot run on ``system`` (``None`` if it can)."""
     observations: Sequence[str] = family.observations
     if system.observation not in observations:
-        return (f"{system.observation} observations are not supported by the {family.name} "
-                f"family (it runs on: {', '.join(observations)})")
+        return (
+            f"{system.observation} observations are not supported by the {family.name} "
+            f"family (it runs on: {', '.join(observations)})"
+        )
     if family.coordinates == "velocity" and system.kinematics() is None:
-        return (f"the {family.name} family works in velocity coordinates (q, q̇) and "
-                f"{system.name} declares no kinematics (System.kinematics)")
+        return (
+            f"the {family.name} family works in velocity coordinates (q, q̇) and "
+            f"{system.name} declares no kinematics (System.kinematics)"
+        )
     return None

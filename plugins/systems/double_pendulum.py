@@ -350,13 +350,27 @@ class DoublePendulumConfig(SystemConfig):
     def validate(self) -> None:
         super().validate()
         check_positive(
-            "system", m1=self.m1, m2=self.m2, l1=self.l1, l2=self.l2, g=self.g,
-            energy_min=self.energy_min, t_end=self.t_end, data_rtol=self.data_rtol,
-            eval_t_end=self.eval_t_end, eval_rtol=self.eval_rtol,
+            "system",
+            m1=self.m1,
+            m2=self.m2,
+            l1=self.l1,
+            l2=self.l2,
+            g=self.g,
+            energy_min=self.energy_min,
+            t_end=self.t_end,
+            data_rtol=self.data_rtol,
+            eval_t_end=self.eval_t_end,
+            eval_rtol=self.eval_rtol,
         )
         check_ordered("system", "energy_min", self.energy_min, "energy_max", self.energy_max)
-        check_int_at_least("system", 2, n_traj=self.n_traj, n_points=self.n_points,
-                           eval_n_traj=self.eval_n_traj, eval_n_points=self.eval_n_points)
+        check_int_at_least(
+            "system",
+            2,
+            n_traj=self.n_traj,
+            n_points=self.n_points,
+            eval_n_traj=self.eval_n_traj,
+            eval_n_points=self.eval_n_points,
+        )
         check_fraction("system", "test_split", self.test_split, 0.2)
         if not isinstance(self.wrap_angles, bool):
             raise ConfigError(
@@ -393,8 +407,13 @@ class DoublePendulum(System):
     time_reversible = True
     conservative = True
     profiles: ClassVar[dict[str, dict[str, Any]]] = {
-        "quick": {"n_traj": 20, "steps": 300, "eval_n_traj": 5, "eval_t_end": 5.0,
-                  "eval_n_points": 51}
+        "quick": {
+            "n_traj": 20,
+            "steps": 300,
+            "eval_n_traj": 5,
+            "eval_t_end": 5.0,
+            "eval_n_points": 51,
+        }
     }
 
     @property
@@ -465,7 +484,10 @@ class DoublePendulum(System):
         energy = self.energy(clean)
         drift = np.max(np.abs(energy - energy[:, :1]))
         return trajectory_dataset(
-            x, dxdt, t, split,
+            x,
+            dxdt,
+            t,
+            split,
             extras={CLEAN_INPUTS: exact} if c.noise_std > 0 else None,
             meta={
                 "dt": self.data_dt,
@@ -486,7 +508,9 @@ class DoublePendulum(System):
         states = solve_batch(self.vector_field, x0, t, rtol=c.eval_rtol, atol=c.eval_rtol)
         energy = self.energy(states)
         return Trajectories(
-            t=t, states=states, dt=self.data_dt,
+            t=t,
+            states=states,
+            dt=self.data_dt,
             meta={
                 "horizon": float(c.eval_t_end),
                 "n_traj": int(c.eval_n_traj),
@@ -517,9 +541,15 @@ def regime_scan(
         lyapunov_time, exponents = estimate_lyapunov_time(
             energy_min=low, energy_max=high, n_states=n_states, t_total=t_total
         )
-        rows.append({"energy_min": low, "energy_max": high, "lyapunov_time": lyapunov_time,
-                     "median_exponent": float(np.median(exponents)),
-                     "chaotic_fraction": float(np.mean(exponents > threshold))})
+        rows.append(
+            {
+                "energy_min": low,
+                "energy_max": high,
+                "lyapunov_time": lyapunov_time,
+                "median_exponent": float(np.median(exponents)),
+                "chaotic_fraction": float(np.mean(exponents > threshold)),
+            }
+        )
     return rows
 
 

@@ -164,8 +164,13 @@ class NBodyConfig(SystemConfig):
             "system", t_end=self.t_end, radius_min=self.radius_min, eval_t_end=self.eval_t_end
         )
         check_int_at_least(
-            "system", 2, n_bodies=self.n_bodies, n_orbits=self.n_orbits, n_points=self.n_points,
-            eval_n_orbits=self.eval_n_orbits, eval_n_points=self.eval_n_points,
+            "system",
+            2,
+            n_bodies=self.n_bodies,
+            n_orbits=self.n_orbits,
+            n_points=self.n_points,
+            eval_n_orbits=self.eval_n_orbits,
+            eval_n_points=self.eval_n_points,
         )
         check_fraction("system", "test_split", self.test_split, 0.2)
         check_ordered("system", "radius_min", self.radius_min, "radius_max", self.radius_max)
@@ -580,7 +585,10 @@ class NBody(System):
         split = c.trajectory_split()
         n_train, n_test = split.sizes(c.n_orbits)
         return trajectory_dataset(
-            x, dxdt, t, split,
+            x,
+            dxdt,
+            t,
+            split,
             extras={CLEAN_INPUTS: states} if c.noise_std > 0 else None,
             meta={
                 "dt": self.data_dt,
@@ -598,7 +606,9 @@ class NBody(System):
         t = np.linspace(0.0, c.eval_t_end, c.eval_n_points)
         states, info = self.ground_truth(rng, c.eval_n_orbits, t)
         return Trajectories(
-            t=t, states=states, dt=self.data_dt,
+            t=t,
+            states=states,
+            dt=self.data_dt,
             meta={
                 "horizon": float(c.eval_t_end),
                 "n_traj": int(c.eval_n_orbits),
@@ -620,9 +630,7 @@ class TwoBody(NBody):
     Config = TwoBodyConfig
     cfg: TwoBodyConfig
     description = "Two bodies in 2-D, Newtonian gravity G = m = 1 (HNN paper, task 4; REBOUND)"
-    profiles = {
-        "quick": {"n_orbits": 100, "steps": 300, "eval_n_orbits": 5, "eval_n_points": 100}
-    }
+    profiles = {"quick": {"n_orbits": 100, "steps": 300, "eval_n_orbits": 5, "eval_n_points": 100}}
 
 
 class ThreeBody(NBody):
@@ -632,6 +640,4 @@ class ThreeBody(NBody):
     Config = ThreeBodyConfig
     cfg: ThreeBodyConfig
     description = "Three bodies in 2-D, Newtonian gravity G = m = 1 (HNN repo README; REBOUND)"
-    profiles = {
-        "quick": {"n_orbits": 100, "steps": 300, "eval_n_orbits": 5, "eval_n_points": 100}
-    }
+    profiles = {"quick": {"n_orbits": 100, "steps": 300, "eval_n_orbits": 5, "eval_n_points": 100}}

@@ -166,11 +166,20 @@ class PixelPendulumConfig(SystemConfig):
     def validate(self) -> None:
         super().validate()
         check_positive(
-            "system", dt=self.dt, radius_min=self.radius_min, data_rtol=self.data_rtol,
+            "system",
+            dt=self.dt,
+            radius_min=self.radius_min,
+            data_rtol=self.data_rtol,
             eval_rtol=self.eval_rtol,
         )
-        for key, low in (("n_traj", 2), ("n_frames", 3), ("eval_n_traj", 1),
-                         ("eval_n_points", 2), ("side", 8), ("supersample", 1)):
+        for key, low in (
+            ("n_traj", 2),
+            ("n_frames", 3),
+            ("eval_n_traj", 1),
+            ("eval_n_points", 2),
+            ("side", 8),
+            ("supersample", 1),
+        ):
             check_int_at_least("system", low, **{key: getattr(self, key)})
         check_fraction("system", "test_split", self.test_split, 0.2)
         check_ordered("system", "radius_min", self.radius_min, "radius_max", self.radius_max)
@@ -192,16 +201,20 @@ class PixelPendulum(System):
     observation = "pixels"
     time_reversible = True
     profiles = {
-        "quick": {"n_traj": 40, "n_frames": 32, "steps": 300, "eval_n_traj": 5,
-                  "eval_n_points": 50},
+        "quick": {
+            "n_traj": 40,
+            "n_frames": 32,
+            "steps": 300,
+            "eval_n_traj": 5,
+            "eval_n_points": 50,
+        },
     }
 
     def __init__(self, cfg: PixelPendulumConfig) -> None:
         super().__init__(cfg)
         #: The state-space pendulum: its Hamiltonian, vector field and initial states.
         self.pendulum = Pendulum(
-            PendulumConfig(name="pendulum", radius_min=cfg.radius_min,
-                           radius_max=cfg.radius_max)
+            PendulumConfig(name="pendulum", radius_min=cfg.radius_min, radius_max=cfg.radius_max)
         )
 
     @property
@@ -224,8 +237,9 @@ class PixelPendulum(System):
         """``(N, side, side)`` float32 frames for angles ``q`` ``(N,)``."""
         return render(q, self.cfg.side, self.cfg.supersample)
 
-    def _trials(self, rng: np.random.Generator, n_traj: int, n_frames: int,
-                rtol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _trials(
+        self, rng: np.random.Generator, n_traj: int, n_frames: int, rtol: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """States ``(n_traj, n_frames, 2)``, frames ``(n_traj, n_frames, side^2)``, times."""
         t = np.arange(n_frames) * self.cfg.dt
         x0 = self.pendulum.initial_states(rng, n_traj)
@@ -248,12 +262,21 @@ class PixelPendulum(System):
         split = c.trajectory_split()
         n_train, n_test = split.sizes(c.n_traj)
         return trajectory_dataset(
-            x, (x_next - x) / np.float32(c.dt), t[:n_pts], split,
+            x,
+            (x_next - x) / np.float32(c.dt),
+            t[:n_pts],
+            split,
             extras={"state": states[:, :n_pts], "x_next": x_next},
-            meta={"dt": float(c.dt), "side": c.side, "frame_shape": [c.side, c.side],
-                  "frames_per_input": 2, "n_train_traj": n_train,
-                  "n_test_traj": n_test, "points_per_traj": n_pts,
-                  "dxdt": "(x_next - x) / dt (forward difference of frame pairs)"},
+            meta={
+                "dt": float(c.dt),
+                "side": c.side,
+                "frame_shape": [c.side, c.side],
+                "frames_per_input": 2,
+                "n_train_traj": n_train,
+                "n_test_traj": n_test,
+                "points_per_traj": n_pts,
+                "dxdt": "(x_next - x) / dt (forward difference of frame pairs)",
+            },
         )
 
     def evaluation(self, seed: int) -> Trajectories:
@@ -262,7 +285,15 @@ class PixelPendulum(System):
         n = c.eval_n_points
         states, frames, t = self._trials(rng, c.eval_n_traj, n + 1, c.eval_rtol)
         return Trajectories(
-            t=t[:n], states=states[:, :n], dt=float(c.dt), observations=self.pairs(frames),
-            meta={"horizon": float(t[n - 1]), "n_traj": c.eval_n_traj, "reference": "DOP853",
-                  "rtol": c.eval_rtol, "observation": "frame pairs (frame_k, frame_k+1)"},
+            t=t[:n],
+            states=states[:, :n],
+            dt=float(c.dt),
+            observations=self.pairs(frames),
+            meta={
+                "horizon": float(t[n - 1]),
+                "n_traj": c.eval_n_traj,
+                "reference": "DOP853",
+                "rtol": c.eval_rtol,
+                "observation": "frame pairs (frame_k, frame_k+1)",
+            },
         )

@@ -84,8 +84,16 @@ FILENAME = "real_double_pend_h_1.txt"
 SHA256 = "9ea97ad3b1c6b83b2762f1c84760bfd55638809436a8ece0c2dfffb96ddaec37"
 #: Columns of a data row (the file repeats ω1, ω2).
 COLUMNS = (
-    "trial", "t", "theta1", "theta2", "omega1", "omega2", "omega1_copy", "omega2_copy",
-    "alpha1", "alpha2",
+    "trial",
+    "t",
+    "theta1",
+    "theta2",
+    "omega1",
+    "omega2",
+    "omega1_copy",
+    "omega2_copy",
+    "alpha1",
+    "alpha2",
 )
 #: Column indices of the angles, angular velocities and angular accelerations.
 THETA, OMEGA, ALPHA = slice(2, 4), slice(4, 6), slice(8, 10)
@@ -170,8 +178,7 @@ class EnergyModel:
         return kinetic + d * (1.0 - np.cos(th1)) + e * (1.0 - np.cos(th2))
 
 
-def predicted_accelerations(params: np.ndarray, theta: np.ndarray, omega: np.ndarray
-                            ) -> np.ndarray:
+def predicted_accelerations(params: np.ndarray, theta: np.ndarray, omega: np.ndarray) -> np.ndarray:
     """Angular accelerations ``(N, 2)`` of the damped ideal double pendulum.
 
     Args:
@@ -219,7 +226,9 @@ def fit_energy_model(table: np.ndarray) -> EnergyModel:
         )
     rms = np.sqrt(np.mean((predicted_accelerations(result.x, theta, omega) - alpha) ** 2, 0))
     return EnergyModel(
-        mass_ratio=float(mu), length_ratio=float(lam), g_over_l1=float(g),
+        mass_ratio=float(mu),
+        length_ratio=float(lam),
+        g_over_l1=float(g),
         damping=(float(result.x[3]), float(result.x[4])),
         residual_rms=(float(rms[0]), float(rms[1])),
         relative_residual=(float(rms[0] / scale[0]), float(rms[1] / scale[1])),
@@ -238,9 +247,7 @@ def derivative_consistency(table: np.ndarray, max_gap_factor: float = 1.5) -> di
     RMS of the column, for each rod) between ω and central differences of θ, and between
     α and central differences of ω, over rows whose two neighbours are gap-free samples.
     """
-    out: dict[str, Any] = {
-        "omega_copy_equal": bool(np.array_equal(table[:, OMEGA], table[:, 6:8]))
-    }
+    out: dict[str, Any] = {"omega_copy_equal": bool(np.array_equal(table[:, OMEGA], table[:, 6:8]))}
     for trial in np.unique(table[:, 0]):
         rows = table[table[:, 0] == trial]
         t = rows[:, 1]
@@ -272,9 +279,7 @@ class RealDoublePendulum(MeasuredTableSystem):
     Config = RealDoublePendulumConfig
     data_file, data_sha256, data_columns = FILENAME, SHA256, COLUMNS
     #: The parser's messages list the repeated ω columns by their names in the file.
-    data_column_labels = (
-        "trial, t, theta1, theta2, omega1, omega2, omega1, omega2, alpha1, alpha2"
-    )
+    data_column_labels = "trial, t, theta1, theta2, omega1, omega2, omega1, omega2, alpha1, alpha2"
     data_expected_rows = "about 1500"
     order = 100
     cfg: RealDoublePendulumConfig
@@ -335,20 +340,24 @@ class RealDoublePendulum(MeasuredTableSystem):
         def split(code: int) -> Split:
             rows = np.flatnonzero(seg["role"] == code)
             return Split(
-                x=x[rows].copy(), dxdt=dxdt[rows].copy(),
-                traj=table[rows, 0].astype(np.int64), t=table[rows, 1].copy(),
+                x=x[rows].copy(),
+                dxdt=dxdt[rows].copy(),
+                traj=table[rows, 0].astype(np.int64),
+                t=table[rows, 1].copy(),
             )
 
         train, valid, test = split(0), split(1), split(2)
         return Dataset(
-            train=train, test=test, valid=valid,
+            train=train,
+            test=test,
+            valid=valid,
             meta={
                 "data_file": str(s["path"]),
                 "sha256": SHA256,
                 "n_rows": s["n_rows"],
                 "dt": s["dt"],
                 "state": "(q, p) = (theta1, theta2, omega1, omega2), measured angular "
-                         "velocities (not canonical momenta)",
+                "velocities (not canonical momenta)",
                 "targets": "(omega1, omega2, alpha1, alpha2) from the file",
                 "wrap_angles": self.cfg.wrap_angles,
                 "fold": seg["fold"],
@@ -370,8 +379,10 @@ class RealDoublePendulum(MeasuredTableSystem):
         starts, length, grid = self._chunks(s, seed)
         table = s["table"]
         states = np.stack(
-            [np.concatenate([table[b : b + length, THETA], table[b : b + length, OMEGA]], 1)
-             for b in starts]
+            [
+                np.concatenate([table[b : b + length, THETA], table[b : b + length, OMEGA]], 1)
+                for b in starts
+            ]
         )  # (n_chunks, length, 4), unwrapped
         if self.cfg.wrap_angles:
             first = states[:, :1, :2]
@@ -391,11 +402,23 @@ def _main() -> None:
     start, stop = system._segments(s, 0)["test"]
     model = system.energy_model()
     test = table[start:stop]
-    test_rms = np.sqrt(np.mean(
-        (predicted_accelerations(
-            np.array([model.mass_ratio, model.length_ratio, model.g_over_l1, *model.damping]),
-            test[:, THETA], test[:, OMEGA]) - test[:, ALPHA]) ** 2, 0,
-    ) / np.mean(test[:, ALPHA] ** 2, 0))
+    test_rms = np.sqrt(
+        np.mean(
+            (
+                predicted_accelerations(
+                    np.array(
+                        [model.mass_ratio, model.length_ratio, model.g_over_l1, *model.damping]
+                    ),
+                    test[:, THETA],
+                    test[:, OMEGA],
+                )
+                - test[:, ALPHA]
+            )
+            ** 2,
+            0,
+        )
+        / np.mean(test[:, ALPHA] ** 2, 0)
+    )
     energy, ranges = {}, {}
     for trial in np.unique(table[:, 0]):
         rows = table[table[:, 0] == trial]
@@ -408,22 +431,41 @@ def _main() -> None:
             "t": [float(rows[0, 1]), float(rows[-1, 1])],
         }
         energy[f"trial_{int(trial)}"] = {
-            "mean": float(e.mean()), "min": float(e.min()), "max": float(e.max()),
-            "first_20_mean": float(e[:20].mean()), "last_20_mean": float(e[-20:].mean()),
+            "mean": float(e.mean()),
+            "min": float(e.min()),
+            "max": float(e.max()),
+            "first_20_mean": float(e[:20].mean()),
+            "last_20_mean": float(e[-20:].mean()),
             "log_slope_per_s": float(slope),
         }
     traj = system.evaluation(0)
     report = {
-        "structure": {"rows": s["n_rows"], "dt": s["dt"], "gaps": int(s["gap"].sum()),
-                      "test_rows": [start, stop], "split_time": float(table[start, 1])},
+        "structure": {
+            "rows": s["n_rows"],
+            "dt": s["dt"],
+            "gaps": int(s["gap"].sum()),
+            "test_rows": [start, stop],
+            "split_time": float(table[start, 1]),
+        },
         "ranges": ranges,
         "derivatives": derivative_consistency(table, cfg.max_gap_factor),
-        "energy_model": {**model.__dict__, "coefficients": model.coefficients,
-                         "test_relative_residual": list(test_rms)},
+        "energy_model": {
+            **model.__dict__,
+            "coefficients": model.coefficients,
+            "test_relative_residual": list(test_rms),
+        },
         "energy_along_trials": energy,
-        "evaluation": {k: traj.meta[k] for k in ("n_traj", "chunk_points", "horizon",
-                                                 "chunk_start_times", "unused_test_rows",
-                                                 "max_grid_deviation")},
+        "evaluation": {
+            k: traj.meta[k]
+            for k in (
+                "n_traj",
+                "chunk_points",
+                "horizon",
+                "chunk_start_times",
+                "unused_test_rows",
+                "max_grid_deviation",
+            )
+        },
         "evaluation_states_beyond_pi": float(np.mean(np.abs(traj.states[..., :2]) > np.pi)),
         "stand_still": stand_still_scores(system),
     }
@@ -440,8 +482,10 @@ def stand_still_scores(system: RealDoublePendulum, seed: int = 0) -> dict[str, f
     still = np.repeat(states[:, :1], states.shape[1], axis=1)
     energy = system.energy(states.reshape(-1, 4)).reshape(states.shape[:2])
     energy_still = system.energy(still.reshape(-1, 4)).reshape(states.shape[:2])
-    return {"rollout_mse": float(rollout_error_per_traj(still, states).mean()),
-            "energy_mse": float(energy_error_per_traj(energy_still, energy).mean())}
+    return {
+        "rollout_mse": float(rollout_error_per_traj(still, states).mean()),
+        "energy_mse": float(energy_error_per_traj(energy_still, energy).mean()),
+    }
 
 
 if __name__ == "__main__":

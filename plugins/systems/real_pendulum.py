@@ -70,8 +70,10 @@ COLUMNS = ("trial", "t", "theta", "omega")
 #: A public copy of the data set's archive ``invar_datasets.zip``: the file as committed
 #: to the Symplectic-ODENet repository (Zhong et al. 2020; removed from its later
 #: commits, so the URL names the commit). Its members lie at the archive's top level.
-ARCHIVE_URL = ("https://raw.githubusercontent.com/Physics-aware-AI/Symplectic-ODENet/"
-               "5e83faf93e8f4990e63821c49d0ce5926a96cc94/experiment-real/invar_datasets.zip")
+ARCHIVE_URL = (
+    "https://raw.githubusercontent.com/Physics-aware-AI/Symplectic-ODENet/"
+    "5e83faf93e8f4990e63821c49d0ce5926a96cc94/experiment-real/invar_datasets.zip"
+)
 #: SHA-256 of ``invar_datasets.zip`` (the shared data set's README).
 ARCHIVE_SHA256 = "9794ee02f45403f87b739cc235a046bd424a73b8222067165f66463cef57be59"
 #: Energy model E = A (1 - cos q) + p^2.
@@ -109,8 +111,13 @@ class RealPendulumConfig(SystemConfig):
     weight_decay: float = 1e-5
 
     #: Fields that say where to find the file, not what it holds: not part of the key.
-    LOCATION_FIELDS: ClassVar[tuple[str, ...]] = ("data_path", "url", "archive_url",
-                                                  "archive_sha256", "download_timeout_s")
+    LOCATION_FIELDS: ClassVar[tuple[str, ...]] = (
+        "data_path",
+        "url",
+        "archive_url",
+        "archive_sha256",
+        "download_timeout_s",
+    )
 
     def data_fields(self) -> dict[str, Any]:
         """The dataset cache key: the file's hash instead of where it was found."""
@@ -142,8 +149,10 @@ class RealPendulumConfig(SystemConfig):
                 f"system.download_timeout_s={self.download_timeout_s} is invalid: expected "
                 "a number of seconds > 0."
             )
-        if isinstance(self.eval_chunks, bool) or not isinstance(self.eval_chunks, int) or (
-            self.eval_chunks < 1
+        if (
+            isinstance(self.eval_chunks, bool)
+            or not isinstance(self.eval_chunks, int)
+            or (self.eval_chunks < 1)
         ):
             raise ConfigError(
                 f"system.eval_chunks={self.eval_chunks} is invalid: expected an integer "
@@ -271,7 +280,10 @@ class MeasuredTableSystem(System):
         """The table of ``path``, ``(rows, len(data_columns))`` (:func:`parse_table`);
         raise DataError if malformed."""
         return parse_table(
-            path, cls.data_file, cls.data_columns, column_labels=cls.data_column_labels,
+            path,
+            cls.data_file,
+            cls.data_columns,
+            column_labels=cls.data_column_labels,
             expected_rows=cls.data_expected_rows,
         )
 
@@ -279,11 +291,16 @@ class MeasuredTableSystem(System):
         """Locate, verify and parse the data file (once per instance)."""
         if self._loaded is None:
             c = self.cfg
-            archive = (DataArchive(str(c.archive_url), str(c.archive_sha256))
-                       if c.archive_url else None)
+            archive = (
+                DataArchive(str(c.archive_url), str(c.archive_sha256)) if c.archive_url else None
+            )
             path = locate(
-                self.data_file, sha256=self.data_sha256, explicit=c.data_path, url=c.url,
-                timeout_s=c.download_timeout_s, archive=archive,
+                self.data_file,
+                sha256=self.data_sha256,
+                explicit=c.data_path,
+                url=c.url,
+                timeout_s=c.download_timeout_s,
+                archive=archive,
             )
             self._loaded = (path, self.parse(path))
         return self._loaded
@@ -307,8 +324,13 @@ class MeasuredTableSystem(System):
                 "each block needs a few rows. Use fewer folds."
             )
         return {
-            "path": path, "table": table, "dt": dt, "n_rows": n, "gap": gap,
-            "trial_boundary": ~same_trial, "contiguous": contiguous,
+            "path": path,
+            "table": table,
+            "dt": dt,
+            "n_rows": n,
+            "gap": gap,
+            "trial_boundary": ~same_trial,
+            "contiguous": contiguous,
         }
 
     def fold(self, seed: int) -> int:
@@ -326,25 +348,25 @@ class MeasuredTableSystem(System):
         edges = [round(i * n / folds) for i in range(folds + 1)]
         role = np.zeros(n, dtype=np.int64)
         test = (edges[k], edges[k + 1])
-        role[test[0]:test[1]] = 2
+        role[test[0] : test[1]] = 2
         before = (k - 1) % folds
         valid = ((edges[before] + edges[before + 1]) // 2, edges[before + 1])
-        role[valid[0]:valid[1]] = 1
+        role[valid[0] : valid[1]] = 1
         gap = int(math.ceil(self.cfg.fold_gap_s / s["dt"] - 1e-9))
         out = role.copy()
         for edge in np.flatnonzero(role[1:] != role[:-1]) + 1:  # rows edge-1 | edge
             for side in (np.arange(edge - gap, edge), np.arange(edge, edge + gap)):
                 side = side[(side >= 0) & (side < n)]
                 out[side[role[side] != 2]] = -1
-        rule = (f"fold {k} of {folds} (seed {seed}): rows {test[0]}-{test[1] - 1} test, rows "
-                f"{valid[0]}-{valid[1] - 1} validate (the later half of the block before), "
-                f"the rest train; {gap} rows ({self.cfg.fold_gap_s:g} s) dropped beside "
-                "each edge on the training or validation side")
-        return {"role": out, "fold": k, "test": test, "valid": valid, "gap_rows": gap,
-                "rule": rule}
+        rule = (
+            f"fold {k} of {folds} (seed {seed}): rows {test[0]}-{test[1] - 1} test, rows "
+            f"{valid[0]}-{valid[1] - 1} validate (the later half of the block before), "
+            f"the rest train; {gap} rows ({self.cfg.fold_gap_s:g} s) dropped beside "
+            "each edge on the training or validation side"
+        )
+        return {"role": out, "fold": k, "test": test, "valid": valid, "gap_rows": gap, "rule": rule}
 
-    def _chunks(self, s: dict[str, Any], seed: int
-                ) -> tuple[list[int], int, dict[str, Any]]:
+    def _chunks(self, s: dict[str, Any], seed: int) -> tuple[list[int], int, dict[str, Any]]:
         """The evaluation chunks of ``seed``'s test segment: ``eval_chunks`` runs of
         equal length, each inside one gap-free run of rows, as long as that count allows.
 
@@ -365,8 +387,7 @@ class MeasuredTableSystem(System):
         lengths = np.array([stop - begin for begin, stop in runs])
         # The longest chunk length that still yields n_chunks chunks.
         length = next(
-            (n for n in range(int(lengths.max()), 1, -1)
-             if int((lengths // n).sum()) >= n_chunks),
+            (n for n in range(int(lengths.max()), 1, -1) if int((lengths // n).sum()) >= n_chunks),
             0,
         )
         if length < 2:
@@ -441,13 +462,17 @@ class RealPendulum(MeasuredTableSystem):
         def split(code: int) -> Split:
             idx = np.flatnonzero(same & (role[:-1] == code))
             return Split(
-                x=x[idx].copy(), dxdt=dxdt[idx].copy(),
-                traj=table[idx, 0].astype(np.int64), t=t[idx].copy(),
+                x=x[idx].copy(),
+                dxdt=dxdt[idx].copy(),
+                traj=table[idx, 0].astype(np.int64),
+                t=t[idx].copy(),
             )
 
         train, valid, test = split(0), split(1), split(2)
         return Dataset(
-            train=train, test=test, valid=valid,
+            train=train,
+            test=test,
+            valid=valid,
             meta={
                 "data_file": str(s["path"]),
                 "sha256": SHA256,

@@ -137,12 +137,22 @@ class SpringChainConfig(SystemConfig):
         super().validate()
         check_int_at_least("system", 1, n_masses=self.n_masses)
         check_positive(
-            "system", t_end=self.t_end, radius_min=self.radius_min, data_rtol=self.data_rtol,
-            eval_t_end=self.eval_t_end, eval_rtol=self.eval_rtol,
+            "system",
+            t_end=self.t_end,
+            radius_min=self.radius_min,
+            data_rtol=self.data_rtol,
+            eval_t_end=self.eval_t_end,
+            eval_rtol=self.eval_rtol,
         )
         check_ordered("system", "radius_min", self.radius_min, "radius_max", self.radius_max)
-        check_int_at_least("system", 2, n_traj=self.n_traj, n_points=self.n_points,
-                           eval_n_traj=self.eval_n_traj, eval_n_points=self.eval_n_points)
+        check_int_at_least(
+            "system",
+            2,
+            n_traj=self.n_traj,
+            n_points=self.n_points,
+            eval_n_traj=self.eval_n_traj,
+            eval_n_points=self.eval_n_points,
+        )
         check_fraction("system", "test_split", self.test_split, 0.2)
         if not self.noise_std >= 0:
             raise ConfigError(
@@ -171,8 +181,13 @@ class SpringChain(System):
     time_reversible = True
     conservative = True
     profiles: ClassVar[dict[str, dict[str, Any]]] = {
-        "quick": {"n_traj": 20, "steps": 300, "eval_n_traj": 5, "eval_t_end": 10.0,
-                  "eval_n_points": 51}
+        "quick": {
+            "n_traj": 20,
+            "steps": 300,
+            "eval_n_traj": 5,
+            "eval_t_end": 10.0,
+            "eval_n_points": 51,
+        }
     }
 
     @property
@@ -206,7 +221,10 @@ class SpringChain(System):
         rng = seed_stream(seed, DATA_STREAM)  # initial states, then the noise
         t = np.linspace(0.0, c.t_end, c.n_points)
         clean = solve_batch(
-            self.vector_field, self.initial_states(rng, c.n_traj), t, rtol=c.data_rtol,
+            self.vector_field,
+            self.initial_states(rng, c.n_traj),
+            t,
+            rtol=c.data_rtol,
             atol=c.data_rtol,
         )  # (n_traj, T, 2N)
         dxdt = self.vector_field(clean)
@@ -216,9 +234,18 @@ class SpringChain(System):
         split = c.trajectory_split()
         n_train, n_test = split.sizes(c.n_traj)
         return trajectory_dataset(
-            x, dxdt, t, split,
-            meta={"dt": self.data_dt, "n_masses": self.dof, "n_train_traj": n_train,
-                  "n_test_traj": n_test, "reference": "DOP853", "rtol": c.data_rtol},
+            x,
+            dxdt,
+            t,
+            split,
+            meta={
+                "dt": self.data_dt,
+                "n_masses": self.dof,
+                "n_train_traj": n_train,
+                "n_test_traj": n_test,
+                "reference": "DOP853",
+                "rtol": c.data_rtol,
+            },
         )
 
     def evaluation(self, seed: int) -> Trajectories:
@@ -226,11 +253,21 @@ class SpringChain(System):
         rng = seed_stream(seed, EVAL_STREAM)
         t = np.linspace(0.0, c.eval_t_end, c.eval_n_points)
         states = solve_batch(
-            self.vector_field, self.initial_states(rng, c.eval_n_traj), t, rtol=c.eval_rtol,
+            self.vector_field,
+            self.initial_states(rng, c.eval_n_traj),
+            t,
+            rtol=c.eval_rtol,
             atol=c.eval_rtol,
         )
         return Trajectories(
-            t=t, states=states, dt=self.data_dt,
-            meta={"horizon": float(c.eval_t_end), "n_traj": int(c.eval_n_traj),
-                  "n_masses": self.dof, "reference": "DOP853", "rtol": c.eval_rtol},
+            t=t,
+            states=states,
+            dt=self.data_dt,
+            meta={
+                "horizon": float(c.eval_t_end),
+                "n_traj": int(c.eval_n_traj),
+                "n_masses": self.dof,
+                "reference": "DOP853",
+                "rtol": c.eval_rtol,
+            },
         )

@@ -76,11 +76,21 @@ class ToyConfig(SystemConfig):
     def validate(self) -> None:
         super().validate()
         check_positive(
-            "system", t_end=self.t_end, radius_min=self.radius_min, data_rtol=self.data_rtol,
-            eval_t_end=self.eval_t_end, eval_rtol=self.eval_rtol,
+            "system",
+            t_end=self.t_end,
+            radius_min=self.radius_min,
+            data_rtol=self.data_rtol,
+            eval_t_end=self.eval_t_end,
+            eval_rtol=self.eval_rtol,
         )
-        check_int_at_least("system", 2, n_traj=self.n_traj, n_points=self.n_points,
-                           eval_n_traj=self.eval_n_traj, eval_n_points=self.eval_n_points)
+        check_int_at_least(
+            "system",
+            2,
+            n_traj=self.n_traj,
+            n_points=self.n_points,
+            eval_n_traj=self.eval_n_traj,
+            eval_n_points=self.eval_n_points,
+        )
         check_fraction("system", "test_split", self.test_split, 0.5)
         check_ordered("system", "radius_min", self.radius_min, "radius_max", self.radius_max)
         if self.eval_init not in EVAL_INITS:
@@ -89,11 +99,10 @@ class ToyConfig(SystemConfig):
                 f"{', '.join(EVAL_INITS)} (see docs/METRICS.md)."
             )
         if self.eval_box_min < 0:
-            raise ConfigError(
-                f"system.eval_box_min={self.eval_box_min} is invalid: expected >= 0."
-            )
-        check_ordered("system", "eval_box_min", self.eval_box_min, "eval_box_max",
-                      self.eval_box_max)
+            raise ConfigError(f"system.eval_box_min={self.eval_box_min} is invalid: expected >= 0.")
+        check_ordered(
+            "system", "eval_box_min", self.eval_box_min, "eval_box_max", self.eval_box_max
+        )
         if self.noise_std < 0:
             raise ConfigError(f"system.noise_std={self.noise_std} is invalid: expected >= 0.")
         self.trajectory_split().check(self.n_traj)
@@ -158,7 +167,10 @@ class ToySystem(System):
         rng = seed_stream(seed, DATA_STREAM)  # initial states, then the noise
         t = np.linspace(0.0, c.t_end, c.n_points)
         clean = solve_batch(
-            self.vector_field, self.initial_states(rng, c.n_traj), t, rtol=c.data_rtol,
+            self.vector_field,
+            self.initial_states(rng, c.n_traj),
+            t,
+            rtol=c.data_rtol,
             atol=c.data_rtol,
         )  # (n_traj, T, 2)
         dxdt = self.vector_field(clean)
@@ -166,7 +178,10 @@ class ToySystem(System):
         split = c.trajectory_split()
         n_train, n_test = split.sizes(c.n_traj)
         return trajectory_dataset(
-            noisy, dxdt, t, split,
+            noisy,
+            dxdt,
+            t,
+            split,
             extras={CLEAN_INPUTS: clean} if c.noise_std > 0 else None,
             meta={"dt": float(t[1] - t[0]), "n_train_traj": n_train, "n_test_traj": n_test},
         )
@@ -177,10 +192,21 @@ class ToySystem(System):
         t = np.linspace(0.0, c.eval_t_end, c.eval_n_points)
         draw = self.box_initial_states if c.eval_init == "box" else self.initial_states
         states = solve_batch(
-            self.vector_field, draw(rng, c.eval_n_traj), t, rtol=c.eval_rtol, atol=c.eval_rtol,
+            self.vector_field,
+            draw(rng, c.eval_n_traj),
+            t,
+            rtol=c.eval_rtol,
+            atol=c.eval_rtol,
         )
         return Trajectories(
-            t=t, states=states, dt=c.t_end / (c.n_points - 1),
-            meta={"horizon": c.eval_t_end, "n_traj": c.eval_n_traj, "reference": "DOP853",
-                  "rtol": c.eval_rtol, "initial_states": c.eval_init},
+            t=t,
+            states=states,
+            dt=c.t_end / (c.n_points - 1),
+            meta={
+                "horizon": c.eval_t_end,
+                "n_traj": c.eval_n_traj,
+                "reference": "DOP853",
+                "rtol": c.eval_rtol,
+                "initial_states": c.eval_init,
+            },
         )

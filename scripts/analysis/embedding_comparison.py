@@ -44,9 +44,14 @@ def table(root: Path) -> str:
         recs, _ = load(root / embedding)
         for rec in recs:
             found.setdefault((rec["system"], rec["model"]), {})[embedding] = rec
-    lines = ["| system | model | " + " | ".join(f"val_loss {e}" for e in EMBEDDINGS)
-             + " | lowest | status " + " / ".join(EMBEDDINGS) + " |",
-             "|---|---|" + "---|" * (len(EMBEDDINGS) + 2)]
+    lines = [
+        "| system | model | "
+        + " | ".join(f"val_loss {e}" for e in EMBEDDINGS)
+        + " | lowest | status "
+        + " / ".join(EMBEDDINGS)
+        + " |",
+        "|---|---|" + "---|" * (len(EMBEDDINGS) + 2),
+    ]
     ratios: dict[str, list[float]] = {e: [] for e in EMBEDDINGS}
     wins: dict[str, int] = {e: 0 for e in EMBEDDINGS}
     for (system, model), by in sorted(found.items()):
@@ -59,17 +64,26 @@ def table(root: Path) -> str:
             wins[best] += 1
             for e in EMBEDDINGS:
                 ratios[e].append(math.log(val[e] / val["none"]))
-        lines.append(f"| {system} | {model} | "
-                     + " | ".join(f"{val[e]:.3g}" for e in EMBEDDINGS)
-                     + f" | {best} | "
-                     + " / ".join(str(by[e].get("status")) for e in EMBEDDINGS) + " |")
+        lines.append(
+            f"| {system} | {model} | "
+            + " | ".join(f"{val[e]:.3g}" for e in EMBEDDINGS)
+            + f" | {best} | "
+            + " / ".join(str(by[e].get("status")) for e in EMBEDDINGS)
+            + " |"
+        )
     n = len(ratios["none"])
-    summary = ", ".join(
-        f"`{e}` {math.exp(sum(r) / n):.3g}× (lowest on {wins[e]} of {n})" for e, r in
-        ratios.items()) if n else "no pair trained under every embedding"
+    summary = (
+        ", ".join(
+            f"`{e}` {math.exp(sum(r) / n):.3g}× (lowest on {wins[e]} of {n})"
+            for e, r in ratios.items()
+        )
+        if n
+        else "no pair trained under every embedding"
+    )
     return "\n".join(lines) + (
         f"\n\nGeometric mean of the validation loss relative to `none`, over the {n} pairs "
-        f"that trained under all three: {summary}.")
+        f"that trained under all three: {summary}."
+    )
 
 
 def main(argv: list[str]) -> int:
@@ -79,8 +93,11 @@ def main(argv: list[str]) -> int:
     args = parser.parse_args(argv)
     missing = [e for e in EMBEDDINGS if not (args.root / e).is_dir()]
     if missing:
-        print(f"embedding_comparison: {args.root} has no {', '.join(missing)}/: run the "
-              "sweeps of the module docstring first", file=sys.stderr)
+        print(
+            f"embedding_comparison: {args.root} has no {', '.join(missing)}/: run the "
+            "sweeps of the module docstring first",
+            file=sys.stderr,
+        )
         return 2
     text = table(args.root)
     print(text)

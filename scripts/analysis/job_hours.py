@@ -25,8 +25,9 @@ from typing import Any, Optional
 REPO = Path(__file__).resolve().parents[2]
 
 
-def load(directories: Sequence[Path], profile: Optional[str],
-         track: Optional[str] = "protocol") -> list[dict[str, Any]]:
+def load(
+    directories: Sequence[Path], profile: Optional[str], track: Optional[str] = "protocol"
+) -> list[dict[str, Any]]:
     """Every readable ``result.json`` below ``directories`` of ``profile`` and ``track``
     (any when ``None``; a record without a track is the protocol's)."""
     out = []
@@ -39,8 +40,9 @@ def load(directories: Sequence[Path], profile: Optional[str],
                 continue
             if not isinstance(rec, dict):
                 continue
-            if (profile is None or rec.get("profile") == profile) and \
-                    (track is None or (rec.get("track") or "protocol") == track):
+            if (profile is None or rec.get("profile") == profile) and (
+                track is None or (rec.get("track") or "protocol") == track
+            ):
                 out.append(rec)
     return out
 
@@ -59,16 +61,21 @@ def table(recs: list[dict[str, Any]]) -> str:
         if rec.get("variant"):
             family += " (variants)"
         groups[(family, str(rec.get("backend") or "—"))].append(rec)
-    lines = ["| family | backend | jobs | statuses | wall h (sum of total_s) | "
-             "CPU h (sum of cpu_s) | jobs with cpu_s |", "|---|---|---|---|---|---|---|"]
+    lines = [
+        "| family | backend | jobs | statuses | wall h (sum of total_s) | "
+        "CPU h (sum of cpu_s) | jobs with cpu_s |",
+        "|---|---|---|---|---|---|---|",
+    ]
 
     def row(name: str, backend: str, items: list[dict[str, Any]]) -> str:
         walls = [w for w in (_seconds(r, "total_s") for r in items) if w is not None]
         cpus = [c for c in (_seconds(r, "cpu_s") for r in items) if c is not None]
         statuses = Counter(str(r.get("status")) for r in items)
         status = ", ".join(f"{n} {s}" for s, n in sorted(statuses.items()))
-        return (f"| {name} | {backend} | {len(items)} | {status} | {sum(walls) / 3600:.2f} | "
-                f"{sum(cpus) / 3600:.2f} | {len(cpus)} |")
+        return (
+            f"| {name} | {backend} | {len(items)} | {status} | {sum(walls) / 3600:.2f} | "
+            f"{sum(cpus) / 3600:.2f} | {len(cpus)} |"
+        )
 
     for (family, backend), items in sorted(groups.items()):
         lines.append(row(family, backend, items))
@@ -79,13 +86,22 @@ def table(recs: list[dict[str, Any]]) -> str:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("dirs", nargs="*", type=Path, default=[REPO / "results" / "records"])
-    parser.add_argument("--profile", default="paper",
-                        help="only records of this profile (default: paper; 'any': all)")
-    parser.add_argument("--track", default="protocol",
-                        help="only records of this track (default: protocol; 'any': all)")
+    parser.add_argument(
+        "--profile",
+        default="paper",
+        help="only records of this profile (default: paper; 'any': all)",
+    )
+    parser.add_argument(
+        "--track",
+        default="protocol",
+        help="only records of this track (default: protocol; 'any': all)",
+    )
     args = parser.parse_args(argv)
-    recs = load(args.dirs, None if args.profile == "any" else args.profile,
-                None if args.track == "any" else args.track)
+    recs = load(
+        args.dirs,
+        None if args.profile == "any" else args.profile,
+        None if args.track == "any" else args.track,
+    )
     if not recs:
         print("job_hours.py: no records", file=sys.stderr)
         return 1

@@ -26,24 +26,27 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--draws", type=int, default=2000)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--power-only", action="store_true",
-                        help="leave out the false-best table")
+    parser.add_argument("--power-only", action="store_true", help="leave out the false-best table")
     args = parser.parse_args(argv)
     if not args.power_only:
         print(f"False-best rate ({args.draws} draws each, seed {args.seed}):\n")
         print("| families k | " + " | ".join(f"n = {n}" for n in SEEDS) + " |")
         print("|---|" + "---|" * len(SEEDS))
         for k in FAMILIES:
-            cells = [simulate_marks(k, n, args.draws, "energy_mse", seed=args.seed)["any_best"]
-                     for n in SEEDS]
+            cells = [
+                simulate_marks(k, n, args.draws, "energy_mse", seed=args.seed)["any_best"]
+                for n in SEEDS
+            ]
             print(f"| {k} | " + " | ".join(f"{c:.1%}" for c in cells) + " |", flush=True)
     for n in [n for n in SEEDS if n >= MIN_SEPARABLE_SEEDS]:  # below it, 0 by construction
         print(f"\nPower at n = {n} seeds: the better family marked best, by effect:\n")
         print("| families k | " + " | ".join(f"effect {e:g}" for e in EFFECTS) + " |")
         print("|---|" + "---|" * len(EFFECTS))
         for k in FAMILIES:
-            cells = [simulate_marks(k, n, args.draws, "energy_mse", effect=e,
-                                    seed=args.seed)["power"] for e in EFFECTS]
+            cells = [
+                simulate_marks(k, n, args.draws, "energy_mse", effect=e, seed=args.seed)["power"]
+                for e in EFFECTS
+            ]
             print(f"| {k} | " + " | ".join(f"{c:.0%}" for c in cells) + " |", flush=True)
     return 0
 

@@ -61,9 +61,11 @@ def main(argv: list[str]) -> int:
                 if abs(float(value) - float(mean)) <= ns.k * std:
                     inside += 1
                 else:
-                    print(f"outside: {rec['system']} x {rec['model']} seed {rec['seed']} "
-                          f"{metric} = {float(value):.4g}, band {float(mean):.4g} ± "
-                          f"{ns.k:g} x {std:.2g}")
+                    print(
+                        f"outside: {rec['system']} x {rec['model']} seed {rec['seed']} "
+                        f"{metric} = {float(value):.4g}, band {float(mean):.4g} ± "
+                        f"{ns.k:g} x {std:.2g}"
+                    )
     print(f"{inside} / {cells} cells inside mean ± {ns.k:g} std of {ns.leaderboard}")
     if missing:
         print("no leaderboard row for: " + ", ".join(f"{s} x {m}" for s, m in sorted(missing)))

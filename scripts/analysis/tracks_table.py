@@ -31,8 +31,9 @@ def main(argv: list[str] | None = None) -> int:
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("dirs", nargs="+", type=Path, help="record directories (merged)")
-    p.add_argument("--metric", action="append", default=None,
-                   help="a metric (repeatable; default test_loss)")
+    p.add_argument(
+        "--metric", action="append", default=None, help="a metric (repeatable; default test_loss)"
+    )
     p.add_argument("--backend", default="jax", help="the backend of each family's model")
     ns = p.parse_args(argv)
     declared = {m.name: m for m in registered()}
@@ -65,16 +66,27 @@ def main(argv: list[str] | None = None) -> int:
                 cells = []
                 for track in tracks:
                     r = frows[frows["track"] == track]
-                    text = "—" if r.empty else format_value(
-                        float(r[f"{name}_mean"].iloc[0]), float(r[f"{name}_std"].iloc[0]))
+                    text = (
+                        "—"
+                        if r.empty
+                        else format_value(
+                            float(r[f"{name}_mean"].iloc[0]), float(r[f"{name}_std"].iloc[0])
+                        )
+                    )
                     cells.append(f"**{text}**" if winners.get(track) == family else text)
                 print(f"| {system} | {family} | " + " | ".join(cells) + " |")
             found = [f"{t}: {w}" for t, w in winners.items()]
             changed = len(set(winners.values())) > 1
-            lines.append(f"- {system}: the lowest-mean family " if sign > 0 else
-                         f"- {system}: the highest-mean family ")
-            lines[-1] += (f"changes between tracks ({'; '.join(found)})." if changed else
-                          f"is the same on every track ({'; '.join(found) or 'none'}).")
+            lines.append(
+                f"- {system}: the lowest-mean family "
+                if sign > 0
+                else f"- {system}: the highest-mean family "
+            )
+            lines[-1] += (
+                f"changes between tracks ({'; '.join(found)})."
+                if changed
+                else f"is the same on every track ({'; '.join(found) or 'none'})."
+            )
         print()
         print("\n".join(lines))
         print()

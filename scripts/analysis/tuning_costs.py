@@ -65,8 +65,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("dir", type=Path, help="the tiny run's out= directory")
     p.add_argument("--trials", type=int, default=20, help="trials per model (default 20)")
     p.add_argument("--seeds", type=int, default=3, help="final seeds (default 3)")
-    p.add_argument("--steps", type=int, default=None,
-                   help="steps per trial (default: each system's protocol steps)")
+    p.add_argument(
+        "--steps",
+        type=int,
+        default=None,
+        help="steps per trial (default: each system's protocol steps)",
+    )
     ns = p.parse_args(argv)
     parts: dict[tuple[str, str, str], list[tuple[float, float]]] = defaultdict(list)
     for path in sorted((ns.dir / "trials").glob("*/*/trial*/result.json")):
@@ -77,8 +81,10 @@ def main(argv: list[str] | None = None) -> int:
     if not parts:
         print(f"no trial records under {ns.dir / 'trials'}", file=sys.stderr)
         return 1
-    print("| system | model | trials measured | CPU ms/step (mean draw) | fixed CPU s/trial "
-          "| steps | tuning CPU h | final runs CPU h |")
+    print(
+        "| system | model | trials measured | CPU ms/step (mean draw) | fixed CPU s/trial "
+        "| steps | tuning CPU h | final runs CPU h |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     totals: dict[str, float] = defaultdict(float)
     for (system, model, profile), values in sorted(parts.items()):
@@ -89,12 +95,16 @@ def main(argv: list[str] | None = None) -> int:
         evaluation = published_eval(system, model, profile) or 0.0
         finals = ns.seeds * (fixed + per_step * steps + evaluation)
         totals[system] += tuning + finals
-        print(f"| {system} | {model} | {len(values)} | {1e3 * per_step:.2f} | {fixed:.1f} | "
-              f"{steps} | {tuning / 3600:.2f} | {finals / 3600:.2f} |")
+        print(
+            f"| {system} | {model} | {len(values)} | {1e3 * per_step:.2f} | {fixed:.1f} | "
+            f"{steps} | {tuning / 3600:.2f} | {finals / 3600:.2f} |"
+        )
     print()
     for system, seconds in totals.items():
-        print(f"{system}: about {seconds / 3600:.1f} CPU hours for {ns.trials} trials per "
-              f"model and {ns.seeds} final seeds, without pruning (one core)")
+        print(
+            f"{system}: about {seconds / 3600:.1f} CPU hours for {ns.trials} trials per "
+            f"model and {ns.seeds} final seeds, without pruning (one core)"
+        )
     return 0
 
 

@@ -47,8 +47,14 @@ from hnnbench._running.config import RUN_ONLY_KEYS
 #: Top-level record fields that say when, where and with which hnnbench a job ran.
 IGNORED = {"environment", "created_at", "timings", "cpu_pin"}
 #: Fields below the top level, likewise (``*``: any key).
-IGNORED_PATHS = frozenset({("tuning", "cpu_s"), ("config", "tuning", "cpu_s"),
-                           ("data", "cache_hit"), ("plugins", "*", "distribution_version")})
+IGNORED_PATHS = frozenset(
+    {
+        ("tuning", "cpu_s"),
+        ("config", "tuning", "cpu_s"),
+        ("data", "cache_hit"),
+        ("plugins", "*", "distribution_version"),
+    }
+)
 #: Overrides that do not say which job a record is (its identity's keys, the run-only
 #: settings, Hydra's own).
 NOT_VARIANT = {"system", "model", "seed", "profile", "track", "tuning"} | set(RUN_ONLY_KEYS)
@@ -59,12 +65,22 @@ Key = tuple[Any, ...]
 def job_key(record: dict[str, Any]) -> Key:
     """Which job a record is: track, system, model, seed, tuner trial, and the overrides
     of other settings (sorted)."""
-    variant = tuple(sorted(
-        o.lstrip("+") for o in record.get("overrides") or []
-        if o.lstrip("+~").split("=", 1)[0] not in NOT_VARIANT and not o.startswith("hydra")))
+    variant = tuple(
+        sorted(
+            o.lstrip("+")
+            for o in record.get("overrides") or []
+            if o.lstrip("+~").split("=", 1)[0] not in NOT_VARIANT and not o.startswith("hydra")
+        )
+    )
     tuning = record.get("tuning") if isinstance(record.get("tuning"), dict) else {}
-    return (record.get("track") or "protocol", record["system"], record["model"],
-            record["seed"], tuning.get("trial"), variant)
+    return (
+        record.get("track") or "protocol",
+        record["system"],
+        record["model"],
+        record["seed"],
+        tuning.get("trial"),
+        variant,
+    )
 
 
 def describe(key: Key) -> str:
@@ -88,8 +104,9 @@ def comparable(record: dict[str, Any]) -> dict[str, Any]:
     if isinstance(out.get("overrides"), list):
         out["overrides"] = [o for o in out["overrides"] if not _run_only(str(o))]
     if isinstance(out.get("rerun_command"), str):
-        out["rerun_command"] = shlex.join(t for t in shlex.split(out["rerun_command"])
-                                          if not _run_only(t))
+        out["rerun_command"] = shlex.join(
+            t for t in shlex.split(out["rerun_command"]) if not _run_only(t)
+        )
     return out
 
 
@@ -105,8 +122,9 @@ def load(directory: Path) -> tuple[dict[Key, tuple[dict[str, Any], Path]], list[
         raw = comparable(json.loads((path / "result.json").read_text("utf-8")))
         key = job_key(raw)
         if key in out:
-            problems.append(f"{path}: a second record of {describe(key)} "
-                            f"(the first: {out[key][1]})")
+            problems.append(
+                f"{path}: a second record of {describe(key)} (the first: {out[key][1]})"
+            )
             continue
         out[key] = (raw, path)
     return out, problems
@@ -117,9 +135,10 @@ def _ignored(path: tuple[str, ...]) -> bool:
         return True
     if len(path) == 2 and path[0] == "config" and path[1] in RUN_ONLY_KEYS:
         return True
-    return any(len(path) == len(pattern)
-               and all(p in ("*", q) for p, q in zip(pattern, path, strict=True))
-               for pattern in IGNORED_PATHS)
+    return any(
+        len(path) == len(pattern) and all(p in ("*", q) for p, q in zip(pattern, path, strict=True))
+        for pattern in IGNORED_PATHS
+    )
 
 
 def _normal(value: Any, root: str) -> Any:
@@ -146,8 +165,9 @@ def same_number(a: Any, b: Any, rtol: float) -> bool:
     return abs(x - y) <= rtol * max(abs(x), abs(y))
 
 
-def diff(a: Any, b: Any, roots: tuple[str, str], rtol: float = 0.0,
-         path: tuple[str, ...] = ()) -> Iterator[str]:
+def diff(
+    a: Any, b: Any, roots: tuple[str, str], rtol: float = 0.0, path: tuple[str, ...] = ()
+) -> Iterator[str]:
     """Every difference between two JSON values, as ``field: before -> after`` lines
     (fields in :data:`IGNORED` and :data:`IGNORED_PATHS` left out)."""
     if _ignored(path):
@@ -199,14 +219,18 @@ def compare_arrays(a: Path, b: Path) -> list[str]:
             if x.shape != y.shape or x.dtype != y.dtype:
                 out.append(f"{a.name}:{name}: {x.dtype}{x.shape} -> {y.dtype}{y.shape}")
             elif not np.array_equal(x, y, equal_nan=x.dtype.kind in "fc"):
-                bad = int(np.sum(~((x == y) | (np.isnan(x) & np.isnan(y))))) \
-                    if x.dtype.kind in "fc" else int(np.sum(x != y))
+                bad = (
+                    int(np.sum(~((x == y) | (np.isnan(x) & np.isnan(y)))))
+                    if x.dtype.kind in "fc"
+                    else int(np.sum(x != y))
+                )
                 out.append(f"{a.name}:{name}: {bad} of {x.size} elements differ")
     return out
 
 
-def compare_files(ra: dict[str, Any], da: Path, rb: dict[str, Any], db: Path) -> tuple[
-        list[str], int]:
+def compare_files(
+    ra: dict[str, Any], da: Path, rb: dict[str, Any], db: Path
+) -> tuple[list[str], int]:
     """Differences between the files beside two records (the rollout arrays and the
     weights file), and how many files were compared."""
     out: list[str] = []
@@ -224,8 +248,9 @@ def compare_files(ra: dict[str, Any], da: Path, rb: dict[str, Any], db: Path) ->
         if kind == "arrays":
             out += compare_arrays(fa, fb)
         elif fa.read_bytes() != fb.read_bytes():
-            out.append(f"{name}: the bytes differ ({fa.stat().st_size} -> "
-                       f"{fb.stat().st_size} bytes)")
+            out.append(
+                f"{name}: the bytes differ ({fa.stat().st_size} -> {fb.stat().st_size} bytes)"
+            )
     return out, n
 
 
@@ -233,13 +258,23 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("before", type=Path)
     parser.add_argument("after", type=Path)
-    parser.add_argument("--rtol", type=float, default=0.0,
-                        help="relative tolerance of metric values (default 0: identical)")
+    parser.add_argument(
+        "--rtol",
+        type=float,
+        default=0.0,
+        help="relative tolerance of metric values (default 0: identical)",
+    )
     parser.add_argument("--metrics", default="", help="comma-separated subset to compare")
-    parser.add_argument("--metrics-only", action="store_true",
-                        help="compare statuses and metric values only")
-    parser.add_argument("--ignore", action="append", default=[], metavar="FIELD",
-                        help="a top-level field not to compare, e.g. command (repeatable)")
+    parser.add_argument(
+        "--metrics-only", action="store_true", help="compare statuses and metric values only"
+    )
+    parser.add_argument(
+        "--ignore",
+        action="append",
+        default=[],
+        metavar="FIELD",
+        help="a top-level field not to compare, e.g. command (repeatable)",
+    )
     args = parser.parse_args(argv)
     IGNORED.update(args.ignore)
     (before, left_before), (after, left_after) = load(args.before), load(args.after)
@@ -262,9 +297,14 @@ def main(argv: list[str] | None = None) -> int:
             ma, mb = a.get("metrics") or {}, b.get("metrics") or {}
             names = set(ma) | set(mb)
             names = names & wanted if wanted else names
-            lines = list(diff({**fields[0], "metrics": {k: ma.get(k) for k in names}},
-                              {**fields[1], "metrics": {k: mb.get(k) for k in names}},
-                              roots, args.rtol))
+            lines = list(
+                diff(
+                    {**fields[0], "metrics": {k: ma.get(k) for k in names}},
+                    {**fields[1], "metrics": {k: mb.get(k) for k in names}},
+                    roots,
+                    args.rtol,
+                )
+            )
             n_values += len(names)
         else:
             lines = list(diff(a, b, roots, args.rtol))
@@ -277,11 +317,15 @@ def main(argv: list[str] | None = None) -> int:
         bad += len(lines)
     matched = len(set(before) & set(after))
     verdict = "identical" if args.rtol == 0 else f"equal within rtol={args.rtol:g}"
-    what = (f"{n_values} metric values compared" if args.metrics_only or wanted else
-            f"records compared field by field ({n_values} metric values), "
-            f"{n_files} files beside them")
-    print(f"{matched} jobs matched, {what}, {bad} difference(s)"
-          + ("" if bad else f": all {verdict}"))
+    what = (
+        f"{n_values} metric values compared"
+        if args.metrics_only or wanted
+        else f"records compared field by field ({n_values} metric values), "
+        f"{n_files} files beside them"
+    )
+    print(
+        f"{matched} jobs matched, {what}, {bad} difference(s)" + ("" if bad else f": all {verdict}")
+    )
     return 1 if bad else 0
 
 

@@ -41,27 +41,42 @@ def rows(records: Path = RECORDS, quick: Path = QUICK) -> list[dict[str, object]
     times: dict[tuple[str, str, str], list[float]] = defaultdict(list)
     for path in sorted(records.rglob("result.json")):
         rec = json.loads(path.read_text("utf-8"))
-        if track_of(rec) != DEFAULT_TRACK or not isinstance(rec.get("timings"), dict) \
-                or _variant_items(variant_overrides(rec)):  # another track, or a variant
+        if (
+            track_of(rec) != DEFAULT_TRACK
+            or not isinstance(rec.get("timings"), dict)
+            or _variant_items(variant_overrides(rec))
+        ):  # another track, or a variant
             continue
         total = rec["timings"].get("total_s")
         if isinstance(total, (int, float)):
             times[(rec["profile"], rec["system"], rec["model"])].append(float(total))
     out: list[dict[str, object]] = []
     for (profile, system, model), values in sorted(times.items()):
-        out.append({"profile": profile, "system": system, "model": model,
-                    "seconds": f"{median_seconds(values):.3g}", "n_runs": len(values),
-                    "source": "results/records (median total_s)"})
+        out.append(
+            {
+                "profile": profile,
+                "system": system,
+                "model": model,
+                "seconds": f"{median_seconds(values):.3g}",
+                "n_runs": len(values),
+                "source": "results/records (median total_s)",
+            }
+        )
     if quick.exists():
         with quick.open(newline="", encoding="utf-8") as fh:
             for row in csv.DictReader(fh):
                 if row.get("variant") or not row.get("total_s_mean"):
                     continue
-                out.append({"profile": row["profile"], "system": row["system"],
-                            "model": row["model"],
-                            "seconds": f"{float(row['total_s_mean']):.3g}",
-                            "n_runs": row.get("n_seeds", ""),
-                            "source": "results/reference/quick.csv (total_s_mean)"})
+                out.append(
+                    {
+                        "profile": row["profile"],
+                        "system": row["system"],
+                        "model": row["model"],
+                        "seconds": f"{float(row['total_s_mean']):.3g}",
+                        "n_runs": row.get("n_seeds", ""),
+                        "source": "results/reference/quick.csv (total_s_mean)",
+                    }
+                )
     return out
 
 
@@ -84,14 +99,20 @@ def _out() -> Path:
 def main(argv: list[str] | None = None) -> int:
     out_path = _out()
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("--check", action="store_true",
-                        help="exit 1 when the committed file differs from what this writes")
+    parser.add_argument(
+        "--check",
+        action="store_true",
+        help="exit 1 when the committed file differs from what this writes",
+    )
     args = parser.parse_args(argv)
     text = render()
     if args.check:
         if not out_path.exists() or out_path.read_text("utf-8") != text:
-            print(f"{out_path.relative_to(REPO)} is out of date: run python "
-                  "scripts/maintainer/job_costs.py", file=sys.stderr)
+            print(
+                f"{out_path.relative_to(REPO)} is out of date: run python "
+                "scripts/maintainer/job_costs.py",
+                file=sys.stderr,
+            )
             return 1
         return 0
     out_path.write_text(text, encoding="utf-8")

@@ -65,19 +65,24 @@ def replace_block(text: str, name: str, body: str) -> str:
     begin, end = BEGIN.format(name=name), END.format(name=name)
     for marker in (begin, end, "<!--"):
         if marker in body:
-            raise SystemExit(f"publish: the {name} block would contain {marker!r}; "
-                             "refusing to write it")
+            raise SystemExit(
+                f"publish: the {name} block would contain {marker!r}; refusing to write it"
+            )
     lines = text.split("\n")
     starts = [i for i, line in enumerate(lines) if line.strip() == begin]
     stops = [i for i, line in enumerate(lines) if line.strip() == end]
     if not starts or not stops:
-        raise SystemExit(f"publish: marker {begin} ... {end} not found (each on a line of "
-                         "its own); add it where the block should go")
+        raise SystemExit(
+            f"publish: marker {begin} ... {end} not found (each on a line of "
+            "its own); add it where the block should go"
+        )
     if len(starts) > 1 or len(stops) > 1 or stops[0] < starts[0]:
-        raise SystemExit(f"publish: markers {begin} ... {end} must each be on one line, "
-                         f"once, in that order (found lines {[i + 1 for i in starts]} and "
-                         f"{[i + 1 for i in stops]})")
-    return "\n".join([*lines[:starts[0] + 1], body.strip(), *lines[stops[0]:]])
+        raise SystemExit(
+            f"publish: markers {begin} ... {end} must each be on one line, "
+            f"once, in that order (found lines {[i + 1 for i in starts]} and "
+            f"{[i + 1 for i in stops]})"
+        )
+    return "\n".join([*lines[: starts[0] + 1], body.strip(), *lines[stops[0] :]])
 
 
 #: The line that leads the notes under the family table (its status cells' ``[n]``).
@@ -89,13 +94,11 @@ def table_and_provenance(markdown: str) -> tuple[str, str]:
     status cells point to, if any; provenance bullet lines)."""
     lines = markdown.splitlines()
     start = next((i for i, line in enumerate(lines) if line.startswith("|")), len(lines))
-    stop = next((i for i in range(start, len(lines)) if not lines[i].startswith("|")),
-                len(lines))
+    stop = next((i for i in range(start, len(lines)) if not lines[i].startswith("|")), len(lines))
     rest = [line for line in lines[stop:] if line.strip()]
     notes: list[str] = []
     if rest and rest[0].startswith(NOTES_LEAD):
-        notes = [rest[0], *itertools.takewhile(lambda ln: ln.split(". ", 1)[0].isdigit(),
-                                               rest[1:])]
+        notes = [rest[0], *itertools.takewhile(lambda ln: ln.split(". ", 1)[0].isdigit(), rest[1:])]
     table = "\n".join(lines[start:stop])
     if notes:
         table += "\n\n" + notes[0] + "\n\n" + "\n".join(notes[1:])
@@ -107,7 +110,7 @@ def sentence_after(markdown: str, heading: str) -> str:
     """The first non-empty line after ``heading`` in ``markdown``."""
     lines = markdown.splitlines()
     at = lines.index(heading) if heading in lines else len(lines)
-    return next((line for line in lines[at + 1:] if line.strip()), "")
+    return next((line for line in lines[at + 1 :] if line.strip()), "")
 
 
 def record_dir(rec: dict) -> Path:
@@ -125,15 +128,24 @@ def record_dir(rec: dict) -> Path:
     where = rec.get("path", "a record")
     seed = rec.get("seed")
     track = rec.get("track", DEFAULT_TRACK)
-    problem = name_problem("system", rec.get("system")) or \
-        name_problem("model", rec.get("model")) or \
-        (None if track in TRACKS else f"track {track!r} is not one of {', '.join(TRACKS)}") or \
-        (None if isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0
-         else f"seed {seed!r} is not a non-negative integer")
+    problem = (
+        name_problem("system", rec.get("system"))
+        or name_problem("model", rec.get("model"))
+        or (None if track in TRACKS else f"track {track!r} is not one of {', '.join(TRACKS)}")
+        or (
+            None
+            if isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0
+            else f"seed {seed!r} is not a non-negative integer"
+        )
+    )
     if problem:
         raise SystemExit(f"publish: {where}: {problem}")
-    parts = [rec["system"], rec["model"], *([track] if track != DEFAULT_TRACK else []),
-             f"seed{seed}"]
+    parts = [
+        rec["system"],
+        rec["model"],
+        *([track] if track != DEFAULT_TRACK else []),
+        f"seed{seed}",
+    ]
     try:
         return safe_join(RECORDS, *parts)
     except UnsafePathError as err:
@@ -171,8 +183,13 @@ def copy_figure_rollouts(sweeps: list[Path]) -> tuple[int, int]:
                 chosen[key] = (seed, source)
     written = {}
     for (track, system, model), (seed, source) in sorted(chosen.items()):
-        rec = {"system": system, "model": model, "seed": seed, "track": track,
-               "path": str(source.parent)}
+        rec = {
+            "system": system,
+            "model": model,
+            "seed": seed,
+            "track": track,
+            "path": str(source.parent),
+        }
         target = safe_join(record_dir(rec), records.ROLLOUT_NAME)
         buffer = io.BytesIO()
         np.savez_compressed(buffer, **figure_arrays(records.load_arrays(source)))
@@ -209,25 +226,35 @@ def given_records(sweeps: list[Path]) -> list[dict]:
     for sweep in sweeps:
         recs, bad = records.load(sweep, strict=True)
         if bad:
-            raise SystemExit(f"publish: {len(bad)} unreadable or invalid record(s) in "
-                             f"{sweep}, e.g. {bad[0]}")
+            raise SystemExit(
+                f"publish: {len(bad)} unreadable or invalid record(s) in {sweep}, e.g. {bad[0]}"
+            )
         for rec in recs:
             if rec.get("profile") != "paper":
-                raise SystemExit(f"publish: {rec['path']} is profile {rec.get('profile')}, "
-                                 "not paper")
+                raise SystemExit(
+                    f"publish: {rec['path']} is profile {rec.get('profile')}, not paper"
+                )
             # The published rows are the plugins' paper settings: the variant is derived
             # from the stored config against the paper defaults, not read from overrides.
             variant = config_variant(rec)
-            why = variant.problem or variant.mismatch or (
-                f"its config is a variant ({variant.label}), not the paper settings"
-                if variant.label else None)
+            why = (
+                variant.problem
+                or variant.mismatch
+                or (
+                    f"its config is a variant ({variant.label}), not the paper settings"
+                    if variant.label
+                    else None
+                )
+            )
             if why:
                 raise SystemExit(f"publish: {rec['path']}: {why}")
             job = job_of(rec)
             if job in seen:
-                raise SystemExit(f"publish: {job} is in both {seen[job]} and {rec['path']}: "
-                                 "the report would count it twice; move the superseded "
-                                 "run out of its sweep")
+                raise SystemExit(
+                    f"publish: {job} is in both {seen[job]} and {rec['path']}: "
+                    "the report would count it twice; move the superseded "
+                    "run out of its sweep"
+                )
             seen[job] = str(rec["path"])
             out.append(rec)
     return out
@@ -257,11 +284,14 @@ def published_jobs() -> set[tuple[str, str, str, int]]:
     (:func:`record_dir`'s layout)."""
     from hnnbench._contracts.names import DEFAULT_TRACK
 
-    jobs = {(DEFAULT_TRACK, p.parts[-4], p.parts[-3], int(p.parts[-2].removeprefix("seed")))
-            for p in RECORDS.glob("*/*/seed*/result.json")}
-    return jobs | {(p.parts[-3], p.parts[-5], p.parts[-4],
-                    int(p.parts[-2].removeprefix("seed")))
-                   for p in RECORDS.glob("*/*/*/seed*/result.json")}
+    jobs = {
+        (DEFAULT_TRACK, p.parts[-4], p.parts[-3], int(p.parts[-2].removeprefix("seed")))
+        for p in RECORDS.glob("*/*/seed*/result.json")
+    }
+    return jobs | {
+        (p.parts[-3], p.parts[-5], p.parts[-4], int(p.parts[-2].removeprefix("seed")))
+        for p in RECORDS.glob("*/*/*/seed*/result.json")
+    }
 
 
 def remove_jobs(jobs: set[tuple[str, str, str, int]]) -> int:
@@ -270,8 +300,15 @@ def remove_jobs(jobs: set[tuple[str, str, str, int]]) -> int:
     import shutil
 
     for track, system, model, seed in jobs:
-        directory = record_dir({"system": system, "model": model, "seed": seed,
-                                "track": track, "path": "results/records"})
+        directory = record_dir(
+            {
+                "system": system,
+                "model": model,
+                "seed": seed,
+                "track": track,
+                "path": "results/records",
+            }
+        )
         shutil.rmtree(directory)
     for empty in sorted(RECORDS.rglob("*"), key=lambda p: len(p.parts), reverse=True):
         if empty.is_dir() and not any(empty.iterdir()):
@@ -281,19 +318,33 @@ def remove_jobs(jobs: set[tuple[str, str, str, int]]) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("sweeps", type=Path, nargs="*",
-                        help="sweep directories with result.json records and rollouts")
-    parser.add_argument("--figure", default="heatmap_energy_mse",
-                        help="figure shown in results/README.md (a name under results/figures/)")
-    parser.add_argument("--replace", default="", metavar="SYSTEM[,SYSTEM]",
-                        help="replace every published protocol-track record of these "
-                             "systems by the records given (a re-publication): the "
-                             "published ones the directories do not hold are removed in "
-                             "the same step")
-    parser.add_argument("--pages-only", action="store_true",
-                        help="no sweeps: rebuild the report, figures and results/README.md "
-                             "blocks (steps 2 and 3) from results/records as committed, "
-                             "after a change of the report's code")
+    parser.add_argument(
+        "sweeps",
+        type=Path,
+        nargs="*",
+        help="sweep directories with result.json records and rollouts",
+    )
+    parser.add_argument(
+        "--figure",
+        default="heatmap_energy_mse",
+        help="figure shown in results/README.md (a name under results/figures/)",
+    )
+    parser.add_argument(
+        "--replace",
+        default="",
+        metavar="SYSTEM[,SYSTEM]",
+        help="replace every published protocol-track record of these "
+        "systems by the records given (a re-publication): the "
+        "published ones the directories do not hold are removed in "
+        "the same step",
+    )
+    parser.add_argument(
+        "--pages-only",
+        action="store_true",
+        help="no sweeps: rebuild the report, figures and results/README.md "
+        "blocks (steps 2 and 3) from results/records as committed, "
+        "after a change of the report's code",
+    )
     args = parser.parse_args(argv)
     if args.pages_only:
         if args.sweeps or args.replace:
@@ -313,21 +364,27 @@ def main(argv: list[str] | None = None) -> int:
             print(f"publish: --replace {system}: {problem}", file=sys.stderr)
             return 2
         if not any(r["system"] == system and job_of(r)[0] == DEFAULT_TRACK for r in recs):
-            print(f"publish: --replace {system}: the directories given hold no protocol "
-                  f"record of {system}; refusing to remove its published records",
-                  file=sys.stderr)
+            print(
+                f"publish: --replace {system}: the directories given hold no protocol "
+                f"record of {system}; refusing to remove its published records",
+                file=sys.stderr,
+            )
             return 2
     # Every record already published must be among those given (results/records itself
     # may be given), so that the page and the records agree; the protocol records of a
     # replaced system go.
     given = {job_of(r) for r in recs}
-    superseded = {job for job in published_jobs() - given
-                  if job[0] == DEFAULT_TRACK and job[1] in replaced}
+    superseded = {
+        job for job in published_jobs() - given if job[0] == DEFAULT_TRACK and job[1] in replaced
+    }
     stale = published_jobs() - given - superseded
     if stale:
-        print(f"publish: results/records holds jobs the directories given here do not "
-              f"({sorted(stale)[:5]} ...): pass every sweep that was published, or "
-              "results/records itself", file=sys.stderr)
+        print(
+            f"publish: results/records holds jobs the directories given here do not "
+            f"({sorted(stale)[:5]} ...): pass every sweep that was published, or "
+            "results/records itself",
+            file=sys.stderr,
+        )
         return 2
     copied = copy_records(args.sweeps, recs)
     removed_records = remove_jobs(superseded)
@@ -338,9 +395,17 @@ def main(argv: list[str] | None = None) -> int:
     import job_costs  # scripts/: the sweep's estimate reads the published job times
 
     job_costs.main([])
-    print(json.dumps({"copied_records": copied, "removed_records": removed_records,
-                      "figure_rollouts": rollouts, "figure_rollout_bytes": rollout_bytes,
-                      **summary}))
+    print(
+        json.dumps(
+            {
+                "copied_records": copied,
+                "removed_records": removed_records,
+                "figure_rollouts": rollouts,
+                "figure_rollout_bytes": rollout_bytes,
+                **summary,
+            }
+        )
+    )
     return 0
 
 
@@ -364,34 +429,47 @@ def write_pages(figure_name: str) -> tuple[int, dict[str, Any]]:
     figure = RESULTS / "figures" / f"{figure_name}.png"
     if not figure.exists():
         names = sorted(p.stem for p in (RESULTS / "figures").glob("*.png"))
-        print(f"publish: no figure {figure.name}; available: {', '.join(names)}",
-              file=sys.stderr)
+        print(f"publish: no figure {figure.name}; available: {', '.join(names)}", file=sys.stderr)
         return 2, {}
     markdown = report.files["md"].read_text()
     table, prov = table_and_provenance(markdown)
     systems = sorted({p.parts[0] for p in published})
     results_readme = RESULTS / "README.md"
-    body = "\n\n".join([
-        prov, table,
-        f"![Which family wins where: rank by energy MSE]({figure.relative_to(RESULTS).as_posix()})",
-        sentence_after(markdown, "## Twin agreement") + " The twin table, every model's "
-        "row and the per-system figures: [leaderboard.html](leaderboard.html).",
-    ])
+    body = "\n\n".join(
+        [
+            prov,
+            table,
+            "![Which family wins where: rank by energy MSE]"
+            f"({figure.relative_to(RESULTS).as_posix()})",
+            sentence_after(markdown, "## Twin agreement") + " The twin table, every model's "
+            "row and the per-system figures: [leaderboard.html](leaderboard.html).",
+        ]
+    )
     text = replace_block(results_readme.read_text(), "leaderboard", body)
     assert report.verdicts is not None
     profile = main_profile_figure(report.figures)
-    text = replace_block(text, "aggregate", aggregate_markdown(
-        report.verdicts, profile.relative_to(RESULTS).as_posix() if profile else None,
-        heading=""))
-    text = replace_block(text, "tracks", report.files["tracks_md"].read_text()
-                         .removeprefix("# Tracks").strip())
+    text = replace_block(
+        text,
+        "aggregate",
+        aggregate_markdown(
+            report.verdicts,
+            profile.relative_to(RESULTS).as_posix() if profile else None,
+            heading="",
+        ),
+    )
+    text = replace_block(
+        text, "tracks", report.files["tracks_md"].read_text().removeprefix("# Tracks").strip()
+    )
     listing = f"- Systems published: {', '.join(md_code(s) for s in systems)}"
     for line in partial_lines(published):
         listing += "\n" + line
     results_readme.write_text(replace_block(text, "provenance", f"{prov}\n{listing}"))
-    return 0, {"published_records": len(published), "systems": systems,
-               "figures": len(report.figures),
-               "stale_figures_removed": [p.name for p in removed]}
+    return 0, {
+        "published_records": len(published),
+        "systems": systems,
+        "figures": len(report.figures),
+        "stale_figures_removed": [p.name for p in removed],
+    }
 
 
 def partial_lines(published: set[Path] | list[Path]) -> list[str]:
@@ -407,8 +485,10 @@ def partial_lines(published: set[Path] | list[Path]) -> list[str]:
     for system in sorted(models):
         missing = [m for m in available("model") if m not in models[system]]
         if missing:
-            lines.append(f"- Partly published: {md_code(system)} lacks {', '.join(missing)} "
-                         "(not run yet at the paper profile)")
+            lines.append(
+                f"- Partly published: {md_code(system)} lacks {', '.join(missing)} "
+                "(not run yet at the paper profile)"
+            )
     return lines
 
 

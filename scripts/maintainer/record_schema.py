@@ -23,8 +23,11 @@ def main(argv: list[str]) -> int:
         print(f"wrote {SCHEMA_FILE}")
     elif argv == ["--check"]:
         if SCHEMA_FILE.read_text(encoding="utf-8") != text:
-            print(f"{SCHEMA_FILE} differs from hnnbench/_record/fields.py: run "
-                  "python scripts/maintainer/record_schema.py --write", file=sys.stderr)
+            print(
+                f"{SCHEMA_FILE} differs from hnnbench/_record/fields.py: run "
+                "python scripts/maintainer/record_schema.py --write",
+                file=sys.stderr,
+            )
             return 1
     elif not argv:
         sys.stdout.write(text)

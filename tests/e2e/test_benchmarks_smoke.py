@@ -53,8 +53,9 @@ def table_rows(output: str) -> dict[str, list[str]]:
 def test_eval_speed_oracle_in_process(capsys: pytest.CaptureFixture[str]) -> None:
     """Both paths run and agree on the oracle, whose energy MSE is the solver's error."""
     bench = load_eval_speed()
-    status = bench.main(["--models", "oracle", "--repeats", "1", "--rtol", "1e-6",
-                         "--atol", "1e-6"])
+    status = bench.main(
+        ["--models", "oracle", "--repeats", "1", "--rtol", "1e-6", "--atol", "1e-6"]
+    )
     out = capsys.readouterr().out
     assert status == 0, out
     row = table_rows(out)["oracle"]
@@ -79,9 +80,21 @@ def test_eval_speed_rejects_pixel_systems(capsys: pytest.CaptureFixture[str]) ->
 def test_row_relative_difference() -> None:
     bench = load_eval_speed()
     row = bench.Row(
-        system="spring", model="m", n_traj=15, n_points=100, rtol=1e-9, atol=1e-9,
-        fit_s=0.0, batched_ms=10.0, batched_min_ms=10.0, loop_ms=250.0, loop_min_ms=250.0,
-        loop_nfev=1, batched_rhs_calls=None, energy_mse_batched=2.0, energy_mse_loop=1.0,
+        system="spring",
+        model="m",
+        n_traj=15,
+        n_points=100,
+        rtol=1e-9,
+        atol=1e-9,
+        fit_s=0.0,
+        batched_ms=10.0,
+        batched_min_ms=10.0,
+        loop_ms=250.0,
+        loop_min_ms=250.0,
+        loop_nfev=1,
+        batched_rhs_calls=None,
+        energy_mse_batched=2.0,
+        energy_mse_loop=1.0,
     )
     assert row.speedup == pytest.approx(25.0)
     assert row.rel_diff == pytest.approx(0.5)
@@ -94,9 +107,22 @@ def test_eval_speed_trained_models_agree() -> None:
     energy MSEs agree to well within the solver's accuracy."""
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     proc = subprocess.run(
-        [sys.executable, str(EVAL_SPEED), "--models", "mlp_torch", "hnn_jax",
-         "--steps", "100", "--repeats", "1"],
-        capture_output=True, text=True, timeout=900, env=env, cwd=REPO,
+        [
+            sys.executable,
+            str(EVAL_SPEED),
+            "--models",
+            "mlp_torch",
+            "hnn_jax",
+            "--steps",
+            "100",
+            "--repeats",
+            "1",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+        env=env,
+        cwd=REPO,
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     rows = table_rows(proc.stdout)
@@ -115,10 +141,29 @@ def test_train_step_benchmark_prints_2019_and_roofline_columns():
     loop and roofline columns and a row per backend."""
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     proc = subprocess.run(
-        [sys.executable, str(REPO / "benchmarks" / "train_step.py"), "--systems", "spring",
-         "--models", "hnn_torch", "hnn_jax", "--steps", "20", "--repeats", "1",
-         "--steps-2019", "10", "--rate-budget", "0.05", "--no-pin"],
-        capture_output=True, text=True, timeout=600, env=env, cwd=REPO,
+        [
+            sys.executable,
+            str(REPO / "benchmarks" / "train_step.py"),
+            "--systems",
+            "spring",
+            "--models",
+            "hnn_torch",
+            "hnn_jax",
+            "--steps",
+            "20",
+            "--repeats",
+            "1",
+            "--steps-2019",
+            "10",
+            "--rate-budget",
+            "0.05",
+            "--no-pin",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=env,
+        cwd=REPO,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     out = proc.stdout
@@ -133,14 +178,34 @@ def test_train_step_benchmark_times_other_families():
     trained on trajectory windows), no 2019 figure for them, a per-family table."""
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     proc = subprocess.run(
-        [sys.executable, str(REPO / "benchmarks" / "train_step.py"), "--systems", "spring",
-         "--models", "so_mlp_torch", "srnn_jax", "--steps", "20", "--repeats", "1",
-         "--rate-budget", "0.05", "--no-pin"],
-        capture_output=True, text=True, timeout=600, env=env, cwd=REPO,
+        [
+            sys.executable,
+            str(REPO / "benchmarks" / "train_step.py"),
+            "--systems",
+            "spring",
+            "--models",
+            "so_mlp_torch",
+            "srnn_jax",
+            "--steps",
+            "20",
+            "--repeats",
+            "1",
+            "--rate-budget",
+            "0.05",
+            "--no-pin",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=env,
+        cwd=REPO,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
-    rows = {line.split("|")[2].strip(): [c.strip() for c in line.split("|")[1:-1]]
-            for line in proc.stdout.splitlines() if line.startswith("| spring | ")}
+    rows = {
+        line.split("|")[2].strip(): [c.strip() for c in line.split("|")[1:-1]]
+        for line in proc.stdout.splitlines()
+        if line.startswith("| spring | ")
+    }
     assert {"so_mlp_torch", "srnn_jax", "so_mlp", "srnn"} <= set(rows), proc.stdout
     assert rows["so_mlp_torch"][6] == "— / —" and rows["srnn_jax"][6] == "— / —"
     assert float(rows["so_mlp_torch"][4].split("/")[0]) > 0
@@ -164,16 +229,36 @@ def test_torch_step_options_compute_the_same_step():
     kernel's absolute error at float32 rounding."""
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     proc = subprocess.run(
-        [sys.executable, str(REPO / "benchmarks" / "torch_step_options.py"), "--shapes",
-         "spring", "--steps", "2", "--repeats", "1", "--no-compile"],
-        capture_output=True, text=True, timeout=600, env=env, cwd=REPO,
+        [
+            sys.executable,
+            str(REPO / "benchmarks" / "torch_step_options.py"),
+            "--shapes",
+            "spring",
+            "--steps",
+            "2",
+            "--repeats",
+            "1",
+            "--no-compile",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=env,
+        cwd=REPO,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     import torch
 
-    variants: tuple[str, ...] = ("a47bd0f", "+ direct Adam", "+ mse_loss", "hnnbench",
-                                 "hnnbench + sigmoid tanh", "torch.func.grad",
-                                 "no autograd", "no autograd + sigmoid tanh")
+    variants: tuple[str, ...] = (
+        "a47bd0f",
+        "+ direct Adam",
+        "+ mse_loss",
+        "hnnbench",
+        "hnnbench + sigmoid tanh",
+        "torch.func.grad",
+        "no autograd",
+        "no autograd + sigmoid tanh",
+    )
     if torch.backends.mkldnn.is_available():  # a build without oneDNN has no such row
         variants += ("hnnbench + oneDNN tanh", "hnnbench + fused linear-tanh")
     for family in ("mlp", "hnn"):
@@ -196,18 +281,39 @@ def test_chain_scaling_benchmark_prints_one_row_per_size_and_model():
     (N, model), the ratio 1.00x at the smallest N, a finite energy MSE everywhere."""
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     proc = subprocess.run(
-        [sys.executable, str(REPO / "benchmarks" / "chain_scaling.py"), "--sizes", "2", "3",
-         "--models", "hnn_torch", "mlp_torch", "--steps", "20", "--timing-steps", "10",
-         "--repeats", "1", "--no-pin", "--overrides", "system.eval_t_end=5",
-         "system.eval_n_points=11", "system.eval_n_traj=3"],
-        capture_output=True, text=True, timeout=600, env=env, cwd=REPO,
+        [
+            sys.executable,
+            str(REPO / "benchmarks" / "chain_scaling.py"),
+            "--sizes",
+            "2",
+            "3",
+            "--models",
+            "hnn_torch",
+            "mlp_torch",
+            "--steps",
+            "20",
+            "--timing-steps",
+            "10",
+            "--repeats",
+            "1",
+            "--no-pin",
+            "--overrides",
+            "system.eval_t_end=5",
+            "system.eval_n_points=11",
+            "system.eval_n_traj=3",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=env,
+        cwd=REPO,
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     lines = proc.stdout.splitlines()
     head = next(i for i, line in enumerate(lines) if line.startswith("| N | state dim |"))
     assert "ms/step vs N=2" in lines[head] and "energy MSE after 20 steps" in lines[head]
     rows = {}
-    for line in lines[head + 2:]:
+    for line in lines[head + 2 :]:
         if not line.startswith("|"):
             break
         cells = [cell.strip() for cell in line.strip("|").split("|")]
@@ -228,10 +334,23 @@ def test_sweep_benchmark_warm_runs_start_from_the_filled_cache(tmp_path):
     run finds every dataset there (its records say cache_hit)."""
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     proc = subprocess.run(
-        [sys.executable, str(REPO / "benchmarks" / "sweep.py"), "--warm", "--launchers",
-         "basic", "--overrides", "system=spring,pendulum", "model=oracle",
-         "--keep", str(tmp_path)],
-        capture_output=True, text=True, timeout=600, env=env, cwd=REPO,
+        [
+            sys.executable,
+            str(REPO / "benchmarks" / "sweep.py"),
+            "--warm",
+            "--launchers",
+            "basic",
+            "--overrides",
+            "system=spring,pendulum",
+            "model=oracle",
+            "--keep",
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=env,
+        cwd=REPO,
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     assert "[warmup]" in proc.stdout and "## Wall time" in proc.stdout
@@ -255,8 +374,13 @@ def test_gpu_summaries_are_what_their_committed_records_give(run, tmp_path):
 
     copy = tmp_path / run
     shutil.copytree(GPU_RUNS / run, copy)
-    proc = subprocess.run([sys.executable, str(REPO / "benchmarks" / "gpu.py"), "--summarize",
-                           str(copy)], capture_output=True, text=True, timeout=120, cwd=REPO)
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "gpu.py"), "--summarize", str(copy)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=REPO,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert (copy / "summary.md").read_text() == (GPU_RUNS / run / "summary.md").read_text()
     records = [json.loads(p.read_text()) for p in (GPU_RUNS / run).rglob("result.json")]
@@ -271,11 +395,32 @@ def test_gpu_benchmark_runs_its_parts_on_the_cpu(tmp_path):
     seed batch against separate jobs on warm caches, the host CPU part, the tables, and
     each job's exit status."""
     proc = subprocess.run(
-        [sys.executable, str(REPO / "benchmarks" / "gpu.py"), "--out", str(tmp_path),
-         "--device", "cpu", "--profile", "quick", "--systems", "spring",
-         "--models", "oracle", "--batch-system", "spring", "--batch-models", "oracle",
-         "--cpu-system", "spring", "--budget-s", "300"],
-        capture_output=True, text=True, timeout=600, cwd=REPO,
+        [
+            sys.executable,
+            str(REPO / "benchmarks" / "gpu.py"),
+            "--out",
+            str(tmp_path),
+            "--device",
+            "cpu",
+            "--profile",
+            "quick",
+            "--systems",
+            "spring",
+            "--models",
+            "oracle",
+            "--batch-system",
+            "spring",
+            "--batch-models",
+            "oracle",
+            "--cpu-system",
+            "spring",
+            "--budget-s",
+            "300",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=REPO,
         env={**os.environ, "OMP_NUM_THREADS": "1"},
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
@@ -284,14 +429,20 @@ def test_gpu_benchmark_runs_its_parts_on_the_cpu(tmp_path):
     cells = [c.strip() for c in row.strip("|").split("|")]
     assert cells[2:4] == ["ok", "cpu"] and float(cells[5]) > 0
     assert cells[6] != "— / —" and cells[7].endswith("×")  # part 3 ran: this host's CPU
-    (batch,) = [line for line in summary.split("three separate jobs")[1].splitlines()
-                if line.startswith("| oracle |")]
+    (batch,) = [
+        line
+        for line in summary.split("three separate jobs")[1].splitlines()
+        if line.startswith("| oracle |")
+    ]
     assert batch.endswith("| ok,ok,ok / ok,ok,ok |"), batch
     data_sep, data_batch = (float(v) for v in batch.split("|")[5].split("/"))
     assert data_sep < 1.0 and data_batch < 1.0  # the datasets were generated beforehand
     assert json.loads((tmp_path / "exits.json").read_text()) == {
-        "gpu/spring-oracle": 0, "batch/oracle-separate": 0,
-        "batch/oracle-seeds_per_job3": 0, "cpu/spring-oracle": 0}
+        "gpu/spring-oracle": 0,
+        "batch/oracle-separate": 0,
+        "batch/oracle-seeds_per_job3": 0,
+        "cpu/spring-oracle": 0,
+    }
     assert "XLA_FLAGS" in (tmp_path / "environment.txt").read_text()
 
 
@@ -300,9 +451,20 @@ def test_seed_batch_counts_aten_calls_per_step():
     """benchmarks/seed_batch.py --ops: ATen calls per step of one seed's fit and of the
     batched fit, views counted apart (docs/SCALING.md, "GPUs", reads these counts)."""
     proc = subprocess.run(
-        [sys.executable, str(REPO / "benchmarks" / "seed_batch.py"), "--ops", "--systems",
-         "spring", "--models", "mlp_torch", "mlp_jax"],
-        capture_output=True, text=True, timeout=600, cwd=REPO,
+        [
+            sys.executable,
+            str(REPO / "benchmarks" / "seed_batch.py"),
+            "--ops",
+            "--systems",
+            "spring",
+            "--models",
+            "mlp_torch",
+            "mlp_jax",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=REPO,
         env={**os.environ, "OMP_NUM_THREADS": "1"},
     )
     assert proc.returncode == 0, proc.stderr[-3000:]

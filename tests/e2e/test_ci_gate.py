@@ -34,10 +34,18 @@ def test_quick_sweep_passes_the_committed_reference(tmp_path):
         groups.setdefault(tuple(models), []).append(system)
     sweep = tmp_path / "sweep"
     for i, (models, systems) in enumerate(groups.items()):
-        proc = hnnbench("-m", f"system={','.join(systems)}", f"model={','.join(models)}",
-                        "profile=quick", "seed=0", "hydra/launcher=joblib",
-                        "hydra.launcher.n_jobs=2", f"hydra.sweep.dir={sweep / str(i)}",
-                        cwd=tmp_path, timeout=3000)
+        proc = hnnbench(
+            "-m",
+            f"system={','.join(systems)}",
+            f"model={','.join(models)}",
+            "profile=quick",
+            "seed=0",
+            "hydra/launcher=joblib",
+            "hydra.launcher.n_jobs=2",
+            f"hydra.sweep.dir={sweep / str(i)}",
+            cwd=tmp_path,
+            timeout=3000,
+        )
         assert proc.returncode == 0, proc.stderr[-4000:]
     statuses = {}
     for path in sweep.rglob("result.json"):

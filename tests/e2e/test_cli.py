@@ -31,8 +31,10 @@ def test_list_names_builtins():
         (["system=spring", "model=mlp_jax", "system.steps=-1"], ["system.steps=-1 is invalid"]),
         (["system=all", "model=hnn_torch"], ["add -m"]),
         (["-m", "system=spring", "model=hnn_torch,nope"], ["Unknown model 'nope'"]),
-        (["-m", "system=spring", "model=mlp_torch", "model.hidden=10,0"],
-         ["model.hidden=0 is invalid"]),
+        (
+            ["-m", "system=spring", "model=mlp_torch", "model.hidden=10,0"],
+            ["model.hidden=0 is invalid"],
+        ),
     ],
 )
 def test_bad_input_is_one_clean_line(args, needles, tmp_path):

@@ -27,22 +27,39 @@ pytestmark = [pytest.mark.distributed, pytest.mark.slow]
 
 CLUSTER = REPO / "scripts" / "maintainer" / "cluster"
 #: spring x two JAX models x two seeds: 4 jobs, about 10-20 s each on one core.
-SWEEP = ("-m", "system=spring", "model=hnn_jax,mlp_jax", "profile=quick", "seed=0,1",
-         "system.steps=100", "system.eval_t_end=5")
+SWEEP = (
+    "-m",
+    "system=spring",
+    "model=hnn_jax,mlp_jax",
+    "profile=quick",
+    "seed=0,1",
+    "system.steps=100",
+    "system.eval_t_end=5",
+)
 KEYS = {("spring", m, s) for m in ("hnn_jax", "mlp_jax") for s in (0, 1)}
 PARTITION = os.environ.get("HNNBENCH_SLURM_PARTITION", "local")
 #: What a user types for a Slurm cluster (docs/SCALING.md): partition, a time limit,
 #: one core and 2 GB per job, at most two array tasks at once.
-SLURM = ("hydra/launcher=submitit_slurm", f"hydra.launcher.partition={PARTITION}",
-         "hydra.launcher.timeout_min=15", "hydra.launcher.cpus_per_task=1",
-         "hydra.launcher.mem_gb=2", "hydra.launcher.array_parallelism=2")
+SLURM = (
+    "hydra/launcher=submitit_slurm",
+    f"hydra.launcher.partition={PARTITION}",
+    "hydra.launcher.timeout_min=15",
+    "hydra.launcher.cpus_per_task=1",
+    "hydra.launcher.mem_gb=2",
+    "hydra.launcher.array_parallelism=2",
+)
 #: Ray stays on the loopback address (scripts/maintainer/cluster/ray.sh).
 RAY_ENV = {"RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0", "RAY_USAGE_STATS_ENABLED": "0"}
 
 
 def _script(name: str, *args: str, timeout: float = 900) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(["bash", str(CLUSTER / name), *args], capture_output=True, text=True,
-                          timeout=timeout, env={**os.environ, "VENV": str(Path(sys.prefix))})
+    return subprocess.run(
+        ["bash", str(CLUSTER / name), *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env={**os.environ, "VENV": str(Path(sys.prefix))},
+    )
 
 
 def _last_lines(proc: subprocess.CompletedProcess[str], n: int = 5) -> str:
@@ -55,8 +72,10 @@ def _last_lines(proc: subprocess.CompletedProcess[str], n: int = 5) -> str:
 def slurm_cluster() -> Any:
     """A one-node Slurm cluster on localhost; stopped afterwards if this started it."""
     if not hasattr(os, "geteuid") or os.geteuid() != 0:
-        pytest.skip("Slurm cluster: needs root (scripts/maintainer/cluster/slurm.sh installs "
-                    "packages and starts system daemons)")
+        pytest.skip(
+            "Slurm cluster: needs root (scripts/maintainer/cluster/slurm.sh installs "
+            "packages and starts system daemons)"
+        )
     if not shutil.which("sbatch") and not shutil.which("apt-get"):
         pytest.skip("Slurm cluster: slurm is not installed and there is no apt-get to install it")
     was_up = _script("slurm.sh", "status").stdout.count(": running") == 5
@@ -99,14 +118,23 @@ def _port_open(port: int) -> bool:
 class Sweep:
     """The sweep :data:`SWEEP` under one launcher, in its own directory and cache."""
 
-    def __init__(self, root: Path, name: str, launcher: tuple[str, ...] = (),
-                 extra: tuple[str, ...] = (), env: dict[str, str] | None = None) -> None:
+    def __init__(
+        self,
+        root: Path,
+        name: str,
+        launcher: tuple[str, ...] = (),
+        extra: tuple[str, ...] = (),
+        env: dict[str, str] | None = None,
+    ) -> None:
         self.cwd = root / name
         self.dir = self.cwd / "sweep"
         self.cache = self.cwd / "cache"
         self.args = [*SWEEP, *extra, *launcher, f"hydra.sweep.dir={self.dir}"]
-        self.env = {"HNNBENCH_CACHE_DIR": str(self.cache), "HNNBENCH_PROGRESS": "log",
-                    **(env or {})}
+        self.env = {
+            "HNNBENCH_CACHE_DIR": str(self.cache),
+            "HNNBENCH_PROGRESS": "log",
+            **(env or {}),
+        }
 
     def run(self, timeout: float = 900) -> subprocess.CompletedProcess[str]:
         self.cwd.mkdir(parents=True, exist_ok=True)
@@ -115,9 +143,14 @@ class Sweep:
     def popen(self) -> subprocess.Popen[str]:
         self.cwd.mkdir(parents=True, exist_ok=True)
         exe = Path(sys.executable).parent / "hnnbench"
-        return subprocess.Popen([str(exe), *self.args], cwd=self.cwd, text=True,
-                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                env={**os.environ, **self.env})
+        return subprocess.Popen(
+            [str(exe), *self.args],
+            cwd=self.cwd,
+            text=True,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            env={**os.environ, **self.env},
+        )
 
     def records(self) -> dict[tuple[str, str, int], dict[str, Any]]:
         """By (system, model, seed), each with its ``path``; two records for a key fail."""
@@ -139,9 +172,21 @@ def _assert_same_as_basic(basic: Sweep, other: Sweep) -> None:
     a, b = basic.records(), other.records()
     assert set(a) == set(b) == KEYS, (set(a), set(b))
     script = REPO / "scripts" / "maintainer" / "compare_records.py"
-    proc = subprocess.run([sys.executable, str(script), str(basic.dir), str(other.dir),
-                           "--rtol", "0", "--ignore", "command"],
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(script),
+            str(basic.dir),
+            str(other.dir),
+            "--rtol",
+            "0",
+            "--ignore",
+            "command",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
     for key in KEYS:
         ra, rb = a[key], b[key]
@@ -155,8 +200,9 @@ def _assert_same_as_basic(basic: Sweep, other: Sweep) -> None:
         assert rb.get("cpu_pin") is not None, key  # one core per job under every launcher
 
 
-def test_submitit_slurm_sweep_equals_the_basic_sweep(slurm_cluster: str, basic: Sweep,
-                                                     tmp_path: Path) -> None:
+def test_submitit_slurm_sweep_equals_the_basic_sweep(
+    slurm_cluster: str, basic: Sweep, tmp_path: Path
+) -> None:
     """An array job on the real cluster, configured as a user would (partition, time
     limit, one CPU and 2 GB per task, two tasks at once): every task ran under Slurm,
     and the records are the basic launcher's."""
@@ -172,8 +218,12 @@ def test_submitit_slurm_sweep_equals_the_basic_sweep(slurm_cluster: str, basic: 
     logs = sorted((sweep.dir / ".submitit").glob("*_*/*_log.out"))
     assert len(logs) == len(KEYS), logs
     array_id = logs[0].parent.name.split("_")[0]
-    acct = subprocess.run(["sacct", "-n", "-X", "-P", "-o", "JobID,State,Partition,ReqCPUS",
-                           "-j", array_id], capture_output=True, text=True, timeout=60)
+    acct = subprocess.run(
+        ["sacct", "-n", "-X", "-P", "-o", "JobID,State,Partition,ReqCPUS", "-j", array_id],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     rows = [line.split("|") for line in acct.stdout.split()]
     assert len(rows) == len(KEYS), acct.stdout + acct.stderr
     assert {(r[1], r[2], r[3]) for r in rows} == {("COMPLETED", PARTITION, "1")}, rows
@@ -182,13 +232,15 @@ def test_submitit_slurm_sweep_equals_the_basic_sweep(slurm_cluster: str, basic: 
 def _squeue(job_id: str) -> list[tuple[str, str]]:
     """(task id, state) of the array's tasks still queued or running (``all``: any job)."""
     select = [] if job_id == "all" else ["-j", job_id]
-    out = subprocess.run(["squeue", "-h", "-r", *select, "-o", "%i %T"],
-                         capture_output=True, text=True, timeout=30).stdout
+    out = subprocess.run(
+        ["squeue", "-h", "-r", *select, "-o", "%i %T"], capture_output=True, text=True, timeout=30
+    ).stdout
     return [tuple(line.split()) for line in out.splitlines() if line.strip()]  # type: ignore[misc]
 
 
-def test_scancel_mid_run_then_rerun_finishes_every_job_once(slurm_cluster: str,
-                                                             tmp_path: Path) -> None:
+def test_scancel_mid_run_then_rerun_finishes_every_job_once(
+    slurm_cluster: str, tmp_path: Path
+) -> None:
     """One task at a time; once the first record is written, the next task is cancelled
     with ``scancel`` while its job runs. The command reports the sweep unfinished;
     re-running it into the same directory finishes every job: one record each, and the
@@ -233,8 +285,12 @@ def test_scancel_mid_run_then_rerun_finishes_every_job_once(slurm_cluster: str,
     assert f"{len(KEYS)} jobs: {len(KEYS)} ok" not in out, out[-3000:]
     task, key = cancelled
     array_id = task.split("_")[0]
-    acct = subprocess.run(["sacct", "-n", "-X", "-P", "-o", "JobID,State", "-j", task],
-                          capture_output=True, text=True, timeout=60).stdout
+    acct = subprocess.run(
+        ["sacct", "-n", "-X", "-P", "-o", "JobID,State", "-j", task],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    ).stdout
     assert "CANCELLED" in acct, acct
     # Let the rest of the array end (its tasks exit once the command is gone).
     for _ in range(240):
@@ -242,8 +298,11 @@ def test_scancel_mid_run_then_rerun_finishes_every_job_once(slurm_cluster: str,
             break
         time.sleep(0.5)
     assert not _squeue(array_id), _squeue(array_id)
-    before = {key: (rec["path"].read_bytes(), rec["path"].stat().st_mtime_ns)
-              for key, rec in sweep.records().items() if rec["status"] == "ok"}
+    before = {
+        key: (rec["path"].read_bytes(), rec["path"].stat().st_mtime_ns)
+        for key, rec in sweep.records().items()
+        if rec["status"] == "ok"
+    }
     # The other tasks ran to the end (the command waited for them); the cancelled one
     # left no record.
     assert set(before) == KEYS - {key}, (key, before.keys())
@@ -252,8 +311,9 @@ def test_scancel_mid_run_then_rerun_finishes_every_job_once(slurm_cluster: str,
     proc = sweep.run()  # the same command, the same directory
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     # Only the cancelled job ran again; the others were kept.
-    assert f"1 jobs: 1 ok; {len(KEYS) - 1} kept from an earlier run" in proc.stdout, \
-        proc.stdout[-3000:]
+    assert f"1 jobs: 1 ok; {len(KEYS) - 1} kept from an earlier run" in proc.stdout, proc.stdout[
+        -3000:
+    ]
     after = sweep.records()  # fails on two records for one job
     assert set(after) == KEYS
     for key, (data, mtime) in before.items():
@@ -266,8 +326,9 @@ def test_scancel_mid_run_then_rerun_finishes_every_job_once(slurm_cluster: str,
     assert after[cancelled[1]]["status"] == "ok"
 
 
-def test_ray_sweep_on_a_running_head_equals_the_basic_sweep(ray_head: tuple[str, str],
-                                                            basic: Sweep, tmp_path: Path) -> None:
+def test_ray_sweep_on_a_running_head_equals_the_basic_sweep(
+    ray_head: tuple[str, str], basic: Sweep, tmp_path: Path
+) -> None:
     """``hydra/launcher=ray`` connecting to the head started by scripts/maintainer/cluster/ray.sh.
     Ray's workers are started by the head, not by ``hnnbench``, so they see neither the
     command's environment nor its launch context: the cache directory travels in Ray's
@@ -275,12 +336,15 @@ def test_ray_sweep_on_a_running_head_equals_the_basic_sweep(ray_head: tuple[str,
     own jobs are (docs/SCALING.md)."""
     address, site = ray_head
     cache = tmp_path / "ray" / "cache"
-    ray = ("hydra/launcher=ray", f"hydra.launcher.ray.init.address={address}",
-           # hydra-ray-launcher sets object_store_memory unless given; Ray refuses it
-           # when connecting to a running cluster.
-           "+hydra.launcher.ray.init.object_store_memory=null",
-           f"+hydra.launcher.ray.init.runtime_env={{env_vars:{{HNNBENCH_CACHE_DIR:'{cache}'}}}}",
-           "pin_cpu=true")
+    ray = (
+        "hydra/launcher=ray",
+        f"hydra.launcher.ray.init.address={address}",
+        # hydra-ray-launcher sets object_store_memory unless given; Ray refuses it
+        # when connecting to a running cluster.
+        "+hydra.launcher.ray.init.object_store_memory=null",
+        f"+hydra.launcher.ray.init.runtime_env={{env_vars:{{HNNBENCH_CACHE_DIR:'{cache}'}}}}",
+        "pin_cpu=true",
+    )
     path = os.pathsep.join(p for p in (site, os.environ.get("PYTHONPATH", "")) if p)
     sweep = Sweep(tmp_path, "ray", ray, env={**RAY_ENV, "PYTHONPATH": path})
     proc = sweep.run()

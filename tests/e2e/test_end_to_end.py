@@ -23,8 +23,13 @@ def _records(root: Path) -> dict[tuple, dict]:
 
 def test_quick_sweep_spring_pendulum_then_resume(tmp_path):
     sweep = tmp_path / "sweep"
-    args = ["-m", "system=spring,pendulum", "model=mlp_torch,hnn_torch,oracle", "profile=quick",
-            f"hydra.sweep.dir={sweep}"]
+    args = [
+        "-m",
+        "system=spring,pendulum",
+        "model=mlp_torch,hnn_torch,oracle",
+        "profile=quick",
+        f"hydra.sweep.dir={sweep}",
+    ]
     proc = hnnbench(*args, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     recs = _records(sweep)

@@ -26,8 +26,14 @@ def _start(args: list[str], cwd: Path, log: Path) -> subprocess.Popen:
     env = {**os.environ, "HNNBENCH_PROGRESS": "log", "PYTHONUNBUFFERED": "1"}
     with open(log, "wb") as fh:
         # A session of its own: the kill below reaches the whole process group.
-        return subprocess.Popen([str(exe), *args], cwd=cwd, stdout=fh, stderr=subprocess.STDOUT,
-                                env=env, start_new_session=True)
+        return subprocess.Popen(
+            [str(exe), *args],
+            cwd=cwd,
+            stdout=fh,
+            stderr=subprocess.STDOUT,
+            env=env,
+            start_new_session=True,
+        )
 
 
 def _finished(sweep: Path) -> dict[Path, bytes]:
@@ -38,8 +44,9 @@ def _wait_mid_training(proc: subprocess.Popen, sweep: Path, log: Path, timeout: 
     """Until at least one record exists and a later job has logged training progress."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
-        assert proc.poll() is None, "the sweep ended before it could be interrupted:\n" + \
-            log.read_text()[-3000:]
+        assert proc.poll() is None, (
+            "the sweep ended before it could be interrupted:\n" + log.read_text()[-3000:]
+        )
         done = len(_finished(sweep))
         text = log.read_text(errors="replace")
         if done and f"[{done + 1}/{len(SEEDS)}]" in text:
@@ -53,9 +60,17 @@ def _wait_mid_training(proc: subprocess.Popen, sweep: Path, log: Path, timeout: 
 def test_sigkill_mid_sweep_then_resume(tmp_path):
     sweep = tmp_path / "sweep"
     # Each job trains long enough (a few seconds) to be caught in the middle.
-    args = ["-m", "system=spring", "model=mlp_torch", "profile=quick",
-            f"seed={','.join(map(str, SEEDS))}", "system.steps=3000", "model.log_every=50",
-            "device=cpu", f"hydra.sweep.dir={sweep}"]
+    args = [
+        "-m",
+        "system=spring",
+        "model=mlp_torch",
+        "profile=quick",
+        f"seed={','.join(map(str, SEEDS))}",
+        "system.steps=3000",
+        "model.log_every=50",
+        "device=cpu",
+        f"hydra.sweep.dir={sweep}",
+    ]
     log = tmp_path / "first.log"
     proc = _start(args, tmp_path, log)
     try:
@@ -99,8 +114,9 @@ def test_sigkill_mid_sweep_then_resume(tmp_path):
         assert final[path]["created_at"] == json.loads(raw)["created_at"]
     assert not [p for p in sweep.rglob("*") if ".tmp" in p.name]
     redone = len(SEEDS) - len(survived)
-    assert f"this run: {redone} jobs: {redone} ok; {len(survived)} kept from an earlier run" \
-        in text, text[-3000:]
+    assert (
+        f"this run: {redone} jobs: {redone} ok; {len(survived)} kept from an earlier run" in text
+    ), text[-3000:]
 
 
 def _workers_of(pid: int) -> list[int]:
@@ -130,9 +146,19 @@ def test_workers_stop_when_the_command_is_killed_alone(tmp_path):
     workers notice within seconds and exit instead of training on as orphans; the
     interrupted jobs leave no record."""
     sweep = tmp_path / "sweep"
-    args = ["-m", "system=spring", "model=mlp_torch", "profile=quick", "seed=0,1",
-            "system.steps=200000", "model.log_every=50", "device=cpu",
-            "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", f"hydra.sweep.dir={sweep}"]
+    args = [
+        "-m",
+        "system=spring",
+        "model=mlp_torch",
+        "profile=quick",
+        "seed=0,1",
+        "system.steps=200000",
+        "model.log_every=50",
+        "device=cpu",
+        "hydra/launcher=joblib",
+        "hydra.launcher.n_jobs=2",
+        f"hydra.sweep.dir={sweep}",
+    ]
     log = tmp_path / "first.log"
     proc = _start(args, tmp_path, log)
     try:
@@ -141,8 +167,12 @@ def test_workers_stop_when_the_command_is_killed_alone(tmp_path):
             assert time.monotonic() < deadline and proc.poll() is None, log.read_text()[-3000:]
             time.sleep(0.2)
         time.sleep(5)  # into training (its progress log comes only every 50000 steps)
-        workers = [w for w in _workers_of(proc.pid) if "popen_loky" in  # not its tracker
-                   Path(f"/proc/{w}/cmdline").read_bytes().decode(errors="replace")]
+        workers = [
+            w
+            for w in _workers_of(proc.pid)
+            if "popen_loky"  # not its tracker
+            in Path(f"/proc/{w}/cmdline").read_bytes().decode(errors="replace")
+        ]
         assert workers, "no joblib worker found"
         os.kill(proc.pid, signal.SIGKILL)  # the command alone
         proc.wait(timeout=60)

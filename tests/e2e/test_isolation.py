@@ -39,8 +39,10 @@ def bad_env(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
 
 
 def _records(directory: Path) -> dict[str, dict]:
-    return {f"{r['model']}/{r['seed']}": r for r in
-            (json.loads(p.read_text()) for p in directory.rglob("result.json"))}
+    return {
+        f"{r['model']}/{r['seed']}": r
+        for r in (json.loads(p.read_text()) for p in directory.rglob("result.json"))
+    }
 
 
 def _last_line(text: str) -> str:
@@ -82,15 +84,20 @@ def test_list_json_survives_every_broken_plugin(bad_env):
     for name, reason in expected.items():
         assert found[name]["status"] == "error", found[name]
         assert reason in found[name]["error"], found[name]["error"]
-    for name in ("noisy_spring", "exits_in_fit", "hangs_in_fit", "raising_metric",
-                 "spring", "oracle"):
+    for name in (
+        "noisy_spring",
+        "exits_in_fit",
+        "hangs_in_fit",
+        "raising_metric",
+        "spring",
+        "oracle",
+    ):
         assert found[name]["status"] == "ok", found[name]
     assert "hello from a noisy plugin" in proc.stderr and "noisy_spring" in proc.stderr
 
 
 def test_a_broken_plugin_named_on_the_command_line_is_one_line(bad_env, tmp_path):
-    proc = hnnbench("system=spring", "model=config_raises", *QUICK, cwd=tmp_path,
-                    env=bad_env)
+    proc = hnnbench("system=spring", "model=config_raises", *QUICK, cwd=tmp_path, env=bad_env)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     line = _last_line(proc.stderr)  # (the line before: the noisy plugin's output)
     assert line.startswith("hnnbench: error: ") and "config_raises" in line
@@ -116,17 +123,18 @@ def test_registration_refuses_each_broken_plugin_with_the_reason(registered):
     class BadConfig(Oracle):
         Config = ExitConfig
 
-    for cls, reason in ((RequirementsRaise, "requirements_missing() raised: SystemExit: 5"),
-                        (BadOrder, "order must be a number"),
-                        (BadConfig, "config cannot be built: SystemExit: no")):
+    for cls, reason in (
+        (RequirementsRaise, "requirements_missing() raised: SystemExit: 5"),
+        (BadOrder, "order must be a number"),
+        (BadConfig, "config cannot be built: SystemExit: no"),
+    ):
         with pytest.raises(ConfigError, match=reason.replace("(", r"\(").replace(")", r"\)")):
             registered("model", f"bad_{cls.__name__.lower()}", cls)
     # ordering never breaks on a plugin's order
     assert _registry.ordered("model", ["oracle", "hnn_torch", "nope"])[-1] == "nope"
 
 
-def test_a_config_raising_at_job_start_fails_in_one_line_naming_the_plugin(registered,
-                                                                          tmp_path):
+def test_a_config_raising_at_job_start_fails_in_one_line_naming_the_plugin(registered, tmp_path):
     """A __post_init__ or validate() that raises (sys.exit too) only for some values:
     the command line is refused in one line that names the plugin; run_job records
     the job failed."""
@@ -144,8 +152,15 @@ def test_a_config_raising_at_job_start_fails_in_one_line_naming_the_plugin(regis
         Config = PickyConfig
 
     registered("model", "picky_model", Picky)
-    status = command.run(["system=spring", "model=picky_model", "model.hidden=7", *QUICK,
-                       f"hydra.run.dir={tmp_path / 'run'}"])
+    status = command.run(
+        [
+            "system=spring",
+            "model=picky_model",
+            "model.hidden=7",
+            *QUICK,
+            f"hydra.run.dir={tmp_path / 'run'}",
+        ]
+    )
     assert status == 2
     cfg = compose(["system=spring", "model=picky_model", "model.hidden=7", *QUICK])
     record = job.run_job(cfg, tmp_path / "job")[0].record
@@ -162,22 +177,31 @@ def test_a_sweep_survives_exit_hang_and_a_raising_metric(bad_env, tmp_path):
     third-party metric that raises is recorded in metric_errors (the job is ok); the
     other jobs go on, and the sweep exits 1 saying so in its last line."""
     sweep = tmp_path / "sweep"
-    proc = hnnbench("-m", "system=noisy_spring", "model=oracle,exits_in_fit,hangs_in_fit",
-                    *QUICK, "timeout_s=5", f"hydra.sweep.dir={sweep}", cwd=tmp_path,
-                    env=bad_env, timeout=300)
+    proc = hnnbench(
+        "-m",
+        "system=noisy_spring",
+        "model=oracle,exits_in_fit,hangs_in_fit",
+        *QUICK,
+        "timeout_s=5",
+        f"hydra.sweep.dir={sweep}",
+        cwd=tmp_path,
+        env=bad_env,
+        timeout=300,
+    )
     assert proc.returncode == 1, proc.stderr[-3000:]
     recs = _records(sweep)
     assert recs["oracle/0"]["status"] == "ok"
     assert recs["oracle/0"]["metric_errors"]["raising_metric"] == (
-        "RuntimeError: this metric is broken")
+        "RuntimeError: this metric is broken"
+    )
     assert recs["exits_in_fit/0"]["status"] == "failed"
     assert recs["exits_in_fit/0"]["error"] == "SystemExit: 3"
     hung = recs["hangs_in_fit/0"]
     assert hung["status"] == "timeout" and "time limit of 5 s" in hung["error"]
     assert 4 < hung["timings"]["total_s"] < 60
     assert _last_line(proc.stderr) == (
-        "hnnbench: 1 failed and 1 timed out of 3 job(s) (see the log and each record's "
-        "error)")
+        "hnnbench: 1 failed and 1 timed out of 3 job(s) (see the log and each record's error)"
+    )
     assert "this run: 3 jobs: 1 failed, 1 ok, 1 timeout" in proc.stdout
     board = (sweep / "leaderboard.csv").read_text().splitlines()
     assert "n_timeout" in board[0].split(",")
@@ -191,8 +215,16 @@ def test_a_sweep_whose_every_job_failed_exits_nonzero(registered, tmp_path, caps
             sys.exit(4)
 
     registered("model", "exits_inproc", Exits)
-    status = command.run(["-m", "system=spring", "model=exits_inproc", "seed=0,1", *QUICK,
-                       f"hydra.sweep.dir={tmp_path / 'sweep'}"])
+    status = command.run(
+        [
+            "-m",
+            "system=spring",
+            "model=exits_inproc",
+            "seed=0,1",
+            *QUICK,
+            f"hydra.sweep.dir={tmp_path / 'sweep'}",
+        ]
+    )
     err = capsys.readouterr().err
     assert status == 1
     assert _last_line(err).startswith("hnnbench: 2 failed of 2 job(s)")
@@ -201,8 +233,7 @@ def test_a_sweep_whose_every_job_failed_exits_nonzero(registered, tmp_path, caps
 
 def test_resumed_sweep_reports_kept_and_other_settings_fail(tmp_path, capsys):
     sweep = tmp_path / "sweep"
-    args = ["-m", "system=spring", "model=oracle", "seed=0", *QUICK,
-            f"hydra.sweep.dir={sweep}"]
+    args = ["-m", "system=spring", "model=oracle", "seed=0", *QUICK, f"hydra.sweep.dir={sweep}"]
     assert command.run(args) == 0
     assert _last_line(capsys.readouterr().err) == "hnnbench: 1 job(s): 1 ok"
     assert command.run([*args[:-2], "seed=0,1", *args[-2:]]) == 0
@@ -225,8 +256,9 @@ def test_timeout_in_data_generation_inprocess(tmp_path):
     """The basic launcher runs the job in this process: the limit holds there too,
     here in data generation (t_end=1e300 would integrate forever)."""
     start = time.monotonic()
-    record = hb.run("spring", "oracle", profile="quick", out=tmp_path / "run",
-                    system__t_end=1e300, timeout_s=2)
+    record = hb.run(
+        "spring", "oracle", profile="quick", out=tmp_path / "run", system__t_end=1e300, timeout_s=2
+    )
     assert time.monotonic() - start < 60
     assert record["status"] == "timeout", record.get("error")
     assert "timeout_s" in record["error"]
@@ -267,14 +299,18 @@ def test_a_metric_that_raises(registered, tmp_path, monkeypatch):
     def boom(ctx):
         raise SystemExit("metric exits")
 
-    registered("metric", "boom_metric", hb.Metric(name="boom_metric", description="x",
-                                                  compute=boom))
+    registered(
+        "metric", "boom_metric", hb.Metric(name="boom_metric", description="x", compute=boom)
+    )
     cfg = compose(["system=spring", "model=oracle", *QUICK])
     record = job.run_job(cfg, tmp_path / "a")[0].record
     assert record["status"] == "ok"
     assert record["metric_errors"] == {"boom_metric": "SystemExit: metric exits"}
-    registered("metric", "boom_fatal", hb.Metric(name="boom_fatal", description="x",
-                                                 compute=boom, errors_fail_job=True))
+    registered(
+        "metric",
+        "boom_fatal",
+        hb.Metric(name="boom_fatal", description="x", compute=boom, errors_fail_job=True),
+    )
     record = job.run_job(cfg, tmp_path / "b")[0].record
     assert record["status"] == "failed" and record["error"] == "SystemExit: metric exits"
 
@@ -285,30 +321,56 @@ def test_a_metric_that_raises(registered, tmp_path, monkeypatch):
 def test_a_second_sweep_into_a_busy_directory_fails_naming_the_holder(bad_env, tmp_path):
     sweep = tmp_path / "sweep"
     first = subprocess.Popen(
-        [str(Path(sys.executable).parent / "hnnbench"), "-m", "system=spring",
-         "model=hangs_in_fit", *QUICK, "timeout_s=120", f"hydra.sweep.dir={sweep}"],
-        cwd=tmp_path, env={**os.environ, **bad_env}, stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL, start_new_session=True)
+        [
+            str(Path(sys.executable).parent / "hnnbench"),
+            "-m",
+            "system=spring",
+            "model=hangs_in_fit",
+            *QUICK,
+            "timeout_s=120",
+            f"hydra.sweep.dir={sweep}",
+        ],
+        cwd=tmp_path,
+        env={**os.environ, **bad_env},
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
     try:
         lock = sweep / LOCK_NAME
         deadline = time.monotonic() + 120
         while not (lock.is_file() and lock.read_text().strip()):
             assert first.poll() is None and time.monotonic() < deadline
             time.sleep(0.2)
-        proc = hnnbench("-m", "system=spring", "model=oracle", *QUICK,
-                        f"hydra.sweep.dir={sweep}", cwd=tmp_path, env=bad_env)
+        proc = hnnbench(
+            "-m",
+            "system=spring",
+            "model=oracle",
+            *QUICK,
+            f"hydra.sweep.dir={sweep}",
+            cwd=tmp_path,
+            env=bad_env,
+        )
         assert proc.returncode == 2 and "Traceback" not in proc.stderr
         line = _last_line(proc.stderr)  # one line (after the noisy plugin's, the count)
-        assert line.startswith(f"hnnbench: error: {sweep} is in use by another sweep (pid "
-                               f"{first.pid} on ")
+        assert line.startswith(
+            f"hnnbench: error: {sweep} is in use by another sweep (pid {first.pid} on "
+        )
         assert "model=hangs_in_fit" in line
         assert not list(sweep.rglob("oracle"))
     finally:
         os.killpg(first.pid, signal.SIGKILL)
         first.wait()
     # the holder is gone (killed, its lock file left behind): the lock is free
-    proc = hnnbench("-m", "system=spring", "model=oracle", *QUICK,
-                    f"hydra.sweep.dir={sweep}", cwd=tmp_path, env=bad_env)
+    proc = hnnbench(
+        "-m",
+        "system=spring",
+        "model=oracle",
+        *QUICK,
+        f"hydra.sweep.dir={sweep}",
+        cwd=tmp_path,
+        env=bad_env,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
 
 
@@ -316,8 +378,10 @@ def test_the_lock_is_held_for_the_sweep_and_released(tmp_path):
     with sweep_lock(tmp_path, "hnnbench -m x"):
         holder = json.loads((tmp_path / LOCK_NAME).read_text())
         assert holder["pid"] == os.getpid() and holder["command"] == "hnnbench -m x"
-        with pytest.raises(HnnbenchError, match=f"pid {os.getpid()} on .*: hnnbench -m x"), \
-                sweep_lock(tmp_path):
+        with (
+            pytest.raises(HnnbenchError, match=f"pid {os.getpid()} on .*: hnnbench -m x"),
+            sweep_lock(tmp_path),
+        ):
             pass
     with sweep_lock(tmp_path):
         pass
@@ -344,8 +408,18 @@ def test_experimental_rerun_is_refused_and_never_unpickled(tmp_path, capsys):
     assert not marker.exists()
 
 
-PATHS = ["ü ñ 日本", "it's \"q\"", "a#b", "~home", "br[a]c{e}", "k=v", "x,y",
-         "back\\slash", "end\\", "$HOME %(x)s"]
+PATHS = [
+    "ü ñ 日本",
+    'it\'s "q"',
+    "a#b",
+    "~home",
+    "br[a]c{e}",
+    "k=v",
+    "x,y",
+    "back\\slash",
+    "end\\",
+    "$HOME %(x)s",
+]
 
 
 @pytest.mark.parametrize("name", PATHS)
@@ -369,14 +443,17 @@ def test_out_path_with_an_interpolation_is_one_line(tmp_path):
         hb.run("spring", "oracle", out=tmp_path / "${x}")
 
 
-@pytest.mark.parametrize("value, error, needle", [
-    ("results/x", TypeError, "not a path"),
-    (Path("results/x"), TypeError, "hnnbench.load("),
-    (3, TypeError, "not int"),
-    ([1], TypeError, "item 0 is int"),
-    ({"system": "spring"}, TypeError, "not one record"),
-    ([{"a": 1}], HnnbenchError, "item 0 is not a record"),
-])
+@pytest.mark.parametrize(
+    "value, error, needle",
+    [
+        ("results/x", TypeError, "not a path"),
+        (Path("results/x"), TypeError, "hnnbench.load("),
+        (3, TypeError, "not int"),
+        ([1], TypeError, "item 0 is int"),
+        ({"system": "spring"}, TypeError, "not one record"),
+        ([{"a": 1}], HnnbenchError, "item 0 is not a record"),
+    ],
+)
 def test_leaderboard_says_what_it_expects(value, error, needle):
     with pytest.raises(error, match=needle.replace("(", r"\(")) as info:
         hb.leaderboard(value)

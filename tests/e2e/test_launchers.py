@@ -25,8 +25,15 @@ pytestmark = pytest.mark.slow
 #: The quick sweep, trimmed (two systems, two trained models, fewer steps, a shorter
 #: evaluation horizon) so that three launchers and two resumes stay within a minute or
 #: two on two cores: each job costs a process start under submitit.
-SWEEP = ("-m", "system=spring,pendulum", "model=mlp_torch,hnn_torch,hnn_jax", "profile=quick",
-         "seed=0", "system.steps=100", "system.eval_t_end=5")
+SWEEP = (
+    "-m",
+    "system=spring,pendulum",
+    "model=mlp_torch,hnn_torch,hnn_jax",
+    "profile=quick",
+    "seed=0",
+    "system.steps=100",
+    "system.eval_t_end=5",
+)
 #: hnn_jax is in because XLA's results depend on its thread count: every launcher's jobs
 #: pin their process to one core (hnnbench._running.affinity), so XLA runs one thread everywhere.
 KEYS = {(s, m, 0) for s in ("spring", "pendulum") for m in ("mlp_torch", "hnn_torch", "hnn_jax")}
@@ -45,8 +52,14 @@ LAUNCHERS: dict[str, tuple[str, ...]] = {
 
 #: One pixel pair at quick sizes (issue 21: its training is the most sensitive to how a
 #: job is launched, through XLA's thread count and the chunked JAX training loop).
-PIXEL_SWEEP = ("-m", "system=pixel_pendulum", "model=hnn_jax", "profile=quick", "seed=0",
-               "system.steps=100")
+PIXEL_SWEEP = (
+    "-m",
+    "system=pixel_pendulum",
+    "model=hnn_jax",
+    "profile=quick",
+    "seed=0",
+    "system.steps=100",
+)
 PIXEL_KEY = ("pixel_pendulum", "hnn_jax", 0)
 
 
@@ -63,8 +76,12 @@ class Sweep:
     def run(self) -> subprocess.CompletedProcess[str]:
         """Run the sweep with its own dataset cache (set through the environment)."""
         self.cwd.mkdir(parents=True, exist_ok=True)
-        return hnnbench(*self.args, cwd=self.cwd, timeout=900,
-                        env={"HNNBENCH_CACHE_DIR": str(self.cache), "HNNBENCH_PROGRESS": "log"})
+        return hnnbench(
+            *self.args,
+            cwd=self.cwd,
+            timeout=900,
+            env={"HNNBENCH_CACHE_DIR": str(self.cache), "HNNBENCH_PROGRESS": "log"},
+        )
 
     def records(self) -> dict[tuple[str, str, int], dict[str, Any]]:
         """The records by (system, model, seed), each with its ``path``."""
@@ -193,8 +210,9 @@ def test_resume_skips_finished_jobs(sweeps: Sweeps, launcher: str) -> None:
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-3000:]
     after = {key: rec["path"].read_bytes() for key, rec in sweep.records().items()}
     assert after == before  # not one record rewritten
-    assert f"this run: 0 jobs: none run; {N} kept from an earlier run" in proc.stdout, \
-        proc.stdout[-2000:]
+    assert f"this run: 0 jobs: none run; {N} kept from an earlier run" in proc.stdout, proc.stdout[
+        -2000:
+    ]
     assert (sweep.dir / "summary.csv").exists()
     for key, rec in sweep.records().items():
         assert "already finished (ok)" in (rec["path"].parent / "hnnbench.log").read_text(), key
@@ -203,19 +221,33 @@ def test_resume_skips_finished_jobs(sweeps: Sweeps, launcher: str) -> None:
 def test_sweep_benchmark_summarises_existing_sweeps(sweeps: Sweeps) -> None:
     """``benchmarks/sweep.py --from`` reads the launchers' sweep dirs into Markdown tables."""
     dirs = [str(sweeps[name][0].dir) for name in LAUNCHERS]
-    proc = subprocess.run([sys.executable, str(REPO / "benchmarks" / "sweep.py"), "--from", *dirs],
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "sweep.py"), "--from", *dirs],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     lines = proc.stdout.splitlines()
     sweep_rows = [line for line in lines if line.startswith(tuple(f"| {d} " for d in dirs))]
     assert len(sweep_rows) == len(LAUNCHERS), proc.stdout
-    for row, launcher in zip(sweep_rows, ("BasicLauncher", "JoblibLauncher (n_jobs=2)",
-                                          "LocalLauncher"), strict=True):
+    for row, launcher in zip(
+        sweep_rows, ("BasicLauncher", "JoblibLauncher (n_jobs=2)", "LocalLauncher"), strict=True
+    ):
         assert launcher in row and f"| {N} ok " in row, row
     headers = [line.split("|") for line in lines if line.startswith("| system ")]
     assert len(headers) == len(LAUNCHERS), proc.stdout
     assert [h.strip() for h in headers[0][1:-1]] == [
-        "system", "model", "seed", "status", "total_s", "data_s", "compile_s", "fit_s", "eval_s"]
+        "system",
+        "model",
+        "seed",
+        "status",
+        "total_s",
+        "data_s",
+        "compile_s",
+        "fit_s",
+        "eval_s",
+    ]
     job_rows = [line for line in lines if line.startswith(("| spring ", "| pendulum "))]
     assert len(job_rows) == len(LAUNCHERS) * N and all("| ok " in r for r in job_rows), job_rows
 
@@ -230,12 +262,26 @@ def test_a_users_own_launcher_file_on_the_searchpath_is_accepted(tmp_path: Path)
         "_target_: hydra._internal.core_plugins.basic_launcher.BasicLauncher\n"
     )
     searchpath = f"hydra.searchpath=[file://{tmp_path / 'myconf'}]"
-    typo = hnnbench("-m", "system=spring", "model=oracle", "profile=quick",
-                    "hydra/launcher=my_locl", searchpath, cwd=tmp_path)
+    typo = hnnbench(
+        "-m",
+        "system=spring",
+        "model=oracle",
+        "profile=quick",
+        "hydra/launcher=my_locl",
+        searchpath,
+        cwd=tmp_path,
+    )
     assert typo.returncode == 2 and "Did you mean 'my_local'" in typo.stderr, typo.stderr
-    proc = hnnbench("-m", "system=spring", "model=oracle", "profile=quick",
-                    "hydra/launcher=my_local", searchpath,
-                    f"hydra.sweep.dir={tmp_path / 'sweep'}", cwd=tmp_path)
+    proc = hnnbench(
+        "-m",
+        "system=spring",
+        "model=oracle",
+        "profile=quick",
+        "hydra/launcher=my_local",
+        searchpath,
+        f"hydra.sweep.dir={tmp_path / 'sweep'}",
+        cwd=tmp_path,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "1 jobs: 1 ok" in proc.stdout, proc.stdout[-2000:]
 
@@ -284,11 +330,19 @@ def test_a_joblib_worker_is_not_replaced_for_the_memory_a_few_jobs_keep(limit_mb
     assert (after != grown) is replaced
 
 
-@pytest.mark.parametrize(("text", "limit"), [("", 2_000_000_000), ("300", 300_000_000),
-                                             ("0", 2_000_000_000), ("²", 2_000_000_000),
-                                             ("lots", 2_000_000_000)])
+@pytest.mark.parametrize(
+    ("text", "limit"),
+    [
+        ("", 2_000_000_000),
+        ("300", 300_000_000),
+        ("0", 2_000_000_000),
+        ("²", 2_000_000_000),
+        ("lots", 2_000_000_000),
+    ],
+)
 def test_the_worker_growth_setting_is_read_in_megabytes_and_a_bad_one_is_one_line(
-        monkeypatch, caplog, text, limit):
+    monkeypatch, caplog, text, limit
+):
     from hnnbench._sweeping import loky
 
     monkeypatch.setenv(loky.WORKER_GROWTH_ENV, text)

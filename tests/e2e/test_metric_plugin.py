@@ -27,12 +27,22 @@ def test_the_metric_is_listed(metric_env):
 @pytest.mark.slow
 def test_the_metric_reaches_records_leaderboard_and_check(metric_env, tmp_path):
     sweep = tmp_path / "sweep"
-    proc = hnnbench("-m", "system=spring", "model=mlp_jax,oracle", "profile=quick",
-                    "system.steps=50", "system.eval_n_traj=3", f"hydra.sweep.dir={sweep}",
-                    cwd=tmp_path, env=metric_env)
+    proc = hnnbench(
+        "-m",
+        "system=spring",
+        "model=mlp_jax,oracle",
+        "profile=quick",
+        "system.steps=50",
+        "system.eval_n_traj=3",
+        f"hydra.sweep.dir={sweep}",
+        cwd=tmp_path,
+        env=metric_env,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
-    recs = {json.loads(p.read_text())["model"]: json.loads(p.read_text())
-            for p in sweep.rglob("result.json")}
+    recs = {
+        json.loads(p.read_text())["model"]: json.loads(p.read_text())
+        for p in sweep.rglob("result.json")
+    }
     mlp = recs["mlp_jax"]["metrics"]["final_state_error"]["mean"]
     oracle = recs["oracle"]["metrics"]["final_state_error"]["mean"]
     # computed for every model, by the core (quick rollouts: tolerances 1e-6)
@@ -40,10 +50,15 @@ def test_the_metric_reaches_records_leaderboard_and_check(metric_env, tmp_path):
     board = (sweep / "leaderboard.csv").read_text()
     assert "final_state_error_mean" in board.splitlines()[0]
     reference = tmp_path / "ref.csv"
-    assert hnnbench("check", str(sweep), "--reference", str(reference), "--update",
-                    env=metric_env).returncode == 0
-    assert hnnbench("check", str(sweep), "--reference", str(reference),
-                    env=metric_env).returncode == 0
+    assert (
+        hnnbench(
+            "check", str(sweep), "--reference", str(reference), "--update", env=metric_env
+        ).returncode
+        == 0
+    )
+    assert (
+        hnnbench("check", str(sweep), "--reference", str(reference), env=metric_env).returncode == 0
+    )
     # worse on the plugin's metric only: the gate names it (its declared rule: 10x)
     (path,) = (sweep / "spring" / "mlp_jax").rglob("result.json")
     rec = json.loads(path.read_text())

@@ -55,8 +55,11 @@ def test_two_sweeps_merge_and_a_record_missing_a_field_is_rejected_in_one_line(t
     warnings = [ln for ln in proc.stdout.splitlines() if ln.startswith("warning:")]
     assert len(warnings) == 1 and str(victim) in warnings[0]
     assert "'seed' is a required property" in warnings[0]
-    assert_one_line_error(hnnbench("report", str(a), str(b), "--out", str(out), "--strict"),
-                          "invalid record", "'seed' is a required property")
+    assert_one_line_error(
+        hnnbench("report", str(a), str(b), "--out", str(out), "--strict"),
+        "invalid record",
+        "'seed' is a required property",
+    )
     reference = tmp_path / "ref.csv"
     assert hnnbench("check", str(a), "--reference", str(reference), "--update").returncode == 0
     proc = hnnbench("check", str(a), str(b), "--reference", str(reference), "--allow-missing")

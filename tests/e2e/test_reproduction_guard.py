@@ -28,8 +28,15 @@ pytestmark = pytest.mark.slow
 
 REFERENCE = REPO / "results" / "reference" / "guard.csv"
 #: The guard sweep (paper profile): one command line, shared by the test and --update.
-SWEEP = ["-m", "system=pixel_pendulum,two_body", "model=hnn_jax,mlp_jax", "seed=0",
-         "system.steps=2000", "hydra/launcher=joblib", "hydra.launcher.n_jobs=2"]
+SWEEP = [
+    "-m",
+    "system=pixel_pendulum,two_body",
+    "model=hnn_jax,mlp_jax",
+    "seed=0",
+    "system.steps=2000",
+    "hydra/launcher=joblib",
+    "hydra.launcher.n_jobs=2",
+]
 RTOL = "1e-3"
 
 
@@ -44,10 +51,11 @@ def test_sensitive_pairs_reproduce_the_committed_guard_reference(tmp_path):
     _sweep(sweep, tmp_path)
     check = hnnbench("check", str(sweep), "--reference", str(REFERENCE), "--same", RTOL)
     assert check.returncode == 0, (
-        check.stdout[-4000:] + check.stderr[-2000:]
+        check.stdout[-4000:]
+        + check.stderr[-2000:]
         + "\nThe guard pairs' metrics changed. If the change is intended, regenerate "
-          "the reference with `make guard-reference` and regenerate every affected row "
-          "of the committed leaderboard (results/README.md)."
+        "the reference with `make guard-reference` and regenerate every affected row "
+        "of the committed leaderboard (results/README.md)."
     )
 
 
@@ -58,7 +66,8 @@ if __name__ == "__main__":  # make guard-reference
         raise SystemExit("usage: python tests/e2e/test_reproduction_guard.py --update")
     with tempfile.TemporaryDirectory() as tmp:
         _sweep(Path(tmp) / "guard", Path(tmp))
-        proc = hnnbench("check", str(Path(tmp) / "guard"), "--reference", str(REFERENCE),
-                        "--update")
+        proc = hnnbench(
+            "check", str(Path(tmp) / "guard"), "--reference", str(REFERENCE), "--update"
+        )
         print(proc.stdout + proc.stderr, end="")
         raise SystemExit(proc.returncode)

@@ -18,8 +18,9 @@ def test_the_tutorial_runs(tmp_path, monkeypatch):
     monkeypatch.setenv("HNNBENCH_TUTORIAL_OUT", str(tmp_path / "tutorial"))
     monkeypatch.setenv("MPLBACKEND", "Agg")
     nb = jupytext.read(SOURCE)
-    client = nbclient.NotebookClient(nb, timeout=600, kernel_name="python3",
-                                     resources={"metadata": {"path": str(tmp_path)}})
+    client = nbclient.NotebookClient(
+        nb, timeout=600, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}
+    )
     start = time.perf_counter()
     client.execute()
     seconds = time.perf_counter() - start
@@ -28,6 +29,7 @@ def test_the_tutorial_runs(tmp_path, monkeypatch):
     assert not errors, errors
     last = nb.cells[-2].outputs[-1]["data"]["text/plain"]  # the final leaderboard
     assert "linear" in last and "hnn_jax" in last
-    assert (tmp_path / "tutorial" / "sweep" / "spring" / "linear" / "seed1" /
-            "result.json").exists()
+    assert (
+        tmp_path / "tutorial" / "sweep" / "spring" / "linear" / "seed1" / "result.json"
+    ).exists()
     assert os.environ["HNNBENCH_TUTORIAL_OUT"] == str(tmp_path / "tutorial")

@@ -17,26 +17,60 @@ def test_wheel_install_finds_config_from_any_directory(tmp_path):
     dist, site, elsewhere = tmp_path / "dist", tmp_path / "site", tmp_path / "elsewhere"
     elsewhere.mkdir()
     subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "--no-build-isolation",
-         "--no-index", "-w", str(dist), str(REPO)], check=True, capture_output=True, text=True,
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "--quiet",
+            "--no-deps",
+            "--no-build-isolation",
+            "--no-index",
+            "-w",
+            str(dist),
+            str(REPO),
+        ],
+        check=True,
+        capture_output=True,
+        text=True,
     )
     (wheel,) = dist.glob("hnnbench-*.whl")
-    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--target",
-                    str(site), str(wheel)], check=True, capture_output=True, text=True)
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--no-deps",
+            "--target",
+            str(site),
+            str(wheel),
+        ],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     assert (site / "hnnbench_conf" / "config.yaml").exists()
     assert (site / "hnnbench_plugins" / "systems" / "spring.py").exists()
     env = {**os.environ, "PYTHONPATH": str(site)}
-    code = ("import sys, hnnbench; print(hnnbench.__file__); "
-            "from hnnbench._entry.command import run; "
-            "sys.exit(run(['--cfg', 'job', 'system=pendulum', 'model=oracle']))")
-    proc = subprocess.run([sys.executable, "-c", code], cwd=elsewhere, env=env,
-                          capture_output=True, text=True)
+    code = (
+        "import sys, hnnbench; print(hnnbench.__file__); "
+        "from hnnbench._entry.command import run; "
+        "sys.exit(run(['--cfg', 'job', 'system=pendulum', 'model=oracle']))"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=elsewhere, env=env, capture_output=True, text=True
+    )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.splitlines()[0].startswith(str(site))
     assert "name: pendulum" in proc.stdout and "radius_min: 1.3" in proc.stdout
-    code = ("import sys; from hnnbench._entry.command import run; sys.exit(run(["
-            "'system=spring', 'model=oracle', 'profile=quick', 'hydra.run.dir=out']))")
-    proc = subprocess.run([sys.executable, "-c", code], cwd=elsewhere, env=env,
-                          capture_output=True, text=True)
+    code = (
+        "import sys; from hnnbench._entry.command import run; sys.exit(run(["
+        "'system=spring', 'model=oracle', 'profile=quick', 'hydra.run.dir=out']))"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=elsewhere, env=env, capture_output=True, text=True
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert (elsewhere / "out" / "result.json").exists()

@@ -39,8 +39,12 @@ CHILD = textwrap.dedent(
 
 
 def _claimant(lock_dir):
-    proc = subprocess.Popen([sys.executable, "-c", CHILD, str(lock_dir)], text=True,
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", CHILD, str(lock_dir)],
+        text=True,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+    )
     ready, _, _ = select.select([proc.stdout], [], [], 60)
     if not ready:
         proc.kill()

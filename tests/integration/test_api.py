@@ -23,7 +23,8 @@ def _metrics(record: dict) -> dict[str, float]:
 
 def _same(a: dict[str, float], b: dict[str, float]) -> bool:
     return a.keys() == b.keys() and all(
-        (math.isnan(a[k]) and math.isnan(b[k])) or a[k] == b[k] for k in a)
+        (math.isnan(a[k]) and math.isnan(b[k])) or a[k] == b[k] for k in a
+    )
 
 
 @pytest.mark.slow
@@ -34,19 +35,33 @@ def test_run_writes_the_record_the_cli_writes(tmp_path):
     import subprocess
     import sys
 
-    script = "\n".join([
-        "import json, sys, hnnbench",
-        f"rec = hnnbench.run('spring', 'hnn_jax', seed=1, out=sys.argv[1], **{QUICK!r})",
-        "print('RECORD ' + json.dumps(hnnbench._record.codec.encode(rec)))",
-    ])
-    api = subprocess.run([sys.executable, "-c", script, str(tmp_path / "api")],
-                         capture_output=True, text=True, timeout=600)
+    script = "\n".join(
+        [
+            "import json, sys, hnnbench",
+            f"rec = hnnbench.run('spring', 'hnn_jax', seed=1, out=sys.argv[1], **{QUICK!r})",
+            "print('RECORD ' + json.dumps(hnnbench._record.codec.encode(rec)))",
+        ]
+    )
+    api = subprocess.run(
+        [sys.executable, "-c", script, str(tmp_path / "api")],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert api.returncode == 0, api.stderr[-2000:]
     line = next(ln for ln in api.stdout.splitlines() if ln.startswith("RECORD "))
     rec = hnnbench._record.codec.decode(json.loads(line.removeprefix("RECORD ")))
     assert rec["status"] == "ok"
-    proc = cli("system=spring", "model=hnn_jax", "seed=1", "profile=quick", "device=cpu",
-               "system.eval_n_traj=3", "system.steps=40", f"hydra.run.dir={tmp_path / 'cli'}")
+    proc = cli(
+        "system=spring",
+        "model=hnn_jax",
+        "seed=1",
+        "profile=quick",
+        "device=cpu",
+        "system.eval_n_traj=3",
+        "system.steps=40",
+        f"hydra.run.dir={tmp_path / 'cli'}",
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     on_disk = [json.loads((tmp_path / d / "result.json").read_text()) for d in ("api", "cli")]
     assert _same(_metrics(rec), _metrics(hnnbench._record.codec.decode(on_disk[0])))
@@ -68,12 +83,25 @@ def test_overrides_become_hydra_values():
     from hnnbench._entry.api import _settings
     from hnnbench._sweeping.overrides import hydra_value
 
-    typed, raw = _settings({"model__steps": 5, "device": "cpu", "save_model": False,
-                            "cache_dir": None, "model__hidden": "100,200"})
+    typed, raw = _settings(
+        {
+            "model__steps": 5,
+            "device": "cpu",
+            "save_model": False,
+            "cache_dir": None,
+            "model__hidden": "100,200",
+        }
+    )
     assert typed == {"model.steps": 5, "save_model": False, "cache_dir": None}
     assert raw == {"device": "cpu", "model.hidden": "100,200"}  # strings as written
     assert [hydra_value(v) for v in (5, False, None, 1e-3, [1, 2], "cpu")] == [
-        "5", "false", "null", "0.001", "[1,2]", "cpu"]
+        "5",
+        "false",
+        "null",
+        "0.001",
+        "[1,2]",
+        "cpu",
+    ]
     # Paths reach Hydra as the same string, whatever they hold.
     assert hydra_value("/tmp/a b/it's #1 [x]=y,z") == "'/tmp/a b/it\\'s #1 [x]=y,z'"
 
@@ -94,8 +122,12 @@ def test_the_page_ranks_at_a_glance(tmp_path):
     report = write_report(sweep)
     page = (sweep / "leaderboard.html").read_text()
     # the aggregate first, then the family table, then the family heatmaps (linked)
-    assert page.index('<h2 id="across">') < page.index('<h2 id="families">') \
-        < page.index('<h2 id="heatmaps">') < page.index('<h2 id="models">')
+    assert (
+        page.index('<h2 id="across">')
+        < page.index('<h2 id="families">')
+        < page.index('<h2 id="heatmaps">')
+        < page.index('<h2 id="models">')
+    )
     assert page.count('alt="heatmap_') == 2 and page.count('alt="performance_profile') == 1
     # the family table sorts on click, with numeric keys, by a few lines of JS
     table = re.search(r'<table class="board sortable">.*?</table>', page, re.S).group(0)
@@ -125,15 +157,18 @@ def test_a_run_after_jax_started_unpinned_warns(tmp_path, jax_first):
     import subprocess
     import sys
 
-    script = "\n".join([
-        "import jax.numpy as jnp; jnp.ones(2).block_until_ready()" if jax_first else "",
-        "import hnnbench",
-        f"rec = hnnbench.run('spring', 'mlp_jax', out={str(tmp_path / 'r')!r}, profile='quick',"
-        " device='cpu', system__steps=20, system__eval_n_traj=2)",
-        "assert rec['status'] == 'ok', rec['error']",
-    ])
-    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                          timeout=600)
+    script = "\n".join(
+        [
+            "import jax.numpy as jnp; jnp.ones(2).block_until_ready()" if jax_first else "",
+            "import hnnbench",
+            f"rec = hnnbench.run('spring', 'mlp_jax', out={str(tmp_path / 'r')!r}, profile='quick',"
+            " device='cpu', system__steps=20, system__eval_n_traj=2)",
+            "assert rec['status'] == 'ok', rec['error']",
+        ]
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=600
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     warned = "JAX was started in this process before the job pinned it" in proc.stderr + proc.stdout
     assert warned == jax_first, proc.stderr[-2000:]

@@ -33,8 +33,14 @@ from hnnbench_plugins.models.so_mlp import SOMLPJax, SOMLPTorch  # noqa: E402
 from hnnbench_plugins.models.srnn import SRNNJax, SRNNTorch  # noqa: E402
 from hnnbench_plugins.systems.spring import Spring, SpringConfig  # noqa: E402
 
-PAIRS = [(MLPTorch, MLPJax), (HNNTorch, HNNJax), (DHNNTorch, DHNNJax), (LNNTorch, LNNJax),
-         (SOMLPTorch, SOMLPJax), (SRNNTorch, SRNNJax)]
+PAIRS = [
+    (MLPTorch, MLPJax),
+    (HNNTorch, HNNJax),
+    (DHNNTorch, DHNNJax),
+    (LNNTorch, LNNJax),
+    (SOMLPTorch, SOMLPJax),
+    (SRNNTorch, SRNNJax),
+]
 STEPS = 50
 SEED = 0
 
@@ -71,16 +77,18 @@ def built_weights(model, data: Dataset, seed: int) -> dict[str, np.ndarray]:
     problem = model.view.problem(with_validation(data, seed))
     init = [model.initial_weights(seed)]
     train = TrainSettings(steps=1, batch_size=None, lr=1e-3, weight_decay=0.0)
-    trainer = model._backend.trainer(model.family, model._impl, problem, init, train,
-                                     model.layout())
+    trainer = model._backend.trainer(
+        model.family, model._impl, problem, init, train, model.layout()
+    )
     (weights,) = model._backend.weights(trainer)
     return weights
 
 
 @pytest.mark.parametrize("dtype", ["float32", "float64"])
 @pytest.mark.parametrize(("torch_cls", "jax_cls"), PAIRS)
-def test_same_seed_same_initial_weights(torch_cls, jax_cls, spring: Spring, data: Dataset,
-                                        dtype: str):
+def test_same_seed_same_initial_weights(
+    torch_cls, jax_cls, spring: Spring, data: Dataset, dtype: str
+):
     cfg = torch_cls.Config(name="parity", dtype=dtype)
     tm, jm = torch_cls(cfg, spring, "cpu"), jax_cls(cfg, spring, "cpu")
     for seed in (0, 7):
@@ -133,8 +141,7 @@ def test_same_weights_same_field_and_rollouts(trained_pair, spring: Spring, data
     tm, jm, _, _ = trained_pair
     jm.set_weights(torch_state(tm))  # exactly the same weights
     x = data.test.x
-    np.testing.assert_allclose(jm.time_derivative(x), tm.time_derivative(x),
-                               rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(jm.time_derivative(x), tm.time_derivative(x), rtol=1e-12, atol=1e-12)
     if jm.family.learned_energy:
         np.testing.assert_allclose(jm.energy(x), tm.energy(x), rtol=1e-10, atol=1e-10)
     ev = spring.evaluation(SEED)
@@ -181,12 +188,14 @@ def test_optax_chain_is_torch_adam(weight_decay: float):
     np.testing.assert_allclose(np.asarray(w_j), w_t.detach().numpy(), rtol=1e-10, atol=1e-12)
 
 
-
 def test_same_seed_same_autoencoder():
     from hnnbench_plugins.systems.pixel_pendulum import PixelPendulum, PixelPendulumConfig
 
-    system = PixelPendulum(PixelPendulumConfig(name="pixel_pendulum", n_traj=10, n_frames=8,
-                                               eval_n_traj=3, eval_n_points=6))
+    system = PixelPendulum(
+        PixelPendulumConfig(
+            name="pixel_pendulum", n_traj=10, n_frames=8, eval_n_traj=3, eval_n_points=6
+        )
+    )
     data = system.dataset(0)
     cfg = NeuralConfig(name="parity", hidden=16)
     tm, jm = HNNTorch(cfg, system, "cpu"), HNNJax(cfg, system, "cpu")
@@ -203,8 +212,9 @@ def built_weights_pixels(model, data: Dataset, seed: int) -> dict[str, np.ndarra
     problem = model.view.problem(with_validation(data, seed))
     init = [model.initial_weights(seed, problem.train[0].shape[1])]
     train = TrainSettings(steps=1, batch_size=None, lr=1e-3, weight_decay=0.0)
-    trainer = model._backend.trainer(model.family, model._impl, problem, init, train,
-                                     model.layout())
+    trainer = model._backend.trainer(
+        model.family, model._impl, problem, init, train, model.layout()
+    )
     (weights,) = model._backend.weights(trainer)
     return weights
 
@@ -219,14 +229,14 @@ def double_pendulum():
 
 @pytest.mark.parametrize("embedding", ["cos_sin", "wrap"])
 @pytest.mark.parametrize(("torch_cls", "jax_cls"), PAIRS)
-def test_twins_agree_through_the_angle_embedding(torch_cls, jax_cls, embedding,
-                                                  double_pendulum):
+def test_twins_agree_through_the_angle_embedding(torch_cls, jax_cls, embedding, double_pendulum):
     """On a system with angles (the double pendulum, angles beyond ±π), both backends
     embed them the same way: equal training curves and, from equal weights, equal
     fields and learned energies."""
     system, data = double_pendulum
-    cfg = torch_cls.Config(name="parity", dtype="float64", log_every=1, hidden=32,
-                           angle_embedding=embedding)
+    cfg = torch_cls.Config(
+        name="parity", dtype="float64", log_every=1, hidden=32, angle_embedding=embedding
+    )
     train = TrainSettings(steps=10, batch_size=None, lr=1e-3, weight_decay=1e-4)
     tm, jm = torch_cls(cfg, system, "cpu"), jax_cls(cfg, system, "cpu")
     assert any(spec.active for _, spec in tm.layout().nets)
@@ -236,7 +246,6 @@ def test_twins_agree_through_the_angle_embedding(torch_cls, jax_cls, embedding,
     jm.set_weights(tm.get_weights())
     x = data.test.x[:64]
     assert np.abs(x[:, :2]).max() > np.pi  # the embedding has something to do
-    np.testing.assert_allclose(jm.time_derivative(x), tm.time_derivative(x), rtol=1e-10,
-                               atol=1e-10)
+    np.testing.assert_allclose(jm.time_derivative(x), tm.time_derivative(x), rtol=1e-10, atol=1e-10)
     if jm.family.learned_energy:
         np.testing.assert_allclose(jm.energy(x), tm.energy(x), rtol=1e-10, atol=1e-10)

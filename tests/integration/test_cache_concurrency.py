@@ -112,8 +112,10 @@ def test_two_processes_store_the_same_entry_at_once(tmp_path: Path) -> None:
     ctx = mp.get_context("spawn")
     start, building = ctx.Barrier(2), ctx.Barrier(2)
     results, reads, stop = ctx.Queue(), ctx.Queue(), ctx.Event()
-    workers = [ctx.Process(target=_race_worker, args=(str(root), start, building, results))
-               for _ in range(2)]
+    workers = [
+        ctx.Process(target=_race_worker, args=(str(root), start, building, results))
+        for _ in range(2)
+    ]
     reader = ctx.Process(target=_reader, args=(str(root), stop, reads))
     for proc in [reader, *workers]:
         proc.start()
@@ -150,8 +152,9 @@ def test_two_processes_store_the_same_entry_at_once(tmp_path: Path) -> None:
         assert _digest(loader(Path(path))) == digest
         # A later lookup is a hit and returns it too.
         system = _spring()
-        value, again, hit = dataset_cache.cached(system, seed, kind, lambda: pytest.fail("rebuilt"),
-                                         loader, root)
+        value, again, hit = dataset_cache.cached(
+            system, seed, kind, lambda: pytest.fail("rebuilt"), loader, root
+        )
         assert hit and str(again) == path and _digest(value) == digest
 
     directory = root / "datasets" / "spring"

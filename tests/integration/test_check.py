@@ -100,7 +100,11 @@ def test_same_is_two_sided_and_catches_improvements_and_status_changes(ref_sweep
     scale_metric(current, "pendulum", "hnn_torch", "energy_mse", 0.5)  # better, but changed
     (finding,) = _compare(reference, current, same=1e-3).regressions
     assert (finding.check, finding.metric, finding.system, finding.model) == (
-        "changed", "energy_mse", "pendulum", "hnn_torch")
+        "changed",
+        "energy_mse",
+        "pendulum",
+        "hnn_torch",
+    )
     assert finding.factor == "0.5 rel" and finding.limit == "within 0.001 rel"
     assert _compare(reference, current).ok  # the one-sided gate lets an improvement pass
     set_status(current, "spring", "mlp_torch", 0, "diverged")
@@ -202,7 +206,11 @@ def test_builtin_rules_cover_every_summary_metric():
     assert set(summary_metrics()) | set(TIMINGS) <= set(metrics)
     assert all(r.factor >= 1 for r in metrics.values())
     assert {m for m, r in metrics.items() if r.better == "higher"} == {
-        "rollout_skill", "valid_prediction_time", "vpt_censored", "vpt_lyapunov"}
+        "rollout_skill",
+        "valid_prediction_time",
+        "vpt_censored",
+        "vpt_lyapunov",
+    }
 
 
 def test_timings_never_gate(ref_sweep, tmp_path):
@@ -255,20 +263,33 @@ def _bad_inputs(tmp_path, sweep, reference):
     return {
         "missing dir": ([str(tmp_path / "nope"), *ref], ["does not exist"]),
         "no records": ([str(empty), *ref], ["No run records"]),
-        "missing reference": ([str(sweep), "--reference", str(tmp_path / "none.csv")],
-                              ["none.csv does not exist", "--update"]),
+        "missing reference": (
+            [str(sweep), "--reference", str(tmp_path / "none.csv")],
+            ["none.csv does not exist", "--update"],
+        ),
         "wrong columns": ([str(sweep), "--reference", str(wrong)], ["system, n_ok"]),
         "no metric columns": ([str(sweep), "--reference", str(nometric)], ["no metric"]),
         "empty reference": ([str(sweep), "--reference", str(blank)], ["is empty"]),
         "no --reference": ([str(sweep)], ["--reference"]),
         "bad rules": ([str(sweep), *ref, "--rules", str(bad_rules)], ["factr"]),
-        "missing rules": ([str(sweep), *ref, "--rules", str(tmp_path / "r.yaml")],
-                          ["r.yaml does not exist"]),
+        "missing rules": (
+            [str(sweep), *ref, "--rules", str(tmp_path / "r.yaml")],
+            ["r.yaml does not exist"],
+        ),
     }
 
 
-CASES = ["missing dir", "no records", "missing reference", "wrong columns",
-         "no metric columns", "empty reference", "no --reference", "bad rules", "missing rules"]
+CASES = [
+    "missing dir",
+    "no records",
+    "missing reference",
+    "wrong columns",
+    "no metric columns",
+    "empty reference",
+    "no --reference",
+    "bad rules",
+    "missing rules",
+]
 
 
 @pytest.mark.parametrize("case", CASES)
@@ -284,8 +305,14 @@ def test_bad_input_is_one_line(case, ref_sweep, tmp_path):
 
 @pytest.mark.slow
 def test_real_quick_sweep_passes_its_own_reference_and_catches_short_training(tmp_path):
-    common = ["-m", "system=spring", "model=mlp_torch,hnn_torch", "profile=quick",
-              "system.steps=50", "system.eval_n_traj=3"]
+    common = [
+        "-m",
+        "system=spring",
+        "model=mlp_torch,hnn_torch",
+        "profile=quick",
+        "system.steps=50",
+        "system.eval_n_traj=3",
+    ]
     sweep = tmp_path / "sweep"
     proc = hnnbench(*common, f"hydra.sweep.dir={sweep}", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
@@ -294,8 +321,7 @@ def test_real_quick_sweep_passes_its_own_reference_and_catches_short_training(tm
         assert (sweep / name).exists(), name
     assert (sweep / "figures" / "spring_loss.png").exists()
     reference = tmp_path / "quick.csv"
-    assert hnnbench("check", str(sweep), "--reference", str(reference),
-                    "--update").returncode == 0
+    assert hnnbench("check", str(sweep), "--reference", str(reference), "--update").returncode == 0
     proc = hnnbench("check", str(sweep), "--reference", str(reference))
     assert proc.returncode == 0, proc.stdout + proc.stderr
 
@@ -316,18 +342,29 @@ def test_real_quick_sweep_passes_its_own_reference_and_catches_short_training(tm
 @pytest.fixture()
 def family_reference(tmp_path):
     """A reference of the baseline's twins and the oracle, seeds 0-2."""
-    sweep = make_sweep(tmp_path / "ref", pairs=(("spring", "mlp_torch"), ("spring", "mlp_jax"),
-                                                ("spring", "oracle"), ("pendulum", "mlp_jax")),
-                       seeds=(0, 1, 2), rollout=False)
+    sweep = make_sweep(
+        tmp_path / "ref",
+        pairs=(
+            ("spring", "mlp_torch"),
+            ("spring", "mlp_jax"),
+            ("spring", "oracle"),
+            ("pendulum", "mlp_jax"),
+        ),
+        seeds=(0, 1, 2),
+        rollout=False,
+    )
     reference = tmp_path / "ref.csv"
     assert check.main([str(sweep), "--reference", str(reference), "--update"]) == 0
     return reference
 
 
-def test_a_new_model_gets_its_rank_among_the_reference_families(family_reference, tmp_path,
-                                                                capsys):
-    new = make_sweep(tmp_path / "new", pairs=(("spring", "hnn_torch"), ("pendulum", "hnn_torch")),
-                     seeds=(0, 1, 2, 3, 4), rollout=False)
+def test_a_new_model_gets_its_rank_among_the_reference_families(family_reference, tmp_path, capsys):
+    new = make_sweep(
+        tmp_path / "new",
+        pairs=(("spring", "hnn_torch"), ("pendulum", "hnn_torch")),
+        seeds=(0, 1, 2, 3, 4),
+        rollout=False,
+    )
     capsys.readouterr()
     assert check.main([str(new), "--reference", str(family_reference), "--allow-missing"]) == 0
     out = capsys.readouterr().out
@@ -345,8 +382,7 @@ def test_a_new_model_gets_its_rank_among_the_reference_families(family_reference
 
 
 def test_one_seed_has_no_interval_and_says_so(family_reference, tmp_path, capsys):
-    new = make_sweep(tmp_path / "new", pairs=(("spring", "hnn_torch"),), seeds=(0,),
-                     rollout=False)
+    new = make_sweep(tmp_path / "new", pairs=(("spring", "hnn_torch"),), seeds=(0,), rollout=False)
     capsys.readouterr()
     check.main([str(new), "--reference", str(family_reference), "--allow-missing"])
     out = capsys.readouterr().out
@@ -387,13 +423,29 @@ def test_a_reference_interval_column_must_hold_numbers(family_reference, tmp_pat
 
 def test_rank_intervals_count_a_diverged_family_behind_and_an_unknown_one_as_either():
     def row(model, mean, low, high, n=5):
-        return {"profile": "paper", "system": "spring", "model": model, "family": model,
-                "backend": "jax", "ranked": True, "n_seeds": n, "n_ok": n,
-                "energy_mse_mean": mean, "energy_mse_ci_low": low, "energy_mse_ci_high": high}
+        return {
+            "profile": "paper",
+            "system": "spring",
+            "model": model,
+            "family": model,
+            "backend": "jax",
+            "ranked": True,
+            "n_seeds": n,
+            "n_ok": n,
+            "energy_mse_mean": mean,
+            "energy_mse_ci_low": low,
+            "energy_mse_ci_high": high,
+        }
 
     nan, inf = float("nan"), float("inf")
-    reference = pd.DataFrame([row("a", 1e-3, 5e-4, 2e-3), row("b", 1e-1, 5e-2, 2e-1),
-                              row("c", inf, nan, nan), row("d", 2e-2, nan, nan, n=1)])
+    reference = pd.DataFrame(
+        [
+            row("a", 1e-3, 5e-4, 2e-3),
+            row("b", 1e-1, 5e-2, 2e-1),
+            row("c", inf, nan, nan),
+            row("d", 2e-2, nan, nan, n=1),
+        ]
+    )
     current = pd.DataFrame([row("new", 3e-2, 1e-2, 6e-2)])
     (line, verdict) = check.rank_lines(reference, current, ["energy_mse"])
     # a is wholly better, c (diverged) wholly worse, b overlaps, d has no interval

@@ -14,12 +14,15 @@ from hnnbench._sweeping import eta
 
 def test_the_committed_job_costs_are_what_the_script_writes():
     script = REPO / "scripts" / "maintainer" / "job_costs.py"
-    proc = subprocess.run([sys.executable, str(script), "--check"],
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, str(script), "--check"], capture_output=True, text=True, timeout=120
+    )
     assert proc.returncode == 0, proc.stderr
     table = eta.load_costs()
-    records = (json.loads(path.read_text("utf-8"))
-               for path in (REPO / "results" / "records").rglob("result.json"))
+    records = (
+        json.loads(path.read_text("utf-8"))
+        for path in (REPO / "results" / "records").rglob("result.json")
+    )
     published = {(rec["system"], rec["model"]) for rec in records if not rec.get("variant")}
     assert published, "no published records"
     assert all(table[("paper", system, model)] > 0 for system, model in published)
@@ -29,7 +32,14 @@ def test_the_committed_job_costs_are_what_the_script_writes():
 def test_a_sweep_prints_its_estimate_and_progress(tmp_path):
     from conftest import hnnbench
 
-    proc = hnnbench("-m", "system=spring", "model=oracle", "profile=quick", "seed=0,1",
-                    f"hydra.sweep.dir={tmp_path / 'sweep'}", cwd=tmp_path)
+    proc = hnnbench(
+        "-m",
+        "system=spring",
+        "model=oracle",
+        "profile=quick",
+        "seed=0,1",
+        f"hydra.sweep.dir={tmp_path / 'sweep'}",
+        cwd=tmp_path,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "hnnbench: the published runs of these jobs took" in proc.stderr, proc.stderr

@@ -104,8 +104,9 @@ def test_an_archive_of_another_hash_or_member_is_refused(tmp_path):
 
 
 def test_offline_without_a_copy_says_what_to_fetch_and_from_where(tmp_path):
-    archive = data.DataArchive((tmp_path / "offline" / "invar_datasets.zip").as_uri(),
-                               rp.ARCHIVE_SHA256)
+    archive = data.DataArchive(
+        (tmp_path / "offline" / "invar_datasets.zip").as_uri(), rp.ARCHIVE_SHA256
+    )
     with pytest.raises(DataError) as info:
         data.locate(rp.FILENAME, sha256=rp.SHA256, archive=archive)
     message = str(info.value)
@@ -123,8 +124,9 @@ def test_the_defaults_are_the_published_archive_outside_the_dataset_key():
     assert rdp.RealDoublePendulumConfig().archive_sha256 == rp.ARCHIVE_SHA256
     readme = SHARED / "README.md"
     if readme.is_file():  # the data set's own note names the archive's hash
-        named = re.findall(r"invar_datasets\.zip`?\s*\(SHA-256 ([0-9a-f]{64})\)",
-                           readme.read_text())
+        named = re.findall(
+            r"invar_datasets\.zip`?\s*\(SHA-256 ([0-9a-f]{64})\)", readme.read_text()
+        )
         assert named == [rp.ARCHIVE_SHA256]
     with pytest.raises(Exception, match="archive_sha256"):
         rp.RealPendulumConfig(archive_sha256="abc").validate()
@@ -139,10 +141,17 @@ def test_a_sweep_of_the_measured_systems_needs_no_manual_step(tmp_path):
     (here from a file:// URL) and both measured systems run."""
     url, digest = make_archive(tmp_path / "invar_datasets.zip")
     env = {**os.environ, "HNNBENCH_DATA_DIR": "", "HNNBENCH_CACHE_DIR": str(tmp_path / "c")}
-    proc = hnnbench("-m", "system=real_pendulum,real_double_pendulum", "model=standing_still",
-                    "profile=quick", f"system.archive_url={url}",
-                    f"system.archive_sha256={digest}", f"hydra.sweep.dir={tmp_path / 'sweep'}",
-                    cwd=REPO, env=env)
+    proc = hnnbench(
+        "-m",
+        "system=real_pendulum,real_double_pendulum",
+        "model=standing_still",
+        "profile=quick",
+        f"system.archive_url={url}",
+        f"system.archive_sha256={digest}",
+        f"hydra.sweep.dir={tmp_path / 'sweep'}",
+        cwd=REPO,
+        env=env,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     for member in MEMBERS:
         assert sha256(tmp_path / "c" / "data" / member) == sha256(SHARED / member)

@@ -43,39 +43,50 @@ class TorchNet:
 
 def torch_fn(kind):
     if kind == "quadratic":  # q^2 + p^2 (spring), or 1/2 qdot^2 - 1/2 q^2 as a Lagrangian
-        return lambda x: (x ** 2).sum(-1)
+        return lambda x: (x**2).sum(-1)
     if kind == "lagrangian_1d":
         return lambda x: 0.5 * x[:, 1] ** 2 - 0.5 * x[:, 0] ** 2
     if kind == "lagrangian_2d":
         m, k = torch.tensor(M), torch.tensor(K)
-        return lambda x: (0.5 * torch.einsum("ni,ij,nj->n", x[:, 2:], m, x[:, 2:])
-                          - 0.5 * torch.einsum("ni,ij,nj->n", x[:, :2], k, x[:, :2]))
+        return lambda x: (
+            0.5 * torch.einsum("ni,ij,nj->n", x[:, 2:], m, x[:, 2:])
+            - 0.5 * torch.einsum("ni,ij,nj->n", x[:, :2], k, x[:, :2])
+        )
     if kind == "double_pendulum":  # unit masses, lengths and g; absolute angles
-        return lambda x: (x[:, 2] ** 2 + 0.5 * x[:, 3] ** 2
-                          + x[:, 2] * x[:, 3] * torch.cos(x[:, 0] - x[:, 1])
-                          + 2 * torch.cos(x[:, 0]) + torch.cos(x[:, 1]))
+        return lambda x: (
+            x[:, 2] ** 2
+            + 0.5 * x[:, 3] ** 2
+            + x[:, 2] * x[:, 3] * torch.cos(x[:, 0] - x[:, 1])
+            + 2 * torch.cos(x[:, 0])
+            + torch.cos(x[:, 1])
+        )
     if kind == "dissipation":  # D = -gamma p^2 / 2
         return lambda x: -0.5 * GAMMA * x[:, 1] ** 2
     if kind == "half_square":  # T(p) = p^2 / 2 or V(q) = q^2 / 2
-        return lambda x: 0.5 * (x ** 2).sum(-1)
+        return lambda x: 0.5 * (x**2).sum(-1)
     raise KeyError(kind)
 
 
 def jax_fn(kind):
     if kind == "quadratic":
-        return lambda x: jnp.sum(x ** 2)[None]
+        return lambda x: jnp.sum(x**2)[None]
     if kind == "lagrangian_1d":
         return lambda x: (0.5 * x[1] ** 2 - 0.5 * x[0] ** 2)[None]
     if kind == "lagrangian_2d":
         m, k = jnp.asarray(M), jnp.asarray(K)
         return lambda x: (0.5 * x[2:] @ m @ x[2:] - 0.5 * x[:2] @ k @ x[:2])[None]
     if kind == "double_pendulum":
-        return lambda x: (x[2] ** 2 + 0.5 * x[3] ** 2 + x[2] * x[3] * jnp.cos(x[0] - x[1])
-                          + 2 * jnp.cos(x[0]) + jnp.cos(x[1]))[None]
+        return lambda x: (
+            x[2] ** 2
+            + 0.5 * x[3] ** 2
+            + x[2] * x[3] * jnp.cos(x[0] - x[1])
+            + 2 * jnp.cos(x[0])
+            + jnp.cos(x[1])
+        )[None]
     if kind == "dissipation":
         return lambda x: (-0.5 * GAMMA * x[1] ** 2)[None]
     if kind == "half_square":
-        return lambda x: 0.5 * jnp.sum(x ** 2)[None]
+        return lambda x: 0.5 * jnp.sum(x**2)[None]
     raise KeyError(kind)
 
 
@@ -87,14 +98,13 @@ def _without_prior(backend: str, family: str, fn):
     from hnnbench_plugins.models.lnn import KINETIC_PRIOR
 
     if backend == "torch":
-        return lambda x: fn(x) - KINETIC_PRIOR * (x[:, x.shape[1] // 2:] ** 2).sum(-1)
-    return lambda x: fn(x) - KINETIC_PRIOR * jnp.sum(x[x.shape[0] // 2:] ** 2)
+        return lambda x: fn(x) - KINETIC_PRIOR * (x[:, x.shape[1] // 2 :] ** 2).sum(-1)
+    return lambda x: fn(x) - KINETIC_PRIOR * jnp.sum(x[x.shape[0] // 2 :] ** 2)
 
 
 def build(backend: str, family: str, nets: dict[str, str]) -> dict:
     if backend == "torch":
-        return {k: TorchNet(_without_prior(backend, family, torch_fn(v)))
-                for k, v in nets.items()}
+        return {k: TorchNet(_without_prior(backend, family, torch_fn(v))) for k, v in nets.items()}
     return {k: _without_prior(backend, family, jax_fn(v)) for k, v in nets.items()}
 
 
@@ -124,8 +134,9 @@ def test_hnn_with_the_spring_hamiltonian_is_the_spring(backend):
     q, p = Z1[:, 0], Z1[:, 1]
     out = field(backend, "hnn", {"H": "quadratic"}, Z1)
     np.testing.assert_allclose(out, np.stack([2 * p, -2 * q], 1), atol=1e-8)
-    np.testing.assert_allclose(energy(backend, "hnn", {"H": "quadratic"}, Z1), q**2 + p**2,
-                               atol=1e-8)
+    np.testing.assert_allclose(
+        energy(backend, "hnn", {"H": "quadratic"}, Z1), q**2 + p**2, atol=1e-8
+    )
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -164,15 +175,17 @@ def test_lnn_handles_the_mixed_block_of_a_double_pendulum_lagrangian(backend):
     [2, cos Δ; cos Δ, 1] q̈ = (−sin Δ ω2² − 2 sin θ1, sin Δ ω1² − sin θ2), Δ = θ1 − θ2."""
     th1, th2, w1, w2 = Z2.T
     d = th1 - th2
-    mass = np.stack([np.stack([2 + 0 * d, np.cos(d)], -1), np.stack([np.cos(d), 1 + 0 * d], -1)],
-                    -2)
+    mass = np.stack(
+        [np.stack([2 + 0 * d, np.cos(d)], -1), np.stack([np.cos(d), 1 + 0 * d], -1)], -2
+    )
     rhs = np.stack([-np.sin(d) * w2**2 - 2 * np.sin(th1), np.sin(d) * w1**2 - np.sin(th2)], -1)
     expected = np.linalg.solve(mass, rhs[..., None])[..., 0]
     out = field(backend, "lnn", {"L": "double_pendulum"}, Z2)
     np.testing.assert_allclose(out, np.concatenate([Z2[:, 2:], expected], 1), atol=1e-8)
     e = energy(backend, "lnn", {"L": "double_pendulum"}, Z2)  # T + V, V = -2cos θ1 - cos θ2
-    np.testing.assert_allclose(e, w1**2 + 0.5 * w2**2 + w1 * w2 * np.cos(d)
-                               - 2 * np.cos(th1) - np.cos(th2), atol=1e-8)
+    np.testing.assert_allclose(
+        e, w1**2 + 0.5 * w2**2 + w1 * w2 * np.cos(d) - 2 * np.cos(th1) - np.cos(th2), atol=1e-8
+    )
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -212,9 +225,11 @@ def test_the_lnn_adds_its_declared_kinetic_term_to_the_network(backend):
 
 def _so_mlp_accel(backend):
     if backend == "torch":
+
         class Accel:
             def __call__(self, x):
                 return -x[:, :1]
+
         return Accel()
     return lambda x: -x[:1]
 
@@ -232,8 +247,7 @@ def test_srnn_with_separable_quadratic_h_is_the_oscillator(backend):
     nets = {"T": "half_square", "V": "half_square"}
     out = field(backend, "srnn", nets, Z1)
     np.testing.assert_allclose(out, np.stack([Z1[:, 1], -Z1[:, 0]], 1), atol=1e-8)
-    np.testing.assert_allclose(energy(backend, "srnn", nets, Z1), 0.5 * (Z1**2).sum(1),
-                               atol=1e-8)
+    np.testing.assert_allclose(energy(backend, "srnn", nets, Z1), 0.5 * (Z1**2).sum(1), atol=1e-8)
 
 
 def leapfrog_oscillator(z: np.ndarray, h: float) -> np.ndarray:
@@ -261,21 +275,23 @@ def test_srnn_window_loss_is_zero_on_its_own_leapfrog_trajectories(backend, subs
         windows[:, k + 1] = z
     if backend == "torch":
         nets = {k: TorchNet(torch_fn("half_square")) for k in ("T", "V")}
-        loss = float(impl.window_loss(nets, torch.tensor(windows), torch.tensor(dts),
-                                      substeps=substeps))
+        loss = float(
+            impl.window_loss(nets, torch.tensor(windows), torch.tensor(dts), substeps=substeps)
+        )
     else:
         nets = {k: jax_fn("half_square") for k in ("T", "V")}
-        loss = float(impl.window_loss(nets, jnp.asarray(windows), jnp.asarray(dts),
-                                      substeps=substeps))
+        loss = float(
+            impl.window_loss(nets, jnp.asarray(windows), jnp.asarray(dts), substeps=substeps)
+        )
     assert loss < 1e-28
     # exact flow of the oscillator: rotation; leapfrog differs at O(h^3) per step
     t = np.cumsum(np.concatenate([np.zeros((6, 1)), dts], 1), axis=1)
     q0, p0 = windows[:, 0, 0:1], windows[:, 0, 1:2]
     exact = np.stack([q0 * np.cos(t) + p0 * np.sin(t), p0 * np.cos(t) - q0 * np.sin(t)], -1)
     if backend == "torch":
-        off = float(impl.window_loss(nets, torch.tensor(exact), torch.tensor(dts),
-                                     substeps=substeps))
+        off = float(
+            impl.window_loss(nets, torch.tensor(exact), torch.tensor(dts), substeps=substeps)
+        )
     else:
-        off = float(impl.window_loss(nets, jnp.asarray(exact), jnp.asarray(dts),
-                                     substeps=substeps))
+        off = float(impl.window_loss(nets, jnp.asarray(exact), jnp.asarray(dts), substeps=substeps))
     assert 0 < off < 1e-5

@@ -29,8 +29,11 @@ MODELS = [MLPJax, HNNJax]
 
 @pytest.fixture(scope="module")
 def spring() -> Spring:
-    return Spring(SpringConfig(name="spring", n_traj=8, n_points=10, eval_n_traj=3,
-                               eval_n_points=20, eval_t_end=3.0))
+    return Spring(
+        SpringConfig(
+            name="spring", n_traj=8, n_points=10, eval_n_traj=3, eval_n_points=20, eval_t_end=3.0
+        )
+    )
 
 
 @pytest.fixture(scope="module")
@@ -49,8 +52,12 @@ def settings(steps: int = 20, batch_size: int | None = None) -> TrainSettings:
 
 def fit(model, data: Dataset, steps: int = 20, batch_size: int | None = None, seed: int = 0):
     calls: list[tuple[int, dict]] = []
-    result = model.fit(data, settings(steps, batch_size), seed,
-                       lambda step, losses: calls.append((step, dict(losses))))
+    result = model.fit(
+        data,
+        settings(steps, batch_size),
+        seed,
+        lambda step, losses: calls.append((step, dict(losses))),
+    )
     return result, calls
 
 
@@ -120,8 +127,10 @@ def test_field_and_energy_in_blocks_of_rows_equal_one_call(trained, n):
 @pytest.mark.parametrize("batch_size", [None, 16], ids=["full", "minibatch"])
 @pytest.mark.parametrize("cls", MODELS, ids=lambda c: c.__name__)
 def test_same_seed_same_losses(cls, spring, data, batch_size):
-    runs = [fit(make(cls, spring), data, steps=10, batch_size=batch_size, seed=seed)[0]
-            for seed in (3, 3, 4)]
+    runs = [
+        fit(make(cls, spring), data, steps=10, batch_size=batch_size, seed=seed)[0]
+        for seed in (3, 3, 4)
+    ]
     assert runs[0].history == runs[1].history
     assert runs[0].history["train_loss"] != runs[2].history["train_loss"]
 
@@ -212,8 +221,9 @@ def test_save_load_round_trip(trained, spring, data, tmp_path: Path):
     assert f"{net}.linears.2.bias" not in files  # last layer has no bias
     fresh = make(type(trained), spring)
     fresh.load(path)
-    np.testing.assert_array_equal(fresh.time_derivative(data.test.x),
-                                  trained.time_derivative(data.test.x))
+    np.testing.assert_array_equal(
+        fresh.time_derivative(data.test.x), trained.time_derivative(data.test.x)
+    )
 
 
 def test_load_rejects_other_layout(trained, spring, tmp_path: Path):
@@ -236,8 +246,9 @@ def test_numpy_layers_round_trip(trained, spring, data):
     assert {k: v.shape for k, v in layers.items()} == expected
     other = make(type(trained), spring)
     other.set_weights(trained.get_weights())
-    np.testing.assert_array_equal(other.time_derivative(data.test.x),
-                                  trained.time_derivative(data.test.x))
+    np.testing.assert_array_equal(
+        other.time_derivative(data.test.x), trained.time_derivative(data.test.x)
+    )
 
 
 def test_initial_weights_start_fit(spring, data):
@@ -285,8 +296,9 @@ def test_missing_jax_gives_install_hint():
         "except BackendMissingError as err:\n"
         "    print(err)\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
     lines = out.strip().splitlines()
     assert len(lines) == 2
     assert all("pip install 'hnnbench[jax]'" in line for line in lines)

@@ -18,8 +18,9 @@ P = 28 * 28
 
 
 def small_system() -> PixelPendulum:
-    cfg = PixelPendulumConfig(name="pixel_pendulum", n_traj=10, n_frames=8, eval_n_traj=3,
-                              eval_n_points=6)
+    cfg = PixelPendulumConfig(
+        name="pixel_pendulum", n_traj=10, n_frames=8, eval_n_traj=3, eval_n_points=6
+    )
     cfg.validate()
     return PixelPendulum(cfg)
 
@@ -37,11 +38,11 @@ def tiny():
     models = {}
     for cls in (MLPJax, HNNJax):
         assert cls.unsupported_reason(system) is None
-        model = cls(NeuralConfig(name=cls.__name__, hidden=16, log_every=3), system,
-                    device="cpu")
+        model = cls(NeuralConfig(name=cls.__name__, hidden=16, log_every=3), system, device="cpu")
         logged: list[int] = []
-        result = model.fit(data, train, seed=0,
-                           progress=lambda step, _m, out=logged: out.append(step))
+        result = model.fit(
+            data, train, seed=0, progress=lambda step, _m, out=logged: out.append(step)
+        )
         assert result.steps == 6 and logged == [3, 6]
         assert np.all(np.isfinite(result.history["train_loss"]))
         model.history, model.selection = result.history, result.selection
@@ -68,8 +69,7 @@ def test_jax_pixel_model_shapes_and_finiteness(tiny, name):
     # model holds the selected checkpoint: its logged validation loss is loss() on it
     valid = with_validation(data, 0).valid
     at = model.history["step"].index(model.selection.step)
-    assert model.history["val_loss"][at] == pytest.approx(
-        model.loss(valid.x, valid.dxdt), rel=1e-4)
+    assert model.history["val_loss"][at] == pytest.approx(model.loss(valid.x, valid.dxdt), rel=1e-4)
     energy = model.energy(z0)
     assert (energy is None) == (name == "MLPJax")
     if energy is not None:
@@ -84,8 +84,9 @@ def test_jax_pixel_time_units(tiny, name):
     z0 = model.encode(ev.observations[:, 0])
     h = 1e-5
     zhat = model.rollout(z0, np.array([0.0, h]), rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose((zhat[:, 1] - z0) / h, model.time_derivative(z0), rtol=1e-3,
-                               atol=1e-6)
+    np.testing.assert_allclose(
+        (zhat[:, 1] - z0) / h, model.time_derivative(z0), rtol=1e-3, atol=1e-6
+    )
 
 
 @pytest.mark.parametrize("name", ["MLPJax", "HNNJax"])
@@ -110,9 +111,19 @@ def test_jax_pixel_end_to_end(tmp_path):
     from hnnbench._running.job import run_job
 
     # the fixture's data, network and chunk shapes: the compiled steps and solver are reused
-    overrides = ["system=pixel_pendulum", "model=hnn_jax", "profile=quick", "system.steps=21",
-                 "system.n_traj=10", "system.n_frames=8", "system.eval_n_traj=3",
-                 "system.eval_n_points=6", "system.batch_size=16", "model.hidden=16",
-                 "model.log_every=3", "device=cpu"]
+    overrides = [
+        "system=pixel_pendulum",
+        "model=hnn_jax",
+        "profile=quick",
+        "system.steps=21",
+        "system.n_traj=10",
+        "system.n_frames=8",
+        "system.eval_n_traj=3",
+        "system.eval_n_points=6",
+        "system.batch_size=16",
+        "model.hidden=16",
+        "model.log_every=3",
+        "device=cpu",
+    ]
     record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)[0].record
     assert record["status"] == "ok", record

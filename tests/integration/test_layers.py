@@ -20,9 +20,14 @@ LINT = Path(sys.executable).parent / "lint-imports"
 
 
 def _lint(root: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([str(LINT), "--config", str(root / "pyproject.toml")], cwd=root,
-                          capture_output=True, text=True, timeout=300,
-                          env={"PYTHONPATH": str(root), "PATH": "/usr/bin:/bin"})
+    return subprocess.run(
+        [str(LINT), "--config", str(root / "pyproject.toml")],
+        cwd=root,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={"PYTHONPATH": str(root), "PATH": "/usr/bin:/bin"},
+    )
 
 
 def test_the_layer_and_cycle_contracts_hold():
@@ -44,25 +49,38 @@ def test_every_module_is_in_a_layer_folder():
     (layers,) = [c["layers"] for c in config["contracts"] if c["type"] == "layers"]
     declared = {name.strip() for layer in layers for name in layer.split("|")}
     present = {p.name for p in (REPO / "hnnbench").iterdir()} - NOT_LAYERS
-    assert present == declared, (present ^ declared)
+    assert present == declared, present ^ declared
     assert all((REPO / "hnnbench" / name).is_dir() for name in present)
 
 
-@pytest.mark.parametrize("module, planted, broken", [
-    # a contract (metric) importing an entry point, inside a function
-    ("_contracts/metric.py",
-     "def _planted():\n    from hnnbench._entry import command  # noqa\n", "Layers"),
-    # the record importing the job that writes it: running is above the record
-    ("_record/store.py",
-     "def _planted():\n    from hnnbench._running import job  # noqa\n", "Layers"),
-    # two running modules importing each other: a cycle within a layer
-    ("_running/dataset_cache.py",
-     "def _planted():\n    from hnnbench._running import job  # noqa\n", "cycles"),
-])
+@pytest.mark.parametrize(
+    "module, planted, broken",
+    [
+        # a contract (metric) importing an entry point, inside a function
+        (
+            "_contracts/metric.py",
+            "def _planted():\n    from hnnbench._entry import command  # noqa\n",
+            "Layers",
+        ),
+        # the record importing the job that writes it: running is above the record
+        (
+            "_record/store.py",
+            "def _planted():\n    from hnnbench._running import job  # noqa\n",
+            "Layers",
+        ),
+        # two running modules importing each other: a cycle within a layer
+        (
+            "_running/dataset_cache.py",
+            "def _planted():\n    from hnnbench._running import job  # noqa\n",
+            "cycles",
+        ),
+    ],
+)
 def test_a_planted_import_breaks_a_contract(module, planted, broken, tmp_path):
     """The contracts are not vacuous: an upward import, or a cycle, fails them."""
-    shutil.copytree(REPO / "hnnbench", tmp_path / "hnnbench",
-                    ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(
+        REPO / "hnnbench", tmp_path / "hnnbench", ignore=shutil.ignore_patterns("__pycache__")
+    )
     shutil.copy(REPO / "pyproject.toml", tmp_path / "pyproject.toml")
     target = tmp_path / "hnnbench" / module
     target.write_text(target.read_text() + "\n\n" + planted)
@@ -91,9 +109,11 @@ def _code_strings(path: Path) -> list[tuple[int, str]]:
             body = getattr(node, "body", [])
             if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
                 docstrings.add(id(body[0].value))
-    return [(n.lineno, n.value) for n in ast.walk(tree)
-            if isinstance(n, ast.Constant) and isinstance(n.value, str)
-            and id(n) not in docstrings]
+    return [
+        (n.lineno, n.value)
+        for n in ast.walk(tree)
+        if isinstance(n, ast.Constant) and isinstance(n.value, str) and id(n) not in docstrings
+    ]
 
 
 def test_the_core_names_no_builtin_plugin():
@@ -113,8 +133,9 @@ def test_the_core_names_no_builtin_plugin():
                 found.append(f"{path.relative_to(REPO)}:{line}: {text!r}")
     assert not found, "\n".join(found)
     config = yaml.safe_load((REPO / "conf" / "config.yaml").read_text())
-    defaults = {k: v for item in config["defaults"] if isinstance(item, dict)
-                for k, v in item.items()}
+    defaults = {
+        k: v for item in config["defaults"] if isinstance(item, dict) for k, v in item.items()
+    }
     assert defaults["system"] is None and defaults["model"] is None
     for conf in (REPO / "conf").rglob("*.yaml"):
         words = set(conf.read_text().replace(":", " ").split())
@@ -124,8 +145,7 @@ def test_the_core_names_no_builtin_plugin():
 def test_a_command_without_a_plugin_is_one_line(tmp_path):
     from conftest import assert_one_line_error, hnnbench
 
-    assert_one_line_error(hnnbench("seed=1", cwd=tmp_path), "no system chosen",
-                          "system=<name>")
+    assert_one_line_error(hnnbench("seed=1", cwd=tmp_path), "no system chosen", "system=<name>")
     assert_one_line_error(hnnbench("system=spring", cwd=tmp_path), "no model chosen")
 
 
@@ -164,14 +184,20 @@ def test_a_job_composes_and_validates_its_config_once(tmp_path, monkeypatch):
         environments.append(context)
         return exported(context)
 
-    monkeypatch.setattr(config_loader_impl.ConfigLoaderImpl, "load_configuration",
-                        counting_compose)
+    monkeypatch.setattr(config_loader_impl.ConfigLoaderImpl, "load_configuration", counting_compose)
     monkeypatch.setattr(registry, "config_defaults", counting_defaults)
     monkeypatch.setattr(config, "validate_run", counting_validate)
     monkeypatch.setattr(launch_context, "exported", spying_export)
     registry.refresh()
-    argv = ["-m", "system=spring", "model=oracle", "seed=0,1,2,3", "profile=quick",
-            "pin_cpu=false", f"hydra.sweep.dir={tmp_path}"]
+    argv = [
+        "-m",
+        "system=spring",
+        "model=oracle",
+        "seed=0,1,2,3",
+        "profile=quick",
+        "pin_cpu=false",
+        f"hydra.sweep.dir={tmp_path}",
+    ]
     result = execute(argv)
     assert len(result.records) == 4 and not any(result.kept)
     assert counts["compose"] == 4 + 3, counts
@@ -193,8 +219,16 @@ def test_a_swept_group_takes_overrides_of_its_keys(tmp_path):
     from hnnbench._sweeping.execution import execute
     from hnnbench._sweeping.plan import plan
 
-    argv = ["-m", "system=spring,pendulum", "model=oracle", "profile=quick", "seed=0",
-            "system.eval_t_end=2", "pin_cpu=false", f"hydra.sweep.dir={tmp_path}"]
+    argv = [
+        "-m",
+        "system=spring,pendulum",
+        "model=oracle",
+        "profile=quick",
+        "seed=0",
+        "system.eval_t_end=2",
+        "pin_cpu=false",
+        f"hydra.sweep.dir={tmp_path}",
+    ]
     checked = plan(argv)
     assert checked.pinned == {"system=spring": "system=spring,pendulum"}
     assert "system=spring" in checked.hydra_argv and "system=spring,pendulum" in checked.argv
@@ -202,8 +236,9 @@ def test_a_swept_group_takes_overrides_of_its_keys(tmp_path):
     got = {(r["system"], r["config"]["system"]["eval_t_end"]) for r in result.records}
     assert got == {("spring", 2), ("pendulum", 2)}, got
     for system in ("spring", "pendulum"):
-        assert (tmp_path / system / "oracle" / "seed0" / "system.eval_t_end=2"
-                / "result.json").is_file()
+        assert (
+            tmp_path / system / "oracle" / "seed0" / "system.eval_t_end=2" / "result.json"
+        ).is_file()
     # Nothing is pinned where nothing needs it.
     assert not plan(["-m", "system=spring,pendulum", "model=oracle"]).pinned
 
@@ -214,8 +249,12 @@ def test_plugins_import_only_the_public_surface():
     bad = []
     for path in sorted((REPO / "plugins").rglob("*.py")):
         for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.ImportFrom) and node.module and \
-                    "._" in f".{node.module}" and node.module.startswith("hnnbench"):
+            if (
+                isinstance(node, ast.ImportFrom)
+                and node.module
+                and "._" in f".{node.module}"
+                and node.module.startswith("hnnbench")
+            ):
                 bad.append(f"{path.relative_to(REPO)}:{node.lineno}: {node.module}")
     assert not bad, "\n".join(bad)
 
@@ -226,22 +265,37 @@ def test_without_torch_model_all_runs_every_jax_model_and_the_oracle(tmp_path):
     model that can run, the sweep exits 0."""
     # An import hook that finds no torch, as on an install without it (a None in
     # sys.modules would also block it, but trips libraries that look torch up there).
-    code = ("import sys\n"
-            "class NoTorch:\n"
-            "    def find_spec(self, name, path=None, target=None):\n"
-            "        if name.split('.')[0] == 'torch':\n"
-            "            raise ModuleNotFoundError(f'No module named {name!r}', name=name)\n"
-            "sys.meta_path.insert(0, NoTorch())\n"
-            "from hnnbench._entry.command import run\n"
-            "sys.exit(run(sys.argv[1:]))\n")
+    code = (
+        "import sys\n"
+        "class NoTorch:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name.split('.')[0] == 'torch':\n"
+        "            raise ModuleNotFoundError(f'No module named {name!r}', name=name)\n"
+        "sys.meta_path.insert(0, NoTorch())\n"
+        "from hnnbench._entry.command import run\n"
+        "sys.exit(run(sys.argv[1:]))\n"
+    )
     proc = subprocess.run(
-        [sys.executable, "-c", code, "-m", "system=spring", "model=all", "profile=quick",
-         f"hydra.sweep.dir={tmp_path}"], capture_output=True, text=True, timeout=900)
+        [
+            sys.executable,
+            "-c",
+            code,
+            "-m",
+            "system=spring",
+            "model=all",
+            "profile=quick",
+            f"hydra.sweep.dir={tmp_path}",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     from hnnbench._record.loader import load_records
 
     models = {r["model"]: r["status"] for r in load_records(tmp_path)}
     assert models and not any(m.endswith("_torch") for m in models), models
-    assert {"mlp_jax", "hnn_jax", "dhnn_jax", "lnn_jax", "so_mlp_jax", "srnn_jax",
-            "oracle"} <= set(models), models
+    assert {"mlp_jax", "hnn_jax", "dhnn_jax", "lnn_jax", "so_mlp_jax", "srnn_jax", "oracle"} <= set(
+        models
+    ), models
     assert all(s in ("ok", "diverged") for s in models.values()), models

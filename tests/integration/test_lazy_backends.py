@@ -33,8 +33,9 @@ print("IMPORTED", record["status"], "torch" in sys.modules, "jax" in sys.modules
 
 
 def _imported(code: str, *args: str) -> list[str]:
-    out = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True,
-                         timeout=300)
+    out = subprocess.run(
+        [sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=300
+    )
     assert out.returncode == 0, out.stderr[-3000:]
     line = [ln for ln in out.stdout.splitlines() if ln.startswith("IMPORTED")][-1]
     return line.split()[1:]
@@ -48,14 +49,18 @@ def test_reporting_imports_no_backend(tmp_path):
     from report_fixtures import make_sweep
 
     sweep = make_sweep(tmp_path / "sweep")
-    code = ("import sys\nfrom hnnbench._results.report import write_report\n"
-            f"write_report({str(sweep)!r}, {str(tmp_path / 'out')!r})\n"
-            "print('IMPORTED', 'torch' in sys.modules, 'jax' in sys.modules)\n")
+    code = (
+        "import sys\nfrom hnnbench._results.report import write_report\n"
+        f"write_report({str(sweep)!r}, {str(tmp_path / 'out')!r})\n"
+        "print('IMPORTED', 'torch' in sys.modules, 'jax' in sys.modules)\n"
+    )
     assert _imported(code) == ["False", "False"]
 
 
-@pytest.mark.parametrize(("model", "expected"), [("mlp_torch", ["ok", "True", "False"]),
-                                                 ("mlp_jax", ["ok", "False", "True"])])
+@pytest.mark.parametrize(
+    ("model", "expected"),
+    [("mlp_torch", ["ok", "True", "False"]), ("mlp_jax", ["ok", "False", "True"])],
+)
 def test_a_job_imports_only_its_backend(model, expected, tmp_path):
     pytest.importorskip("torch" if "torch" in model else "jax")
     assert _imported(JOB.replace("{model}", model), str(tmp_path)) == expected

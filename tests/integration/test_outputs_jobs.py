@@ -25,8 +25,9 @@ class _Truth(hnnbench.Model):
         return self.system.vector_field(x)
 
     def rollout(self, x0, t, rtol=1e-9, atol=1e-9):
-        return hnnbench.solve_batch(self.time_derivative, x0, t, rtol=rtol, atol=atol,
-                                    method="RK45")
+        return hnnbench.solve_batch(
+            self.time_derivative, x0, t, rtol=rtol, atol=atol, method="RK45"
+        )
 
     def energy(self, x):
         return self.system.energy(x)
@@ -47,11 +48,14 @@ def one_step_model():
     registry.refresh()
 
 
-
-
 def test_a_rollout_of_the_wrong_shape_fails_the_job_in_one_line(one_step_model, tmp_path):
-    overrides = ["system=spring", f"model={one_step_model}", "profile=quick",
-                 "save_model=false", "pin_cpu=false"]
+    overrides = [
+        "system=spring",
+        f"model={one_step_model}",
+        "profile=quick",
+        "save_model=false",
+        "pin_cpu=false",
+    ]
     record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)[0].record
     assert record["status"] == "failed", record
     error = record["error"]

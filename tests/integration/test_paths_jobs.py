@@ -31,8 +31,15 @@ def test_job_settings_reach_data_and_dataset_caches(tmp_path, tmp_path_factory):
     _fakeplug.activate(site)
     try:
         job_cache = tmp_path / "job-cache"
-        cfg = compose(["profile=quick", "system=real_pendulum", "model=crash_model",
-                       f"cache_dir={job_cache}", f"data_dir={SOURCE.parent}"])
+        cfg = compose(
+            [
+                "profile=quick",
+                "system=real_pendulum",
+                "model=crash_model",
+                f"cache_dir={job_cache}",
+                f"data_dir={SOURCE.parent}",
+            ]
+        )
         record = run_job(cfg, tmp_path / "job")[0].record
     finally:
         _fakeplug.deactivate(site)

@@ -22,8 +22,14 @@ P = SIDE * SIDE
 
 
 def small_system(**overrides) -> PixelPendulum:
-    values = {"name": "pixel_pendulum", "n_traj": 10, "n_frames": 8, "eval_n_traj": 3,
-              "eval_n_points": 6, **overrides}
+    values = {
+        "name": "pixel_pendulum",
+        "n_traj": 10,
+        "n_frames": 8,
+        "eval_n_traj": 3,
+        "eval_n_points": 6,
+        **overrides,
+    }
     cfg = PixelPendulumConfig(**values)
     cfg.validate()
     return PixelPendulum(cfg)
@@ -92,8 +98,7 @@ def test_dataset_shapes_splits_and_extras():
         assert split.extras["x_next"].shape == (n, 2 * P)
         assert split.t.shape == split.traj.shape == (n,)
         assert 0.0 <= split.x.min() and split.x.max() <= 1.0
-        np.testing.assert_allclose(split.dxdt, (split.extras["x_next"] - split.x) / c.dt,
-                                   atol=1e-5)
+        np.testing.assert_allclose(split.dxdt, (split.extras["x_next"] - split.x) / c.dt, atol=1e-5)
         # x = (frame_k, frame_k+1), x_next = (frame_k+1, frame_k+2)
         np.testing.assert_array_equal(split.x[:, P:], split.extras["x_next"][:, :P])
         # the first frame of x is the render of the recorded state's angle
@@ -140,14 +145,22 @@ def test_evaluation_trajectories():
     np.testing.assert_array_equal(ev.observations[:, 1:, :P], ev.observations[:, :-1, P:])
     np.testing.assert_allclose(
         ev.observations[:, :, :P].reshape(-1, P),
-        render(ev.states[..., 0].reshape(-1)).reshape(-1, P), atol=1e-6,
+        render(ev.states[..., 0].reshape(-1)).reshape(-1, P),
+        atol=1e-6,
     )
 
 
 @pytest.mark.parametrize(
     "override",
-    [{"n_frames": 2}, {"test_split": 1.0}, {"dt": 0.0}, {"n_traj": 2, "test_split": 0.1},
-     {"radius_min": 2.0, "radius_max": 1.0}, {"side": 4}, {"batch_size": 0}],
+    [
+        {"n_frames": 2},
+        {"test_split": 1.0},
+        {"dt": 0.0},
+        {"n_traj": 2, "test_split": 0.1},
+        {"radius_min": 2.0, "radius_max": 1.0},
+        {"side": 4},
+        {"batch_size": 0},
+    ],
 )
 def test_config_validation_is_one_line(override):
     cfg = PixelPendulumConfig(name="pixel_pendulum", **override)
@@ -183,8 +196,9 @@ def tiny():
         assert cls.unsupported_reason(system) is None
         model = cls(NeuralConfig(name=cls.__name__, hidden=16), system, device="cpu")
         logged: list[int] = []
-        result = model.fit(data, train, seed=0,
-                           progress=lambda step, _m, out=logged: out.append(step))
+        result = model.fit(
+            data, train, seed=0, progress=lambda step, _m, out=logged: out.append(step)
+        )
         assert result.steps == 6 and logged[-1] == 6
         assert np.all(np.isfinite(result.history["train_loss"]))
         model.history, model.selection = result.history, result.selection
@@ -220,8 +234,9 @@ def test_pixel_model_time_units(tiny, name):
     z0 = model.encode(ev.observations[:, 0])
     h = 1e-5
     zhat = model.rollout(z0, np.array([0.0, h]), rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose((zhat[:, 1] - z0) / h, model.time_derivative(z0), rtol=1e-3,
-                               atol=1e-6)
+    np.testing.assert_allclose(
+        (zhat[:, 1] - z0) / h, model.time_derivative(z0), rtol=1e-3, atol=1e-6
+    )
 
 
 def test_pixel_loss_matches_training_objective(tiny):
@@ -237,7 +252,8 @@ def test_pixel_loss_matches_training_objective(tiny):
         valid = with_validation(data, 0).valid
         at = model.history["step"].index(model.selection.step)
         assert model.history["val_loss"][at] == pytest.approx(
-            model.loss(valid.x, valid.dxdt), rel=1e-5)
+            model.loss(valid.x, valid.dxdt), rel=1e-5
+        )
 
 
 @pytest.mark.parametrize("name", ["MLPTorch", "HNNTorch"])

@@ -76,15 +76,17 @@ def test_a_real_record_names_its_plugins_and_passes(honest, tmp_path, capsys):
     assert records.validate(record) == []
     oracle = registry.discover("model")["oracle"]
     assert record["plugins"]["model"] == {
-        "name": "oracle", "version": oracle.version, "distribution": oracle.distribution,
-        "distribution_version": oracle.dist_version}
+        "name": "oracle",
+        "version": oracle.version,
+        "distribution": oracle.distribution,
+        "distribution_version": oracle.dist_version,
+    }
     assert record["plugins"]["system"]["name"] == "spring"
     variants = check.record_variants(records.load_records(honest))
     assert [(v.label, v.undeclared, v.problem) for v in variants] == [("", (), None)]
     reference = _reference(honest, tmp_path)
     capsys.readouterr()
-    assert check.main([str(honest), "--reference", str(reference)]) == 0, \
-        capsys.readouterr().out
+    assert check.main([str(honest), "--reference", str(reference)]) == 0, capsys.readouterr().out
 
 
 # --------------------------------------------------------------------------- variants
@@ -106,8 +108,10 @@ def test_a_setting_changed_without_its_override_is_not_the_main_row(honest, tmp_
     out = capsys.readouterr().out
     (line,) = _lines(out, "is not the main row") or _lines(out, "not the main row")
     assert str(path) in line
-    assert ("config.system.n_traj is 20 but the quick profile's default is 50, and the "
-            "record's overrides do not set it: a variant (system.n_traj=20)") in line
+    assert (
+        "config.system.n_traj is 20 but the quick profile's default is 50, and the "
+        "record's overrides do not set it: a variant (system.n_traj=20)"
+    ) in line
     # its row is a variant of its own: the main row lost its seed
     assert _lines(out, "missing") and _lines(out, "[system.n_traj=20]")
 
@@ -157,20 +161,27 @@ def test_a_trained_model_of_another_width_is_not_the_main_row(tmp_path, capsys):
 def test_rerun_of_an_honest_record_passes_with_a_table(honest, tmp_path, capsys):
     reference = _reference(honest, tmp_path)
     capsys.readouterr()
-    assert check.main([str(honest), "--reference", str(reference),
-                       "--rerun", "spring/oracle/0"]) == 0
+    assert (
+        check.main([str(honest), "--reference", str(reference), "--rerun", "spring/oracle/0"]) == 0
+    )
     out = capsys.readouterr().out
     assert "--rerun spring/oracle/0 (fresh cache" in out
     header = _lines(out, "re-run")[1]
     assert header.split()[:5] == ["metric", "record", "re-run", "apart", "allowed"]
-    for name in ("status", "data.dataset_sha256", "data.evaluation_sha256", "train_loss",
-                 "rollout_mse"):
+    for name in (
+        "status",
+        "data.dataset_sha256",
+        "data.evaluation_sha256",
+        "train_loss",
+        "rollout_mse",
+    ):
         (row,) = [line for line in out.splitlines() if line.split()[:1] == [name]]
         assert row.rstrip().endswith("ok"), row
 
 
 def test_rerun_ignores_a_cache_of_altered_data_and_writes_nothing_the_record_names(
-        honest, tmp_path, capsys):
+    honest, tmp_path, capsys
+):
     """A record made from altered cached data (train and test swapped), whose config
     points at that cache: re-run from its own settings it would reproduce itself. The
     re-run uses a fresh cache instead, so its canonical data hashes differ, and fails;
@@ -179,8 +190,7 @@ def test_rerun_ignores_a_cache_of_altered_data_and_writes_nothing_the_record_nam
     data_dir.mkdir()
     job = prepare_job(compose(JOB))
     system = job.system_cls(job.system_cfg)
-    _, entry, _ = cached(system, 0, "dataset", lambda: system.dataset(0), Dataset.load,
-                         root=evil)
+    _, entry, _ = cached(system, 0, "dataset", lambda: system.dataset(0), Dataset.load, root=evil)
     honest_data = Dataset.load(entry)
     Dataset(train=honest_data.test, test=honest_data.train, meta=honest_data.meta).save(entry)
     altered = sha256_file(entry)
@@ -197,46 +207,76 @@ def test_rerun_ignores_a_cache_of_altered_data_and_writes_nothing_the_record_nam
 
     before = listing(evil, data_dir, sweep)
     capsys.readouterr()
-    assert check.main([str(sweep), "--reference", str(reference),
-                       "--rerun", "spring/oracle/0"]) == 1
+    assert (
+        check.main([str(sweep), "--reference", str(reference), "--rerun", "spring/oracle/0"]) == 1
+    )
     out = capsys.readouterr().out
     (line,) = [ln for ln in _lines(out, "data.dataset_sha256") if ln.startswith("rerun")]
     assert altered[:12] in line and "canonical" in line and str(directory) in line
     assert listing(evil, data_dir, sweep) == before
     # the honest record's hash is the canonical one
-    assert altered != json.loads(
-        next(honest.rglob(records.RECORD_NAME)).read_text())["data"]["dataset_sha256"]
+    assert (
+        altered
+        != json.loads(next(honest.rglob(records.RECORD_NAME)).read_text())["data"]["dataset_sha256"]
+    )
 
 
 def test_rerun_config_takes_no_run_only_setting_from_the_record(honest, tmp_path):
     (rec,) = records.load_records(honest)
     rec = copy.deepcopy(rec)
-    rec["config"].update(cache_dir="/elsewhere/cache", data_dir="/elsewhere/data",
-                         device="cuda:7", threads=64, pin_cpu=True, save_model=True,
-                         seeds_per_job=4, seed_batch=[0, 1, 2, 3])
+    rec["config"].update(
+        cache_dir="/elsewhere/cache",
+        data_dir="/elsewhere/data",
+        device="cuda:7",
+        threads=64,
+        pin_cpu=True,
+        save_model=True,
+        seeds_per_job=4,
+        seed_batch=[0, 1, 2, 3],
+    )
     cfg = check.rerun_config(rec, tmp_path / "fresh")
     assert cfg["cache_dir"] == str(tmp_path / "fresh") and cfg["data_dir"] is None
-    assert (cfg["device"], cfg["threads"], cfg["pin_cpu"], cfg["save_model"], cfg["rerun"],
-            cfg["seeds_per_job"], cfg["seed_batch"]) == ("auto", 1, None, False, True, 1, None)
+    assert (
+        cfg["device"],
+        cfg["threads"],
+        cfg["pin_cpu"],
+        cfg["save_model"],
+        cfg["rerun"],
+        cfg["seeds_per_job"],
+        cfg["seed_batch"],
+    ) == ("auto", 1, None, False, True, 1, None)
     assert cfg["system"] == rec["config"]["system"] and cfg["model"] == rec["config"]["model"]
 
 
 # --------------------------------------------------------------------------- plugins
 
 
-@pytest.mark.parametrize(("change", "field", "gating"), [
-    (lambda r: r.update(model_version=None), "model_version", True),
-    (lambda r: r["plugins"]["model"].update(version=None), "plugins.model.version", True),
-    (lambda r: r["plugins"]["system"].update(distribution="someone-else"),
-     "plugins.system.distribution", True),
-    (lambda r: r["plugins"]["model"].update(distribution_version=None),
-     "plugins.model.distribution_version", True),
-    (lambda r: r["plugins"]["model"].update(distribution_version="0.0.1"),
-     "plugins.model.distribution_version", False),
-    (lambda r: r.pop("plugins"), None, False),  # a record made before the field: readable
-])
-def test_plugin_versions_are_compared_and_null_is_a_mismatch(honest, tmp_path, capsys,
-                                                             change, field, gating):
+@pytest.mark.parametrize(
+    ("change", "field", "gating"),
+    [
+        (lambda r: r.update(model_version=None), "model_version", True),
+        (lambda r: r["plugins"]["model"].update(version=None), "plugins.model.version", True),
+        (
+            lambda r: r["plugins"]["system"].update(distribution="someone-else"),
+            "plugins.system.distribution",
+            True,
+        ),
+        (
+            lambda r: r["plugins"]["model"].update(distribution_version=None),
+            "plugins.model.distribution_version",
+            True,
+        ),
+        (
+            lambda r: r["plugins"]["model"].update(distribution_version="0.0.1"),
+            "plugins.model.distribution_version",
+            False,
+        ),
+        (lambda r: r.pop("plugins"), None, False),  # a record made before the field: readable
+    ],
+)
+def test_plugin_versions_are_compared_and_null_is_a_mismatch(
+    honest, tmp_path, capsys, change, field, gating
+):
     reference = _reference(honest, tmp_path)
     sweep = _copy(honest, tmp_path)
     _edit(sweep, change)
@@ -254,12 +294,15 @@ def test_plugin_versions_are_compared_and_null_is_a_mismatch(honest, tmp_path, c
 # --------------------------------------------------------------------------- names
 
 
-@pytest.mark.parametrize(("change", "key"), [
-    (lambda r: r["timings"].update(seed=3), "timings key 'seed'"),
-    (lambda r: r["timings"].update(n_ok=1.0), "timings key 'n_ok'"),
-    (lambda r: r["metrics"].update(status={"mean": 0.0, "sem": 0.0}), "metrics key 'status'"),
-    (lambda r: r["metrics"].update(ranked={"mean": 1.0, "sem": 0.0}), "metrics key 'ranked'"),
-])
+@pytest.mark.parametrize(
+    ("change", "key"),
+    [
+        (lambda r: r["timings"].update(seed=3), "timings key 'seed'"),
+        (lambda r: r["timings"].update(n_ok=1.0), "timings key 'n_ok'"),
+        (lambda r: r["metrics"].update(status={"mean": 0.0, "sem": 0.0}), "metrics key 'status'"),
+        (lambda r: r["metrics"].update(ranked={"mean": 1.0, "sem": 0.0}), "metrics key 'ranked'"),
+    ],
+)
 def test_a_key_named_like_a_table_column_is_refused(honest, tmp_path, change, key):
     sweep = _copy(honest, tmp_path)
     path = _edit(sweep, change)

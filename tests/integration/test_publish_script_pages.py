@@ -27,7 +27,8 @@ def tree(tmp_path, monkeypatch):
         "# x\n\n<!-- aggregate:begin -->\n<!-- aggregate:end -->\n\n"
         "<!-- leaderboard:begin -->\n<!-- leaderboard:end -->\n\n"
         "<!-- tracks:begin -->\n<!-- tracks:end -->\n\n"
-        "<!-- provenance:begin -->\n<!-- provenance:end -->\n")
+        "<!-- provenance:begin -->\n<!-- provenance:end -->\n"
+    )
     (root / "results" / "figures" / "old_system_energy.png").write_bytes(b"stale")
     monkeypatch.setattr(publish_results, "ROOT", root)
     monkeypatch.setattr(publish_results, "RESULTS", root / "results")
@@ -48,16 +49,22 @@ def test_a_new_model_published_with_the_records_keeps_every_figure_and_page(tree
 
     # The protocol: JAX twins seeds 0-9, torch twins 0-2 (docs/STATISTICS.md).
     first = tmp_path / "first"
-    for model, seeds in (("mlp_jax", 10), ("hnn_jax", 10), ("oracle", 10), ("mlp_torch", 3),
-                         ("hnn_torch", 3)):
+    for model, seeds in (
+        ("mlp_jax", 10),
+        ("hnn_jax", 10),
+        ("oracle", 10),
+        ("mlp_torch", 3),
+        ("hnn_torch", 3),
+    ):
         for seed in range(seeds):
             write_run(first, "spring", model, seed, profile="paper")
     assert publish_results.main([str(first)]) == 0
     published = tree / "results" / "records"
     rollouts = sorted(p.relative_to(published) for p in published.rglob("rollout.npz"))
-    assert [str(p) for p in rollouts] == [f"spring/{m}/seed0/rollout.npz" for m in
-                                          ("hnn_jax", "hnn_torch", "mlp_jax", "mlp_torch",
-                                           "oracle")]
+    assert [str(p) for p in rollouts] == [
+        f"spring/{m}/seed0/rollout.npz"
+        for m in ("hnn_jax", "hnn_torch", "mlp_jax", "mlp_torch", "oracle")
+    ]
     families = pd.read_csv(tree / "results" / "families.csv").set_index("family")
     assert families.loc["hnn", "seeds_from"] == "hnn_jax" and families.loc["hnn", "n_seeds"] == 10
     assert families.loc["hnn", "twins"] == "hnn_torch agrees (3 seeds)"
@@ -84,8 +91,14 @@ def test_a_new_model_published_with_the_records_keeps_every_figure_and_page(tree
     assert list(board["model"]) == list(leaderboard(recs)["model"])
     assert "dhnn_jax" in set(board["model"])
     seed, runs = runs_for_figures(recs)  # the merged page draws every model
-    assert seed == 0 and {r.model for r in runs} == {"mlp_jax", "mlp_torch", "hnn_jax",
-                                                     "hnn_torch", "dhnn_jax", "oracle"}
+    assert seed == 0 and {r.model for r in runs} == {
+        "mlp_jax",
+        "mlp_torch",
+        "hnn_jax",
+        "hnn_torch",
+        "dhnn_jax",
+        "oracle",
+    }
     pngs = sorted((tree / "results" / "figures").glob("*.png"))
     assert {"spring_energy.png", "performance_profile.png"} <= {p.name for p in pngs}
     page = (tree / "results" / "leaderboard.html").read_text()

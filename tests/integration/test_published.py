@@ -41,7 +41,7 @@ def committed() -> list[dict]:
 
 def _block(text: str, name: str) -> str:
     begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
-    return text[text.index(begin) + len(begin):text.index(end)]
+    return text[text.index(begin) + len(begin) : text.index(end)]
 
 
 def test_every_committed_record_is_valid_paper_profile(committed):
@@ -65,11 +65,17 @@ def test_the_leaderboard_is_the_one_of_the_committed_records(board, rebuilt):
     assert rebuilt[key].values.tolist() == board[key].values.tolist()
     intervals = _values(board, ("_ci_low", "_ci_high"))
     assert intervals, "results/leaderboard.csv has no interval columns: republish it"
-    assert {c[: -len("_ci_low")] for c in intervals if c.endswith("_ci_low")} == \
-        {c[: -len("_mean")] for c in _values(board, ("_mean",))}
+    assert {c[: -len("_ci_low")] for c in intervals if c.endswith("_ci_low")} == {
+        c[: -len("_mean")] for c in _values(board, ("_mean",))
+    }
     for column in _values(board, ("_mean", "_ci_low", "_ci_high")):
-        np.testing.assert_allclose(rebuilt[column].to_numpy(float), board[column].to_numpy(float),
-                                   rtol=1e-12, equal_nan=True, err_msg=column)
+        np.testing.assert_allclose(
+            rebuilt[column].to_numpy(float),
+            board[column].to_numpy(float),
+            rtol=1e-12,
+            equal_nan=True,
+            err_msg=column,
+        )
 
 
 def _blank_na(column: pd.Series) -> list:
@@ -78,12 +84,13 @@ def _blank_na(column: pd.Series) -> list:
     return ["" if pd.isna(v) else v for v in column]
 
 
-def test_the_family_table_and_the_aggregate_are_those_of_the_committed_records(rebuilt,
-                                                                                committed):
+def test_the_family_table_and_the_aggregate_are_those_of_the_committed_records(rebuilt, committed):
     published = pd.read_csv(RESULTS / "families.csv")
     fams = families(records_frame(committed), rebuilt)
-    assert fams.board[["system", "family", "seeds_from"]].values.tolist() == \
-        published[["system", "family", "seeds_from"]].values.tolist()
+    assert (
+        fams.board[["system", "family", "seeds_from"]].values.tolist()
+        == published[["system", "family", "seeds_from"]].values.tolist()
+    )
     for column in [c for c in published.columns if c.endswith("_mark")]:
         assert _blank_na(fams.board[column]) == _blank_na(published[column]), column
     aggregate = pd.read_csv(RESULTS / "aggregate.csv")
@@ -95,8 +102,7 @@ def test_the_family_table_and_the_aggregate_are_those_of_the_committed_records(r
         assert (rows["iqm_low"] <= rows["iqm"]).all() and (rows["iqm"] <= rows["iqm_high"]).all()
 
 
-def test_the_results_page_sets_the_tracks_of_the_committed_records_side_by_side(
-        rebuilt, committed):
+def test_the_results_page_sets_the_tracks_of_the_committed_records_side_by_side(rebuilt, committed):
     from hnnbench._results.report.verdicts import tracks_frame, tracks_markdown, tuning_costs
 
     fams = families(records_frame(committed), rebuilt)
@@ -114,18 +120,28 @@ def test_every_published_system_has_every_model_with_its_seeds(board):
     for system in systems:
         missing = [m for m in available("model") if (system, m) not in have]
         if missing:
-            line = next((ln for ln in listing.splitlines()
-                         if ln.startswith(f"- Partly published: `{system}` lacks ")), "")
+            line = next(
+                (
+                    ln
+                    for ln in listing.splitlines()
+                    if ln.startswith(f"- Partly published: `{system}` lacks ")
+                ),
+                "",
+            )
             assert all(m in line for m in missing), (system, missing, line)
     assert set(board["profile"]) == {"paper"}
     # Seeds 0..n-1 (scripts/maintainer/paper_sweep.sh): at least 5 of the JAX twins and the
     # reference (the family rows rest on them: a sign test over fewer cannot separate at
     # 5%), at least 3 of the torch twins (the twin-parity check) and of a recipe row; a
     # tuned row, at least 5 (docs/TUNING.md: the selected settings on seeds 0 to 4).
-    tracks = board["track"].fillna("protocol") if "track" in board else \
-        pd.Series("protocol", index=board.index)
-    for model, seeds, n, track in zip(board["model"], board["seeds"].astype(str),
-                                      board["n_seeds"], tracks, strict=True):
+    tracks = (
+        board["track"].fillna("protocol")
+        if "track" in board
+        else pd.Series("protocol", index=board.index)
+    )
+    for model, seeds, n, track in zip(
+        board["model"], board["seeds"].astype(str), board["n_seeds"], tracks, strict=True
+    ):
         least = 3 if str(model).endswith("_torch") or track == "recipe" else 5
         assert n >= least and seeds == ";".join(map(str, range(n))), (model, seeds, n)
     assert systems <= set(available("system"))
@@ -135,8 +151,11 @@ def _links(markdown: str) -> list[str]:
     """The targets of the Markdown links and images in ``markdown`` (no web links)."""
     import re
 
-    return [t for t in re.findall(r"\]\(([^)\s]+)\)", markdown)
-            if not t.startswith(("http", "#", "mailto:"))]
+    return [
+        t
+        for t in re.findall(r"\]\(([^)\s]+)\)", markdown)
+        if not t.startswith(("http", "#", "mailto:"))
+    ]
 
 
 def test_the_results_page_embeds_the_committed_table_provenance_and_an_existing_figure():
@@ -171,14 +190,26 @@ def test_the_readme_starts_with_trying_it_and_links_to_the_results():
     assert len(readme.encode()) < 20_000
     assert "<!--" not in readme  # the generated blocks are the results page's
     lines = readme.splitlines()
-    assert lines[2] == "```bash" and lines[3].startswith("make benchmark ") and \
-        lines[4].startswith("make test ") and lines[5] == "```"
+    assert (
+        lines[2] == "```bash"
+        and lines[3].startswith("make benchmark ")
+        and lines[4].startswith("make test ")
+        and lines[5] == "```"
+    )
     first_screen = "\n".join(lines[:40])
     assert "pip install -e '.[all]'" in first_screen and "make setup" in first_screen
-    assert "hnnbench -m system=spring,pendulum model=hnn_jax,mlp_jax profile=quick" in \
-        first_screen and "leaderboard.html" in first_screen
-    for target in ("results/README.md", "results/leaderboard.html", "docs/PLUGINS.md",
-                   "docs/LEADERBOARD.md", "docs/SCALING.md", "docs/STATISTICS.md"):
+    assert (
+        "hnnbench -m system=spring,pendulum model=hnn_jax,mlp_jax profile=quick" in first_screen
+        and "leaderboard.html" in first_screen
+    )
+    for target in (
+        "results/README.md",
+        "results/leaderboard.html",
+        "docs/PLUGINS.md",
+        "docs/LEADERBOARD.md",
+        "docs/SCALING.md",
+        "docs/STATISTICS.md",
+    ):
         assert f"]({target})" in readme, target
     for target in _links(readme):
         assert (REPO / target).exists(), target
@@ -203,12 +234,10 @@ def test_rerunning_one_pair_lands_inside_the_committed_mean_pm_3_std(board, tmp_
     system (its JAX twin: the torch twins of some systems were trained before a change
     that moved their last bits, results/README.md)."""
     systems = sorted(set(board["system"]))
-    system, model = (("spring", "hnn_torch") if "spring" in systems
-                     else (systems[0], "hnn_jax"))
+    system, model = ("spring", "hnn_torch") if "spring" in systems else (systems[0], "hnn_jax")
     row = board[(board["system"] == system) & (board["model"] == model)]
     assert not row.empty, (system, model)
-    proc = hnnbench(f"system={system}", f"model={model}", "seed=1",
-                    f"hydra.run.dir={tmp_path}")
+    proc = hnnbench(f"system={system}", f"model={model}", "seed=1", f"hydra.run.dir={tmp_path}")
     assert proc.returncode == 0, proc.stderr[-2000:]
     record = json.loads((tmp_path / "result.json").read_text())
     row = row.iloc[0]
@@ -244,6 +273,8 @@ def test_every_tuned_system_has_every_family_on_equal_budgets(committed):
         for fam in fams:
             runs = pairs[(system, fam)]
             assert sorted(r["seed"] for r in runs)[:5] == [0, 1, 2, 3, 4], (system, fam)
-            assert len({json.dumps(r["tuning"]["selected"], sort_keys=True)
-                        for r in runs}) == 1, (system, fam)
+            assert len({json.dumps(r["tuning"]["selected"], sort_keys=True) for r in runs}) == 1, (
+                system,
+                fam,
+            )
     assert len({s for s, _ in pairs}) >= 5, sorted({s for s, _ in pairs})  # issue #32

@@ -18,8 +18,15 @@ from hnnbench._contracts import claims
 from hnnbench._results import report
 from hnnbench._results.leaderboard import format_value, leaderboard
 
-METRICS = ("train_loss", "test_loss", "energy_mse", "rollout_mse", "reversibility_error",
-           "time_reversal_error", "valid_prediction_time")
+METRICS = (
+    "train_loss",
+    "test_loss",
+    "energy_mse",
+    "rollout_mse",
+    "reversibility_error",
+    "time_reversal_error",
+    "valid_prediction_time",
+)
 
 
 @pytest.fixture()
@@ -50,9 +57,24 @@ def _row(board, system, model):
 def test_leaderboard_csv_has_one_row_per_pair_with_mean_std_status_and_timings(built):
     board = _board(built)
     assert len(board) == 5
-    expected = {"profile", "system", "model", "backend", "n_seeds", "seeds", "n_ok",
-                "n_diverged", "n_failed", "n_skipped", "status", "reason",
-                "fit_s_mean", "eval_s_mean", "total_s_mean", "cpu_s_mean"}
+    expected = {
+        "profile",
+        "system",
+        "model",
+        "backend",
+        "n_seeds",
+        "seeds",
+        "n_ok",
+        "n_diverged",
+        "n_failed",
+        "n_skipped",
+        "status",
+        "reason",
+        "fit_s_mean",
+        "eval_s_mean",
+        "total_s_mean",
+        "cpu_s_mean",
+    }
     expected |= {f"{m}_{s}" for m in METRICS for s in ("mean", "std", "ci_low", "ci_high")}
     assert expected <= set(board.columns), expected - set(board.columns)
     row = _row(board, "spring", "hnn_torch")
@@ -63,13 +85,17 @@ def test_leaderboard_csv_has_one_row_per_pair_with_mean_std_status_and_timings(b
     # Two seeds: every bootstrap resample's mean lies between them, and the 95% interval
     # reaches both (a quarter of the resamples are each value twice).
     assert (row["energy_mse_ci_low"], row["energy_mse_ci_high"]) == pytest.approx(
-        (min(values), max(values)))
+        (min(values), max(values))
+    )
     assert row["fit_s_mean"] == pytest.approx(2.5)
     assert row["cpu_s_mean"] == pytest.approx(2.6)  # the fixture's cpu_s: 2.1 + seed
     assert board["reason"].isna().all()  # every run ok: no reason
     # Canonical order: spring before pendulum, baseline before HNN before oracle.
     assert list(zip(board["system"], board["model"], strict=True))[:3] == [
-        ("spring", "mlp_torch"), ("spring", "hnn_torch"), ("spring", "oracle")]
+        ("spring", "mlp_torch"),
+        ("spring", "hnn_torch"),
+        ("spring", "oracle"),
+    ]
 
 
 def test_default_out_is_the_sweep_dir_and_markdown_is_compact(sweep):
@@ -81,8 +107,15 @@ def test_default_out_is_the_sweep_dir_and_markdown_is_compact(sweep):
     assert f"{np.mean(values):.1e} [{min(values):.1e}, {max(values):.1e}]" in md
     assert "BCa bootstrap interval" in md and "sign test" in md  # the rules, stated
     header = next(line for line in md.splitlines() if line.startswith("| system"))
-    for column in ("family", "seeds_from", "status", "energy_mse", "test_loss",
-                   "valid_prediction_time", "cpu_s"):
+    for column in (
+        "family",
+        "seeds_from",
+        "status",
+        "energy_mse",
+        "test_loss",
+        "valid_prediction_time",
+        "cpu_s",
+    ):
         assert column in header
     assert "total_s" not in header  # CPU time, not wall time on a shared machine
 
@@ -108,12 +141,16 @@ def test_figures_per_system_and_html_links_every_one(built):
     for name in pngs:
         assert (out / "figures" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     page = (out / "leaderboard.html").read_text()
-    assert {"heatmap_energy_mse.png", "heatmap_rollout_mse.png",
-            "performance_profile.png"} <= set(pngs)
+    assert {"heatmap_energy_mse.png", "heatmap_rollout_mse.png", "performance_profile.png"} <= set(
+        pngs
+    )
     # 4 kinds x 2 systems, 2 heatmaps, the performance profiles: each linked, lazily
     assert page.count("<img") == len(pngs) == 8 + 2 + 1
-    linked = re.findall(r'<img loading="lazy" alt="[^"]*" width="\d+" height="\d+" '
-                        r'src="figures/([^"]+)">', page)
+    linked = re.findall(
+        r'<img loading="lazy" alt="[^"]*" width="\d+" height="\d+" '
+        r'src="figures/([^"]+)">',
+        page,
+    )
     assert sorted(linked) == pngs
     assert "data:image" not in page and "<link" not in page and "http" not in page
     assert "<table" in page and "hnn_torch" in page and "Qualitative claims" in page
@@ -132,7 +169,7 @@ def test_the_page_leads_with_contents_and_the_headline_and_folds_provenance(buil
     assert body.index('<h2 id="across">') < first_table < body.index('<h2 id="families">')
     details = re.search(r"<details>(.*?)</details>", body, re.S).group(1)
     assert "hnnbench -m system=spring" in details and body.index("<details>") < first_table
-    assert "hnnbench -m system=spring" not in body[:body.index("<details>")]
+    assert "hnnbench -m system=spring" not in body[: body.index("<details>")]
     # every metric column says which way is better, in HTML and in Markdown
     heads = re.findall(r"<th[^>]*>([^<]*)</th>", body)
     assert "energy_mse \u2193" in heads and "valid_prediction_time \u2191" in heads
@@ -151,10 +188,11 @@ def test_embed_figures_gives_one_self_contained_file(sweep, tmp_path):
     assert 'src="figures/' not in page and 'loading="lazy"' not in page
 
 
-@pytest.mark.skipif(not hasattr(__import__("os"), "sched_getaffinity"),
-                    reason="no CPU affinity: figures are drawn in one process")
-def test_figures_drawn_in_several_processes_are_the_serial_ones(tmp_path, monkeypatch,
-                                                               caplog):
+@pytest.mark.skipif(
+    not hasattr(__import__("os"), "sched_getaffinity"),
+    reason="no CPU affinity: figures are drawn in one process",
+)
+def test_figures_drawn_in_several_processes_are_the_serial_ones(tmp_path, monkeypatch, caplog):
     """The system figures drawn by forked processes (the end of a sweep on several
     cores) are the ones one process draws: the same files, byte for byte, in the same
     order; and the pool did draw them (no fallback to one process)."""
@@ -199,8 +237,10 @@ def test_no_learned_energy_figure_without_a_model_that_has_one(tmp_path):
 
 
 def test_diverged_pair_is_shown_as_diverged_with_inf_never_dropped(tmp_path):
-    sweep = make_sweep(tmp_path / "s", pairs=(("spring", "mlp_torch"), ("spring", "hnn_torch"),
-                                              ("pendulum", "hnn_torch")))
+    sweep = make_sweep(
+        tmp_path / "s",
+        pairs=(("spring", "mlp_torch"), ("spring", "hnn_torch"), ("pendulum", "hnn_torch")),
+    )
     for seed in (0, 1):
         set_status(sweep, "spring", "mlp_torch", seed, "diverged")
     set_status(sweep, "pendulum", "hnn_torch", 1, "diverged")  # one of two seeds
@@ -234,9 +274,14 @@ def test_a_training_set_size_sweep_draws_the_data_efficiency_figure(tmp_path):
     for n in (10, 25, 50):
         for model in ("mlp_torch", "hnn_torch"):
             for seed in (0, 1):
-                write_run(sweep, "spring", model, seed, overrides=(f"system.n_traj={n}",),
-                          metrics={k: v * 10 / n for k, v in
-                                   seed_metrics("spring", model, seed).items()})
+                write_run(
+                    sweep,
+                    "spring",
+                    model,
+                    seed,
+                    overrides=(f"system.n_traj={n}",),
+                    metrics={k: v * 10 / n for k, v in seed_metrics("spring", model, seed).items()},
+                )
     assert report.main([str(sweep)]) == 0
     assert (sweep / "figures" / "spring_sweep_system.n_traj.png").is_file()
     recs = records.load(sweep).records
@@ -255,8 +300,7 @@ def test_the_family_table_marks_best_only_when_separated(tmp_path):
     few seeds to separate, nothing marked. The oracle is shown, never marked."""
     pairs = (("spring", "mlp_torch"), ("spring", "hnn_torch"), ("spring", "oracle"))
     for seeds, wrap in ((tuple(range(10)), "**"), ((0, 1), "")):
-        sweep = make_sweep(tmp_path / str(len(seeds)), pairs=pairs, seeds=seeds,
-                           rollout=False)
+        sweep = make_sweep(tmp_path / str(len(seeds)), pairs=pairs, seeds=seeds, rollout=False)
         assert report.main([str(sweep), "--no-figures"]) == 0
         md = (sweep / "leaderboard.md").read_text()
         hnn = next(ln for ln in md.splitlines() if ln.startswith("| spring") and "| hnn " in ln)
@@ -266,23 +310,26 @@ def test_the_family_table_marks_best_only_when_separated(tmp_path):
         assert "*" not in oracle
         families = pd.read_csv(sweep / "families.csv").set_index("family")
         assert families.loc["hnn", "energy_mse_mark"] == (
-            "best" if wrap == "**" else "too_few_seeds")
+            "best" if wrap == "**" else "too_few_seeds"
+        )
         if wrap:  # the median paired effect over the runner-up, beside the leader
             assert "** ×" in hnn and families.loc["hnn", "energy_mse_effect_vs"] == "mlp"
-            assert families.loc["hnn", "energy_mse_effect_low"] <= \
-                families.loc["hnn", "energy_mse_effect"]
+            assert (
+                families.loc["hnn", "energy_mse_effect_low"]
+                <= families.loc["hnn", "energy_mse_effect"]
+            )
 
 
 def test_reasons_and_cpu_seconds_are_in_every_table(tmp_path):
-    sweep = make_sweep(tmp_path / "s", pairs=(("spring", "hnn_torch"),), seeds=(0, 1),
-                       rollout=False)
+    sweep = make_sweep(
+        tmp_path / "s", pairs=(("spring", "hnn_torch"),), seeds=(0, 1), rollout=False
+    )
     write_run(sweep, "spring", "mlp_torch", 0, status="skipped", rollout=False)
     set_status(sweep, "spring", "hnn_torch", 1, "diverged")
     assert report.main([str(sweep), "--no-figures"]) == 0
     board = _board(sweep)
     assert _row(board, "spring", "mlp_torch")["reason"] == "skipped (seed 0): synthetic skipped"
-    assert _row(board, "spring", "hnn_torch")["reason"] == \
-        "diverged (seed 1): synthetic diverged"
+    assert _row(board, "spring", "hnn_torch")["reason"] == "diverged (seed 1): synthetic diverged"
     md = (sweep / "leaderboard.md").read_text()
     tables = [t for t in md.split("\n\n") if t.startswith("| system")]
     families = next(t for t in tables if "| family" in t.splitlines()[0])
@@ -312,14 +359,21 @@ def test_format_value():
 
 def test_paper_table_is_in_natural_units_and_complete():
     table = report.paper_table("greydanus2019")
-    assert set(table["system"]) == {"spring", "pendulum", "real_pendulum", "two_body",
-                                    "three_body", "pixel_pendulum"}
+    assert set(table["system"]) == {
+        "spring",
+        "pendulum",
+        "real_pendulum",
+        "two_body",
+        "three_body",
+        "pixel_pendulum",
+    }
     assert len(table) == 6 * 3 * 2
     for r in table.itertuples():
         assert r.value == pytest.approx(float(r.printed_value) / float(r.printed_scale))
     spring = table[(table.system == "spring") & (table.metric == "energy_mse")]
     assert spring.set_index("model")["value"].to_dict() == pytest.approx(
-        {"baseline": 0.17, "hnn": 3.8e-4})
+        {"baseline": 0.17, "hnn": 3.8e-4}
+    )
     two_body = table[(table.system == "two_body") & (table.metric == "test_loss")]
     assert set(two_body["printed_scale"].astype(float)) == {1e6}
     assert two_body.set_index("model")["value"]["hnn"] == pytest.approx(2.8e-6)
@@ -336,8 +390,15 @@ def test_every_claim_holds_on_the_papers_own_numbers():
 def test_paper_comparison_shows_every_table1_cell(built):
     text = (built / "paper_comparison.md").read_text()
     table = [ln for ln in text.splitlines() if ln.startswith("| ") and "(" in ln.split("|")[1]]
-    tasks = [ln for ln in table if re.search(r"\((spring|pendulum|real_pendulum|two_body|"
-                                             r"three_body|pixel_pendulum)\)", ln)]
+    tasks = [
+        ln
+        for ln in table
+        if re.search(
+            r"\((spring|pendulum|real_pendulum|two_body|"
+            r"three_body|pixel_pendulum)\)",
+            ln,
+        )
+    ]
     assert len(tasks) == 18
     real = [ln for ln in tasks if "(real_pendulum)" in ln]
     assert len(real) == 3 and all(ln.count("—") >= 2 for ln in real)
@@ -351,17 +412,22 @@ def test_paper_comparison_shows_every_table1_cell(built):
 def _lookup(values):
     def lookup(system, model, metric):
         return values.get((system, model, metric))
+
     return lookup
 
 
 def test_claims_are_evaluated_per_backend_pair():
     values = {
-        ("spring", "mlp_torch", "energy_mse"): 1e-2, ("spring", "hnn_torch", "energy_mse"): 1e-5,
-        ("spring", "mlp_jax", "energy_mse"): 1e-2, ("spring", "hnn_jax", "energy_mse"): 1e-3,
+        ("spring", "mlp_torch", "energy_mse"): 1e-2,
+        ("spring", "hnn_torch", "energy_mse"): 1e-5,
+        ("spring", "mlp_jax", "energy_mse"): 1e-2,
+        ("spring", "hnn_jax", "energy_mse"): 1e-3,
     }
     claim = next(c for c in registry.all_claims() if c.id == "spring.energy_mse.hnn_100x_lower")
-    res = {r.backend: r for r in claims.evaluate_claims(_lookup(values), [claim],
-                                                  registry.family_models())}
+    res = {
+        r.backend: r
+        for r in claims.evaluate_claims(_lookup(values), [claim], registry.family_models())
+    }
     assert res["torch"].outcome == claims.REPRODUCED and res["torch"].ratio == pytest.approx(1000)
     assert res["jax"].outcome == claims.NOT_REPRODUCED and res["jax"].ratio == pytest.approx(10)
     assert "need >= 100x" in res["jax"].numbers()
@@ -434,8 +500,7 @@ def test_report_cli(tmp_path):
     assert "hnn_torch" in proc.stdout and (out / "leaderboard.html").exists()
 
 
-@pytest.mark.parametrize("case", ["missing", "empty", "no-arg", "bad-flag", "corrupt",
-                                  "twice"])
+@pytest.mark.parametrize("case", ["missing", "empty", "no-arg", "bad-flag", "corrupt", "twice"])
 def test_report_bad_input_is_one_line(case, tmp_path):
     empty = tmp_path / "empty"
     empty.mkdir()
@@ -444,12 +509,22 @@ def test_report_bad_input_is_one_line(case, tmp_path):
     (corrupt / records.RECORD_NAME).write_text("{")
     for part in ("a", "b"):  # one job in two sweeps: the mean would count it twice
         write_run(tmp_path / part, "spring", "hnn_torch", 0)
-    args = {"missing": [str(tmp_path / "nope")], "empty": [str(empty)], "no-arg": [],
-            "bad-flag": [str(empty), "--bogus"], "corrupt": [str(tmp_path / "corrupt")],
-            "twice": [str(tmp_path / "a"), str(tmp_path / "b"), "--out", str(empty)]}[case]
-    needle = {"missing": "does not exist", "empty": "No run records", "no-arg": "DIR",
-              "bad-flag": "--bogus", "corrupt": str(corrupt / records.RECORD_NAME),
-              "twice": "seed 0 (quick profile) is recorded twice"}[case]
+    args = {
+        "missing": [str(tmp_path / "nope")],
+        "empty": [str(empty)],
+        "no-arg": [],
+        "bad-flag": [str(empty), "--bogus"],
+        "corrupt": [str(tmp_path / "corrupt")],
+        "twice": [str(tmp_path / "a"), str(tmp_path / "b"), "--out", str(empty)],
+    }[case]
+    needle = {
+        "missing": "does not exist",
+        "empty": "No run records",
+        "no-arg": "DIR",
+        "bad-flag": "--bogus",
+        "corrupt": str(corrupt / records.RECORD_NAME),
+        "twice": "seed 0 (quick profile) is recorded twice",
+    }[case]
     assert_one_line_error(hnnbench("report", *args), needle)
 
 
@@ -461,16 +536,37 @@ def test_a_claim_on_a_model_that_did_not_train_is_not_tested_and_a_recipe_is_nam
 
     from hnnbench._results.report.published import board_untrained
 
-    claim = claims.Claim(id="c", system="spring", metric="energy_mse", relation="lower",
-                    families=("mlp", "hnn"), lower="hnn", factor=10, text="t", source="s",
-                    recipe="the paper's recipe")
+    claim = claims.Claim(
+        id="c",
+        system="spring",
+        metric="energy_mse",
+        relation="lower",
+        families=("mlp", "hnn"),
+        lower="hnn",
+        factor=10,
+        text="t",
+        source="s",
+        recipe="the paper's recipe",
+    )
     values = {("spring", "mlp_jax", "energy_mse"): 1e-1, ("spring", "hnn_jax", "energy_mse"): 1.0}
-    board = pd.DataFrame([
-        {"profile": "paper", "system": "spring", "model": "hnn_jax", "n_seeds": 5,
-         "n_untrained": 3},
-        {"profile": "paper", "system": "spring", "model": "mlp_jax", "n_seeds": 5,
-         "n_untrained": 2},
-    ])
+    board = pd.DataFrame(
+        [
+            {
+                "profile": "paper",
+                "system": "spring",
+                "model": "hnn_jax",
+                "n_seeds": 5,
+                "n_untrained": 3,
+            },
+            {
+                "profile": "paper",
+                "system": "spring",
+                "model": "mlp_jax",
+                "n_seeds": 5,
+                "n_untrained": 2,
+            },
+        ]
+    )
     pairs = {"jax": {"mlp": "mlp_jax", "hnn": "hnn_jax"}}
     (res,) = claims.evaluate_claims(_lookup(values), [claim], pairs, board_untrained(board))
     assert res.outcome == claims.NOT_TRAINED
@@ -507,8 +603,9 @@ def test_colours_are_the_familys_shaded_per_twin_and_stable():
     assert style.family_color("mlp") != style.family_color("hnn")
     assert style.family_color("mlp") in style.PALETTE[:6]  # Okabe & Ito's
     assert style.family_color("oracle") in style.REFERENCE_COLORS
-    assert style.family_color("a_family_not_installed") == \
-        style.family_color("a_family_not_installed")
+    assert style.family_color("a_family_not_installed") == style.family_color(
+        "a_family_not_installed"
+    )
     torch, jax = (style.line(m, "", families, [m]) for m in ("hnn_torch", "hnn_jax"))
     assert torch["ls"] != jax["ls"] and torch["lw"] > jax["lw"]
     assert "RdYlGn" not in figures.RANK_CMAP and "viridis" in figures.RANK_CMAP

@@ -117,8 +117,7 @@ def test_bad_input_console_script(args, needles, tmp_path):
         (["system.noise_std=nan"], ["system.noise_std=nan is invalid", "finite"]),
         (["model.name=lnn_torch"], ["model.name", "model=lnn_torch"]),
         (["system.name=pendulum"], ["system.name", "system=pendulum"]),
-        (["-m", "seed=0,1", "seeds_per_job=2", "seed_batch=[5]"],
-         ["seed_batch", "seeds_per_job"]),
+        (["-m", "seed=0,1", "seeds_per_job=2", "seed_batch=[5]"], ["seed_batch", "seeds_per_job"]),
         (["system=pixel_pendulum", "system.dt=0"], ["system.dt=0"]),
         (["system=pixel_pendulum", "system.dt=-0.1"], ["system.dt=-0.1"]),
         (["system.t_end=0"], ["system.t_end=0"]),
@@ -126,8 +125,10 @@ def test_bad_input_console_script(args, needles, tmp_path):
         (["system.test_split=1"], ["system.test_split=1.0 is invalid"]),
         (["system=two_body", "system.test_split=1.5"], ["system.test_split=1.5"]),
         (["model.activation=relu6"], ["model.activation='relu6' is invalid"]),
-        (["system.integrator=euler"], ["system.integrator is not a setting of system",
-                                       "Settings:"]),
+        (
+            ["system.integrator=euler"],
+            ["system.integrator is not a setting of system", "Settings:"],
+        ),
         (["evaluation.rtol=-1"], ["evaluation.rtol"]),
         (["evaluation=5"], ["evaluation"]),
         (["device=gpu"], ["device=gpu is invalid"]),
@@ -257,8 +258,10 @@ def test_nan_model_is_diverged_with_inf_metrics(fake_plugins, tmp_path):
     assert rec["metrics"]["energy_mse"]["mean"] == math.inf
     assert rec["metrics"]["test_loss"]["mean"] == math.inf
     # strict JSON on disk: inf is the string "inf" (any parser reads it; records decode it)
-    on_disk = json.loads((tmp_path / "nan" / "result.json").read_text(),
-                         parse_constant=lambda c: pytest.fail(f"non-strict JSON: {c}"))
+    on_disk = json.loads(
+        (tmp_path / "nan" / "result.json").read_text(),
+        parse_constant=lambda c: pytest.fail(f"non-strict JSON: {c}"),
+    )
     assert on_disk["status"] == "diverged" and on_disk["metrics"]["energy_mse"]["mean"] == "inf"
 
 
@@ -269,8 +272,11 @@ def test_torch_training_blowup_is_diverged(tmp_path):
     assert rec["error"].startswith("training diverged")
     metrics = rec["metrics"]
     not_applicable = ("pixel_mse", "vpt_lyapunov")  # spring: no pixels, not chaotic
-    assert all(math.isinf(m["mean"]) for k, m in metrics.items()
-               if k not in (*not_applicable, "valid_prediction_time", "vpt_censored"))
+    assert all(
+        math.isinf(m["mean"])
+        for k, m in metrics.items()
+        if k not in (*not_applicable, "valid_prediction_time", "vpt_censored")
+    )
     assert all(math.isnan(metrics[k]["mean"]) for k in not_applicable)
     assert metrics["valid_prediction_time"]["mean"] == 0.0  # higher is better: worst is 0
     assert metrics["vpt_censored"]["mean"] == 0.0
@@ -315,8 +321,7 @@ def test_resume_skips_finished_and_rerun_redoes(tmp_path):
     assert (tmp_path / "job" / "result.json").read_text() == text
     redone = _job(tmp_path, "job", "model=oracle", rerun=True)
     assert redone["status"] == "ok"
-    assert json.loads((tmp_path / "job" / "result.json").read_text())["timings"] != \
-        first["timings"]
+    assert json.loads((tmp_path / "job" / "result.json").read_text())["timings"] != first["timings"]
 
 
 def test_resume_refuses_a_record_of_other_settings(tmp_path):
@@ -366,12 +371,27 @@ def test_atomic_write_keeps_old_file_on_failure(tmp_path):
 
 
 def test_records_serialise_numpy_and_non_finite(tmp_path):
-    rec = {**new_record(system="spring", model="oracle", seed=0, profile="quick", config={},
-                        overrides=None, command=None, rerun_command=None,
-                        environment=records.environment(), created_at=records.now_iso()),
-           "status": "diverged", "metrics": {"a": {"mean": np.float32(0.5), "sem": math.nan},
-                                             "b": {"mean": math.inf, "sem": math.nan}},
-           "n": np.int64(3), "arr": np.arange(2)}
+    rec = {
+        **new_record(
+            system="spring",
+            model="oracle",
+            seed=0,
+            profile="quick",
+            config={},
+            overrides=None,
+            command=None,
+            rerun_command=None,
+            environment=records.environment(),
+            created_at=records.now_iso(),
+        ),
+        "status": "diverged",
+        "metrics": {
+            "a": {"mean": np.float32(0.5), "sem": math.nan},
+            "b": {"mean": math.inf, "sem": math.nan},
+        },
+        "n": np.int64(3),
+        "arr": np.arange(2),
+    }
     records.write_record(tmp_path, rec)
     back = records.read_record(tmp_path / "result.json")
     assert back["metrics"]["a"]["mean"] == 0.5 and isinstance(back["n"], int)
@@ -411,8 +431,16 @@ def test_record_has_what_an_exact_rerun_needs(tmp_path):
     assert rec["overrides"] == [*QUICK, "model=mlp_torch", "seed=3"]
     assert rec["rerun_command"].startswith("hnnbench profile=quick system.steps=20")
     env = rec["environment"]
-    for key in ("hnnbench", "python", "numpy", "torch", "platform", "git_commit",
-                "hydra-core", "omegaconf"):
+    for key in (
+        "hnnbench",
+        "python",
+        "numpy",
+        "torch",
+        "platform",
+        "git_commit",
+        "hydra-core",
+        "omegaconf",
+    ):
         assert key in env, key
     assert env["torch"] and env["numpy"]
     assert len(rec["data"]["dataset_sha256"]) == 64
@@ -439,8 +467,9 @@ def test_torch_runs_are_bitwise_reproducible(model, tmp_path):
     assert a["status"] == b["status"] == "ok", (a["error"], b["error"])
     assert _same(_metrics(a), _metrics(b))
     assert _same(a["history"], b["history"])
-    assert (tmp_path / "a" / "weights.safetensors").read_bytes() == \
-        (tmp_path / "b" / "weights.safetensors").read_bytes()
+    assert (tmp_path / "a" / "weights.safetensors").read_bytes() == (
+        tmp_path / "b" / "weights.safetensors"
+    ).read_bytes()
     c = _job(tmp_path, "c", f"model={model}", "device=cpu", "seed=2")
     assert not _same(_metrics(a), _metrics(c))  # the seed matters
 
@@ -469,7 +498,7 @@ def test_torch_weights_are_safetensors_and_load_without_pickle(tmp_path, monkeyp
     assert not raw.startswith(b"PK")  # not a zip (torch.save)
     header_len = int.from_bytes(raw[:8], "little")  # safetensors: its JSON header's length
     assert raw[8:9] == b"{"  # a pickle would start with 0x80 0x02-0x05 and no JSON
-    header = json.loads(raw[8:8 + header_len])
+    header = json.loads(raw[8 : 8 + header_len])
     assert all(v["dtype"] in ("F32", "F64") for k, v in header.items() if k != "__metadata__")
 
     def no_pickle(*args, **kwargs):
@@ -505,17 +534,78 @@ def _flat(node, prefix=""):
             yield f"{prefix}{key}"
 
 
-KEYS = sorted(set(_flat(_DEFAULT)) | {
-    "system", "model", "profile", "hydra/launcher", "hydra.job.chdir", "hydra.sweep.dir",
-    "foo", "system.nope", "model.steps", "model.batch_size", "model.lr", "+foo", "++seed",
-    "~seed", "~model", "+system.extra", "model.layers", "model.dtype", "model.log_every",
-})
-NAMES = ["spring", "pendulum", "two_body", "pixel_pendulum", "real_pendulum", "mlp_torch",
-         "hnn_torch", "oracle", "quick", "paper", "all", "basic", "joblib", "tanh", "cpu",
-         "cuda:0"]
-JUNK = ["", "null", "abc", "[1", "]", "[1,2]", "{a:1}", "${foo}", "${seed}", "${system.name}",
-        "1,2", "glob(*)", "range(3)", "'x y'", "=", "~", "\\", "nan", "inf", "-inf", "1e400",
-        "-0", "true", "'a\nb'", "${oc.env:NOPE}", "${now:%Y}", "choice(1,a)", "interval(0,1)"]
+KEYS = sorted(
+    set(_flat(_DEFAULT))
+    | {
+        "system",
+        "model",
+        "profile",
+        "hydra/launcher",
+        "hydra.job.chdir",
+        "hydra.sweep.dir",
+        "foo",
+        "system.nope",
+        "model.steps",
+        "model.batch_size",
+        "model.lr",
+        "+foo",
+        "++seed",
+        "~seed",
+        "~model",
+        "+system.extra",
+        "model.layers",
+        "model.dtype",
+        "model.log_every",
+    }
+)
+NAMES = [
+    "spring",
+    "pendulum",
+    "two_body",
+    "pixel_pendulum",
+    "real_pendulum",
+    "mlp_torch",
+    "hnn_torch",
+    "oracle",
+    "quick",
+    "paper",
+    "all",
+    "basic",
+    "joblib",
+    "tanh",
+    "cpu",
+    "cuda:0",
+]
+JUNK = [
+    "",
+    "null",
+    "abc",
+    "[1",
+    "]",
+    "[1,2]",
+    "{a:1}",
+    "${foo}",
+    "${seed}",
+    "${system.name}",
+    "1,2",
+    "glob(*)",
+    "range(3)",
+    "'x y'",
+    "=",
+    "~",
+    "\\",
+    "nan",
+    "inf",
+    "-inf",
+    "1e400",
+    "-0",
+    "true",
+    "'a\nb'",
+    "${oc.env:NOPE}",
+    "${now:%Y}",
+    "choice(1,a)",
+    "interval(0,1)",
+]
 
 values = st.one_of(
     st.integers(-(2**40), 2**40).map(str),
@@ -529,8 +619,12 @@ overrides = st.one_of(
     st.builds(lambda k, v: f"{k}={v}", st.text(max_size=8), values),
     st.sampled_from(["~seed", "~system", "++foo", "=x", "system=", "-m", "--cfg"]),
 )
-FUZZ = settings(max_examples=60, deadline=None, database=None,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+FUZZ = settings(
+    max_examples=60,
+    deadline=None,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
+)
 
 
 @FUZZ
@@ -543,8 +637,12 @@ def test_fuzz_config_validation_fails_only_with_one_line_errors(args):
         assert message and "\n" not in message, message
 
 
-@settings(max_examples=25, deadline=None, database=None,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@settings(
+    max_examples=25,
+    deadline=None,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
+)
 @given(st.lists(overrides, min_size=1, max_size=3))
 def test_fuzz_cli_entry_prints_one_line_or_succeeds(args):
     argv = ["--cfg", "job", *[a for a in args if a not in ("-m", "--cfg")]]
@@ -570,15 +668,25 @@ def test_sweep_isolates_divergence_and_failure_then_resumes(fake_site, tmp_path)
     redoes everything."""
     env = _fakeplug.env_for(fake_site)
     sweep = tmp_path / "sweep"
-    args = ["-m", "system=spring", "model=oracle,mlp_torch,crash_model,nan_model",
-            "model.lr=1e30",
-            "model.weight_decay=0", *QUICK, f"hydra.sweep.dir={sweep}"]
+    args = [
+        "-m",
+        "system=spring",
+        "model=oracle,mlp_torch,crash_model,nan_model",
+        "model.lr=1e30",
+        "model.weight_decay=0",
+        *QUICK,
+        f"hydra.sweep.dir={sweep}",
+    ]
     proc = hnnbench(*args, cwd=tmp_path, env=env)
     assert proc.returncode == 1, proc.stderr[-3000:]
     assert proc.stderr.strip().splitlines()[-1].startswith("hnnbench: 1 failed of 4 job(s)")
     recs = _sweep_records(sweep)
     assert {m: r["status"] for m, r in recs.items()} == {
-        "oracle": "ok", "mlp_torch": "diverged", "crash_model": "failed", "nan_model": "diverged"}
+        "oracle": "ok",
+        "mlp_torch": "diverged",
+        "crash_model": "failed",
+        "nan_model": "diverged",
+    }
     assert recs["crash_model"]["error"] == "RuntimeError: boom: the model crashed on purpose"
     for name in ("mlp_torch", "nan_model"):
         assert recs[name]["metrics"]["energy_mse"]["mean"] == math.inf
@@ -586,11 +694,19 @@ def test_sweep_isolates_divergence_and_failure_then_resumes(fake_site, tmp_path)
     assert recs["oracle"]["metrics"]["energy_mse"]["mean"] < QUICK_ORACLE_BOUND
     assert "this run: 4 jobs: 2 diverged, 1 failed, 1 ok" in proc.stdout
     oracle = recs["oracle"]
-    assert oracle["overrides"] == ["system=spring", "model=oracle", "model.lr=1e+30",
-                                   "model.weight_decay=0", "profile=quick", "system.steps=20"]
+    assert oracle["overrides"] == [
+        "system=spring",
+        "model=oracle",
+        "model.lr=1e+30",
+        "model.weight_decay=0",
+        "profile=quick",
+        "system.steps=20",
+    ]
     assert oracle["command"].startswith("hnnbench -m system=spring model=oracle,mlp_torch")
-    assert oracle["rerun_command"] == ("hnnbench system=spring model=oracle model.lr=1e+30 "
-                                       "model.weight_decay=0 profile=quick system.steps=20")
+    assert oracle["rerun_command"] == (
+        "hnnbench system=spring model=oracle model.lr=1e+30 "
+        "model.weight_decay=0 profile=quick system.steps=20"
+    )
 
     before = {m: r["created_at"] for m, r in recs.items()}
     texts = {m: (Path(r["path"]) / "result.json").read_text() for m, r in recs.items()}
@@ -608,5 +724,4 @@ def test_sweep_isolates_divergence_and_failure_then_resumes(fake_site, tmp_path)
     redone = _sweep_records(sweep)
     assert len(redone) == 4  # rerun=true is not part of the job directory name
     assert all(redone[m]["created_at"] >= before[m] for m in redone)
-    assert all((Path(redone[m]["path"]) / "result.json").read_text() != texts[m]
-               for m in redone)
+    assert all((Path(redone[m]["path"]) / "result.json").read_text() != texts[m] for m in redone)

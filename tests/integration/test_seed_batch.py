@@ -42,27 +42,33 @@ def test_a_diverging_seed_leaves_the_batch_unaffected(name, spring_data):
     cls = get_class("model", name)
     poisoned = datas[1].train.dxdt.copy()
     poisoned[0, 0] = np.nan
-    bad = Dataset(train=dataclasses.replace(datas[1].train, dxdt=poisoned), test=datas[1].test,
-                  meta=datas[1].meta)
+    bad = Dataset(
+        train=dataclasses.replace(datas[1].train, dxdt=poisoned),
+        test=datas[1].test,
+        meta=datas[1].meta,
+    )
     cfg = cls.Config(name=name, hidden=16, log_every=5)
     train = TrainSettings(steps=20, batch_size=None, lr=1e-3, weight_decay=0.0)
-    batched = cls(cfg, system, "cpu").fit_seeds([datas[0], bad, datas[2]], train, [0, 1, 2],
-                                                lambda *_: None)
+    batched = cls(cfg, system, "cpu").fit_seeds(
+        [datas[0], bad, datas[2]], train, [0, 1, 2], lambda *_: None
+    )
     assert batched[1][1].diverged is not None and "at step 1" in batched[1][1].diverged
     for k in (0, 2):
         model, result = batched[k]
         assert result.diverged is None
         alone_model = cls(cfg, system, "cpu")
         alone = alone_model.fit(datas[k], train, k, lambda *_: None)
-        np.testing.assert_allclose(result.history["train_loss"], alone.history["train_loss"],
-                                   rtol=1e-5)
+        np.testing.assert_allclose(
+            result.history["train_loss"], alone.history["train_loss"], rtol=1e-5
+        )
         # each seed of the batch holds its own selected checkpoint, as when alone
         assert result.selection is not None and alone.selection is not None
         assert result.selection.step == alone.selection.step
         x = datas[k].test.x
         assert np.all(np.isfinite(model.time_derivative(x)))
-        np.testing.assert_allclose(model.time_derivative(x), alone_model.time_derivative(x),
-                                   rtol=1e-4, atol=1e-6)
+        np.testing.assert_allclose(
+            model.time_derivative(x), alone_model.time_derivative(x), rtol=1e-4, atol=1e-6
+        )
 
 
 def _records(root) -> dict[tuple[str, str, int], dict]:
@@ -75,8 +81,15 @@ def _records(root) -> dict[tuple[str, str, int], dict]:
 
 @pytest.mark.slow
 def test_batched_sweep_agrees_with_separate_jobs_and_passes_check(tmp_path):
-    common = ["-m", "system=spring,real_pendulum", "model=hnn_jax,mlp_torch", "seed=0,1,2",
-              "profile=quick", "system.steps=100", "model.log_every=1"]
+    common = [
+        "-m",
+        "system=spring,real_pendulum",
+        "model=hnn_jax,mlp_torch",
+        "seed=0,1,2",
+        "profile=quick",
+        "system.steps=100",
+        "model.log_every=1",
+    ]
     separate, batched = tmp_path / "separate", tmp_path / "batched"
     for where, extra in ((separate, []), (batched, ["seeds_per_job=3"])):
         proc = hnnbench(*common, *extra, f"hydra.sweep.dir={where}", cwd=tmp_path)
@@ -89,12 +102,17 @@ def test_batched_sweep_agrees_with_separate_jobs_and_passes_check(tmp_path):
         assert rec["seed_batch"] == [0, 1, 2] and rec["config"]["seed"] == key[2]
         assert f"seed={key[2]}" in rec["overrides"]
         # the first 100 steps of each seed's loss curve, to 1e-4 relative
-        np.testing.assert_allclose(rec["history"]["train_loss"],
-                                   a[key]["history"]["train_loss"], rtol=1e-4, err_msg=str(key))
+        np.testing.assert_allclose(
+            rec["history"]["train_loss"],
+            a[key]["history"]["train_loss"],
+            rtol=1e-4,
+            err_msg=str(key),
+        )
         assert len(rec["history"]["train_loss"]) == 100
     reference = tmp_path / "separate.csv"
-    assert hnnbench("check", str(separate), "--reference", str(reference),
-                    "--update").returncode == 0
+    assert (
+        hnnbench("check", str(separate), "--reference", str(reference), "--update").returncode == 0
+    )
     proc = hnnbench("check", str(batched), "--reference", str(reference))
     assert proc.returncode == 0, proc.stdout[-3000:]
 

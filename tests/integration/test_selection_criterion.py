@@ -59,10 +59,10 @@ def test_a_second_order_family_is_scored_in_the_systems_coordinates():
     predicted = zdot + rng.normal(size=zdot.shape)
     kin = system.kinematics()
     expected = kin.canonical_rate(z, predicted) - kin.canonical_rate(z, zdot)
-    np.testing.assert_allclose(np.einsum("vij,vj->vi", weights, predicted - zdot), expected,
-                               rtol=1e-9, atol=1e-9)
-    np.testing.assert_allclose(kin.canonical_rate(z, zdot), data.valid.dxdt, rtol=1e-9,
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        np.einsum("vij,vj->vi", weights, predicted - zdot), expected, rtol=1e-9, atol=1e-9
+    )
+    np.testing.assert_allclose(kin.canonical_rate(z, zdot), data.valid.dxdt, rtol=1e-9, atol=1e-9)
 
 
 def test_the_backends_compute_the_same_criterion():
@@ -76,31 +76,34 @@ def test_the_backends_compute_the_same_criterion():
 
     system = _system(DoublePendulum, DoublePendulumConfig, n_traj=6)
     data = with_validation(system.dataset(0), 0)
-    cases = [(LNNTorch, LNNJax, {}, "field:weighted"),
-             (SRNNTorch, SRNNJax, {"window": 3}, "field")]
+    cases = [(LNNTorch, LNNJax, {}, "field:weighted"), (SRNNTorch, SRNNJax, {"window": 3}, "field")]
     for torch_cls, jax_cls, extra, kind in cases:
         cfg = torch_cls.Config(name="m", hidden=8, dtype="float64", **extra)
         tm, jm = torch_cls(cfg, system, "cpu"), jax_cls(cfg, system, "cpu")
         problem = tm.view.problem(data, *tm.training_options())
         assert problem.criterion == kind
-        windows = views.trajectory_windows(data.valid, tm.view.to_model(data.valid.x), 3,
-                                           stride=2)
+        windows = views.trajectory_windows(data.valid, tm.view.to_model(data.valid.x), 3, stride=2)
         weights = tm.initial_weights(1)
         layout = tm.layout()
         params = {k: torch.tensor(v, dtype=torch.float64) for k, v in weights.items()}
-        nets = nets_from_weights(weights, layout, cfg.layers, cfg.activation,
-                                 np.dtype("float64"))
+        nets = nets_from_weights(weights, layout, cfg.layers, cfg.activation, np.dtype("float64"))
         for criterion, arrays, options in (
-                (problem.criterion, problem.valid, ()),
-                ("windows:rk4", windows, (("substeps", 4),)),
-                *((("windows:map", windows, (("substeps", 2),)),)
-                  if hasattr(tm._impl, "step") else ())):
+            (problem.criterion, problem.valid, ()),
+            ("windows:rk4", windows, (("substeps", 4),)),
+            *((("windows:map", windows, (("substeps", 2),)),) if hasattr(tm._impl, "step") else ()),
+        ):
             got_t = make_criterion(tm._impl, criterion, layout, cfg, options)(
-                params, *(torch.tensor(a, dtype=torch.float64) for a in arrays))
+                params, *(torch.tensor(a, dtype=torch.float64) for a in arrays)
+            )
             got_j = criterion_values(criterion, jm._impl, options, nets, *arrays)
             assert got_t.shape == (arrays[0].shape[0],)
-            np.testing.assert_allclose(got_t.numpy(), np.asarray(got_j), rtol=1e-8,
-                                       atol=1e-12, err_msg=f"{torch_cls.__name__} {criterion}")
+            np.testing.assert_allclose(
+                got_t.numpy(),
+                np.asarray(got_j),
+                rtol=1e-8,
+                atol=1e-12,
+                err_msg=f"{torch_cls.__name__} {criterion}",
+            )
 
 
 def test_measured_data_selects_on_short_rollouts(tmp_path, monkeypatch):
@@ -123,8 +126,7 @@ def test_measured_data_selects_on_short_rollouts(tmp_path, monkeypatch):
         assert problem.criterion_name == "rollout_q_mse_4"
         assert windows.shape[1:] == (5, 2) and dts.shape[1] == 4
         # windows share only their ends: each starts where the previous one ended
-        starts = [int(np.flatnonzero(np.all(data.valid.x == w[0], axis=1))[0])
-                  for w in windows]
+        starts = [int(np.flatnonzero(np.all(data.valid.x == w[0], axis=1))[0]) for w in windows]
         assert min(np.diff(starts)) >= 4
 
 
@@ -142,8 +144,9 @@ class _StallsWhenReversed(hnnbench.Model):
         if getattr(self, "_rolled", False):
             raise RolloutDiverged("the step size fell below 1e-8 of the span (forced)")
         self._rolled = True
-        return hnnbench.solve_batch(self.time_derivative, x0, t, rtol=rtol, atol=atol,
-                                    method="RK45")
+        return hnnbench.solve_batch(
+            self.time_derivative, x0, t, rtol=rtol, atol=atol, method="RK45"
+        )
 
 
 @pytest.fixture()
@@ -155,8 +158,13 @@ def stalling_model():
 
 
 def test_a_failing_diagnostic_leaves_the_run_ok(stalling_model, tmp_path):
-    overrides = ["system=spring", f"model={stalling_model}", "profile=quick",
-                 "save_model=false", "pin_cpu=false"]
+    overrides = [
+        "system=spring",
+        f"model={stalling_model}",
+        "profile=quick",
+        "save_model=false",
+        "pin_cpu=false",
+    ]
     record = run_job(compose(overrides), tmp_path / "job", overrides=overrides)[0].record
     assert record["status"] == "ok", record.get("error")
     assert record["metrics"]["reversibility_error"]["mean"] == math.inf

@@ -15,8 +15,15 @@ pytestmark = pytest.mark.slow
 
 def test_a_one_seed_sweep_claims_nothing(tmp_path):
     sweep = tmp_path / "sweep"
-    proc = hnnbench("-m", "system=spring,pendulum", "model=mlp_jax,hnn_jax", "profile=quick",
-                    "seed=0", f"hydra.sweep.dir={sweep}", cwd=tmp_path)
+    proc = hnnbench(
+        "-m",
+        "system=spring,pendulum",
+        "model=mlp_jax,hnn_jax",
+        "profile=quick",
+        "seed=0",
+        f"hydra.sweep.dir={sweep}",
+        cwd=tmp_path,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     families = pd.read_csv(sweep / "families.csv")
     marks = families[[c for c in families.columns if c.endswith("_mark")]]

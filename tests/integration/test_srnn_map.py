@@ -83,8 +83,9 @@ def test_the_map_approaches_the_learned_field_as_its_step_shrinks(trained):
     """Leapfrog is a consistent integrator of the learned field: with a small step it
     agrees with the dopri5 rollout of the same weights (the variant's)."""
     system, _, tm, _ = trained
-    field = SRNNTorch(SRNNConfig(name="srnn", hidden=16, dtype="float64",
-                                 integrator="dopri5"), system, "cpu")
+    field = SRNNTorch(
+        SRNNConfig(name="srnn", hidden=16, dtype="float64", integrator="dopri5"), system, "cpu"
+    )
     field.set_weights(tm.get_weights())
     assert field.map_step() is None
     ev = system.evaluation(0)
@@ -137,25 +138,37 @@ def test_the_window_loss_is_the_chain_of_steps_in_both_backends(substeps):
     windows, dts = rng.normal(size=(6, 5, 4)), rng.uniform(0.05, 0.2, size=(6, 4))
 
     # T(p) = |p|²/2 + 0.1 Σp³ and V(q) = Σ(1 - cos q) + 0.05 Σq⁴ (non-linear gradients)
-    jax_nets = {"T": lambda p: jnp.reshape(0.5 * jnp.sum(p ** 2) + 0.1 * jnp.sum(p ** 3), (1,)),
-                "V": lambda q: jnp.reshape(jnp.sum(1 - jnp.cos(q)) + 0.05 * jnp.sum(q ** 4),
-                                           (1,))}
-    loss_j = float(srnn_jax.window_loss(jax_nets, jnp.asarray(windows), jnp.asarray(dts),
-                                        substeps))
-    ref_j = float(_reference_window_loss(
-        lambda z, h: srnn_jax.step(jax_nets, z, h), jnp.asarray(windows), jnp.asarray(dts),
-        substeps, jnp.stack, jnp.mean))
+    jax_nets = {
+        "T": lambda p: jnp.reshape(0.5 * jnp.sum(p**2) + 0.1 * jnp.sum(p**3), (1,)),
+        "V": lambda q: jnp.reshape(jnp.sum(1 - jnp.cos(q)) + 0.05 * jnp.sum(q**4), (1,)),
+    }
+    loss_j = float(srnn_jax.window_loss(jax_nets, jnp.asarray(windows), jnp.asarray(dts), substeps))
+    ref_j = float(
+        _reference_window_loss(
+            lambda z, h: srnn_jax.step(jax_nets, z, h),
+            jnp.asarray(windows),
+            jnp.asarray(dts),
+            substeps,
+            jnp.stack,
+            jnp.mean,
+        )
+    )
 
     class Grad:  # the torch MLP's interface the implementation uses: the same T and V
         def __init__(self, grad):
             self.input_gradient = grad
 
-    torch_nets = {"T": Grad(lambda p: p + 0.3 * p ** 2),
-                  "V": Grad(lambda q: torch.sin(q) + 0.2 * q ** 3)}
+    torch_nets = {
+        "T": Grad(lambda p: p + 0.3 * p**2),
+        "V": Grad(lambda q: torch.sin(q) + 0.2 * q**3),
+    }
     w, d = torch.as_tensor(windows), torch.as_tensor(dts)
     loss_t = float(srnn_torch.window_loss(torch_nets, w, d, substeps))
-    ref_t = float(_reference_window_loss(lambda z, h: srnn_torch.step(torch_nets, z, h),
-                                         w, d, substeps, torch.stack, torch.mean))
+    ref_t = float(
+        _reference_window_loss(
+            lambda z, h: srnn_torch.step(torch_nets, z, h), w, d, substeps, torch.stack, torch.mean
+        )
+    )
     assert loss_j == pytest.approx(ref_j, rel=1e-13)
     assert loss_t == pytest.approx(ref_t, rel=1e-13)
     assert loss_t == pytest.approx(loss_j, rel=1e-12)  # the same Hamiltonian in both

@@ -31,12 +31,12 @@ def test_torch_solver_stops_at_the_stall_not_the_budget():
 
     y0 = torch.ones((1, 1), dtype=torch.float64)
     with pytest.raises(SolverGaveUp, match=r"at t=0\.99\d*.*below the stall limit 2e-08"):
-        dopri5(field, y0, T, rtol=1e-9, atol=1e-9, max_steps=10**6,
-               min_step=rollout_min_step(T))
+        dopri5(field, y0, T, rtol=1e-9, atol=1e-9, max_steps=10**6, min_step=rollout_min_step(T))
     assert calls[0] < 5000, calls  # without the rule: the budget, 10^6 steps
     # A field that needs no tiny step is unaffected.
-    ys = dopri5(lambda y: -y, y0, T, rtol=1e-9, atol=1e-9, max_steps=10_000,
-                min_step=rollout_min_step(T))
+    ys = dopri5(
+        lambda y: -y, y0, T, rtol=1e-9, atol=1e-9, max_steps=10_000, min_step=rollout_min_step(T)
+    )
     assert np.allclose(ys[:, 0, 0].numpy(), np.exp(-T), rtol=1e-7)
 
 
@@ -49,21 +49,33 @@ def test_jax_solver_stops_at_the_stall_not_the_budget():
     def field(_nets, y):
         return y * y
 
-    ys, code = backend._solve(field, None, jnp.ones((1, 1)), jnp.asarray(T),
-                              jnp.float64(1e-9), jnp.float64(1e-9),
-                              jnp.float64(rollout_min_step(T)), 10**6)
+    ys, code = backend._solve(
+        field,
+        None,
+        jnp.ones((1, 1)),
+        jnp.asarray(T),
+        jnp.float64(1e-9),
+        jnp.float64(1e-9),
+        jnp.float64(rollout_min_step(T)),
+        10**6,
+    )
     assert int(code) == backend._STALLED
     ys = np.asarray(ys)[0, :, 0]
     finite = np.isfinite(ys)
     # Saved up to the blow-up, nothing after: it stopped there, not at the budget.
     assert finite[T < BLOW_UP_AT - 0.05].all() and not finite[T > BLOW_UP_AT].any()
-    ys, code = backend._solve(lambda _n, y: -y, None, jnp.ones((1, 1)), jnp.asarray(T),
-                              jnp.float64(1e-9), jnp.float64(1e-9),
-                              jnp.float64(rollout_min_step(T)), 10_000)
+    ys, code = backend._solve(
+        lambda _n, y: -y,
+        None,
+        jnp.ones((1, 1)),
+        jnp.asarray(T),
+        jnp.float64(1e-9),
+        jnp.float64(1e-9),
+        jnp.float64(rollout_min_step(T)),
+        10_000,
+    )
     assert int(code) == 0
     assert np.allclose(np.asarray(ys)[0, :, 0], np.exp(-T), rtol=1e-7)
-
-
 
 
 class _Exploding:
@@ -93,11 +105,16 @@ def test_the_state_bound_marks_a_blow_up_diverged_and_spares_a_drift(rate, diver
     from hnnbench_plugins.systems.spring import Spring, SpringConfig
 
     system = Spring(SpringConfig(name="spring", n_traj=10, eval_n_traj=3))
-    ctx = EvalContext(system, _Exploding(rate), system.dataset(0), system.evaluation(0),
-                      EvaluationConfig())
-    assert ctx.state_bound() == pytest.approx(STATE_BOUND * max(
-        np.linalg.norm(system.dataset(0).train.x, axis=-1).max(),
-        np.linalg.norm(system.evaluation(0).states, axis=-1).max()))
+    ctx = EvalContext(
+        system, _Exploding(rate), system.dataset(0), system.evaluation(0), EvaluationConfig()
+    )
+    assert ctx.state_bound() == pytest.approx(
+        STATE_BOUND
+        * max(
+            np.linalg.norm(system.dataset(0).train.x, axis=-1).max(),
+            np.linalg.norm(system.evaluation(0).states, axis=-1).max(),
+        )
+    )
     if diverged:
         with pytest.raises(RolloutDiverged, match="left the state bound at t="):
             ctx.rollout()
@@ -110,8 +127,7 @@ def test_angles_are_left_out_of_the_state_bound():
     from hnnbench._contracts.metric import EvalContext, EvaluationConfig
     from hnnbench_plugins.systems.double_pendulum import DoublePendulum, DoublePendulumConfig
 
-    system = DoublePendulum(DoublePendulumConfig(name="double_pendulum", n_traj=4,
-                                                 eval_n_traj=2))
+    system = DoublePendulum(DoublePendulumConfig(name="double_pendulum", n_traj=4, eval_n_traj=2))
     traj = system.evaluation(0)
 
     class Turning(_Exploding):

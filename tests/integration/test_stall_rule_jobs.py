@@ -18,8 +18,14 @@ def test_a_stalling_lnn_job_is_diverged_in_seconds(model, tmp_path):
     from hnnbench._record.store import read_record
 
     pytest.importorskip("torch" if model.endswith("torch") else "jax")
-    proc = hnnbench("system=real_double_pendulum", f"model={model}", "profile=quick",
-                    f"hydra.run.dir={tmp_path}", cwd=tmp_path, timeout=600)
+    proc = hnnbench(
+        "system=real_double_pendulum",
+        f"model={model}",
+        "profile=quick",
+        f"hydra.run.dir={tmp_path}",
+        cwd=tmp_path,
+        timeout=600,
+    )
     assert proc.returncode == 1, proc.stderr[-2000:]  # a single run: 0 only when ok
     record = read_record(tmp_path / "result.json")
     assert record is not None

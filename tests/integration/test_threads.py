@@ -27,8 +27,15 @@ def test_a_job_caps_the_blas_pool_numpy_loaded(tmp_path, threads, expected):
         pytest.skip("numpy's BLAS is not visible to threadpoolctl here")
     with threadpool_limits(limits=3):  # as if numpy had loaded on a 3-core machine
         assert _blas_threads() == {3}
-        cfg = compose(["system=spring", "model=oracle", "profile=quick",
-                       f"threads={threads}", "pin_cpu=false"])
+        cfg = compose(
+            [
+                "system=spring",
+                "model=oracle",
+                "profile=quick",
+                f"threads={threads}",
+                "pin_cpu=false",
+            ]
+        )
         rec = run_job(cfg, tmp_path / "job")[0].record
         assert rec["status"] == "ok", rec["error"]
         assert _blas_threads() == {expected}  # threads=0 leaves the pools alone
@@ -43,8 +50,9 @@ def test_initial_weights_do_not_depend_on_the_blas_thread_count():
     shapes = [(200, 200), (784, 200), (200, 784), (1568, 200)]
 
     def draw() -> list[np.ndarray]:
-        return [orthogonal(np.random.default_rng(seed), shape)
-                for seed in range(3) for shape in shapes]
+        return [
+            orthogonal(np.random.default_rng(seed), shape) for seed in range(3) for shape in shapes
+        ]
 
     with threadpool_limits(limits=1):
         one = draw()

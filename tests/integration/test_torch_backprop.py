@@ -22,35 +22,54 @@ ROWS, HIDDEN = 60, 40
 EMBEDDINGS = [None, NetInput(4, (0, 1), "cos_sin"), NetInput(4, (1,), "wrap")]
 
 
-def params_of(seed: int, d_in: int, d_out: int, layers: int, activation: str,
-              spec: NetInput | None, stack: int = 0) -> dict[str, torch.Tensor]:
+def params_of(
+    seed: int,
+    d_in: int,
+    d_out: int,
+    layers: int,
+    activation: str,
+    spec: NetInput | None,
+    stack: int = 0,
+) -> dict[str, torch.Tensor]:
     cfg = NeuralConfig(name="t", hidden=HIDDEN, layers=layers, activation=activation)
     width = d_in if spec is None else spec.features
     if stack:
         seeds = [init_arrays(seed + s, width, d_out, cfg) for s in range(stack)]
-        return {f"f.{k}": torch.tensor(np.stack([w[k] for w in seeds])).requires_grad_()
-                for k in seeds[0]}
-    return {f"f.{k}": torch.tensor(v).requires_grad_()
-            for k, v in init_arrays(seed, width, d_out, cfg).items()}
+        return {
+            f"f.{k}": torch.tensor(np.stack([w[k] for w in seeds])).requires_grad_()
+            for k in seeds[0]
+        }
+    return {
+        f"f.{k}": torch.tensor(v).requires_grad_()
+        for k, v in init_arrays(seed, width, d_out, cfg).items()
+    }
 
 
-def value_and_gradients(cls: type[MLP], params: dict[str, torch.Tensor], method: str,
-                        x: torch.Tensor, target: torch.Tensor, layers: int,
-                        activation: str, spec: NetInput | None
-                        ) -> tuple[torch.Tensor, list[torch.Tensor]]:
+def value_and_gradients(
+    cls: type[MLP],
+    params: dict[str, torch.Tensor],
+    method: str,
+    x: torch.Tensor,
+    target: torch.Tensor,
+    layers: int,
+    activation: str,
+    spec: NetInput | None,
+) -> tuple[torch.Tensor, list[torch.Tensor]]:
     net = cls.view(params, "f", layers, activation, spec)
     out = getattr(net, method)(x)
-    loss = ((out - target[:, :out.shape[1]]) ** 2).sum()
+    loss = ((out - target[:, : out.shape[1]]) ** 2).sum()
     grads = torch.autograd.grad(loss, [x, *params.values()])
     return out.detach(), list(grads)
 
 
-@pytest.mark.parametrize(("spec", "d_in"), [(EMBEDDINGS[0], 2), *((s, 4) for s in EMBEDDINGS)],
-                         ids=["plain-d2", "plain-d4", "cos_sin", "wrap"])
+@pytest.mark.parametrize(
+    ("spec", "d_in"),
+    [(EMBEDDINGS[0], 2), *((s, 4) for s in EMBEDDINGS)],
+    ids=["plain-d2", "plain-d4", "cos_sin", "wrap"],
+)
 @pytest.mark.parametrize("activation", ["tanh", "sigmoid", "softplus"])
 @pytest.mark.parametrize("layers", [2, 3, 4])
-def test_value_and_input_gradient_and_their_gradients_are_autograds(spec, d_in, activation,
-                                                                    layers):
+def test_value_and_input_gradient_and_their_gradients_are_autograds(spec, d_in, activation, layers):
     """Values, and gradients with respect to every parameter and to the input (which
     the SRNN's leapfrog and the pixel models' latent states need), equal autograd's
     through the plain operations, in float64."""
@@ -62,14 +81,15 @@ def test_value_and_input_gradient_and_their_gradients_are_autograds(spec, d_in, 
         inputs = np.random.default_rng(0).normal(size=(ROWS, d_in)) * 2.0  # angles past ±π
         for cls in (MLP, TrainingMLP):
             x = torch.tensor(inputs, requires_grad=True)
-            results.append(value_and_gradients(cls, params, method, x, target, layers,
-                                               activation, spec))
+            results.append(
+                value_and_gradients(cls, params, method, x, target, layers, activation, spec)
+            )
         (want, want_grads), (got, got_grads) = results
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14, err_msg=method)
         for g_want, g_got in zip(want_grads, got_grads, strict=True):
-            np.testing.assert_allclose(g_got, g_want, rtol=1e-10,
-                                       atol=1e-12 * float(g_want.abs().max()),
-                                       err_msg=method)
+            np.testing.assert_allclose(
+                g_got, g_want, rtol=1e-10, atol=1e-12 * float(g_want.abs().max()), err_msg=method
+            )
 
 
 @pytest.mark.parametrize("activation", ["tanh", "softplus"])
@@ -88,7 +108,8 @@ def test_seeds_as_one_batch_under_vmap(activation, method):
             out = getattr(cls.view(p, "f", 3, activation, spec), method)(xi)
             if method == "input_gradient":
                 out = symplectic(out)
-            return torch.mean((out - yi[:, :out.shape[1]]) ** 2)
+            return torch.mean((out - yi[:, : out.shape[1]]) ** 2)
+
         return one
 
     results = []

@@ -42,26 +42,36 @@ def test_a_failing_exporter_warns_and_never_fails_the_job(tmp_path, monkeypatch,
     record = {"system": "spring", "model": "mlp_jax", "seed": 0, "status": "ok"}
     with caplog.at_level(logging.WARNING, logger="hnnbench"):
         warnings = tracking.export(record, tmp_path, ["tensorboard"])
-    assert warnings == ["could not export spring/mlp_jax/seed0 to tensorboard: OSError: disk "
-                        "full; the record is unaffected"]
+    assert warnings == [
+        "could not export spring/mlp_jax/seed0 to tensorboard: OSError: disk "
+        "full; the record is unaffected"
+    ]
     assert warnings[0] in caplog.text
 
 
 def test_the_scalars_leave_out_what_is_not_finite():
-    record = {"metrics": {"energy_mse": {"mean": 1e-3, "sem": 1e-4},
-                          "pixel_mse": {"mean": None, "sem": None},
-                          "rollout_mse": {"mean": float("inf"), "sem": None}},
-              "timings": {"fit_s": 2.0}, "history": {"step": [1, 2], "train_loss": [0.5, 0.4],
-                                                     "val_loss": [0.6, None]}}
+    record = {
+        "metrics": {
+            "energy_mse": {"mean": 1e-3, "sem": 1e-4},
+            "pixel_mse": {"mean": None, "sem": None},
+            "rollout_mse": {"mean": float("inf"), "sem": None},
+        },
+        "timings": {"fit_s": 2.0},
+        "history": {"step": [1, 2], "train_loss": [0.5, 0.4], "val_loss": [0.6, None]},
+    }
     final, series = tracking.scalars(record)
     assert final == {"energy_mse": 1e-3, "energy_mse_sem": 1e-4, "timings/fit_s": 2.0}
-    assert series == {"history/train_loss": [(1, 0.5), (2, 0.4)],
-                      "history/val_loss": [(1, 0.6)]}
+    assert series == {"history/train_loss": [(1, 0.5), (2, 0.4)], "history/val_loss": [(1, 0.6)]}
 
 
 def test_a_bad_log_to_is_refused_before_any_job(tmp_path):
-    proc = hnnbench("system=spring", "model=mlp_jax", "log_to=[tensorbord]",
-                    f"hydra.run.dir={tmp_path}", cwd=REPO)
+    proc = hnnbench(
+        "system=spring",
+        "model=mlp_jax",
+        "log_to=[tensorbord]",
+        f"hydra.run.dir={tmp_path}",
+        cwd=REPO,
+    )
     assert_one_line_error(proc, "unknown tracker 'tensorbord'", "Did you mean 'tensorboard'?")
     assert not (tmp_path / "result.json").exists()
 
@@ -91,8 +101,16 @@ def test_a_sweep_exports_each_job_to_mlflow_and_tensorboard(tmp_path):
     each job's config, metrics and training history land in the sweep's MLflow store and
     in TensorBoard event files in the job's directory; the records are unchanged."""
     sweep = tmp_path / "sweep"
-    proc = hnnbench("-m", "system=spring", "model=mlp_jax", "profile=quick", "model.steps=40",
-                    "log_to=[mlflow,tensorboard]", f"hydra.sweep.dir={sweep}", cwd=REPO)
+    proc = hnnbench(
+        "-m",
+        "system=spring",
+        "model=mlp_jax",
+        "profile=quick",
+        "model.steps=40",
+        "log_to=[mlflow,tensorboard]",
+        f"hydra.sweep.dir={sweep}",
+        cwd=REPO,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "could not export" not in proc.stderr
     (path,) = sweep.rglob("result.json")  # <system>/<model>/seed0/model.steps=40/
@@ -116,18 +134,24 @@ def test_a_sweep_exports_each_job_to_mlflow_and_tensorboard(tmp_path):
     assert [m.value for m in history] == pytest.approx(record["history"]["train_loss"])
     # TensorBoard: the same history and metrics, and the config as text
     tags = events.Tags()
-    assert {"history/train_loss", "history/val_loss", "metrics/energy_mse"} <= \
-        set(tags["scalars"])
+    assert {"history/train_loss", "history/val_loss", "metrics/energy_mse"} <= set(tags["scalars"])
     loss = events.Scalars("history/train_loss")
     assert [e.step for e in loss] == steps
     assert [e.value for e in loss] == pytest.approx(record["history"]["train_loss"], rel=1e-6)
-    assert events.Scalars("metrics/energy_mse")[0].value == pytest.approx(energy["mean"],
-                                                                         rel=1e-6)
+    assert events.Scalars("metrics/energy_mse")[0].value == pytest.approx(energy["mean"], rel=1e-6)
     text = events.Tensors("config/text_summary")[0].tensor_proto.string_val[0].decode()
     assert '"steps": 40' in text
     # a resumed sweep keeps the record and sends nothing again
-    proc = hnnbench("-m", "system=spring", "model=mlp_jax", "profile=quick", "model.steps=40",
-                    "log_to=[mlflow,tensorboard]", f"hydra.sweep.dir={sweep}", cwd=REPO)
+    proc = hnnbench(
+        "-m",
+        "system=spring",
+        "model=mlp_jax",
+        "profile=quick",
+        "model.steps=40",
+        "log_to=[mlflow,tensorboard]",
+        f"hydra.sweep.dir={sweep}",
+        cwd=REPO,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert len(_mlflow_runs(sweep)[1]) == 1
 

@@ -12,8 +12,12 @@ from hnnbench import _record as records
 from hnnbench._results.report import write_report
 from hnnbench._results.report.figures import main_profile_figure
 
-PAIRS = (("spring", "mlp_torch"), ("spring", "hnn_torch"), ("pendulum", "mlp_torch"),
-         ("pendulum", "hnn_torch"))
+PAIRS = (
+    ("spring", "mlp_torch"),
+    ("spring", "hnn_torch"),
+    ("pendulum", "mlp_torch"),
+    ("pendulum", "hnn_torch"),
+)
 SEEDS = tuple(range(6))
 
 
@@ -34,8 +38,7 @@ def test_the_report_sets_the_tracks_side_by_side_and_names_a_changed_verdict(tmp
     tracks = pd.read_csv(report.files["tracks"], keep_default_na=False)
     assert {"protocol", "recipe", "changes"} <= set(tracks.columns)
     cell = tracks[(tracks["system"] == "spring") & (tracks["metric"] == "energy_mse")].iloc[0]
-    assert (cell["protocol"], cell["recipe"], cell["changes"]) == ("best: hnn", "best: mlp",
-                                                                   True)
+    assert (cell["protocol"], cell["recipe"], cell["changes"]) == ("best: hnn", "best: mlp", True)
     same = tracks[(tracks["system"] == "pendulum") & (tracks["metric"] == "energy_mse")]
     assert same.iloc[0]["protocol"] == same.iloc[0]["recipe"] == "best: hnn"
     assert not same.iloc[0]["changes"]
@@ -46,8 +49,9 @@ def test_the_report_sets_the_tracks_side_by_side_and_names_a_changed_verdict(tmp
 
 
 def test_a_report_of_one_track_says_only_the_protocol_ran(tmp_path):
-    report = write_report([make_sweep(tmp_path / "p", pairs=PAIRS, seeds=(0, 1))],
-                          tmp_path / "out", figures=False)
+    report = write_report(
+        [make_sweep(tmp_path / "p", pairs=PAIRS, seeds=(0, 1))], tmp_path / "out", figures=False
+    )
     assert "tracks" not in report.files
     assert "Only the protocol track has published rows" in report.files["tracks_md"].read_text()
 
@@ -68,13 +72,28 @@ def _as_tuned(root: Path, lr: float) -> None:
     for path in root.rglob(records.RECORD_NAME):
         rec = records.read_record(path)
         assert rec is not None
-        config = {**rec["config"], "track": "tuned",
-                  "model": {**rec["config"]["model"], "lr": lr, "steps": 20}}
-        records.write_record(path.parent, {
-            **rec, "track": "tuned", "config": config,
-            "overrides": [*rec["overrides"], f"model.lr={lr}", "model.steps=20", "track=tuned"],
-            "tuning": {"selected_on": "validation", "trials": 4, "steps": 20,
-                       "selected": {"model.lr": lr}, "cpu_s": 12.0, "space": {}}})
+        config = {
+            **rec["config"],
+            "track": "tuned",
+            "model": {**rec["config"]["model"], "lr": lr, "steps": 20},
+        }
+        records.write_record(
+            path.parent,
+            {
+                **rec,
+                "track": "tuned",
+                "config": config,
+                "overrides": [*rec["overrides"], f"model.lr={lr}", "model.steps=20", "track=tuned"],
+                "tuning": {
+                    "selected_on": "validation",
+                    "trials": 4,
+                    "steps": 20,
+                    "selected": {"model.lr": lr},
+                    "cpu_s": 12.0,
+                    "space": {},
+                },
+            },
+        )
 
 
 def test_a_report_draws_each_track_apart_and_speaks_of_the_protocol(tmp_path):
@@ -121,8 +140,7 @@ def test_a_report_of_another_track_alone_keeps_plain_names_and_compares_nothing(
     assert "Of the " not in report.files["aggregate_md"].read_text()
 
 
-def test_the_aggregate_speaks_of_the_protocol_even_where_only_another_track_has_one(
-        tmp_path):
+def test_the_aggregate_speaks_of_the_protocol_even_where_only_another_track_has_one(tmp_path):
     """The protocol track without its baseline (no MLP: nothing to normalise) beside a
     tuned track with one: the aggregate says there is none for the protocol (it does not
     show the tuned track's under the protocol's marks), names its scope, and draws the
@@ -135,8 +153,9 @@ def test_the_aggregate_speaks_of_the_protocol_even_where_only_another_track_has_
     assert "No aggregate" in text and "Of the `quick` rows" in text, text
     assert main_profile_figure(report.figures) is None
     names = {p.name for p in (tmp_path / "out" / "figures").glob("*.png")}
-    assert "performance_profile_quick_tuned.png" in names and \
-        "performance_profile.png" not in names, sorted(names)
+    assert (
+        "performance_profile_quick_tuned.png" in names and "performance_profile.png" not in names
+    ), sorted(names)
 
 
 def test_a_track_that_cannot_separate_its_leaders_changes_no_verdict(tmp_path):
@@ -151,8 +170,10 @@ def test_a_track_that_cannot_separate_its_leaders_changes_no_verdict(tmp_path):
     tracks = pd.read_csv(report.files["tracks"], keep_default_na=False)
     rows = tracks[tracks["metric"] == "energy_mse"].set_index("system")
     assert rows.loc["spring", "protocol"] == "best: hnn"
-    assert rows.loc["spring", "recipe"].startswith("too few seeds to separate: ") and \
-        "hnn" in rows.loc["spring", "recipe"]
+    assert (
+        rows.loc["spring", "recipe"].startswith("too few seeds to separate: ")
+        and "hnn" in rows.loc["spring", "recipe"]
+    )
     assert not rows.loc["spring", "changes"]
     # 3 seeds tie everyone: no separated change, but the best mean moved to the MLP
     assert rows.loc["pendulum", "recipe"] == "too few seeds to separate: mlp, hnn"
@@ -160,6 +181,7 @@ def test_a_track_that_cannot_separate_its_leaders_changes_no_verdict(tmp_path):
     assert not rows.loc["spring", "mean_changes"]
     text = report.files["tracks_md"].read_text()
     assert "never separates its leaders" in text and "No verdict changes" in text
-    assert "- `pendulum`, `energy_mse`: protocol best: hnn; recipe too few seeds to " \
-        "separate: mlp, hnn." in \
-        text.split("Where only the best mean moves")[1]
+    assert (
+        "- `pendulum`, `energy_mse`: protocol best: hnn; recipe too few seeds to "
+        "separate: mlp, hnn." in text.split("Where only the best mean moves")[1]
+    )

@@ -37,7 +37,7 @@ def _pairwise_inverse_distance(q: Any, n_bodies: int) -> Any:
     total = 0.0
     for i in range(n_bodies):
         for j in range(i + 1, n_bodies):
-            d = q[2 * i:2 * i + 2] - q[2 * j:2 * j + 2]
+            d = q[2 * i : 2 * i + 2] - q[2 * j : 2 * j + 2]
             total = total + 1.0 / (d * d).sum() ** 0.5
     return total
 
@@ -49,21 +49,26 @@ def _chain_potential(q: Any) -> Any:
 
 def _double_pendulum_lagrangian(q: Any, qdot: Any, xp: Any) -> Any:
     k = dp_module.Params()
-    kinetic = (0.5 * (k.m1 + k.m2) * k.l1 ** 2 * qdot[0] ** 2 + 0.5 * k.m2 * k.l2 ** 2
-               * qdot[1] ** 2 + k.m2 * k.l1 * k.l2 * qdot[0] * qdot[1] * xp.cos(q[0] - q[1]))
-    potential = ((k.m1 + k.m2) * k.g * k.l1 * (1 - xp.cos(q[0]))
-                 + k.m2 * k.g * k.l2 * (1 - xp.cos(q[1])))
+    kinetic = (
+        0.5 * (k.m1 + k.m2) * k.l1**2 * qdot[0] ** 2
+        + 0.5 * k.m2 * k.l2**2 * qdot[1] ** 2
+        + k.m2 * k.l1 * k.l2 * qdot[0] * qdot[1] * xp.cos(q[0] - q[1])
+    )
+    potential = (k.m1 + k.m2) * k.g * k.l1 * (1 - xp.cos(q[0])) + k.m2 * k.g * k.l2 * (
+        1 - xp.cos(q[1])
+    )
     return kinetic - potential
 
 
 def _double_pendulum_hamiltonian(q: Any, p: Any, xp: Any) -> Any:
     k = dp_module.Params()
     c = k.m2 * k.l1 * k.l2 * xp.cos(q[0] - q[1])
-    m11, m22 = (k.m1 + k.m2) * k.l1 ** 2, k.m2 * k.l2 ** 2
+    m11, m22 = (k.m1 + k.m2) * k.l1**2, k.m2 * k.l2**2
     det = m11 * m22 - c * c  # H = p^T M(q)^-1 p / 2 + V(q)
     kinetic = 0.5 * (m22 * p[0] ** 2 - 2 * c * p[0] * p[1] + m11 * p[1] ** 2) / det
-    potential = ((k.m1 + k.m2) * k.g * k.l1 * (1 - xp.cos(q[0]))
-                 + k.m2 * k.g * k.l2 * (1 - xp.cos(q[1])))
+    potential = (k.m1 + k.m2) * k.g * k.l1 * (1 - xp.cos(q[0])) + k.m2 * k.g * k.l2 * (
+        1 - xp.cos(q[1])
+    )
     return kinetic + potential
 
 
@@ -72,22 +77,28 @@ G, M = nbody_module.G, nbody_module.MASS
 #: system -> (Lagrangian L(q, q̇), Hamiltonian H(q, p)), in the system's units.
 TRUE: dict[str, tuple[Fn, Fn]] = {
     # H = q² + p², q̇ = 2p  =>  L = q̇²/4 - q²
-    "spring": (lambda q, v, xp: (v * v).sum() / 4 - (q * q).sum(),
-               lambda q, p, xp: (q * q).sum() + (p * p).sum()),
+    "spring": (
+        lambda q, v, xp: (v * v).sum() / 4 - (q * q).sum(),
+        lambda q, p, xp: (q * q).sum() + (p * p).sum(),
+    ),
     # H = 3(1 - cos q) + p², q̇ = 2p
-    "pendulum": (lambda q, v, xp: (v * v).sum() / 4 - 3 * (1 - xp.cos(q)).sum(),
-                 lambda q, p, xp: 3 * (1 - xp.cos(q)).sum() + (p * p).sum()),
-    "two_body": (lambda q, v, xp: 0.5 * M * (v * v).sum() + G * M * M
-                 * _pairwise_inverse_distance(q, 2),
-                 lambda q, p, xp: (p * p).sum() / (2 * M) - G * M * M
-                 * _pairwise_inverse_distance(q, 2)),
-    "three_body": (lambda q, v, xp: 0.5 * M * (v * v).sum() + G * M * M
-                   * _pairwise_inverse_distance(q, 3),
-                   lambda q, p, xp: (p * p).sum() / (2 * M) - G * M * M
-                   * _pairwise_inverse_distance(q, 3)),
+    "pendulum": (
+        lambda q, v, xp: (v * v).sum() / 4 - 3 * (1 - xp.cos(q)).sum(),
+        lambda q, p, xp: 3 * (1 - xp.cos(q)).sum() + (p * p).sum(),
+    ),
+    "two_body": (
+        lambda q, v, xp: 0.5 * M * (v * v).sum() + G * M * M * _pairwise_inverse_distance(q, 2),
+        lambda q, p, xp: (p * p).sum() / (2 * M) - G * M * M * _pairwise_inverse_distance(q, 2),
+    ),
+    "three_body": (
+        lambda q, v, xp: 0.5 * M * (v * v).sum() + G * M * M * _pairwise_inverse_distance(q, 3),
+        lambda q, p, xp: (p * p).sum() / (2 * M) - G * M * M * _pairwise_inverse_distance(q, 3),
+    ),
     "double_pendulum": (_double_pendulum_lagrangian, _double_pendulum_hamiltonian),
-    "spring_chain": (lambda q, v, xp: 0.5 * (v * v).sum() - _chain_potential(q),
-                     lambda q, p, xp: 0.5 * (p * p).sum() + _chain_potential(q)),
+    "spring_chain": (
+        lambda q, v, xp: 0.5 * (v * v).sum() - _chain_potential(q),
+        lambda q, p, xp: 0.5 * (p * p).sum() + _chain_potential(q),
+    ),
 }
 
 
@@ -95,8 +106,9 @@ def test_every_conservative_system_with_kinematics_has_its_true_physics_here():
     """A new conservative built-in system with kinematics must be added above, or this
     file checks less than it says (the pixel pendulum is observed as images: no
     kinematics)."""
-    reversible = [n for n in registry.available("system")
-                  if registry.get_class("system", n).time_reversible]
+    reversible = [
+        n for n in registry.available("system") if registry.get_class("system", n).time_reversible
+    ]
     assert {n for n in reversible if _system(n).kinematics() is not None} == set(TRUE)
 
 
@@ -164,8 +176,7 @@ def test_the_true_lagrangian_through_the_jax_lnn(name):
     def true_lagrangian(z: Any) -> Any:  # one state (2n,) -> scalar
         return lagrangian(z[:n], z[n:], jnp)
 
-    got = np.asarray(jax.jit(lambda z: lnn.euler_lagrange(true_lagrangian, z))(
-        jnp.asarray(v)))
+    got = np.asarray(jax.jit(lambda z: lnn.euler_lagrange(true_lagrangian, z))(jnp.asarray(v)))
     np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10)
 
 

@@ -56,20 +56,23 @@ class _Cfg(NeuralConfig):
             raise ConfigError(f"model.window={self.window} is invalid: expected >= 2.")
 
 
-@pytest.mark.parametrize("space, needle", [
-    ({"nope": LogUniform(1e-4, 1e-2)}, "'nope', which is not a setting of _Cfg"),
-    ({"steps": IntRange(10, 100)}, "the step budget"),
-    ({"lr": (1e-4, 1e-2)}, "expected LogUniform, Uniform, IntRange or Categorical"),
-    ({"lr": LogUniform(0.0, 1e-2)}, "needs 0 < low < high"),
-    ({"lr": Uniform(1.0, 1.0)}, "needs finite low < high"),
-    ({"layers": IntRange(2.0, 4)}, "needs integers low < high"),  # type: ignore[arg-type]
-    ({"activation": Categorical(())}, "non-empty tuple"),
-    ({"activation": Categorical(("tanh", "tanh"))}, "repeats a choice"),
-    ({"activation": Categorical(("tanh", "relu"))}, "'relu' is refused by _Cfg"),
-    ({"window": IntRange(1, 8)}, "the value 1 is refused by _Cfg"),
-    ({}, "is empty"),
-    ([("lr", LogUniform(1e-4, 1e-2))], "must be a mapping"),
-])
+@pytest.mark.parametrize(
+    "space, needle",
+    [
+        ({"nope": LogUniform(1e-4, 1e-2)}, "'nope', which is not a setting of _Cfg"),
+        ({"steps": IntRange(10, 100)}, "the step budget"),
+        ({"lr": (1e-4, 1e-2)}, "expected LogUniform, Uniform, IntRange or Categorical"),
+        ({"lr": LogUniform(0.0, 1e-2)}, "needs 0 < low < high"),
+        ({"lr": Uniform(1.0, 1.0)}, "needs finite low < high"),
+        ({"layers": IntRange(2.0, 4)}, "needs integers low < high"),  # type: ignore[arg-type]
+        ({"activation": Categorical(())}, "non-empty tuple"),
+        ({"activation": Categorical(("tanh", "tanh"))}, "repeats a choice"),
+        ({"activation": Categorical(("tanh", "relu"))}, "'relu' is refused by _Cfg"),
+        ({"window": IntRange(1, 8)}, "the value 1 is refused by _Cfg"),
+        ({}, "is empty"),
+        ([("lr", LogUniform(1e-4, 1e-2))], "must be a mapping"),
+    ],
+)
 def test_a_bad_search_space_is_refused_with_the_reason(space, needle):
     problem = space_problem(space, _Cfg)
     assert problem is not None and needle in problem, problem
@@ -80,7 +83,8 @@ def test_the_shared_space_is_valid_and_described_in_one_line():
     text = describe(SHARED_SPACE)
     assert "lr: log-uniform [0.0001, 0.01]" in text and "\n" not in text
     assert space_json({"window": IntRange(3, 8, changes_training_loss=True)}) == {
-        "window": {"kind": "int", "low": 3, "high": 8, "changes_training_loss": True}}
+        "window": {"kind": "int", "low": 3, "high": 8, "changes_training_loss": True}
+    }
 
 
 def test_every_built_in_neural_family_declares_a_valid_space_over_its_config():
@@ -124,7 +128,8 @@ def test_a_third_party_model_declares_a_space_and_list_shows_it(tmp_path):
             cmd_list(["--json"])
         listed = {m["name"]: m for m in json.loads(out.getvalue())["model"]}
         assert listed["spaced_model"]["search_space"] == {
-            "lr": {"kind": "log_uniform", "low": 1e-3, "high": 1e-1}}
+            "lr": {"kind": "log_uniform", "low": 1e-3, "high": 1e-1}
+        }
         assert listed["hnn_jax"]["search_space"]["hidden"]["kind"] == "categorical"
         assert listed["oracle"]["search_space"] is None
     finally:
@@ -146,8 +151,17 @@ def test_hnnbench_list_shows_the_spaces():
 def _fields(model: str, **settings) -> np.ndarray:
     """The field of ``model`` on the spring with the seed-0 initial weights."""
     overrides = [f"model.{k}={v}" for k, v in settings.items()]
-    job = prepare_job(compose(["system=spring", f"model={model}", "model.hidden=16",
-                               "model.dtype=float64", *overrides]))
+    job = prepare_job(
+        compose(
+            [
+                "system=spring",
+                f"model={model}",
+                "model.hidden=16",
+                "model.dtype=float64",
+                *overrides,
+            ]
+        )
+    )
     system = job.system_cls(job.system_cfg)
     m = job.model_cls(job.model_cfg, system, "cpu")
     m.set_weights(m.initial_weights(0))
@@ -164,17 +178,22 @@ def test_the_dhnn_dissipation_scale_weighs_its_dissipative_part(backend):
 
 @pytest.mark.parametrize("backend", ["torch", "jax"])
 def test_the_lnn_kinetic_prior_reaches_its_field(backend):
-    default, same, other = (_fields(f"lnn_{backend}", **kw) for kw in
-                            ({}, {"kinetic_prior": 0.5}, {"kinetic_prior": 1.0}))
+    default, same, other = (
+        _fields(f"lnn_{backend}", **kw)
+        for kw in ({}, {"kinetic_prior": 0.5}, {"kinetic_prior": 1.0})
+    )
     np.testing.assert_array_equal(default, same)
     assert not np.allclose(default, other)
 
 
 def test_the_knobs_agree_between_backends():
-    for model, setting in (("lnn", {"kinetic_prior": 0.25}),
-                           ("dhnn", {"dissipation_scale": 0.3})):
-        np.testing.assert_allclose(_fields(f"{model}_torch", **setting),
-                                   _fields(f"{model}_jax", **setting), rtol=1e-9, atol=1e-12)
+    for model, setting in (("lnn", {"kinetic_prior": 0.25}), ("dhnn", {"dissipation_scale": 0.3})):
+        np.testing.assert_allclose(
+            _fields(f"{model}_torch", **setting),
+            _fields(f"{model}_jax", **setting),
+            rtol=1e-9,
+            atol=1e-12,
+        )
 
 
 @pytest.mark.parametrize("setting", ["model.kinetic_prior=-1", "model.dissipation_scale=0"])
@@ -237,23 +256,47 @@ def test_a_progress_callback_that_returns_true_stops_training_with_the_reason():
 # --------------------------------------------------------------------------- records
 
 
-def _record(model: str, seed: int, track: str | None = None, value: float = 1.0,
-            selected: dict | None = None, trials: int = 4, cpu: float = 10.0,
-            system: str = "spring") -> dict:
-    rec = {"system": system, "model": model, "seed": seed, "profile": "quick",
-           "status": "ok", "backend": "jax", "family": model.split("_")[0],
-           "ranked": True, "metrics": {"test_loss": {"mean": value, "sem": 0.0}},
-           "timings": {"total_s": 1.0}, "overrides": [f"model={model}", f"seed={seed}"],
-           "config": {"model": {"name": model}, "system": {"name": system}}}
+def _record(
+    model: str,
+    seed: int,
+    track: str | None = None,
+    value: float = 1.0,
+    selected: dict | None = None,
+    trials: int = 4,
+    cpu: float = 10.0,
+    system: str = "spring",
+) -> dict:
+    rec = {
+        "system": system,
+        "model": model,
+        "seed": seed,
+        "profile": "quick",
+        "status": "ok",
+        "backend": "jax",
+        "family": model.split("_")[0],
+        "ranked": True,
+        "metrics": {"test_loss": {"mean": value, "sem": 0.0}},
+        "timings": {"total_s": 1.0},
+        "overrides": [f"model={model}", f"seed={seed}"],
+        "config": {"model": {"name": model}, "system": {"name": system}},
+    }
     if track is not None:
         rec["track"] = track
         rec["config"]["track"] = track
     if track == "tuned":
         selected = selected or {"model.lr": 0.003}
-        rec["tuning"] = {"selected_on": "validation", "trials": trials, "steps": 50,
-                         "selected": selected, "cpu_s": cpu, "space": {}}
-        rec["overrides"] += [f"{k}={v}" for k, v in selected.items()] + ["model.steps=50",
-                                                                          "track=tuned"]
+        rec["tuning"] = {
+            "selected_on": "validation",
+            "trials": trials,
+            "steps": 50,
+            "selected": selected,
+            "cpu_s": cpu,
+            "space": {},
+        }
+        rec["overrides"] += [f"{k}={v}" for k, v in selected.items()] + [
+            "model.steps=50",
+            "track=tuned",
+        ]
         for key, v in {**selected, "model.steps": 50}.items():
             rec["config"]["model"][key.split(".", 1)[1]] = v
     return rec
@@ -278,14 +321,17 @@ def test_a_tuned_records_selected_settings_and_budget_are_its_track_not_a_varian
     assert frame["tuning_cpu_s"].iloc[1] == 10.0
 
 
-@pytest.mark.parametrize("change, needle", [
-    (lambda r: r.pop("tuning"), "must say how it was tuned"),
-    (lambda r: r["tuning"].update(selected_on="test"), "selects on validation only"),
-    (lambda r: r["tuning"].pop("trials"), "tuning.trials"),
-    (lambda r: r["tuning"].update(selected={}), "tuning.selected: missing"),
-    (lambda r: r["config"]["model"].update(lr=0.1), "model.lr=0.003, but the record's config"),
-    (lambda r: r.update(track="protocol"), "the record says protocol, its config tuned"),
-])
+@pytest.mark.parametrize(
+    "change, needle",
+    [
+        (lambda r: r.pop("tuning"), "must say how it was tuned"),
+        (lambda r: r["tuning"].update(selected_on="test"), "selects on validation only"),
+        (lambda r: r["tuning"].pop("trials"), "tuning.trials"),
+        (lambda r: r["tuning"].update(selected={}), "tuning.selected: missing"),
+        (lambda r: r["config"]["model"].update(lr=0.1), "model.lr=0.003, but the record's config"),
+        (lambda r: r.update(track="protocol"), "the record says protocol, its config tuned"),
+    ],
+)
 def test_a_tuned_record_that_does_not_hold_together_is_a_problem(change, needle):
     rec = _record("hnn_jax", 0, "tuned")
     assert track_problem(rec) is None
@@ -304,8 +350,11 @@ def test_tracks_are_separate_rows_never_ranked_together():
     recs += [_record("mlp_jax", s, "tuned", 0.1) for s in (0, 1)]
     board = leaderboard(recs)
     assert list(zip(board["track"], board["model"], strict=True)) == [  # registry order
-        ("protocol", "mlp_jax"), ("protocol", "hnn_jax"),
-        ("tuned", "mlp_jax"), ("tuned", "hnn_jax")]
+        ("protocol", "mlp_jax"),
+        ("protocol", "hnn_jax"),
+        ("tuned", "mlp_jax"),
+        ("tuned", "hnn_jax"),
+    ]
     assert list(board["n_seeds"]) == [2, 2, 2, 2]
     assert "variant" not in board  # the tuned settings are no variant
     assert board["tuning_cpu_s"].isna().tolist() == [True, True, False, False]
@@ -334,7 +383,8 @@ def test_the_tracks_table_says_what_each_familys_tuning_cost():
     costs = tuning_costs(fams)
     assert costs.to_dict("records") == [
         {"profile": "quick", "system": "spring", "mlp": "88", "hnn": "1,234"},
-        {"profile": "quick", "system": "pendulum", "mlp": "—", "hnn": "5"}]
+        {"profile": "quick", "system": "pendulum", "mlp": "—", "hnn": "5"},
+    ]
     text = tracks_markdown(tracks_frame(fams), costs)
     assert "| quick     | spring   | 88    | 1,234 |" in text
     assert "the CPU seconds of its study" in text
@@ -342,8 +392,9 @@ def test_the_tracks_table_says_what_each_familys_tuning_cost():
     protocol = recs[:2] + [_record("mlp_jax", s, "recipe", 0.1) for s in (0, 1)]
     fams = families(records_frame(protocol), leaderboard(protocol))
     assert tuning_costs(fams).empty
-    assert tracks_markdown(tracks_frame(fams), tuning_costs(fams)) == \
-        tracks_markdown(tracks_frame(fams))
+    assert tracks_markdown(tracks_frame(fams), tuning_costs(fams)) == tracks_markdown(
+        tracks_frame(fams)
+    )
     assert "CPU seconds" not in tracks_markdown(tracks_frame(fams))
 
 
@@ -373,16 +424,17 @@ def test_a_track_that_is_not_one_is_refused_in_one_line():
 
 
 def test_bad_tune_arguments_are_one_line_errors():
-    for args, needle in ((["system=spring", "model=hnn_jax"], "trials= is required"),
-                         (["system=spring", "model=hnn_jax", "trials=0"], "trials=0 is invalid"),
-                         (["system=spring", "model=hnn_jax", "trials=2", "model.lr=1"],
-                          "model settings are what the tuner searches"),
-                         (["system=spring", "model=hnn_jax", "trials=2", "bogus=1"],
-                          "unknown argument 'bogus'"),
-                         (["system=spring", "model=oracle", "trials=2"],
-                          "declares no search space"),
-                         (["system=spring,pendulum", "model=hnn_jax", "trials=2"],
-                          "one system per tuning")):
+    for args, needle in (
+        (["system=spring", "model=hnn_jax"], "trials= is required"),
+        (["system=spring", "model=hnn_jax", "trials=0"], "trials=0 is invalid"),
+        (
+            ["system=spring", "model=hnn_jax", "trials=2", "model.lr=1"],
+            "model settings are what the tuner searches",
+        ),
+        (["system=spring", "model=hnn_jax", "trials=2", "bogus=1"], "unknown argument 'bogus'"),
+        (["system=spring", "model=oracle", "trials=2"], "declares no search space"),
+        (["system=spring,pendulum", "model=hnn_jax", "trials=2"], "one system per tuning"),
+    ):
         assert_one_line_error(hnnbench_cli("tune", *args), needle)
 
 
@@ -390,15 +442,25 @@ optuna = pytest.importorskip("optuna")
 
 
 def _trial_records(root: Path, model: str) -> list[dict]:
-    return [json.loads(p.read_text()) for p in
-            sorted((root / "trials" / "spring" / model).glob("trial*/result.json"))]
+    return [
+        json.loads(p.read_text())
+        for p in sorted((root / "trials" / "spring" / model).glob("trial*/result.json"))
+    ]
 
 
 @pytest.mark.slow
 def test_tune_gives_every_model_the_same_budget_and_selects_on_validation(tmp_path):
     out = tmp_path / "tuned"
-    board = hnnbench.tune("spring", ["mlp_jax", "hnn_jax"], trials=3, seeds=(0, 1),
-                          profile="quick", out=out, steps=40, pin_cpu=False)
+    board = hnnbench.tune(
+        "spring",
+        ["mlp_jax", "hnn_jax"],
+        trials=3,
+        seeds=(0, 1),
+        profile="quick",
+        out=out,
+        steps=40,
+        pin_cpu=False,
+    )
     assert set(board["track"]) == {"tuned"} and list(board["n_ok"]) == [2, 2]
     assert (board["tuning_cpu_s"] > 0).all()
     for model in ("mlp_jax", "hnn_jax"):
@@ -411,48 +473,86 @@ def test_tune_gives_every_model_the_same_budget_and_selects_on_validation(tmp_pa
         complete = [t for t in summary["trials"] if t["state"] == "complete"]
         best = min(complete, key=lambda t: (t["value"], t["number"]))
         assert summary["selected"]["number"] == best["number"]
-        finals = [json.loads(p.read_text()) for p in
-                  sorted((out / "final" / "spring" / model).glob("seed*/result.json"))]
+        finals = [
+            json.loads(p.read_text())
+            for p in sorted((out / "final" / "spring" / model).glob("seed*/result.json"))
+        ]
         assert [f["seed"] for f in finals] == [0, 1]
         for final in finals:
             tuning = final["tuning"]
             assert final["track"] == "tuned" and track_problem(final) is None
             assert (tuning["trials"], tuning["steps"], tuning["selected_on"]) == (
-                3, 40, "validation")
+                3,
+                40,
+                "validation",
+            )
             assert tuning["selected"] == best["settings"] and final["steps"] <= 40
             assert "test_loss" in final["metrics"]
-            assert math.isclose(tuning["cpu_s"], sum(t["cpu_s"] for t in summary["trials"]),
-                                abs_tol=1e-3)  # rounded to ms
+            assert math.isclose(
+                tuning["cpu_s"], sum(t["cpu_s"] for t in summary["trials"]), abs_tol=1e-3
+            )  # rounded to ms
         # the selected trial ran seed 0 with the same settings: the same validation loss
-        assert math.isclose(finals[0]["metrics"]["val_loss"]["mean"], best["value"],
-                            rel_tol=1e-9)
+        assert math.isclose(finals[0]["metrics"]["val_loss"]["mean"], best["value"], rel_tol=1e-9)
 
     # resuming runs nothing new; another step budget on the same studies is refused
-    again = hnnbench.tune("spring", ["mlp_jax", "hnn_jax"], trials=3, seeds=(0, 1),
-                          profile="quick", out=out, steps=40, pin_cpu=False)
+    again = hnnbench.tune(
+        "spring",
+        ["mlp_jax", "hnn_jax"],
+        trials=3,
+        seeds=(0, 1),
+        profile="quick",
+        out=out,
+        steps=40,
+        pin_cpu=False,
+    )
     assert len(_trial_records(out, "mlp_jax")) == 3
     assert list(again["test_loss_mean"]) == list(board["test_loss_mean"])
     with pytest.raises(ConfigError, match="made with other settings .*steps: 40 -> 41"):
-        hnnbench.tune("spring", ["mlp_jax"], trials=3, seeds=(0,), profile="quick", out=out,
-                      steps=41, pin_cpu=False)
+        hnnbench.tune(
+            "spring",
+            ["mlp_jax"],
+            trials=3,
+            seeds=(0,),
+            profile="quick",
+            out=out,
+            steps=41,
+            pin_cpu=False,
+        )
 
     # hnnbench check reads the tuned track like a sweep: tracks kept, budgets equal
     ref = tmp_path / "ref.csv"
-    assert hnnbench_cli("check", str(out / "final"), "--reference", str(ref),
-                        "--update").returncode == 0
+    assert (
+        hnnbench_cli("check", str(out / "final"), "--reference", str(ref), "--update").returncode
+        == 0
+    )
     proc = hnnbench_cli("check", str(out / "final"), "--reference", str(ref))
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "tuned" in ref.read_text().splitlines()[1]
 
     # the cost estimate and the tracks table read the same directory
     scripts = REPO / "scripts" / "analysis"
-    costs = subprocess.run([sys.executable, str(scripts / "tuning_costs.py"), str(out),
-                            "--trials", "5", "--steps", "100"],
-                           capture_output=True, text=True, timeout=600)
+    costs = subprocess.run(
+        [
+            sys.executable,
+            str(scripts / "tuning_costs.py"),
+            str(out),
+            "--trials",
+            "5",
+            "--steps",
+            "100",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert costs.returncode == 0, costs.stderr
     assert "| spring | hnn_jax | 3 |" in costs.stdout and "spring: about" in costs.stdout
-    table = subprocess.run([sys.executable, str(scripts / "tracks_table.py"), str(out / "final")],
-                           capture_output=True, text=True, timeout=600)
+    table = subprocess.run(
+        [sys.executable, str(scripts / "tracks_table.py"), str(out / "final")],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert table.returncode == 0, table.stderr
     assert "| spring | mlp | " in table.stdout and "the same on every track" in table.stdout
 
@@ -463,9 +563,17 @@ def test_an_interrupted_trial_runs_its_settings_again(tmp_path):
     from hnnbench._tuning.request import TuneRequest
 
     out = tmp_path / "tuned"
-    request = TuneRequest(system="spring", models=["mlp_jax"], trials=2, seeds=[0],
-                          profile="quick", out=out, steps=20, pruner="none",
-                          overrides=["pin_cpu=false"])
+    request = TuneRequest(
+        system="spring",
+        models=["mlp_jax"],
+        trials=2,
+        seeds=[0],
+        profile="quick",
+        out=out,
+        steps=20,
+        pruner="none",
+        overrides=["pin_cpu=false"],
+    )
     tuner = tuning.Tuner(request)
     space = registry.discover("model")["mlp_jax"].search_space
     study = tuner._open("mlp_jax", space, 20)

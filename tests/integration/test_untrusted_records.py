@@ -46,8 +46,10 @@ def real(tmp_path_factory):
     """A real record (a composed config, the installed plugins' provenance) with its
     rollout, written once: ``(record as JSON data, rollout bytes)``."""
     job = write_run(tmp_path_factory.mktemp("real"), "spring", "oracle", 0, profile="paper")
-    return (json.loads((job / records.RECORD_NAME).read_text()),
-            (job / records.ROLLOUT_NAME).read_bytes())
+    return (
+        json.loads((job / records.RECORD_NAME).read_text()),
+        (job / records.ROLLOUT_NAME).read_bytes(),
+    )
 
 
 def _put(root: Path, rel: str, data, rollout: bytes | None = None) -> Path:
@@ -87,8 +89,20 @@ def _one_line(reason: str) -> bool:
 
 # --------------------------------------------------------------------------- names
 
-BAD_NAMES = ["/etc", "../../escaped", "..", "a|b", "x\ny", "spring\n", MARKER, "Spring",
-             "a" * 65, "", "sp ring", "a/b"]
+BAD_NAMES = [
+    "/etc",
+    "../../escaped",
+    "..",
+    "a|b",
+    "x\ny",
+    "spring\n",
+    MARKER,
+    "Spring",
+    "a" * 65,
+    "",
+    "sp ring",
+    "a/b",
+]
 
 
 @pytest.mark.parametrize("field", ["system", "model", "profile"])
@@ -117,9 +131,13 @@ def test_report_writes_nothing_outside_out(real, tmp_path, caplog):
     and an absolute or `..` system or profile leaves no file outside --out."""
     sweep, out = tmp_path / "sweep", tmp_path / "out"
     _put(sweep, "good", real[0], real[1])
-    for i, (field, name) in enumerate([("system", "../../../escaped"),
-                                       ("system", str(tmp_path / "abs")),
-                                       ("profile", "../../../escaped")]):
+    for i, (field, name) in enumerate(
+        [
+            ("system", "../../../escaped"),
+            ("system", str(tmp_path / "abs")),
+            ("profile", "../../../escaped"),
+        ]
+    ):
         _put(sweep, f"bad{i}", _crafted(real, **{field: name}), real[1])
     before = {p for p in tmp_path.rglob("*")}
     report = write_report(sweep, out)
@@ -147,8 +165,11 @@ def test_safe_join_refuses_anything_but_plain_components(tmp_path):
 
 def test_publish_refuses_a_record_dir_outside_results_records(real, tmp_path, monkeypatch):
     monkeypatch.setattr(publish_results, "RECORDS", tmp_path / "records")
-    for rec in ({**real[0], "system": "../../etc"}, {**real[0], "model": "/abs"},
-                {**real[0], "seed": "0/../.."}):
+    for rec in (
+        {**real[0], "system": "../../etc"},
+        {**real[0], "model": "/abs"},
+        {**real[0], "seed": "0/../.."},
+    ):
         with pytest.raises(SystemExit, match="publish: .*(not a system|not a model|seed)"):
             publish_results.record_dir(rec)
     assert publish_results.record_dir(real[0]) == tmp_path / "records/spring/oracle/seed0"
@@ -172,7 +193,8 @@ def test_a_plugin_with_a_bad_name_is_refused_with_the_reason(tmp_path, monkeypat
     info.mkdir()
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: badname\nVersion: 1.0\n")
     (info / "entry_points.txt").write_text(
-        "[hnnbench.systems]\nBad-System = no_such_module_xyz:Thing\n")
+        "[hnnbench.systems]\nBad-System = no_such_module_xyz:Thing\n"
+    )
     monkeypatch.syspath_prepend(str(tmp_path))
     registry.refresh()
     try:
@@ -195,8 +217,7 @@ def test_markdown_cells_and_code_spans_are_escaped():
     assert md_cell("`rm -rf`") == "&#96;rm -rf&#96;"
     assert "<!--" not in md_cell(MARKER) and "<b" not in md_cell("<b>bold</b>")
     assert md_cell("need <= 2x") == "need <= 2x"  # plain text as it is
-    assert md_cell("hnn_torch") == "hnn_torch" and md_cell("1.2e-03 ± 4e-04") == \
-        "1.2e-03 ± 4e-04"
+    assert md_cell("hnn_torch") == "hnn_torch" and md_cell("1.2e-03 ± 4e-04") == "1.2e-03 ± 4e-04"
     assert md_text("a|b\n<img src=x>") == "a|b &lt;img src=x>"
     assert md_code("x`y\n" + MARKER) == "`x'y \u2039!-- leaderboard:end -->`"
     frame = pd.DataFrame({"model": ["a|b", "x\n| fake | row |", MARKER], "v": ["1", "2", "3"]})
@@ -207,8 +228,10 @@ def test_markdown_cells_and_code_spans_are_escaped():
 
 def test_readme_markers_cannot_be_forged_by_content():
     readme = "intro\n<!-- leaderboard:begin -->\nold\n<!-- leaderboard:end -->\nrest\n"
-    assert publish_results.replace_block(readme, "leaderboard", "new") == \
-        "intro\n<!-- leaderboard:begin -->\nnew\n<!-- leaderboard:end -->\nrest\n"
+    assert (
+        publish_results.replace_block(readme, "leaderboard", "new")
+        == "intro\n<!-- leaderboard:begin -->\nnew\n<!-- leaderboard:end -->\nrest\n"
+    )
     # a marker quoted inside a line is not a marker
     quoted = readme.replace("old", f"| `{MARKER}` |")
     assert publish_results.replace_block(quoted, "leaderboard", "new").count(MARKER) == 1
@@ -224,19 +247,23 @@ def test_readme_markers_cannot_be_forged_by_content():
 # --------------------------------------------------------------------------- values
 
 
-@pytest.mark.parametrize("metric, mean, sem, ok", [
-    ("energy_mse", -1e-3, 0.0, False),
-    ("energy_mse", "-inf", 0.0, False),
-    ("energy_mse", "inf", "inf", True),          # diverged: the metric's worst()
-    ("energy_mse", None, None, True),            # not applicable
-    ("energy_mse", 1e-3, -1.0, False),           # a negative standard error
-    ("valid_prediction_time", "inf", 0.0, False),  # a time is finite; worst() is 0
-    ("valid_prediction_time", -2.0, 0.0, False),
-    ("valid_prediction_time", 0.0, 0.0, True),
-    ("rollout_mse", 0.0, 0.0, True),
-])
+@pytest.mark.parametrize(
+    "metric, mean, sem, ok",
+    [
+        ("energy_mse", -1e-3, 0.0, False),
+        ("energy_mse", "-inf", 0.0, False),
+        ("energy_mse", "inf", "inf", True),  # diverged: the metric's worst()
+        ("energy_mse", None, None, True),  # not applicable
+        ("energy_mse", 1e-3, -1.0, False),  # a negative standard error
+        ("valid_prediction_time", "inf", 0.0, False),  # a time is finite; worst() is 0
+        ("valid_prediction_time", -2.0, 0.0, False),
+        ("valid_prediction_time", 0.0, 0.0, True),
+        ("rollout_mse", 0.0, 0.0, True),
+    ],
+)
 def test_a_metric_outside_its_declared_domain_is_refused_by_strict_loading(
-        real, tmp_path, metric, mean, sem, ok):
+    real, tmp_path, metric, mean, sem, ok
+):
     rec = _crafted(real)
     rec["metrics"][metric] = {"mean": mean, "sem": sem}
     path = _put(tmp_path, "job", rec)
@@ -252,22 +279,27 @@ def test_a_metric_outside_its_declared_domain_is_refused_by_strict_loading(
 
 
 def test_the_builtin_metrics_declare_their_domain():
-    special = {"vpt_censored": (0.0, 1.0),  # a share
-               "rollout_skill": (-math.inf, 1.0)}  # 1 exact, 0 standing still, below: worse
+    special = {
+        "vpt_censored": (0.0, 1.0),  # a share
+        "rollout_skill": (-math.inf, 1.0),
+    }  # 1 exact, 0 standing still, below: worse
     for metric in registry.metrics():
         assert metric.domain == special.get(metric.name, (0.0, math.inf)), metric.name
     skill = next(m for m in registry.metrics() if m.name == "rollout_skill")
     assert skill.worst() == -math.inf and skill.value_problem(1.5) is not None
 
 
-@pytest.mark.parametrize("created_at, why", [
-    ("yesterday", "date-time"),
-    ("2026-02-30T00:00:00Z", "date-time"),
-    ("2026-11-24 21:00:00+00:00", "date-time"),
-    ("2026-11-24T21:00:00", "date-time"),  # no offset
-    ("2999-01-01T00:00:00+00:00", "in the future"),
-    (20261124, "not of type 'string'"),
-])
+@pytest.mark.parametrize(
+    "created_at, why",
+    [
+        ("yesterday", "date-time"),
+        ("2026-02-30T00:00:00Z", "date-time"),
+        ("2026-11-24 21:00:00+00:00", "date-time"),
+        ("2026-11-24T21:00:00", "date-time"),  # no offset
+        ("2999-01-01T00:00:00+00:00", "in the future"),
+        (20261124, "not of type 'string'"),
+    ],
+)
 def test_a_malformed_or_future_created_at_is_refused(real, tmp_path, created_at, why):
     path = _put(tmp_path, "job", _crafted(real, created_at=created_at))
     reason = _reasons(records.load(tmp_path, strict=True))[path]
@@ -287,8 +319,7 @@ def test_the_committed_records_all_load_strictly():
 # --------------------------------------------------------------------------- malformed
 
 
-def test_malformed_records_are_named_and_the_rest_of_report_and_check_goes_on(
-        real, tmp_path):
+def test_malformed_records_are_named_and_the_rest_of_report_and_check_goes_on(real, tmp_path):
     sweep = tmp_path / "sweep"
     good = _put(sweep, "good", real[0], real[1])
     bad = {
@@ -324,8 +355,7 @@ def test_malformed_records_are_named_and_the_rest_of_report_and_check_goes_on(
     assert {f.model for f in findings} == {str(p) for p in paths.values()}
 
 
-def test_a_large_record_is_refused_by_size_at_once_and_a_long_history_is_fast(
-        real, tmp_path):
+def test_a_large_record_is_refused_by_size_at_once_and_a_long_history_is_fast(real, tmp_path):
     big = _crafted(real, history={"step": list(range(700_000))})
     path = _put(tmp_path / "big", "job", big)
     assert path.stat().st_size > 4_000_000
@@ -335,9 +365,14 @@ def test_a_large_record_is_refused_by_size_at_once_and_a_long_history_is_fast(
     assert "over the limit of 2097152" in reason and _one_line(reason)
 
     n = 55_000
-    long = _crafted(real, history={"step": list(range(n)),
-                                   "train_loss": [0.1 + i * 1e-7 for i in range(n)],
-                                   "test_loss": [0.2 + i * 1e-7 for i in range(n)]})
+    long = _crafted(
+        real,
+        history={
+            "step": list(range(n)),
+            "train_loss": [0.1 + i * 1e-7 for i in range(n)],
+            "test_loss": [0.2 + i * 1e-7 for i in range(n)],
+        },
+    )
     path = _put(tmp_path / "long", "job", long)
     assert 1_500_000 < path.stat().st_size <= records.MAX_RECORD_BYTES
     start = time.perf_counter()
@@ -399,8 +434,7 @@ def test_a_rollout_is_read_bounded(real, tmp_path, monkeypatch, caplog):
     sweep = tmp_path / "sweep"
     _put(sweep, "job", real[0], bomb.read_bytes())
     report = write_report(sweep, tmp_path / "out")
-    assert len(report.records) == 1 and not [m for m in report.figures
-                                             if m.label == "spring"]
+    assert len(report.records) == 1 and not [m for m in report.figures if m.label == "spring"]
     assert "cannot read" in caplog.text and "over the limit" in caplog.text
     # a real rollout still reads
     (tmp_path / "real.npz").write_bytes(real[1])
@@ -410,20 +444,26 @@ def test_a_rollout_is_read_bounded(real, tmp_path, monkeypatch, caplog):
 # --------------------------------------------------------------------------- fuzz
 
 _json = st.recursive(
-    st.none() | st.booleans() | st.integers(-10**6, 10**6)
-    | st.floats(allow_nan=True, allow_infinity=True) | st.text(max_size=20),
-    lambda children: st.lists(children, max_size=4)
-    | st.dictionaries(st.text(max_size=10), children, max_size=4),
-    max_leaves=20)
+    st.none()
+    | st.booleans()
+    | st.integers(-(10**6), 10**6)
+    | st.floats(allow_nan=True, allow_infinity=True)
+    | st.text(max_size=20),
+    lambda children: (
+        st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=10), children, max_size=4)
+    ),
+    max_leaves=20,
+)
 _FIELDS = [f.name for f in records.FIELDS]
 
 
-@settings(max_examples=60, deadline=None,
-          suppress_health_check=[HealthCheck.function_scoped_fixture,
-                                 HealthCheck.too_slow])
+@settings(
+    max_examples=60,
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
 @given(data=st.data())
-def test_fuzz_the_loader_never_raises_and_names_every_file_left_out(real, tmp_path_factory,
-                                                                    data):
+def test_fuzz_the_loader_never_raises_and_names_every_file_left_out(real, tmp_path_factory, data):
     root = tmp_path_factory.mktemp("fuzz")
     written = []
     for i in range(3):
@@ -460,7 +500,6 @@ def test_a_value_outside_its_domain_is_never_marked_best(tmp_path):
 
     for model, value in (("mlp_torch", -5.0), ("hnn_torch", 2e-3), ("dhnn_torch", 1e-2)):
         for seed in range(5):
-            write_run(tmp_path, "spring", model, seed, metrics={"energy_mse": value},
-                      rollout=False)
+            write_run(tmp_path, "spring", model, seed, metrics={"energy_mse": value}, rollout=False)
     board = families(records_frame(records.load(tmp_path).records)).board.set_index("family")
     assert board["energy_mse_mark"].to_dict() == {"mlp": "", "hnn": "best", "dhnn": ""}

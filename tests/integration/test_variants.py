@@ -18,20 +18,39 @@ def test_a_variant_is_the_overrides_that_differ_between_runs():
     assert variant_labels([]) == []
     assert variant_labels([None, ["seed=1"]]) == ["", ""]
     # identity and run settings never make a variant, even where they differ
-    assert variant_labels([
-        ["system=spring", "model=hnn_torch", "seed=2", "profile=quick", "device=cpu",
-         "threads=2", "save_model=false", "rerun=true", "hydra.launcher.n_jobs=2"],
-        ["system=pendulum", "model=mlp_torch", "seed=0", "profile=paper", "device=cuda"],
-    ]) == ["", ""]
+    assert variant_labels(
+        [
+            [
+                "system=spring",
+                "model=hnn_torch",
+                "seed=2",
+                "profile=quick",
+                "device=cpu",
+                "threads=2",
+                "save_model=false",
+                "rerun=true",
+                "hydra.launcher.n_jobs=2",
+            ],
+            ["system=pendulum", "model=mlp_torch", "seed=0", "profile=paper", "device=cuda"],
+        ]
+    ) == ["", ""]
     # an override every run shares is a sweep setting; absent counts as a value
-    runs = [["system.steps=50", "+model.hidden=100", "system.eval_t_end=80"],
-            ["system.steps=50", "+model.hidden=200", "system.eval_t_end=80"],
-            ["system.steps=50"]]
-    assert variant_labels(runs) == ["model.hidden=100 system.eval_t_end=80",
-                                    "model.hidden=200 system.eval_t_end=80", ""]
+    runs = [
+        ["system.steps=50", "+model.hidden=100", "system.eval_t_end=80"],
+        ["system.steps=50", "+model.hidden=200", "system.eval_t_end=80"],
+        ["system.steps=50"],
+    ]
+    assert variant_labels(runs) == [
+        "model.hidden=100 system.eval_t_end=80",
+        "model.hidden=200 system.eval_t_end=80",
+        "",
+    ]
     # Hydra's append prefix does not make another variant
-    assert variant_labels([["+model.hidden=100"], ["model.hidden=100"], ["model.hidden=5"]]
-                          ) == ["model.hidden=100", "model.hidden=100", "model.hidden=5"]
+    assert variant_labels([["+model.hidden=100"], ["model.hidden=100"], ["model.hidden=5"]]) == [
+        "model.hidden=100",
+        "model.hidden=100",
+        "model.hidden=5",
+    ]
 
 
 @pytest.fixture()
@@ -41,8 +60,14 @@ def hidden_sweep(tmp_path):
     for seed in (0, 1):
         for hidden in (100, 200):
             metrics = {"train_loss": 0.03, "test_loss": 0.03, "energy_mse": hidden * 1e-6}
-            write_run(tmp_path, "spring", "hnn_torch", seed, metrics=metrics,
-                      overrides=(f"model.hidden={hidden}",))
+            write_run(
+                tmp_path,
+                "spring",
+                "hnn_torch",
+                seed,
+                metrics=metrics,
+                overrides=(f"model.hidden={hidden}",),
+            )
         write_run(tmp_path, "spring", "mlp_torch", seed)
     return tmp_path
 
@@ -51,8 +76,11 @@ def test_leaderboard_has_a_row_per_variant(hidden_sweep):
     board = leaderboard(load(hidden_sweep).records)
     assert list(board.columns[:4]) == ["profile", "system", "model", "variant"]
     rows = {(r.model, r.variant): r for r in board.itertuples()}
-    assert set(rows) == {("mlp_torch", ""), ("hnn_torch", "model.hidden=100"),
-                         ("hnn_torch", "model.hidden=200")}
+    assert set(rows) == {
+        ("mlp_torch", ""),
+        ("hnn_torch", "model.hidden=100"),
+        ("hnn_torch", "model.hidden=200"),
+    }
     for key in rows:
         assert rows[key].n_seeds == 2 and rows[key].seeds == "0;1"
     assert rows[("hnn_torch", "model.hidden=100")].energy_mse_mean == pytest.approx(1e-4)
@@ -61,17 +89,20 @@ def test_leaderboard_has_a_row_per_variant(hidden_sweep):
     assert "variant" in summary.columns and len(summary) == 6
     # leaderboard order (mlp before hnn), numeric variant order, then seeds
     assert [(r.model, r.variant, r.seed) for r in summary.itertuples()] == [
-        ("mlp_torch", "", 0), ("mlp_torch", "", 1),
-        ("hnn_torch", "model.hidden=100", 0), ("hnn_torch", "model.hidden=100", 1),
-        ("hnn_torch", "model.hidden=200", 0), ("hnn_torch", "model.hidden=200", 1)]
+        ("mlp_torch", "", 0),
+        ("mlp_torch", "", 1),
+        ("hnn_torch", "model.hidden=100", 0),
+        ("hnn_torch", "model.hidden=100", 1),
+        ("hnn_torch", "model.hidden=200", 0),
+        ("hnn_torch", "model.hidden=200", 1),
+    ]
 
 
 def test_numeric_variants_sort_by_value(tmp_path):
     for hidden in (1000, 200, 50):
         write_run(tmp_path, "spring", "hnn_torch", 0, overrides=(f"model.hidden={hidden}",))
     board = leaderboard(load(tmp_path).records)
-    assert list(board["variant"]) == ["model.hidden=50", "model.hidden=200",
-                                      "model.hidden=1000"]
+    assert list(board["variant"]) == ["model.hidden=50", "model.hidden=200", "model.hidden=1000"]
 
 
 def test_a_sweep_without_variants_keeps_the_plain_schema(tmp_path):

@@ -25,8 +25,12 @@ class ScriptedTrainer:
     its training losses are 1.0, or NaN where ``nan_train[s] == k``. ``kept`` is the
     chunk index each seed's kept checkpoint was taken at."""
 
-    def __init__(self, valid: list[list[float]], nan_train: dict[int, int] | None = None,
-                 noise: list[list[float]] | None = None):
+    def __init__(
+        self,
+        valid: list[list[float]],
+        nan_train: dict[int, int] | None = None,
+        noise: list[list[float]] | None = None,
+    ):
         self.valid, self.nan_train = valid, nan_train or {}
         self.noise = noise or [[0.0] * len(v) for v in valid]
         self.chunk = -1
@@ -39,8 +43,12 @@ class ScriptedTrainer:
             if k == self.chunk:
                 losses[s, 1] = math.nan
         pattern = np.resize([1.0, -1.0], OFFSETS.size)  # mean 0, paired with itself
-        return losses, np.array([v[self.chunk] + OFFSETS + n[self.chunk] * pattern
-                                 for v, n in zip(self.valid, self.noise, strict=True)])
+        return losses, np.array(
+            [
+                v[self.chunk] + OFFSETS + n[self.chunk] * pattern
+                for v, n in zip(self.valid, self.noise, strict=True)
+            ]
+        )
 
     def keep(self, seeds):
         for s in np.flatnonzero(seeds):

@@ -19,9 +19,15 @@ def test_the_job_costs_are_the_protocol_tracks_own(tmp_path, monkeypatch):
     import job_costs
 
     def write(track, seed, total, *extra):
-        rec = {"system": "spring", "model": "hnn_jax", "seed": seed, "profile": "paper",
-               "timings": {"total_s": total}, **({"track": track} if track else {}),
-               "overrides": ["system=spring", "model=hnn_jax", f"seed={seed}", *extra]}
+        rec = {
+            "system": "spring",
+            "model": "hnn_jax",
+            "seed": seed,
+            "profile": "paper",
+            "timings": {"total_s": total},
+            **({"track": track} if track else {}),
+            "overrides": ["system=spring", "model=hnn_jax", f"seed={seed}", *extra],
+        }
         path = tmp_path / (track or "protocol") / f"seed{seed}{''.join(extra)}" / "result.json"
         path.parent.mkdir(parents=True)
         path.write_text(json.dumps(rec))
@@ -32,8 +38,12 @@ def test_the_job_costs_are_the_protocol_tracks_own(tmp_path, monkeypatch):
     write("recipe", 0, 900.0)
     write(None, 2, 700.0, "model.hidden=400")
     (row,) = job_costs.rows(tmp_path, tmp_path / "no_quick.csv")
-    assert (row["system"], row["model"], row["seconds"], row["n_runs"]) == \
-        ("spring", "hnn_jax", "11", 2)
+    assert (row["system"], row["model"], row["seconds"], row["n_runs"]) == (
+        "spring",
+        "hnn_jax",
+        "11",
+        2,
+    )
 
 
 def test_a_broken_cost_file_gives_no_estimate(tmp_path):
@@ -45,15 +55,20 @@ def test_a_broken_cost_file_gives_no_estimate(tmp_path):
 
 def test_job_key_and_durations():
     assert eta.job_key(["system=spring", "model=hnn_jax", "seed=1"], "paper") == (
-        "paper", "spring", "hnn_jax")
+        "paper",
+        "spring",
+        "hnn_jax",
+    )
     assert eta.job_key(["profile=quick", "system=a", "model=b"], "paper") == ("quick", "a", "b")
     assert eta.job_key(["seed=1"], "paper") is None
     # the published costs are the protocol's: a recipe job's is not known
     assert eta.job_key(["system=a", "model=b", "track=recipe"], "paper") is None
-    assert eta.job_key(["system=a", "model=b", "track=protocol"], "paper") == (
-        "paper", "a", "b")
+    assert eta.job_key(["system=a", "model=b", "track=protocol"], "paper") == ("paper", "a", "b")
     assert [eta.duration_text(s) for s in (3, 600, 3 * 3600 + 300)] == [
-        "3 s", "10 min", "3 h 05 min"]
+        "3 s",
+        "10 min",
+        "3 h 05 min",
+    ]
     assert eta.duration_text(80 * 60) == "80 min"
 
 
@@ -81,8 +96,9 @@ def test_progress_counts_new_records_and_scales_the_eta(tmp_path):
     table = {("paper", "s", "a"): 10.0, ("paper", "s", "b"): 30.0}
     _record(tmp_path, "s/a/seed0")  # kept from an earlier run
     out = io.StringIO()
-    progress = eta.SweepProgress(tmp_path, default_profile="paper", costs=table,
-                                   every_s=0.05, out=out)
+    progress = eta.SweepProgress(
+        tmp_path, default_profile="paper", costs=table, every_s=0.05, out=out
+    )
     jobs = [["system=s", f"model={m}", f"seed={k}"] for m in ("a", "b") for k in (0, 1)]
     progress.add(jobs)
     assert progress.started
@@ -103,8 +119,9 @@ def test_progress_counts_the_jobs_of_another_track(tmp_path):
     so the ETA is the mean time per finished job)."""
     table = {("paper", "s", "a"): 10.0}
     out = io.StringIO()
-    progress = eta.SweepProgress(tmp_path, default_profile="paper", costs=table,
-                                   every_s=0.05, out=out)
+    progress = eta.SweepProgress(
+        tmp_path, default_profile="paper", costs=table, every_s=0.05, out=out
+    )
     progress.add([["system=s", "model=a", "track=recipe", f"seed={k}"] for k in (0, 1)])
     _record(tmp_path, "s/a/seed0")
     deadline = time.monotonic() + 10
@@ -126,8 +143,15 @@ def test_progress_calls_on_new_when_records_arrive_and_survives_its_errors(tmp_p
         raise OSError("disk full")
 
     out = io.StringIO()
-    progress = eta.SweepProgress(tmp_path, default_profile="paper", costs={},
-                                   every_s=0.02, out=out, on_new=on_new, on_new_every_s=0.0)
+    progress = eta.SweepProgress(
+        tmp_path,
+        default_profile="paper",
+        costs={},
+        every_s=0.02,
+        out=out,
+        on_new=on_new,
+        on_new_every_s=0.0,
+    )
     progress.add([["system=s", "model=a", "seed=0"], ["system=s", "model=a", "seed=1"]])
     time.sleep(0.2)
     assert calls == []  # no record yet

@@ -47,10 +47,11 @@ def test_field_is_the_hamiltonian_field_plus_linear_damping(cls, cfg_cls):
     np.testing.assert_allclose(f[:, 0], dh_dp, rtol=1e-8, atol=1e-8)
     np.testing.assert_allclose(f[:, 1], -dh_dq - 0.3 * x[:, 1], rtol=1e-8, atol=1e-8)
     # dH/dt along the field is -2 γ p² (the energy never increases)
-    np.testing.assert_allclose(dh_dq * f[:, 0] + dh_dp * f[:, 1], -2 * 0.3 * x[:, 1] ** 2,
-                               rtol=1e-7, atol=1e-8)
+    np.testing.assert_allclose(
+        dh_dq * f[:, 0] + dh_dp * f[:, 1], -2 * 0.3 * x[:, 1] ** 2, rtol=1e-7, atol=1e-8
+    )
     # the energy is the undamped system's H
-    undamped = (Spring(SpringConfig()) if cls is DampedSpring else Pendulum(PendulumConfig()))
+    undamped = Spring(SpringConfig()) if cls is DampedSpring else Pendulum(PendulumConfig())
     np.testing.assert_array_equal(system.energy(x), undamped.energy(x))
 
 
@@ -78,8 +79,7 @@ def test_spring_energy_halves_in_about_ten_time_units():
     mean = np.array([energy[:, i : i + period].mean(1) for i in range(0, 3000, period)])
     t_mid = t[np.arange(0, 3000, period) + period // 2]
     expected = np.exp(-DEFAULT_DAMPING * (t_mid - t_mid[0]))[:, None]
-    np.testing.assert_allclose(mean / mean[:1], np.broadcast_to(expected, mean.shape),
-                               rtol=0.01)
+    np.testing.assert_allclose(mean / mean[:1], np.broadcast_to(expected, mean.shape), rtol=0.01)
     half, ratio = energy_half_lives(make(DampedSpring, DampedSpringConfig), "box", n=20)
     assert np.all((half > 9.5) & (half < 10.5))
     assert np.all((ratio > 0.2) & (ratio < 0.3))  # visible but not total at the horizon

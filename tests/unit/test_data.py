@@ -22,8 +22,6 @@ SHA256 = "45d92988198b89a5933f5a53e67aa819d06937516f71a462ac09e1307d8b3411"
 REPO = Path(__file__).resolve().parents[2]
 
 
-
-
 SOURCE = shared_data_dir() / FILENAME
 needs_data = pytest.mark.skipif(
     not SOURCE.is_file() and not os.environ.get("CI"),  # in CI, missing data fails
@@ -105,8 +103,9 @@ def test_shared_data_dir_verifies():
 @pytest.mark.parametrize("where", ["explicit", "env", "cache"])
 def test_corrupt_copy_is_named(monkeypatch, tmp_path, where):
     good = SOURCE.read_bytes()
-    directory = {"explicit": tmp_path / "x", "env": tmp_path / "env",
-                 "cache": data.cache_dir()}[where]
+    directory = {"explicit": tmp_path / "x", "env": tmp_path / "env", "cache": data.cache_dir()}[
+        where
+    ]
     bad = copy_to(directory, good[: len(good) // 2])  # truncated
     if where == "env":
         monkeypatch.setenv(data.DATA_ENV, str(directory))
@@ -164,13 +163,12 @@ def test_download_times_out_instead_of_hanging(tmp_path):
         server.listen(1)
         port = server.getsockname()[1]
         with pytest.raises(DataError) as info:
-            data.locate(FILENAME, sha256=SHA256, url=f"http://127.0.0.1:{port}/x.txt",
-                        timeout_s=0.3)
+            data.locate(
+                FILENAME, sha256=SHA256, url=f"http://127.0.0.1:{port}/x.txt", timeout_s=0.3
+            )
     msg = str(info.value)
     assert "failed" in msg and "\n" not in msg
     assert not any(data.cache_dir().glob("*.part"))
-
-
 
 
 # ------------------------------------------------------------------ downloads via pooch
@@ -207,8 +205,10 @@ def test_download_over_http_with_pooch(http_server, caplog, capfd):
     assert path.read_bytes() == SOURCE.read_bytes()
     assert [p.name for p in path.parent.iterdir()] == [FILENAME]
     # pooch's "Downloading ..." line goes to the hnnbench logger, not to stderr.
-    assert any(r.name == "hnnbench" and "Downloading" in r.getMessage() and base in
-               r.getMessage() for r in caplog.records)
+    assert any(
+        r.name == "hnnbench" and "Downloading" in r.getMessage() and base in r.getMessage()
+        for r in caplog.records
+    )
     assert "Downloading" not in capfd.readouterr().err
     # Remembered as verified (hashed while streaming), like a checked local file.
     assert data._verified and data.verify(path, SHA256) == path

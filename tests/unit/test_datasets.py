@@ -36,8 +36,11 @@ def test_seed_stream_is_default_rng_of_seed_and_tag():
 
 
 def test_seed_streams_are_deterministic_and_distinct():
-    draws = {(s, tag): seed_stream(s, tag).random(3).tobytes()
-             for s in (0, 1) for tag in (DATA_STREAM, EVAL_STREAM, SPLIT_STREAM)}
+    draws = {
+        (s, tag): seed_stream(s, tag).random(3).tobytes()
+        for s in (0, 1)
+        for tag in (DATA_STREAM, EVAL_STREAM, SPLIT_STREAM)
+    }
     assert len(set(draws.values())) == len(draws)
     assert seed_stream(1, EVAL_STREAM).random(3).tobytes() == draws[(1, EVAL_STREAM)]
 
@@ -50,7 +53,7 @@ def test_seed_streams_are_deterministic_and_distinct():
     [
         (10, 0.2, "test", (8, 2)),
         (10, 0.2, "train", (8, 2)),
-        (5, 0.3, "test", (3, 2)),   # round(1.5) = 2 test
+        (5, 0.3, "test", (3, 2)),  # round(1.5) = 2 test
         (5, 0.3, "train", (4, 1)),  # round(3.5) = 4 train
         (1000, 0.2, "test", (800, 200)),
     ],
@@ -121,8 +124,10 @@ def test_check_names_the_settings():
 
 @pytest.mark.parametrize(
     "kwargs, match",
-    [({"test_from": "middle"}, "test_from='middle'"),
-     ({"test_from": "last", "rounding": "both"}, "rounding='both'")],
+    [
+        ({"test_from": "middle"}, "test_from='middle'"),
+        ({"test_from": "last", "rounding": "both"}, "rounding='both'"),
+    ],
 )
 def test_an_unknown_rule_is_rejected(kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -137,8 +142,9 @@ def test_trajectory_dataset_flattens_whole_trajectories(test_from):
     x, dxdt, t = trajectories(n_traj=10, n_points=4, d=3)
     state = x[..., :2] * 2.0
     split = TrajectorySplit(0.3, test_from=test_from)
-    data = trajectory_dataset(x, dxdt, t, split, seed=5, extras={"state": state},
-                              meta={"dt": 0.5, "n_test_traj": 3})
+    data = trajectory_dataset(
+        x, dxdt, t, split, seed=5, extras={"state": state}, meta={"dt": 0.5, "n_test_traj": 3}
+    )
     chosen = split.indices(10, seed=5)
     assert data.meta == {"dt": 0.5, "n_test_traj": 3}
     for part, rows in ((data.train, chosen.train), (data.test, chosen.test)):

@@ -14,15 +14,21 @@ from hnnbench._contracts.errors import ConfigError
 
 @pytest.mark.parametrize(
     ("text", "expected"),
-    [("auto", ("auto", 0)), ("cpu", ("cpu", 0)), ("cuda", ("cuda", 0)),
-     ("cuda:1", ("cuda", 1)), ("cuda:12", ("cuda", 12))],
+    [
+        ("auto", ("auto", 0)),
+        ("cpu", ("cpu", 0)),
+        ("cuda", ("cuda", 0)),
+        ("cuda:1", ("cuda", 1)),
+        ("cuda:12", ("cuda", 12)),
+    ],
 )
 def test_device_request_accepts_the_documented_spellings(text, expected):
     assert device_request(text) == expected
 
 
 @pytest.mark.parametrize(
-    "text", ["tpu", "gpu", "CUDA", " cpu", "cuda:x", "cuda:-1", "cuda:", "cuda:²", "cpu:0", ""])
+    "text", ["tpu", "gpu", "CUDA", " cpu", "cuda:x", "cuda:-1", "cuda:", "cuda:²", "cpu:0", ""]
+)
 def test_device_request_rejects_anything_else_in_one_line(text):
     """As the job's validation does (hnnbench._running.config.validate_run calls it)."""
     with pytest.raises(ConfigError, match="expected auto, cpu, cuda or cuda:N") as err:
@@ -54,7 +60,10 @@ def test_torch_names_a_gpu_with_its_index_as_jax_does(monkeypatch):
     monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
     monkeypatch.setattr(torch.cuda, "device_count", lambda: 2)
     assert [str(resolve_device(d)) for d in ("auto", "cuda", "cuda:1")] == [
-        "cuda:0", "cuda:0", "cuda:1"]
+        "cuda:0",
+        "cuda:0",
+        "cuda:1",
+    ]
     with pytest.raises(ConfigError, match="sees only 2 GPU"):
         resolve_device("cuda:2")
 
@@ -64,10 +73,13 @@ def test_jax_gpu_autotuning_is_off_unless_the_user_sets_its_level(monkeypatch):
     backend = pytest.importorskip("hnnbench.neural.jax")
     assert "--xla_gpu_autotune_level=" in os.environ.get("XLA_FLAGS", "")  # at import
     for before, after in [
-            (None, "--xla_gpu_autotune_level=0"),
-            ("--xla_cpu_use_thunk_runtime=true",
-             "--xla_cpu_use_thunk_runtime=true --xla_gpu_autotune_level=0"),
-            ("--xla_gpu_autotune_level=4", "--xla_gpu_autotune_level=4")]:
+        (None, "--xla_gpu_autotune_level=0"),
+        (
+            "--xla_cpu_use_thunk_runtime=true",
+            "--xla_cpu_use_thunk_runtime=true --xla_gpu_autotune_level=0",
+        ),
+        ("--xla_gpu_autotune_level=4", "--xla_gpu_autotune_level=4"),
+    ]:
         if before is None:
             monkeypatch.delenv("XLA_FLAGS", raising=False)
         else:

@@ -21,8 +21,7 @@ from hnnbench_plugins.systems.double_pendulum import (
 
 #: Unit parameters (the default) and an asymmetric set, so no symmetry hides a bug.
 PARAMS = [Params(), Params(m1=1.3, m2=0.7, l1=0.9, l2=1.4, g=9.81)]
-SMALL = {"n_traj": 10, "n_points": 11, "eval_n_traj": 3, "eval_n_points": 21,
-         "eval_t_end": 5.0}
+SMALL = {"n_traj": 10, "n_points": 11, "eval_n_traj": 3, "eval_n_points": 21, "eval_t_end": 5.0}
 
 
 def make(**kw) -> DoublePendulum:
@@ -69,7 +68,9 @@ def textbook_accelerations(q: np.ndarray, qdot: np.ndarray, k: Params) -> np.nda
         - 2 * np.sin(d) * k.m2 * (w2**2 * k.l2 + w1**2 * k.l1 * np.cos(d))
     ) / (k.l1 * den)
     a2 = (
-        2 * np.sin(d) * (
+        2
+        * np.sin(d)
+        * (
             w1**2 * k.l1 * (k.m1 + k.m2)
             + k.g * (k.m1 + k.m2) * np.cos(t1)
             + w2**2 * k.l2 * k.m2 * np.cos(d)
@@ -94,8 +95,11 @@ def sympy_accelerations(k: Params):
     lagrangian = kinetic - (k.m1 * k.g * y1 + k.m2 * k.g * y2)
     a = sp.Matrix(2, 2, lambda i, j: sp.diff(lagrangian, ws[i], ws[j]))
     b = sp.Matrix(
-        [sum(sp.diff(lagrangian, ws[i], qj) * wj for qj, wj in zip(qs, ws, strict=True))
-         - sp.diff(lagrangian, qs[i]) for i in range(2)]
+        [
+            sum(sp.diff(lagrangian, ws[i], qj) * wj for qj, wj in zip(qs, ws, strict=True))
+            - sp.diff(lagrangian, qs[i])
+            for i in range(2)
+        ]
     )
     fa = sp.lambdify([q1, q2, w1, w2], a, "numpy")
     fb = sp.lambdify([q1, q2, w1, w2], b, "numpy")
@@ -103,8 +107,12 @@ def sympy_accelerations(k: Params):
     def accelerations(q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
         out = []
         for (a1, a2), (b1, b2) in zip(q, qdot, strict=True):
-            out.append(np.linalg.solve(np.array(fa(a1, a2, b1, b2), float),
-                                       -np.array(fb(a1, a2, b1, b2), float).ravel()))
+            out.append(
+                np.linalg.solve(
+                    np.array(fa(a1, a2, b1, b2), float),
+                    -np.array(fb(a1, a2, b1, b2), float).ravel(),
+                )
+            )
         return np.array(out)
 
     return accelerations
@@ -132,29 +140,32 @@ def test_h_is_the_cartesian_energy(params):
     x = random_states(1)
     qdot = dp.velocities(x, params)
     np.testing.assert_allclose(
-        dp.hamiltonian(x, params), cartesian_energy(x[:, :2], qdot, params), rtol=1e-12,
+        dp.hamiltonian(x, params),
+        cartesian_energy(x[:, :2], qdot, params),
+        rtol=1e-12,
         atol=1e-12,
     )
     # p = ∂L/∂q̇ = M q̇: the kinematics' inverse map gives back the momenta
     kin = make(**dataclasses.asdict(params)).kinematics()
-    np.testing.assert_allclose(kin.to_canonical(np.concatenate([x[:, :2], qdot], 1)), x,
-                               rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(
+        kin.to_canonical(np.concatenate([x[:, :2], qdot], 1)), x, rtol=1e-12, atol=1e-12
+    )
 
 
 @pytest.mark.parametrize("params", PARAMS)
 def test_equations_of_motion_match_the_textbook_lagrangian(params):
     """θ̈ from the textbook closed form, mapped to canonical rates by the kinematics,
     equals the Hamiltonian field; and the Hamiltonian field's q̈ equals θ̈."""
-    kin = MassMatrixKinematics(lambda q: dp.mass_matrix(q, params),
-                               lambda q, qd: dp.mass_rate(q, qd, params))
+    kin = MassMatrixKinematics(
+        lambda q: dp.mass_matrix(q, params), lambda q, qd: dp.mass_rate(q, qd, params)
+    )
     x = random_states(2)
     v = kin.to_velocity(x)
     qddot = textbook_accelerations(v[:, :2], v[:, 2:], params)
     rates = kin.canonical_rate(v, np.concatenate([v[:, 2:], qddot], axis=1))
     field = dp.vector_field(x, params)
     np.testing.assert_allclose(rates, field, rtol=1e-10, atol=1e-10)
-    np.testing.assert_allclose(kin.velocity_rate(x, field)[:, 2:], qddot, rtol=1e-10,
-                               atol=1e-10)
+    np.testing.assert_allclose(kin.velocity_rate(x, field)[:, 2:], qddot, rtol=1e-10, atol=1e-10)
 
 
 def test_equations_of_motion_match_sympys_euler_lagrange():
@@ -163,8 +174,9 @@ def test_equations_of_motion_match_sympys_euler_lagrange():
     x = random_states(3, n=20)
     qdot = dp.velocities(x, params)
     expected = accelerations(x[:, :2], qdot)
-    np.testing.assert_allclose(textbook_accelerations(x[:, :2], qdot, params), expected,
-                               rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(
+        textbook_accelerations(x[:, :2], qdot, params), expected, rtol=1e-10, atol=1e-10
+    )
     system = make(**dataclasses.asdict(params))
     got = system.kinematics().velocity_rate(x, system.vector_field(x))[:, 2:]
     np.testing.assert_allclose(got, expected, rtol=1e-10, atol=1e-10)
@@ -185,7 +197,8 @@ def test_kinematics_round_trip_and_mass_rate():
     # Ṁ is the derivative of M along q̇ (central differences)
     q, qdot, h = x[:, :2], v[:, 2:], 1e-6
     numeric = (dp.mass_matrix(q + h * qdot, params) - dp.mass_matrix(q - h * qdot, params)) / (
-        2 * h)
+        2 * h
+    )
     np.testing.assert_allclose(dp.mass_rate(q, qdot, params), numeric, rtol=1e-7, atol=1e-8)
     # symmetric positive definite mass matrix
     m = dp.mass_matrix(q, params)
@@ -261,10 +274,8 @@ def test_dataset_shapes_split_wrapping_and_targets():
     wrapped = make(n_traj=10, test_split=0.2, wrap_angles=True).dataset(0)
     for split in (wrapped.train, wrapped.test):
         assert np.all((split.x[:, :2] >= -np.pi) & (split.x[:, :2] < np.pi))
-        np.testing.assert_allclose(split.dxdt, system.vector_field(split.x), rtol=1e-9,
-                                   atol=1e-9)
-    np.testing.assert_allclose(dp.wrap_angle(ds.train.x[:, :2]), wrapped.train.x[:, :2],
-                               atol=1e-12)
+        np.testing.assert_allclose(split.dxdt, system.vector_field(split.x), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(dp.wrap_angle(ds.train.x[:, :2]), wrapped.train.x[:, :2], atol=1e-12)
     np.testing.assert_array_equal(wrapped.train.dxdt, ds.train.dxdt)
 
 
@@ -297,8 +308,9 @@ def test_the_default_regime_is_chaotic_and_matches_the_stored_lyapunov_time():
 def test_the_estimator_tells_regular_from_chaotic():
     """Small oscillations (E in [0.2, 0.4]) are regular: finite-time exponents near
     log(growth) / t, well below the chaotic regime's."""
-    _, exponents = dp.estimate_lyapunov_time(energy_min=0.2, energy_max=0.4, n_states=6,
-                                             t_total=100.0)
+    _, exponents = dp.estimate_lyapunov_time(
+        energy_min=0.2, energy_max=0.4, n_states=6, t_total=100.0
+    )
     assert exponents.max() < 0.06
 
 

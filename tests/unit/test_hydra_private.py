@@ -17,8 +17,19 @@ def test_args_parser_is_hydras_with_its_flags():
     assert ns.multirun is True
     assert ns.config_dir == "/tmp"
     assert ns.overrides == ["seed=0,1", "a=b"]
-    for attr in ("run", "cfg", "info", "shell_completion", "resolve", "package",
-                 "config_path", "config_name", "experimental_rerun", "hydra_help", "help"):
+    for attr in (
+        "run",
+        "cfg",
+        "info",
+        "shell_completion",
+        "resolve",
+        "package",
+        "config_path",
+        "config_name",
+        "experimental_rerun",
+        "hydra_help",
+        "help",
+    ):
         assert hasattr(ns, attr), attr
 
 
@@ -46,7 +57,8 @@ def test_hydra_main_reports_composition_errors_through_run_and_report(tmp_path, 
     (tmp_path / "config.yaml").write_text("defaults:\n  - nothere\n")
     monkeypatch.setattr(sys, "argv", ["hnnbench"])
     app = hydra.main(version_base="1.3", config_path=str(tmp_path), config_name="config")(
-        lambda cfg: None)
+        lambda cfg: None
+    )
     with hydra_private.one_line_errors(lambda err: "composition failed"):
         with pytest.raises(HnnbenchError, match="^composition failed$"):
             app()
@@ -60,7 +72,8 @@ def test_group_lister_sees_an_extra_search_path(tmp_path):
 
     (tmp_path / "hydra" / "launcher").mkdir(parents=True)
     (tmp_path / "hydra" / "launcher" / "my_cluster.yaml").write_text(
-        "_target_: hydra._internal.core_plugins.basic_launcher.BasicLauncher\n")
+        "_target_: hydra._internal.core_plugins.basic_launcher.BasicLauncher\n"
+    )
     GlobalHydra.instance().clear()
     with initialize_config_module("hnnbench_conf", version_base="1.3"):
         loader = GlobalHydra.instance().config_loader()
@@ -88,5 +101,3 @@ def test_launch_context_is_set_for_a_command_and_restored(monkeypatch):
     assert launch_context.current() == launch_context.LaunchContext()
     monkeypatch.setenv(launch_context.ENV, json.dumps({"n_jobs": 5}))
     assert launch_context.current() == launch_context.LaunchContext(n_jobs=5)
-
-

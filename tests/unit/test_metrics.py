@@ -64,12 +64,24 @@ def test_a_metric_that_raises_is_recorded_unless_it_declares_errors_fail_job():
     result = evaluate(None, None, None, traj, None, metrics=[fine, optional])  # type: ignore[arg-type]
     assert result.metrics["fine"]["mean"] == 1.0 and np.isnan(result.metrics["probe"]["mean"])
     assert result.errors == {"probe": "ValueError: a bug"} and result.diverged is None
-    required = evaluate(None, None, None, traj, None,  # type: ignore[arg-type]
-                        metrics=[fine, Metric("needed", "raises", broken)])
+    required = evaluate(
+        None,
+        None,
+        None,
+        traj,
+        None,  # type: ignore[arg-type]
+        metrics=[fine, Metric("needed", "raises", broken)],
+    )
     assert required.errors == {"needed": "ValueError: a bug"}  # a plugin bug: recorded
     with pytest.raises(ValueError, match="a bug"):
-        evaluate(None, None, None, traj, None,  # type: ignore[arg-type]
-                 metrics=[fine, Metric("core", "raises", broken, errors_fail_job=True)])
+        evaluate(
+            None,
+            None,
+            None,
+            traj,
+            None,  # type: ignore[arg-type]
+            metrics=[fine, Metric("core", "raises", broken, errors_fail_job=True)],
+        )
 
 
 def test_vpt_censored_check_floors_shares_at_a_quarter():

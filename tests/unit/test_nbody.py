@@ -102,8 +102,9 @@ def test_batched_leading_dimensions_and_reversal():
     x = random_states(np.random.default_rng(4), 12, 2).reshape(3, 4, 8)
     assert system.energy(x).shape == (3, 4)
     assert system.vector_field(x).shape == (3, 4, 8)
-    np.testing.assert_allclose(system.vector_field(x).reshape(12, 8),
-                               system.vector_field(x.reshape(12, 8)))
+    np.testing.assert_allclose(
+        system.vector_field(x).reshape(12, 8), system.vector_field(x.reshape(12, 8))
+    )
     assert system.dof == 4 and three_body().dof == 6
     assert system.time_reversible
     np.testing.assert_allclose(system.energy(system.reverse(x)), system.energy(x))
@@ -135,8 +136,9 @@ def test_speed_before_the_factor_is_circular(sampler, n_bodies):
     v2 = np.sum(p**2, axis=-1)
     np.testing.assert_allclose(np.sum(a * q, axis=-1) / r, -v2 / r, rtol=1e-12)
     np.testing.assert_allclose(np.sum(q * p, axis=-1), 0.0, atol=1e-12)  # tangential
-    np.testing.assert_allclose(q[..., 0] * p[..., 1] - q[..., 1] * p[..., 0], r * np.sqrt(v2),
-                               rtol=1e-12)  # counter-clockwise
+    np.testing.assert_allclose(
+        q[..., 0] * p[..., 1] - q[..., 1] * p[..., 0], r * np.sqrt(v2), rtol=1e-12
+    )  # counter-clockwise
     np.testing.assert_allclose(q.sum(axis=1), 0.0, atol=1e-12)  # centred
     np.testing.assert_allclose(r - r[:, :1], 0.0, atol=1e-12)  # one ring
     if n_bodies == 2:
@@ -154,8 +156,10 @@ def test_rebound_orbits_flags_a_collision():
 # --------------------------------------------------------------------------- data
 
 
-@pytest.mark.parametrize("make, init", [(two_body, "2019"), (three_body, "2019"),
-                                         (two_body, "ring"), (three_body, "ring")])
+@pytest.mark.parametrize(
+    "make, init",
+    [(two_body, "2019"), (three_body, "2019"), (two_body, "ring"), (three_body, "ring")],
+)
 def test_dataset_shapes_split_and_targets(make, init):
     system = make(init=init)
     c = system.cfg
@@ -256,9 +260,7 @@ def test_2019_three_body_distribution():
     uniform point of [-1, 1]^2, bodies 120 degrees apart, circular speed, and each
     velocity COMPONENT times its own 1 + 0.2 U(-1, 1)."""
     n = 4000
-    x0 = ThreeBody(ThreeBodyConfig(name="three_body")).initial_states(
-        np.random.default_rng(0), n
-    )
+    x0 = ThreeBody(ThreeBodyConfig(name="three_body")).initial_states(np.random.default_rng(0), n)
     q = x0[:, :6].reshape(n, 3, 2)
     p = x0[:, 6:].reshape(n, 3, 2)
     r = np.linalg.norm(q, axis=-1)
@@ -313,8 +315,12 @@ def test_2019_samplers_pin_the_original_formulas():
     x = nbody.triangle_states(Replay([0.65, 0.3, 0.5, *u_factor]), 1, 0.9, 1.2, 0.2)[0]
     r = 1.05
     p1 = np.array([0.6, -0.8]) * r
-    v1 = np.array([0.8, 0.6]) * r / r**1.5 * np.sqrt(np.sin(np.pi / 3) /
-                                                   (2 * np.cos(np.pi / 6) ** 2))
+    v1 = (
+        np.array([0.8, 0.6])
+        * r
+        / r**1.5
+        * np.sqrt(np.sin(np.pi / 3) / (2 * np.cos(np.pi / 6) ** 2))
+    )
 
     def rot(v, k):
         c, s = np.cos(2 * np.pi * k / 3), np.sin(2 * np.pi * k / 3)
@@ -422,5 +428,3 @@ def test_validate_rejects_bad_values(override, match):
 
 
 # --------------------------------------------------------------------------- paper size
-
-

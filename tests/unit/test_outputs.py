@@ -28,17 +28,12 @@ class _Truth(hnnbench.Model):
         return self.system.vector_field(x)
 
     def rollout(self, x0, t, rtol=1e-9, atol=1e-9):
-        return hnnbench.solve_batch(self.time_derivative, x0, t, rtol=rtol, atol=atol,
-                                    method="RK45")
+        return hnnbench.solve_batch(
+            self.time_derivative, x0, t, rtol=rtol, atol=atol, method="RK45"
+        )
 
     def energy(self, x):
         return self.system.energy(x)
-
-
-
-
-
-
 
 
 class _Model:
@@ -64,27 +59,48 @@ def _context(model, pixels=False):
     states = np.zeros((m, t_len, d))
     obs = np.zeros((m, t_len, 16)) if pixels else None
     traj = SimpleNamespace(t=t, states=states, observations=obs, x0=states[:, 0])
-    split = SimpleNamespace(x=np.zeros((10, d)), dxdt=np.zeros((10, d)),
-                            extras={"state": np.zeros((10, d))})
+    split = SimpleNamespace(
+        x=np.zeros((10, d)), dxdt=np.zeros((10, d)), extras={"state": np.zeros((10, d))}
+    )
     data = SimpleNamespace(train=split, test=split)
-    system = SimpleNamespace(observation="pixels" if pixels else "state",
-                             energy=lambda x: np.zeros(len(x)))
+    system = SimpleNamespace(
+        observation="pixels" if pixels else "state", energy=lambda x: np.zeros(len(x))
+    )
     return EvalContext(system, model, data, traj, EvaluationConfig())  # type: ignore[arg-type]
 
 
-@pytest.mark.parametrize(("outputs", "ask", "message"), [
-    ({"time_derivative": np.zeros((10, 1))}, lambda c: c.loss_values("train"),
-     "stub.time_derivative returned shape (10, 1), expected (N, D) like its targets = (10, 2)"),
-    ({"time_derivative": np.zeros((10, 2), dtype=np.float32)},
-     lambda c: c.loss_values("train"), "stub.time_derivative returned dtype float32"),
-    ({"rollout": np.zeros((3, 7))}, lambda c: c.rollout(),
-     "stub.rollout returned shape (3, 7), expected (M, T, d)"),
-    ({"rollout": np.zeros((3, 7, 2), dtype=np.int64)}, lambda c: c.rollout(),
-     "stub.rollout returned dtype int64"),
-    ({"rollout": np.zeros((3, 7, 2)), "energy": np.zeros((21, 1))}, lambda c: c.states_hat(),
-     "stub.energy returned shape (21, 1), expected (N,) or None = (21,)"),
-    ({"rollout": np.zeros((3, 7, 2)), "energy": None}, lambda c: c.states_hat(), None),
-])
+@pytest.mark.parametrize(
+    ("outputs", "ask", "message"),
+    [
+        (
+            {"time_derivative": np.zeros((10, 1))},
+            lambda c: c.loss_values("train"),
+            "stub.time_derivative returned shape (10, 1), expected (N, D) like its targets "
+            "= (10, 2)",
+        ),
+        (
+            {"time_derivative": np.zeros((10, 2), dtype=np.float32)},
+            lambda c: c.loss_values("train"),
+            "stub.time_derivative returned dtype float32",
+        ),
+        (
+            {"rollout": np.zeros((3, 7))},
+            lambda c: c.rollout(),
+            "stub.rollout returned shape (3, 7), expected (M, T, d)",
+        ),
+        (
+            {"rollout": np.zeros((3, 7, 2), dtype=np.int64)},
+            lambda c: c.rollout(),
+            "stub.rollout returned dtype int64",
+        ),
+        (
+            {"rollout": np.zeros((3, 7, 2)), "energy": np.zeros((21, 1))},
+            lambda c: c.states_hat(),
+            "stub.energy returned shape (21, 1), expected (N,) or None = (21,)",
+        ),
+        ({"rollout": np.zeros((3, 7, 2)), "energy": None}, lambda c: c.states_hat(), None),
+    ],
+)
 def test_each_output_is_checked(outputs, ask, message):
     ctx = _context(_Model(**outputs))
     if message is None:
@@ -100,15 +116,21 @@ def test_pixel_outputs_are_checked():
     ctx = _context(_Model(**ok, decode=np.zeros((21, 16), dtype=np.float32)), pixels=True)
     assert ctx.pixel_errors().shape == (3,)
     ctx = _context(_Model(**ok, decode=np.zeros((21, 15))), pixels=True)
-    with pytest.raises(ModelOutputError, match=r"stub.decode returned shape \(21, 15\), "
-                                               r"expected \(N, D_obs\) like the frames"):
+    with pytest.raises(
+        ModelOutputError,
+        match=r"stub.decode returned shape \(21, 15\), "
+        r"expected \(N, D_obs\) like the frames",
+    ):
         ctx.pixel_errors()
     ctx = _context(_Model(encode=np.zeros((2, 4)), rollout=ok["rollout"]), pixels=True)
     with pytest.raises(ModelOutputError, match=r"stub.encode returned shape \(2, 4\)"):
         ctx.z0()
     ctx = _context(_Model(loss=np.zeros(3)), pixels=True)
-    with pytest.raises(ModelOutputError, match=r"stub.loss returned shape \(3,\), expected a "
-                                               "scalar"):
+    with pytest.raises(
+        ModelOutputError,
+        match=r"stub.loss returned shape \(3,\), expected a "
+        "scalar",
+    ):
         ctx.loss_values("test")
 
 
@@ -122,8 +144,7 @@ def test_right_outputs_pass_through_uncopied():
 
 
 def test_the_default_loss_checks_the_field_shape():
-    system = registry.get_class("system", "spring")(
-        registry.get_class("system", "spring").Config())
+    system = registry.get_class("system", "spring")(registry.get_class("system", "spring").Config())
     model = _Truth(hnnbench.ModelConfig(name="truth"), system)
     x = np.random.default_rng(0).normal(size=(8, 2))
     assert model.loss(x, system.vector_field(x)) == 0.0

@@ -85,8 +85,11 @@ def test_data_dirs_override_then_env(monkeypatch, tmp_path):
     monkeypatch.setenv(paths.DATA_ENV, str(tmp_path / "env"))
     assert paths.data_dirs() == [(paths.DATA_ENV, tmp_path / "env")]
     with paths.data_dir_override(tmp_path / "cfg") as dirs:
-        assert dirs == paths.data_dirs() == [
-            ("data_dir", tmp_path / "cfg"), (paths.DATA_ENV, tmp_path / "env")]
+        assert (
+            dirs
+            == paths.data_dirs()
+            == [("data_dir", tmp_path / "cfg"), (paths.DATA_ENV, tmp_path / "env")]
+        )
     assert paths.data_dirs() == [(paths.DATA_ENV, tmp_path / "env")]
 
 
@@ -144,15 +147,17 @@ def test_override_reaches_dataset_cache(monkeypatch, tmp_path):
     monkeypatch.setenv(paths.CACHE_ENV, str(tmp_path / "env"))
     system = SimpleNamespace(name="fake", version=1, cfg=SimpleNamespace(data_fields=dict))
     with paths.cache_root_override(tmp_path / "job"):
-        value, path, hit = dataset_cache.cached(system, 0, "dataset", lambda: _Blob(b"x"),
-                                                _Blob.load)
+        value, path, hit = dataset_cache.cached(
+            system, 0, "dataset", lambda: _Blob(b"x"), _Blob.load
+        )
     assert not hit and value.payload == b"x"
     assert path.parent == tmp_path / "job" / "datasets" / "fake"
     assert not (tmp_path / "env").exists()
     # An explicit root still wins over the ambient one (the concurrency test passes one).
     with paths.cache_root_override(tmp_path / "job"):
-        _, path, hit = dataset_cache.cached(system, 0, "dataset", lambda: _Blob(b"y"), _Blob.load,
-                                    tmp_path / "root")
+        _, path, hit = dataset_cache.cached(
+            system, 0, "dataset", lambda: _Blob(b"y"), _Blob.load, tmp_path / "root"
+        )
     assert not hit and path.parent == tmp_path / "root" / "datasets" / "fake"
 
 
@@ -179,8 +184,4 @@ def test_data_dir_is_named_where_it_looked(tmp_path):
     assert "HNNBENCH_DATA_DIR (not set)" in msg and str(tmp_path / "c" / "data") in msg
 
 
-
-
 # ------------------------------------------------------------------ imports
-
-

@@ -34,8 +34,15 @@ def test_a_record_of_other_settings_is_not_published(tmp_path, monkeypatch):
 
     monkeypatch.setattr(publish_results, "RECORDS", tmp_path / "records")
     declared = tmp_path / "declared"
-    write_run(declared, "spring", "hnn_torch", 0, profile="paper", rollout=False,
-              overrides=("model.hidden=300",))
+    write_run(
+        declared,
+        "spring",
+        "hnn_torch",
+        0,
+        profile="paper",
+        rollout=False,
+        overrides=("model.hidden=300",),
+    )
     with pytest.raises(SystemExit, match=r"a variant \(model.hidden=300\), not the paper"):
         publish_results.copy_records([declared])
     stripped = tmp_path / "stripped"
@@ -62,11 +69,14 @@ def test_a_row_of_another_track_is_published_beside_the_protocols(tmp_path, monk
     (job / "result.json").write_text(json.dumps({**record, "track": "recipe"}))
     assert publish_results.copy_records([protocol, recipe]) == 2
     assert (records_dir / "spring" / "hnn_torch" / "seed0" / "result.json").is_file()
-    kept = json.loads((records_dir / "spring" / "hnn_torch" / "recipe" / "seed0" /
-                       "result.json").read_text())
+    kept = json.loads(
+        (records_dir / "spring" / "hnn_torch" / "recipe" / "seed0" / "result.json").read_text()
+    )
     assert kept["track"] == "recipe"
-    assert publish_results.published_jobs() == {("protocol", "spring", "hnn_torch", 0),
-                                                ("recipe", "spring", "hnn_torch", 0)}
+    assert publish_results.published_jobs() == {
+        ("protocol", "spring", "hnn_torch", 0),
+        ("recipe", "spring", "hnn_torch", 0),
+    }
     with pytest.raises(SystemExit, match=r"\('recipe', 'spring', 'hnn_torch', 0\) is in both"):
         publish_results.copy_records([recipe, recipe])
 
@@ -83,7 +93,8 @@ def tree(tmp_path, monkeypatch):
         "# x\n\n<!-- aggregate:begin -->\n<!-- aggregate:end -->\n\n"
         "<!-- leaderboard:begin -->\n<!-- leaderboard:end -->\n\n"
         "<!-- tracks:begin -->\n<!-- tracks:end -->\n\n"
-        "<!-- provenance:begin -->\n<!-- provenance:end -->\n")
+        "<!-- provenance:begin -->\n<!-- provenance:end -->\n"
+    )
     (root / "results" / "figures" / "old_system_energy.png").write_bytes(b"stale")
     monkeypatch.setattr(publish_results, "ROOT", root)
     monkeypatch.setattr(publish_results, "RESULTS", root / "results")
@@ -92,8 +103,6 @@ def tree(tmp_path, monkeypatch):
     fake.main = lambda argv: 0  # the real one rewrites the installed job costs
     monkeypatch.setitem(sys.modules, "job_costs", fake)
     return root
-
-
 
 
 def test_publishing_without_the_published_records_is_refused(tree, tmp_path):
@@ -122,18 +131,40 @@ def test_a_system_is_replaced_in_one_step(tree, tmp_path):
     write_run(again, "spring", "mlp_jax", 0, profile="paper", rollout=False)
     assert publish_results.main([str(again)]) == 2  # the published records not given
     assert publish_results.main([str(again), "--replace", "pendulum"]) == 2
-    assert publish_results.main([str(again), str(published / "pendulum"),
-                                 "--replace", "spring"]) == 0
+    assert (
+        publish_results.main([str(again), str(published / "pendulum"), "--replace", "spring"]) == 0
+    )
     kept = {(p.parts[-4], p.parts[-3], p.parts[-2]) for p in published.rglob("result.json")}
-    assert kept == {("spring", "hnn_jax", "seed0"), ("spring", "mlp_jax", "seed0"),
-                    ("pendulum", "hnn_jax", "seed0")}
+    assert kept == {
+        ("spring", "hnn_jax", "seed0"),
+        ("spring", "mlp_jax", "seed0"),
+        ("pendulum", "hnn_jax", "seed0"),
+    }
+
+
 def test_the_family_table_is_published_with_the_notes_of_its_status_cells():
-    markdown = "\n".join([
-        "# Leaderboard", "", "- Command: `hnnbench -m system=spring`", "", "## Families", "",
-        "| system | family | status |", "|---|---|---|", "| spring | mlp | ok |",
-        "| spring | hnn | 1 ok, 1 diverged [1] |", "",
-        "Why runs did not finish `ok` ([n] after a status):", "",
-        "1. diverged (seed 1): rollout stalled", "", "## Twin agreement", "", "- not a note"])
+    markdown = "\n".join(
+        [
+            "# Leaderboard",
+            "",
+            "- Command: `hnnbench -m system=spring`",
+            "",
+            "## Families",
+            "",
+            "| system | family | status |",
+            "|---|---|---|",
+            "| spring | mlp | ok |",
+            "| spring | hnn | 1 ok, 1 diverged [1] |",
+            "",
+            "Why runs did not finish `ok` ([n] after a status):",
+            "",
+            "1. diverged (seed 1): rollout stalled",
+            "",
+            "## Twin agreement",
+            "",
+            "- not a note",
+        ]
+    )
     table, prov = publish_results.table_and_provenance(markdown)
     assert table.startswith("| system") and table.endswith("1. diverged (seed 1): rollout stalled")
     assert "Why runs did not finish" in table and "Twin" not in table

@@ -54,7 +54,8 @@ def raw() -> np.ndarray:
 
 def test_published_hash_matches_sha256sums():
     sums = dict(
-        reversed(line.split()) for line in (DATA_DIR / "SHA256SUMS").read_text().splitlines()
+        reversed(line.split())
+        for line in (DATA_DIR / "SHA256SUMS").read_text().splitlines()
         if line.strip()
     )
     assert sums[FILENAME] == SHA256
@@ -142,12 +143,12 @@ def test_targets_are_the_files_velocities_and_accelerations(raw):
     # angles wrapped into [-π, π) by whole turns
     theta = np.concatenate([ds.train.x, ds.test.x])[:, :2]
     assert np.all((theta >= -np.pi) & (theta < np.pi))
-    turns = (raw[np.concatenate([_rows(raw, ds.train), _rows(raw, ds.test)]), 2:4]
-             - theta) / (2 * np.pi)
+    turns = (raw[np.concatenate([_rows(raw, ds.train), _rows(raw, ds.test)]), 2:4] - theta) / (
+        2 * np.pi
+    )
     np.testing.assert_allclose(turns, np.round(turns), atol=1e-9)
     unwrapped = make(wrap_angles=False).dataset(0)
-    np.testing.assert_array_equal(unwrapped.train.x[:, :2],
-                                  raw[_rows(raw, unwrapped.train), 2:4])
+    np.testing.assert_array_equal(unwrapped.train.x[:, :2], raw[_rows(raw, unwrapped.train), 2:4])
 
 
 @pytest.mark.parametrize("seed", [0, 3])
@@ -163,8 +164,10 @@ def test_fold_sizes_and_order(raw, seed):
     train = _rows(raw, ds.train)
     assert not set(train) & set(valid) and not set(train) & set(test)
     # 25 rows (0.25 s) between every training or validation row and another segment
-    for rows, others in ((train, np.concatenate([valid, test])),
-                         (valid, np.concatenate([train, test]))):
+    for rows, others in (
+        (train, np.concatenate([valid, test])),
+        (valid, np.concatenate([train, test])),
+    ):
         assert np.abs(rows[:, None] - others[None, :]).min() > 25
     np.testing.assert_array_equal(ds.train.traj, raw[train, 0].astype(int))
     assert ds.meta["fold"] == fold and ds.meta["test_rows"] == [edges[fold], edges[fold + 1]]
@@ -207,10 +210,8 @@ def test_evaluation_chunks(raw):
         np.testing.assert_array_equal(traj.states[k, :, 2:], raw[rows, 4:6])
         shift = raw[rows, 2:4] - traj.states[k, :, :2]
         np.testing.assert_allclose(shift, np.broadcast_to(shift[0], shift.shape), atol=1e-9)
-        np.testing.assert_allclose(shift / (2 * np.pi), np.round(shift / (2 * np.pi)),
-                                   atol=1e-9)
-        np.testing.assert_allclose(traj.states[k, 0, :2], wrap_angle(raw[row, 2:4]),
-                                   atol=1e-9)
+        np.testing.assert_allclose(shift / (2 * np.pi), np.round(shift / (2 * np.pi)), atol=1e-9)
+        np.testing.assert_allclose(traj.states[k, 0, :2], wrap_angle(raw[row, 2:4]), atol=1e-9)
     assert traj.meta["unused_test_rows"] == 304 - 190
     assert traj.meta["max_grid_deviation"] < 1e-4
     raw_chunks = make(wrap_angles=False).evaluation(0)
@@ -246,8 +247,7 @@ def test_energy_model_is_reproducible_and_sane(raw):
     x = np.concatenate([raw[:, 2:4], raw[:, 4:6]], axis=1)
     energy = system.energy(x)
     assert system.energy(np.zeros((1, 4)))[0] == 0.0 and np.all(energy > 0)
-    np.testing.assert_allclose(system.energy(x + [2 * np.pi, -4 * np.pi, 0, 0]), energy,
-                               rtol=1e-9)
+    np.testing.assert_allclose(system.energy(x + [2 * np.pi, -4 * np.pi, 0, 0]), energy, rtol=1e-9)
     for trial in (0, 1):
         e = energy[raw[:, 0] == trial]
         assert e[-20:].mean() < 0.85 * e[:20].mean()
@@ -308,6 +308,5 @@ def test_protocol_profiles_cache_key_and_entry_point():
     assert key["sha256"] == SHA256 and "data_path" not in key and "url" not in key
     assert RealDoublePendulumConfig(data_path="/elsewhere").data_fields() == key
     assert RealDoublePendulum.version == "2" and "\n" not in RealDoublePendulum.description
-    (ep,) = [e for e in entry_points(group="hnnbench.systems")
-             if e.name == "real_double_pendulum"]
+    (ep,) = [e for e in entry_points(group="hnnbench.systems") if e.name == "real_double_pendulum"]
     assert ep.load() is RealDoublePendulum

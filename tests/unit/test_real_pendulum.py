@@ -20,8 +20,6 @@ from hnnbench_plugins.systems.real_pendulum import (
 REPO = Path(__file__).resolve().parents[2]
 
 
-
-
 DATA_DIR = shared_data_dir()
 SOURCE = DATA_DIR / FILENAME
 pytestmark = pytest.mark.skipif(
@@ -50,7 +48,8 @@ def raw() -> np.ndarray:
 
 def test_published_hash_matches_sha256sums():
     sums = dict(
-        reversed(line.split()) for line in (DATA_DIR / "SHA256SUMS").read_text().splitlines()
+        reversed(line.split())
+        for line in (DATA_DIR / "SHA256SUMS").read_text().splitlines()
         if line.strip()
     )
     assert sums[FILENAME] == SHA256
@@ -126,7 +125,7 @@ def test_the_seed_chooses_a_fold_and_no_point_crosses_an_edge(raw, seed):
     # validation point keeps 2 rows (0.25 s at dt = 1/6) from any other segment.
     for code, split in enumerate((ds.train, ds.valid)):
         for row in _rows(raw, split):
-            near = role[max(0, row - 2):row + 4]
+            near = role[max(0, row - 2) : row + 4]
             assert np.all((near == code) | (near == -1)), (code, row)
     assert ds.meta["sha256"] == SHA256 and ds.meta["data_file"] == str(SOURCE)
 
@@ -166,9 +165,7 @@ def test_dataset_is_deterministic_and_seeds_five_apart_share_a_fold():
 def test_energy_formula():
     system = make()
     x = np.array([[0.0, 0.0], [np.pi, 0.0], [0.5, -1.5]])
-    np.testing.assert_allclose(
-        system.energy(x), [0.0, 4.8, 2.4 * (1 - np.cos(0.5)) + 2.25]
-    )
+    np.testing.assert_allclose(system.energy(x), [0.0, 4.8, 2.4 * (1 - np.cos(0.5)) + 2.25])
     assert system.dof == 1
     assert not system.has_vector_field
     assert system.vector_field(x) is None

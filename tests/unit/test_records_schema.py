@@ -21,9 +21,18 @@ from hnnbench._results.leaderboard import leaderboard, records_frame
 
 
 def _record(**changes):
-    rec = records.new_record(system="spring", model="oracle", seed=0, profile="quick", config={},
-                       overrides=["system=spring"], command=None, rerun_command=None,
-                       environment=records.environment(), created_at=records.now_iso())
+    rec = records.new_record(
+        system="spring",
+        model="oracle",
+        seed=0,
+        profile="quick",
+        config={},
+        overrides=["system=spring"],
+        command=None,
+        rerun_command=None,
+        environment=records.environment(),
+        created_at=records.now_iso(),
+    )
     rec.update(changes)
     return rec
 
@@ -33,7 +42,8 @@ def test_the_shipped_schema_is_written_from_the_definition():
     assert shipped == records.SCHEMA_FILE
     assert shipped.read_text(encoding="utf-8") == records.schema_text(), (
         "hnnbench/resources/record.schema.json differs from hnnbench/_record/fields.py: "
-        "run python scripts/maintainer/record_schema.py --write")
+        "run python scripts/maintainer/record_schema.py --write"
+    )
     schema = records.schema()
     assert schema == records.json_schema()
     assert list(schema["properties"]) == [f.name for f in records.FIELDS]
@@ -63,11 +73,11 @@ def test_every_field_of_the_committed_records_is_declared():
 def test_tables_and_gate_take_their_names_from_the_definition(tmp_path):
     write_run(tmp_path, "spring", "oracle", 0, rollout=False)
     frame = records_frame(records.load(tmp_path).records)
-    assert list(frame.columns[:len(names.FRAME_COLUMNS)]) == list(names.FRAME_COLUMNS)
+    assert list(frame.columns[: len(names.FRAME_COLUMNS)]) == list(names.FRAME_COLUMNS)
     assert names.RESERVED == frozenset(names.FRAME_COLUMNS)
     assert check.KEY == names.BOARD_KEY and check.REQUIRED_COLUMNS[:3] == names.BOARD_KEY
     board = leaderboard(records.load(tmp_path).records)
-    assert list(board.columns[:len(names.ID_COLUMNS)]) == list(names.ID_COLUMNS)
+    assert list(board.columns[: len(names.ID_COLUMNS)]) == list(names.ID_COLUMNS)
     for name in records.PROVENANCE_FIELDS:
         rec = records.load(tmp_path).records[0]
         top, _, key = name.partition(".")
@@ -80,10 +90,12 @@ def test_tables_and_gate_take_their_names_from_the_definition(tmp_path):
 
 
 def test_write_refuses_a_record_that_does_not_conform_naming_the_field(tmp_path):
-    for rec, field in ((_record(seed=-3), "seed"), (_record(status="finished"), "status"),
-                       ({k: v for k, v in _record().items() if k != "model"}, "'model'"),
-                       (_record(metrics={"energy_mse": {"mean": "big", "sem": 0.0}}),
-                        "metrics.energy_mse.mean")):
+    for rec, field in (
+        (_record(seed=-3), "seed"),
+        (_record(status="finished"), "status"),
+        ({k: v for k, v in _record().items() if k != "model"}, "'model'"),
+        (_record(metrics={"energy_mse": {"mean": "big", "sem": 0.0}}), "metrics.energy_mse.mean"),
+    ):
         with pytest.raises(records.InvalidRecord) as err:
             records.write_record(tmp_path, rec)
         text = str(err.value)
@@ -97,16 +109,19 @@ def test_write_refuses_a_record_that_does_not_conform_naming_the_field(tmp_path)
 def test_the_quick_check_names_the_field():
     assert records.shape_problems(_record()) == []
     assert records.shape_problems({k: v for k, v in _record().items() if k != "seed"}) == [
-        "'seed' is a required property"]
+        "'seed' is a required property"
+    ]
     assert records.shape_problems(_record(seed=True)) == ["seed: True is not of type 'integer'"]
     assert records.shape_problems(_record(metrics={"energy_mse": 3})) == [
-        "metrics.energy_mse: 3 is not of type 'object'"]
+        "metrics.energy_mse: 3 is not of type 'object'"
+    ]
     assert records.shape_problems(_record(status="finished"))[0].startswith("status: 'finished'")
 
 
 def test_schema_version_1_records_still_load_strictly(tmp_path):
-    rec = _record(schema_version=1, status="ok",
-                  metrics={"energy_mse": {"mean": math.nan, "sem": math.inf}})
+    rec = _record(
+        schema_version=1, status="ok", metrics={"energy_mse": {"mean": math.nan, "sem": math.inf}}
+    )
     for key in ("device", "data", "overrides", "command", "rerun_command"):
         del rec[key]  # not written before schema version 2
     (tmp_path / "job").mkdir()
@@ -137,12 +152,14 @@ def _mixed_directory(root):
 
 
 def test_sweep_and_load_read_the_same_records_and_strict_names_the_invalid_file(
-        tmp_path, monkeypatch, caplog):
+    tmp_path, monkeypatch, caplog
+):
     valid, torn, no_seed, out_of_range = _mixed_directory(tmp_path / "sweep")
 
     loaded = records.load(tmp_path / "sweep")
-    assert sorted(r["path"] for r in loaded.records) == sorted([str(valid),
-                                                              str(out_of_range.parent)])
+    assert sorted(r["path"] for r in loaded.records) == sorted(
+        [str(valid), str(out_of_range.parent)]
+    )
     reasons = {p.path: p.reason for p in loaded.problems}
     assert set(reasons) == {torn, no_seed}
     assert reasons[torn].startswith("not valid JSON")
@@ -161,5 +178,3 @@ def test_sweep_and_load_read_the_same_records_and_strict_names_the_invalid_file(
     warnings = sorted(r.getMessage() for r in caplog.records)
     assert len(warnings) == 2 and all(str(no_seed) in w or str(torn) in w for w in warnings)
     assert sorted(frame["path"]) == sorted(r["path"] for r in loaded.records)
-
-

@@ -40,8 +40,11 @@ def _fake_dist(root: Path, name: str, entry_points: str) -> None:
 
 
 def test_broken_plugin_is_reported_and_others_work(tmp_path, monkeypatch):
-    _fake_dist(tmp_path, "broken_plugin", "[hnnbench.models]\nbroken = no_such_module_xyz:Thing\n"
-               "notamodel = json:JSONDecoder\n")
+    _fake_dist(
+        tmp_path,
+        "broken_plugin",
+        "[hnnbench.models]\nbroken = no_such_module_xyz:Thing\nnotamodel = json:JSONDecoder\n",
+    )
     monkeypatch.syspath_prepend(str(tmp_path))
     registry.refresh()
     try:
@@ -59,12 +62,16 @@ def test_broken_plugin_is_reported_and_others_work(tmp_path, monkeypatch):
     assert "broken" not in registry.discover("model")
 
 
-
-
-@pytest.mark.parametrize("name, why", [
-    ("status", "is a leaderboard column"), ("n_ok", "is a leaderboard column"),
-    ("decay_s", "ends in '_s'"), ("drift_mean", "ends in '_mean'"),
-    ("Energy MSE", "is not a metric name")])
+@pytest.mark.parametrize(
+    "name, why",
+    [
+        ("status", "is a leaderboard column"),
+        ("n_ok", "is a leaderboard column"),
+        ("decay_s", "ends in '_s'"),
+        ("drift_mean", "ends in '_mean'"),
+        ("Energy MSE", "is not a metric name"),
+    ],
+)
 def test_a_metric_cannot_take_a_table_column_name(name, why, monkeypatch):
     """Metrics share the records frame and the leaderboard with identity, status and
     timing columns: a colliding name is refused at registration, with the reason."""

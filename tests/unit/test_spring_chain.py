@@ -13,8 +13,7 @@ from hnnbench._contracts.kinematics import LinearKinematics
 from hnnbench_plugins.systems import spring_chain as sc
 from hnnbench_plugins.systems.spring_chain import SpringChain, SpringChainConfig
 
-SMALL = {"n_traj": 10, "n_points": 11, "eval_n_traj": 3, "eval_n_points": 41,
-         "eval_t_end": 20.0}
+SMALL = {"n_traj": 10, "n_points": 11, "eval_n_traj": 3, "eval_n_points": 41, "eval_t_end": 20.0}
 
 
 def make(**kw) -> SpringChain:
@@ -58,8 +57,11 @@ def test_field_is_the_symplectic_gradient_of_h(n):
     # H written with the stiffness matrix
     q, p = x[:, :n], x[:, n:]
     k = sc.stiffness_matrix(n)
-    np.testing.assert_allclose(sc.hamiltonian(x), 0.5 * np.sum(p**2, 1)
-                               + 0.5 * np.einsum("ni,ij,nj->n", q, k, q), rtol=1e-12)
+    np.testing.assert_allclose(
+        sc.hamiltonian(x),
+        0.5 * np.sum(p**2, 1) + 0.5 * np.einsum("ni,ij,nj->n", q, k, q),
+        rtol=1e-12,
+    )
     # batched over leading dimensions
     np.testing.assert_array_equal(sc.vector_field(x.reshape(4, 5, -1)).reshape(20, -1), f)
 
@@ -68,8 +70,7 @@ def test_ground_truth_conserves_energy_and_matches_the_modes():
     system = make()
     traj = system.evaluation(0)
     energy = system.energy(traj.states)
-    np.testing.assert_allclose(energy, np.repeat(energy[:, :1], energy.shape[1], 1),
-                               rtol=1e-9)
+    np.testing.assert_allclose(energy, np.repeat(energy[:, :1], energy.shape[1], 1), rtol=1e-9)
     # exact solution through the eigen-decomposition of A
     a = dynamics_matrix(5)
     w, v = np.linalg.eig(a)

@@ -13,15 +13,17 @@ from hnnbench.neural._init import init_arrays  # noqa: E402
 from hnnbench.neural.torch._nets import MLP, FrozenMLP  # noqa: E402
 
 
-def make(d_in: int, d_out: int, cfg: NeuralConfig, seed: int = 0
-         ) -> tuple[dict[str, torch.Tensor], MLP, FrozenMLP]:
+def make(
+    d_in: int, d_out: int, cfg: NeuralConfig, seed: int = 0
+) -> tuple[dict[str, torch.Tensor], MLP, FrozenMLP]:
     """Training parameters (float64, requiring grad), their MLP view and a frozen copy."""
     arrays = {f"f.{k}": v for k, v in init_arrays(seed, d_in, d_out, cfg).items()}
     params = {k: torch.tensor(v).requires_grad_() for k, v in arrays.items()}
     net = MLP.view(params, "f", cfg.layers, cfg.activation)
     numpy_weights = {k: v.detach().numpy() for k, v in params.items()}
-    frozen = FrozenMLP.from_weights(numpy_weights, "f", cfg.layers, cfg.activation,
-                                    torch.float64, torch.device("cpu"))
+    frozen = FrozenMLP.from_weights(
+        numpy_weights, "f", cfg.layers, cfg.activation, torch.float64, torch.device("cpu")
+    )
     return params, net, frozen
 
 
@@ -38,8 +40,7 @@ def test_forward_and_input_gradient_match_the_module(activation, layers):
     xg = x.clone().requires_grad_(True)
     (auto,) = torch.autograd.grad(net1(xg).sum(), xg)
     np.testing.assert_allclose(frozen1.input_gradient(x).numpy(), auto.numpy(), atol=1e-13)
-    np.testing.assert_allclose(net1.input_gradient(x).detach().numpy(), auto.numpy(),
-                               atol=1e-13)
+    np.testing.assert_allclose(net1.input_gradient(x).detach().numpy(), auto.numpy(), atol=1e-13)
 
 
 def test_is_a_copy_that_later_training_does_not_change():
@@ -71,8 +72,7 @@ def test_the_closed_form_input_hessian_is_autograds(activation, layers):
         value, grad, rows = model.input_hessian(x, first_row=2)
         np.testing.assert_allclose(value.detach(), net(x)[:, 0].detach(), rtol=1e-12)
         np.testing.assert_allclose(grad.detach(), want_g.detach(), rtol=1e-10, atol=1e-14)
-        np.testing.assert_allclose(rows.detach(), want_h[:, 2:].detach(), rtol=1e-9,
-                                   atol=1e-13)
+        np.testing.assert_allclose(rows.detach(), want_h[:, 2:].detach(), rtol=1e-9, atol=1e-13)
     # training differentiates through it: a parameter gradient of the Hessian exists
     _, _, rows = net.input_hessian(x)
     rows.sum().backward()

@@ -19,11 +19,20 @@ def pendulum(y: torch.Tensor) -> torch.Tensor:
 
 def reference(y0: np.ndarray, t: np.ndarray) -> np.ndarray:
     """``(N, T, 2)`` from scipy's DOP853 at a much tighter tolerance."""
-    return np.stack([
-        solve_ivp(lambda _t, y: [2.0 * y[1], -3.0 * np.sin(y[0])], (t[0], t[-1]), y, t_eval=t,
-                  rtol=1e-13, atol=1e-13, method="DOP853").y.T
-        for y in y0
-    ])
+    return np.stack(
+        [
+            solve_ivp(
+                lambda _t, y: [2.0 * y[1], -3.0 * np.sin(y[0])],
+                (t[0], t[-1]),
+                y,
+                t_eval=t,
+                rtol=1e-13,
+                atol=1e-13,
+                method="DOP853",
+            ).y.T
+            for y in y0
+        ]
+    )
 
 
 @pytest.fixture(scope="module")
@@ -46,16 +55,21 @@ def test_agrees_with_torchdiffeq_dopri5(problem):
     torchdiffeq = pytest.importorskip("torchdiffeq")
     y0, t = problem
     ours = dopri5(pendulum, torch.tensor(y0), t, rtol=1e-9, atol=1e-9, max_steps=10_000)
-    theirs = torchdiffeq.odeint(lambda _t, y: pendulum(y), torch.tensor(y0), torch.tensor(t),
-                                rtol=1e-9, atol=1e-9, method="dopri5")
+    theirs = torchdiffeq.odeint(
+        lambda _t, y: pendulum(y),
+        torch.tensor(y0),
+        torch.tensor(t),
+        rtol=1e-9,
+        atol=1e-9,
+        method="dopri5",
+    )
     np.testing.assert_allclose(ours.numpy(), theirs.numpy(), atol=2e-7)
 
 
 def test_backward_in_time_returns_to_the_start(problem):
     y0, t = problem
     forward = dopri5(pendulum, torch.tensor(y0), t, rtol=1e-10, atol=1e-10, max_steps=10_000)
-    back = dopri5(pendulum, forward[-1], t[::-1].copy(), rtol=1e-10, atol=1e-10,
-                  max_steps=10_000)
+    back = dopri5(pendulum, forward[-1], t[::-1].copy(), rtol=1e-10, atol=1e-10, max_steps=10_000)
     np.testing.assert_allclose(back[-1].numpy(), y0, atol=1e-7)
     np.testing.assert_allclose(back.flip(0).numpy(), forward.numpy(), atol=1e-7)
 
@@ -70,5 +84,11 @@ def test_gives_up_on_blow_up_and_on_the_step_budget(problem):
     with pytest.raises(SolverGaveUp, match="rollout_max_steps"):
         dopri5(pendulum, torch.tensor(y0), t, rtol=1e-9, atol=1e-9, max_steps=5)
     with pytest.raises(SolverGaveUp):  # dy/dt = y^2 blows up at t = 1
-        dopri5(lambda y: y * y, torch.ones((2, 1), dtype=torch.float64), np.array([0.0, 2.0]),
-               rtol=1e-9, atol=1e-9, max_steps=100_000)
+        dopri5(
+            lambda y: y * y,
+            torch.ones((2, 1), dtype=torch.float64),
+            np.array([0.0, 2.0]),
+            rtol=1e-9,
+            atol=1e-9,
+            max_steps=100_000,
+        )

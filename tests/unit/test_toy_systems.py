@@ -14,8 +14,13 @@ from hnnbench_plugins.systems.spring import Spring, SpringConfig
 
 @pytest.mark.parametrize("cls, cfg_cls", [(Spring, SpringConfig), (Pendulum, PendulumConfig)])
 def test_train_evaluation_draws_from_the_training_radii(cls, cfg_cls):
-    cfg = cfg_cls(name=cls.__name__.lower(), eval_init="train", eval_n_traj=200,
-                  eval_n_points=3, eval_t_end=0.1)
+    cfg = cfg_cls(
+        name=cls.__name__.lower(),
+        eval_init="train",
+        eval_n_traj=200,
+        eval_n_points=3,
+        eval_t_end=0.1,
+    )
     traj = cls(cfg).evaluation(seed=0)
     radius = np.linalg.norm(traj.x0, axis=1)
     assert radius.min() >= cfg.radius_min and radius.max() <= cfg.radius_max

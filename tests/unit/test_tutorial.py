@@ -33,7 +33,8 @@ def test_the_notebook_is_the_script_with_its_outputs():
     stored = json.loads(NOTEBOOK.read_text())
     notebook = jupytext.read(NOTEBOOK)
     assert _sources(notebook) == _sources(script), (
-        "docs/tutorial.ipynb is out of date: python tests/unit/test_tutorial.py --write")
+        "docs/tutorial.ipynb is out of date: python tests/unit/test_tutorial.py --write"
+    )
     code = [c for c in stored["cells"] if c["cell_type"] == "code"]
     assert [c["execution_count"] for c in code] == list(range(1, len(code) + 1))
     outputs = [o for c in code for o in c.get("outputs", [])]
@@ -59,8 +60,9 @@ def write_executed_notebook() -> None:
     for cell in notebook.cells:
         if cell.cell_type == "code":
             cell.outputs, cell.execution_count = [], None
-    client = nbclient.NotebookClient(notebook, timeout=900, kernel_name="python3",
-                                     resources={"metadata": {"path": str(REPO)}})
+    client = nbclient.NotebookClient(
+        notebook, timeout=900, kernel_name="python3", resources={"metadata": {"path": str(REPO)}}
+    )
     client.execute()
     for cell in notebook.cells:
         cell.metadata.pop("execution", None)
@@ -86,6 +88,7 @@ def _without_logs(output):  # noqa: ANN001, ANN202 - an nbformat output node
         return None
     output.text = "\n".join(lines) + "\n"
     return output
+
 
 if __name__ == "__main__":
     import sys

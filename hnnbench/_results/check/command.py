@@ -44,25 +44,50 @@ class _Parser(OneLineArgumentParser):
 
 
 def _parser() -> _Parser:
-    p = _Parser(prog="hnnbench check",
-                description="Validate run records and compare their leaderboard with a "
-                            "reference leaderboard.csv; exit 1 on a regression.")
-    p.add_argument("dirs", metavar="DIR", nargs="+",
-                   help="sweep or record directories (their records merge)")
-    p.add_argument("--reference", metavar="CSV", required=True,
-                   help="reference leaderboard.csv (e.g. results/reference/quick.csv)")
-    p.add_argument("--update", action="store_true",
-                   help="rewrite the reference from DIR instead of checking")
-    p.add_argument("--rules", metavar="FILE", default=None,
-                   help="YAML tolerances overriding the metrics' declared rules")
-    p.add_argument("--allow-missing", action="store_true",
-                   help="a reference pair with no run in DIR is information, not a "
-                        "regression (for a sweep of only some systems or models)")
-    p.add_argument("--rerun", metavar="SYSTEM/MODEL/SEED", action="append", default=[],
-                   help="run this job again from its record and compare (repeatable)")
-    p.add_argument("--same", metavar="RTOL", type=float, default=None,
-                   help="two-sided: every gated metric within RTOL relative of the "
-                        "reference and the same statuses (a reproduction check)")
+    p = _Parser(
+        prog="hnnbench check",
+        description="Validate run records and compare their leaderboard with a "
+        "reference leaderboard.csv; exit 1 on a regression.",
+    )
+    p.add_argument(
+        "dirs", metavar="DIR", nargs="+", help="sweep or record directories (their records merge)"
+    )
+    p.add_argument(
+        "--reference",
+        metavar="CSV",
+        required=True,
+        help="reference leaderboard.csv (e.g. results/reference/quick.csv)",
+    )
+    p.add_argument(
+        "--update", action="store_true", help="rewrite the reference from DIR instead of checking"
+    )
+    p.add_argument(
+        "--rules",
+        metavar="FILE",
+        default=None,
+        help="YAML tolerances overriding the metrics' declared rules",
+    )
+    p.add_argument(
+        "--allow-missing",
+        action="store_true",
+        help="a reference pair with no run in DIR is information, not a "
+        "regression (for a sweep of only some systems or models)",
+    )
+    p.add_argument(
+        "--rerun",
+        metavar="SYSTEM/MODEL/SEED",
+        action="append",
+        default=[],
+        help="run this job again from its record and compare (repeatable)",
+    )
+    p.add_argument(
+        "--same",
+        metavar="RTOL",
+        type=float,
+        default=None,
+        help="two-sided: every gated metric within RTOL relative of the "
+        "reference and the same statuses (a reproduction check)",
+    )
     return p
 
 
@@ -93,25 +118,35 @@ def main(args: Sequence[str]) -> int:
     reruns = [rerun(recs, spec, rules) for spec in ns.rerun]
     for done in reruns:
         result.regressions += done.findings
-    print(f"hnnbench check: {where} vs {reference}"
-          + (f" (two-sided, within {ns.same:g} relative)" if ns.same is not None else
-             f" (rules: declared + {ns.rules})" if ns.rules else " (rules: declared)"))
-    print(f"validated {len(recs) + len(bad)} record(s); compared {result.n_pairs} pair(s), "
-          f"{result.n_metrics} gated metric value(s), {result.n_claims} claim(s) reproduced "
-          f"in the reference" + (f"; re-ran {len(ns.rerun)} job(s)" if ns.rerun else ""))
+    print(
+        f"hnnbench check: {where} vs {reference}"
+        + (
+            f" (two-sided, within {ns.same:g} relative)"
+            if ns.same is not None
+            else f" (rules: declared + {ns.rules})"
+            if ns.rules
+            else " (rules: declared)"
+        )
+    )
+    print(
+        f"validated {len(recs) + len(bad)} record(s); compared {result.n_pairs} pair(s), "
+        f"{result.n_metrics} gated metric value(s), {result.n_claims} claim(s) reproduced "
+        f"in the reference" + (f"; re-ran {len(ns.rerun)} job(s)" if ns.rerun else "")
+    )
     _print_reruns(reruns)
     _print_ranks(rank_lines(ref_board, board))
     _print_information(result, failing=not ns.allow_missing)
     return _print_verdict(result, reference)
 
 
-def _update(reference: Path, board: pd.DataFrame, bad: Sequence[Unreadable],
-            where: str) -> int:
+def _update(reference: Path, board: pd.DataFrame, bad: Sequence[Unreadable], where: str) -> int:
     """``--update``: write the reference from the checked records (none unreadable),
     saying how many pairs of the old reference it drops."""
     if bad:
-        raise CheckError(f"{len(bad)} unreadable record(s), e.g. {bad[0]}: fix or remove "
-                         "them before writing a reference")
+        raise CheckError(
+            f"{len(bad)} unreadable record(s), e.g. {bad[0]}: fix or remove "
+            "them before writing a reference"
+        )
     if reference.is_dir():
         raise CheckError(f"Reference {reference} is a directory; give a CSV file path")
     dropped = 0
@@ -126,9 +161,11 @@ def _update(reference: Path, board: pd.DataFrame, bad: Sequence[Unreadable],
         records.atomic_write_text(reference, board.to_csv(index=False))
     except OSError as err:
         raise CheckError(f"Cannot write reference {reference}: {err.strerror}") from None
-    print(f"hnnbench check: wrote reference {reference} from {where} "
-          f"({len(board)} system x model pairs)"
-          + (f"; {dropped} pair(s) of the old reference are not in it" if dropped else ""))
+    print(
+        f"hnnbench check: wrote reference {reference} from {where} "
+        f"({len(board)} system x model pairs)"
+        + (f"; {dropped} pair(s) of the old reference are not in it" if dropped else "")
+    )
     return 0
 
 
@@ -141,16 +178,17 @@ def _table(rows: list[list[Any]], headers: list[str]) -> str:
 def _print_reruns(reruns: Sequence[Rerun]) -> None:
     for done in reruns:
         print()
-        print(f"--rerun {done.spec} (fresh cache; the record's run-only settings ignored): "
-              "record vs re-run")
+        print(
+            f"--rerun {done.spec} (fresh cache; the record's run-only settings ignored): "
+            "record vs re-run"
+        )
         print(_table(done.rows, RERUN_HEADERS))
 
 
 def _print_ranks(ranks: Sequence[str]) -> None:
     if ranks:
         print()
-        print("ranks among the reference's families (headline metrics; 95% intervals over "
-              "seeds):")
+        print("ranks among the reference's families (headline metrics; 95% intervals over seeds):")
         for line in ranks:
             print(f"  {line}")
 
@@ -159,17 +197,20 @@ def _print_information(result: CheckResult, failing: bool) -> None:
     """What is information, not failing: new pairs, missing pairs and unevaluated claims
     (failing unless ``--allow-missing``), and every other finding of that kind."""
     missing = [f for f in result.info + result.regressions if f.check == "missing"]
-    unrun = [f for f in result.info
-             if f.check == "claim" and f.current.startswith(claims.NOT_RUN)]
+    unrun = [f for f in result.info if f.check == "claim" and f.current.startswith(claims.NOT_RUN)]
     new = [f for f in result.info if f.check == "new"]
-    shown: list[Finding] = [f for f in result.info
-                            if f not in missing and f not in unrun and f not in new]
+    shown: list[Finding] = [
+        f for f in result.info if f not in missing and f not in unrun and f not in new
+    ]
     if missing or unrun or new:
         print()
     if new:
         models = list(dict.fromkeys(f.model for f in new))
-        print(f"new: {len(new)} pair(s) not in the reference ({', '.join(models[:4])}"
-              + (f" and {len(models) - 4} more" if len(models) > 4 else "") + ")")
+        print(
+            f"new: {len(new)} pair(s) not in the reference ({', '.join(models[:4])}"
+            + (f" and {len(models) - 4} more" if len(models) > 4 else "")
+            + ")"
+        )
     if missing or unrun:
         print(missing_line(missing, unrun, failing=failing))
     if shown:
@@ -186,14 +227,20 @@ def _print_verdict(result: CheckResult, reference: Path) -> int:
         return 0
     listed = [f for f in result.regressions if f.check != "missing"]
     print()
-    print(f"REGRESSIONS ({len(result.regressions)}"
-          + (f", {len(result.regressions) - len(listed)} of them missing pairs, above"
-             if len(listed) < len(result.regressions) else "") + "):")
+    print(
+        f"REGRESSIONS ({len(result.regressions)}"
+        + (
+            f", {len(result.regressions) - len(listed)} of them missing pairs, above"
+            if len(listed) < len(result.regressions)
+            else ""
+        )
+        + "):"
+    )
     if listed:
         print(_table([f.row() for f in listed], HEADERS))
     print()
-    print(f"hnnbench check: FAILED, {len(result.regressions)} regression(s)."
-          f"{update_hint(result, reference)}")
+    print(
+        f"hnnbench check: FAILED, {len(result.regressions)} regression(s)."
+        f"{update_hint(result, reference)}"
+    )
     return 1
-
-

@@ -55,16 +55,23 @@ def _claims_by_key(board: pd.DataFrame) -> dict[tuple[str, str, str], claims.Cla
     out = {}
     every_claim = registry.all_claims()
     for profile in dict.fromkeys(board["profile"].astype(str)):
-        for res in claims.evaluate_claims(board_lookup(board, profile), every_claim,
-                                          registry.family_models(),
-                                          board_untrained(board, profile)):
+        for res in claims.evaluate_claims(
+            board_lookup(board, profile),
+            every_claim,
+            registry.family_models(),
+            board_untrained(board, profile),
+        ):
             out[(profile, res.claim.id, res.backend)] = res
     return out
 
 
-def compare(reference: pd.DataFrame, current: pd.DataFrame,
-            rules: Optional[tuple[CheckRule, dict[str, CheckRule]]] = None,
-            allow_missing: bool = False, same: Optional[float] = None) -> CheckResult:
+def compare(
+    reference: pd.DataFrame,
+    current: pd.DataFrame,
+    rules: Optional[tuple[CheckRule, dict[str, CheckRule]]] = None,
+    allow_missing: bool = False,
+    same: Optional[float] = None,
+) -> CheckResult:
     """Compare two leaderboards; see the module docstring (``same``: ``--same RTOL``)."""
     default, by_metric = rules if rules is not None else load_rules()
     result = CheckResult()
@@ -76,8 +83,10 @@ def compare(reference: pd.DataFrame, current: pd.DataFrame,
         ref_prof = sorted({k[0] for k in ref_keys})
         cur_prof = sorted({k[0] for k in cur_keys})
         if ref_prof != cur_prof:
-            raise CheckError(f"The reference is for profile {', '.join(ref_prof)} but the sweep "
-                             f"ran profile {', '.join(cur_prof)}; compare like with like")
+            raise CheckError(
+                f"The reference is for profile {', '.join(ref_prof)} but the sweep "
+                f"ran profile {', '.join(cur_prof)}; compare like with like"
+            )
     metrics = [c[: -len("_mean")] for c in ref.columns if c.endswith("_mean")]
 
     for key, r in ref_keys.items():
@@ -90,15 +99,35 @@ def compare(reference: pd.DataFrame, current: pd.DataFrame,
         result.n_pairs += 1
         ref_seeds, cur_seeds = _seeds(r), _seeds(c)
         if ref_seeds != cur_seeds:
-            result.info.append(Finding("seeds", "-", system, model, _seed_text(ref_seeds),
-                                       _seed_text(cur_seeds), "", "same seeds expected"))
+            result.info.append(
+                Finding(
+                    "seeds",
+                    "-",
+                    system,
+                    model,
+                    _seed_text(ref_seeds),
+                    _seed_text(cur_seeds),
+                    "",
+                    "same seeds expected",
+                )
+            )
         changed = same is not None and (int(c["n_ok"]), int(c["n_seeds"])) != (
-            int(r["n_ok"]), int(r["n_seeds"]))
+            int(r["n_ok"]),
+            int(r["n_seeds"]),
+        )
         if changed or _ok_share(c) < _ok_share(r):
-            result.regressions.append(Finding(
-                "status", "status", system, model, _status_text(r), _status_text(c),
-                f"ok {int(c['n_ok'])}/{int(c['n_seeds'])}",
-                f"ok >= {int(r['n_ok'])}/{int(r['n_seeds'])}"))
+            result.regressions.append(
+                Finding(
+                    "status",
+                    "status",
+                    system,
+                    model,
+                    _status_text(r),
+                    _status_text(c),
+                    f"ok {int(c['n_ok'])}/{int(c['n_seeds'])}",
+                    f"ok >= {int(r['n_ok'])}/{int(r['n_seeds'])}",
+                )
+            )
         for metric in metrics:
             rule = by_metric.get(metric, default)
             ref_value = float(r[f"{metric}_mean"])
@@ -108,8 +137,16 @@ def compare(reference: pd.DataFrame, current: pd.DataFrame,
             cur_value = math.nan if cur_value is None or pd.isna(cur_value) else float(cur_value)
             result.n_metrics += rule.gate
             if math.isnan(cur_value):
-                finding = Finding("metric", metric, system, model, format_number(ref_value),
-                                  "no value", "", rule.limit_text())
+                finding = Finding(
+                    "metric",
+                    metric,
+                    system,
+                    model,
+                    format_number(ref_value),
+                    "no value",
+                    "",
+                    rule.limit_text(),
+                )
                 (result.regressions if rule.gate else result.info).append(finding)
                 continue
             if same is not None:
@@ -117,24 +154,44 @@ def compare(reference: pd.DataFrame, current: pd.DataFrame,
                     continue
                 diff = rule.difference(ref_value, cur_value)
                 if diff > same:
-                    result.regressions.append(Finding(
-                        "changed", metric, system, model, format_number(ref_value),
-                        format_number(cur_value), f"{format_number(diff)} rel",
-                        f"within {same:g} rel"))
+                    result.regressions.append(
+                        Finding(
+                            "changed",
+                            metric,
+                            system,
+                            model,
+                            format_number(ref_value),
+                            format_number(cur_value),
+                            f"{format_number(diff)} rel",
+                            f"within {same:g} rel",
+                        )
+                    )
                 continue
             factor = rule.worsening(ref_value, cur_value)
             if factor > rule.factor:
-                finding = Finding("metric" if rule.gate else "info", metric, system, model,
-                                  format_number(ref_value), format_number(cur_value),
-                                  "inf worse" if math.isinf(factor)
-                                  else f"{format_number(factor)}x worse",
-                                  rule.limit_text())
+                finding = Finding(
+                    "metric" if rule.gate else "info",
+                    metric,
+                    system,
+                    model,
+                    format_number(ref_value),
+                    format_number(cur_value),
+                    "inf worse" if math.isinf(factor) else f"{format_number(factor)}x worse",
+                    rule.limit_text(),
+                )
                 (result.regressions if rule.gate else result.info).append(finding)
     for key, c in cur_keys.items():
         if key not in ref_keys:
-            result.info.append(Finding("new", "-", key[1], model_text(key[2], key[3], key[4]),
-                                       "not in reference",
-                                       _status_text(c)))
+            result.info.append(
+                Finding(
+                    "new",
+                    "-",
+                    key[1],
+                    model_text(key[2], key[3], key[4]),
+                    "not in reference",
+                    _status_text(c),
+                )
+            )
 
     ref_claims, cur_claims = _claims_by_key(ref), _claims_by_key(cur)
     for (profile, claim_id, backend), rc in ref_claims.items():
@@ -142,10 +199,16 @@ def compare(reference: pd.DataFrame, current: pd.DataFrame,
         claim = rc.claim
         pair = f"{backend} pair" if backend != "-" else "-"
         now = cc.outcome if cc is not None else claims.NOT_RUN
-        finding = Finding("claim", claim.metric, claim.system, pair,
-                          f"{rc.outcome} ({claims.fmt_ratio(rc.ratio)})",
-                          f"{now} ({claims.fmt_ratio(cc.ratio) if cc is not None else 'n/a'})",
-                          "", claim.requirement())
+        finding = Finding(
+            "claim",
+            claim.metric,
+            claim.system,
+            pair,
+            f"{rc.outcome} ({claims.fmt_ratio(rc.ratio)})",
+            f"{now} ({claims.fmt_ratio(cc.ratio) if cc is not None else 'n/a'})",
+            "",
+            claim.requirement(),
+        )
         if rc.outcome == claims.REPRODUCED:
             result.n_claims += 1
             if now == claims.NOT_RUN and allow_missing:

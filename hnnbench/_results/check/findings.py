@@ -29,8 +29,16 @@ class Finding:
     limit: str = ""
 
     def row(self) -> list[str]:
-        return [self.check, self.metric, self.system, self.model, self.reference,
-                self.current, self.factor, self.limit]
+        return [
+            self.check,
+            self.metric,
+            self.system,
+            self.model,
+            self.reference,
+            self.current,
+            self.factor,
+            self.limit,
+        ]
 
 
 @dataclass
@@ -49,8 +57,9 @@ class CheckResult:
 HEADERS = ["check", "metric", "system", "model", "reference", "current", "factor", "limit"]
 
 
-def missing_line(missing: Sequence[Finding], unrun: Sequence[Finding] = (),
-                 failing: bool = False) -> str:
+def missing_line(
+    missing: Sequence[Finding], unrun: Sequence[Finding] = (), failing: bool = False
+) -> str:
     """One line for the reference pairs a sweep did not run (``failing``: they are
     regressions, without ``--allow-missing``), and the reference's claims left
     unevaluated because of them."""
@@ -59,13 +68,19 @@ def missing_line(missing: Sequence[Finding], unrun: Sequence[Finding] = (),
         systems = list(dict.fromkeys(f.system for f in missing))
         models = list(dict.fromkeys(f.model for f in missing))
         example = ", ".join(f"{f.system} x {f.model}" for f in missing[:2])
-        parts.append(f"{len(missing)} reference pair(s) not in this sweep ({len(systems)} "
-                     f"system(s) x {len(models)} model(s), e.g. {example})")
+        parts.append(
+            f"{len(missing)} reference pair(s) not in this sweep ({len(systems)} "
+            f"system(s) x {len(models)} model(s), e.g. {example})"
+        )
     if unrun:
-        parts.append(f"{len(unrun)} claim(s) of the reference not evaluated (their pairs "
-                     "were not run)")
-    tail = " (regressions: pass --allow-missing for a sweep of only some pairs)" if failing \
+        parts.append(
+            f"{len(unrun)} claim(s) of the reference not evaluated (their pairs were not run)"
+        )
+    tail = (
+        " (regressions: pass --allow-missing for a sweep of only some pairs)"
+        if failing
         else " (information: --allow-missing)"
+    )
     return "missing: " + "; ".join(parts) + tail
 
 
@@ -77,17 +92,25 @@ def update_hint(result: CheckResult, reference: Path) -> str:
     next to a ``records/`` directory: scripts/maintainer/publish_results.py rebuilds that)."""
     kinds = {f.check for f in result.regressions}
     if kinds == {"missing"}:
-        return (" Every regression is a reference pair this sweep did not run: pass "
-                "--allow-missing to compare the pairs it ran.")
+        return (
+            " Every regression is a reference pair this sweep did not run: pass "
+            "--allow-missing to compare the pairs it ran."
+        )
     published = reference.name == "leaderboard.csv" and (reference.parent / "records").is_dir()
     if published:
-        return (" The reference is a published leaderboard: it is rebuilt from records by "
-                "scripts/maintainer/publish_results.py (docs/LEADERBOARD.md), never by --update.")
+        return (
+            " The reference is a published leaderboard: it is rebuilt from records by "
+            "scripts/maintainer/publish_results.py (docs/LEADERBOARD.md), never by --update."
+        )
     missing = sum(f.check == "missing" for f in result.regressions)
     if missing:
-        return (f" Rewriting the reference from this sweep would not be safe: it would drop "
-                f"the {missing} reference pair(s) the sweep did not run.")
+        return (
+            f" Rewriting the reference from this sweep would not be safe: it would drop "
+            f"the {missing} reference pair(s) the sweep did not run."
+        )
     if kinds & {"invalid", "unreadable", "provenance", "version", "variant", "rerun"}:
-        return (" Rewriting the reference from these records would not be safe: fix the "
-                "records that fail validation first.")
+        return (
+            " Rewriting the reference from these records would not be safe: fix the "
+            "records that fail validation first."
+        )
     return " If the change is intended, rewrite the reference with --update."

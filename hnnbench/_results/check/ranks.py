@@ -46,8 +46,9 @@ class Rank:
     line: str
 
 
-def _rank_one(name: str, row: Any, others: pd.DataFrame, metric: str, better: str,
-              linear: bool) -> Optional[Rank]:
+def _rank_one(
+    name: str, row: Any, others: pd.DataFrame, metric: str, better: str, linear: bool
+) -> Optional[Rank]:
     value = pd.to_numeric(row.get(f"{metric}_mean"), errors="coerce")
     system = str(row["system"])
     if pd.isna(value):
@@ -65,19 +66,26 @@ def _rank_one(name: str, row: Any, others: pd.DataFrame, metric: str, better: st
     theirs = []
     for _, r in others.iterrows():
         interval, mean = _interval_of(r, metric), float(r[f"{metric}_mean"])
-        theirs.append(interval if interval is not None else
-                      (mean, mean) if math.isinf(mean) else None)
+        theirs.append(
+            interval if interval is not None else (mean, mean) if math.isinf(mean) else None
+        )
     n_seeds = int(row.get("n_seeds", 0) or 0)
-    shown = format_interval(value, *(_interval_of(row, metric) or (math.nan, math.nan)),
-                            linear=linear)
+    shown = format_interval(
+        value, *(_interval_of(row, metric) or (math.nan, math.nan)), linear=linear
+    )
     low = high = None
     if mine is None:
-        text = (f"({n_seeds} seed: no interval)" if n_seeds < 2 else
-                "(fewer than 2 seeds with a value: no interval)")
+        text = (
+            f"({n_seeds} seed: no interval)"
+            if n_seeds < 2
+            else "(fewer than 2 seeds with a value: no interval)"
+        )
     elif all(t is None for t in theirs):
         n_ref = int(pd.to_numeric(others["n_seeds"], errors="coerce").min())
-        text = (f"(the reference has {n_ref} seed{'s' if n_ref != 1 else ''} and no "
-                "interval: no rank interval)")
+        text = (
+            f"(the reference has {n_ref} seed{'s' if n_ref != 1 else ''} and no "
+            "interval: no rank interval)"
+        )
     else:
         # a reference family without an interval is separated from no one
         lo_m, hi_m = sorted((sign * mine[0], sign * mine[1]))
@@ -90,8 +98,10 @@ def _rank_one(name: str, row: Any, others: pd.DataFrame, metric: str, better: st
             behind += lo_t > hi_m  # wholly worse
         low, high = 1 + ahead, of - behind
         text = _ordinal_text(low, high)
-    line = (f"{system} {metric}: {name} ranks {rank} of {of} families {text}: {shown} over "
-            f"{n_seeds} seed{'s' if n_seeds != 1 else ''}")
+    line = (
+        f"{system} {metric}: {name} ranks {rank} of {of} families {text}: {shown} over "
+        f"{n_seeds} seed{'s' if n_seeds != 1 else ''}"
+    )
     return Rank(name, system, metric, rank, of, low, high, line)
 
 
@@ -102,20 +112,27 @@ def _verdict(name: str, ranks: list[Rank]) -> str:
     top = sum(r.rank <= (r.of + 1) // 2 for r in ranks)
     median = sorted(r.rank for r in ranks)[(len(ranks) - 1) // 2]
     of = max(r.of for r in ranks)
-    text = (f"verdict: {name} ranks first on {first} and in the top half on {top} of "
-            f"{len(ranks)} (system, metric) cell(s), median rank {median} of {of}")
+    text = (
+        f"verdict: {name} ranks first on {first} and in the top half on {top} of "
+        f"{len(ranks)} (system, metric) cell(s), median rank {median} of {of}"
+    )
     with_interval = [r for r in ranks if r.low is not None]
     if not with_interval:
-        return (text + "; no rank is backed by an interval (an interval needs 2 seeds on "
-                f"both sides; a separated best, {stats.MIN_SEPARABLE_SEEDS} paired seeds)")
+        return (
+            text + "; no rank is backed by an interval (an interval needs 2 seeds on "
+            f"both sides; a separated best, {stats.MIN_SEPARABLE_SEEDS} paired seeds)"
+        )
     sure = sum(r.high == 1 for r in with_interval)
     maybe = sum(r.low == 1 for r in with_interval)
-    return (text + f"; the intervals put it first on {sure} and possibly first on {maybe} "
-            f"of the {len(with_interval)} with an interval")
+    return (
+        text + f"; the intervals put it first on {sure} and possibly first on {maybe} "
+        f"of the {len(with_interval)} with an interval"
+    )
 
 
-def rank_lines(reference: pd.DataFrame, current: pd.DataFrame,
-               metrics: Optional[Sequence[str]] = None) -> list[str]:
+def rank_lines(
+    reference: pd.DataFrame, current: pd.DataFrame, metrics: Optional[Sequence[str]] = None
+) -> list[str]:
     """For every family of ``current`` that the reference does not hold (a new model,
     or a variant), per system and headline metric (default:
     :func:`hnnbench._results.aggregate.headline_metrics`): its rank among the reference's ranked
@@ -126,8 +143,11 @@ def rank_lines(reference: pd.DataFrame, current: pd.DataFrame,
     from hnnbench._results.leaderboard import linear_metrics, metric_declarations
 
     declared = metric_declarations()
-    metrics = [m for m in (headline_metrics() if metrics is None else metrics)
-               if m in declared and f"{m}_mean" in current and f"{m}_mean" in reference]
+    metrics = [
+        m
+        for m in (headline_metrics() if metrics is None else metrics)
+        if m in declared and f"{m}_mean" in current and f"{m}_mean" in reference
+    ]
     if current.empty:
         return []
     linear = linear_metrics()
@@ -150,8 +170,7 @@ def rank_lines(reference: pd.DataFrame, current: pd.DataFrame,
         if others.empty:
             continue
         for metric in metrics:
-            done = _rank_one(name, row, others, metric, declared[metric].better,
-                             metric in linear)
+            done = _rank_one(name, row, others, metric, declared[metric].better, metric in linear)
             if done is not None:
                 lines.append(done.line)
                 by_name[name].append(done)

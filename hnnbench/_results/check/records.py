@@ -20,7 +20,10 @@ from hnnbench._results.leaderboard import (
 )
 
 __all__ = [
-    "budget_findings", "plugin_information", "record_variants", "validate_records",
+    "budget_findings",
+    "plugin_information",
+    "record_variants",
+    "validate_records",
     "variant_findings",
 ]
 
@@ -37,8 +40,9 @@ def record_file(rec: dict[str, Any]) -> str:
     return str(Path(rec["path"]) / records.RECORD_NAME) if rec.get("path") else "?"
 
 
-def variant_findings(recs: Sequence[dict[str, Any]], variants: Sequence[provenance.Variant]
-                     ) -> tuple[list[Finding], list[Finding]]:
+def variant_findings(
+    recs: Sequence[dict[str, Any]], variants: Sequence[provenance.Variant]
+) -> tuple[list[Finding], list[Finding]]:
     """``(regressions, information)`` about the records' variants: a setting that
     differs from the profile's defaults with no override saying so, a config of another
     job than the record's, a config that cannot be compared (no config: a regression;
@@ -52,16 +56,22 @@ def variant_findings(recs: Sequence[dict[str, Any]], variants: Sequence[provenan
         if unsafe:
             bad.append(Finding("variant", "config", system, model, where, unsafe))
         if variant.mismatch:
-            bad.append(Finding("variant", "config", system, model, where,
-                               f"its config is of another job ({variant.mismatch})"))
+            bad.append(
+                Finding(
+                    "variant",
+                    "config",
+                    system,
+                    model,
+                    where,
+                    f"its config is of another job ({variant.mismatch})",
+                )
+            )
         if variant.problem:
-            finding = Finding("variant", "config", system, model, where,
-                              str(variant.problem))
+            finding = Finding("variant", "config", system, model, where, str(variant.problem))
             (bad if variant.installed else info).append(finding)
         elif variant.undeclared:
             text = variant.undeclared_text(str(rec.get("profile") or "paper"))
-            bad.append(Finding("variant", variant.undeclared[0], system, model, where,
-                               text))
+            bad.append(Finding("variant", variant.undeclared[0], system, model, where, text))
     return bad, info
 
 
@@ -73,26 +83,47 @@ def _field(rec: dict[str, Any], name: str) -> Any:
     return value
 
 
-def validate_records(recs: Sequence[dict[str, Any]], bad: Sequence[records.Unreadable]
-                     ) -> list[Finding]:
+def validate_records(
+    recs: Sequence[dict[str, Any]], bad: Sequence[records.Unreadable]
+) -> list[Finding]:
     """Findings about the records themselves: unreadable files, schema violations (the
     records of a strict :func:`hnnbench._record.loader.load`, and the files it left out),
     missing provenance, plugin versions or packages that differ from the installed ones
     (:func:`hnnbench._results.provenance.plugin_problems`; a missing version is a mismatch).
     The gating ones; :func:`plugin_information` has the others."""
-    out = [Finding("invalid" if item.reason.startswith("invalid") else "unreadable", "-", "-",
-                   str(item.path), "", item.reason) for item in bad]
+    out = [
+        Finding(
+            "invalid" if item.reason.startswith("invalid") else "unreadable",
+            "-",
+            "-",
+            str(item.path),
+            "",
+            item.reason,
+        )
+        for item in bad
+    ]
     for rec in recs:
         where = str(rec.get("path", "?"))
         system, model = str(rec.get("system")), str(rec.get("model"))
         missing = [name for name in PROVENANCE_FIELDS if not _field(rec, name)]
         if missing:
-            out.append(Finding("provenance", "-", system, model, where,
-                               f"missing {', '.join(missing)}"))
+            out.append(
+                Finding("provenance", "-", system, model, where, f"missing {', '.join(missing)}")
+            )
         for key, mine, have, gate in provenance.plugin_problems(rec):
             if gate:
-                out.append(Finding("version", key, system, model, f"record {mine}",
-                                   f"installed {have}", "", f"same plugin ({where})"))
+                out.append(
+                    Finding(
+                        "version",
+                        key,
+                        system,
+                        model,
+                        f"record {mine}",
+                        f"installed {have}",
+                        "",
+                        f"same plugin ({where})",
+                    )
+                )
         problem = track_problem(rec)
         if problem is not None:
             out.append(Finding("track", "-", system, model, where, problem))
@@ -113,11 +144,22 @@ def budget_findings(recs: Sequence[dict[str, Any]]) -> list[Finding]:
     out = []
     for (profile, system), found in budgets.items():
         if len(found) > 1:
-            shown = "; ".join(f"{t} trials x {s} steps: {', '.join(sorted(models))}"
-                              for (t, s), models in found.items())
-            out.append(Finding("budget", "-", system, "tuned track", f"{profile} profile",
-                               f"unequal tuning budgets ({shown})", "",
-                               "the same trials and steps for every model"))
+            shown = "; ".join(
+                f"{t} trials x {s} steps: {', '.join(sorted(models))}"
+                for (t, s), models in found.items()
+            )
+            out.append(
+                Finding(
+                    "budget",
+                    "-",
+                    system,
+                    "tuned track",
+                    f"{profile} profile",
+                    f"unequal tuning budgets ({shown})",
+                    "",
+                    "the same trials and steps for every model",
+                )
+            )
     return out
 
 
@@ -128,7 +170,16 @@ def plugin_information(recs: Sequence[dict[str, Any]]) -> list[Finding]:
     for rec in recs:
         for key, mine, have, gate in provenance.plugin_problems(rec):
             if not gate:
-                out.append(Finding("version", key, str(rec.get("system")),
-                                   str(rec.get("model")), f"record {mine}",
-                                   f"installed {have}", "", "information"))
+                out.append(
+                    Finding(
+                        "version",
+                        key,
+                        str(rec.get("system")),
+                        str(rec.get("model")),
+                        f"record {mine}",
+                        f"installed {have}",
+                        "",
+                        "information",
+                    )
+                )
     return out

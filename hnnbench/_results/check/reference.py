@@ -28,8 +28,10 @@ def read_reference(path: Path | str) -> pd.DataFrame:
     """A reference leaderboard CSV, validated; :class:`CheckError` if unusable."""
     path = Path(path)
     if not path.exists():
-        raise CheckError(f"Reference {path} does not exist; create it from a sweep with "
-                         f"hnnbench check DIR --reference {path} --update")
+        raise CheckError(
+            f"Reference {path} does not exist; create it from a sweep with "
+            f"hnnbench check DIR --reference {path} --update"
+        )
     if path.is_dir():
         raise CheckError(f"Reference {path} is a directory; expected a leaderboard CSV file")
     try:
@@ -43,10 +45,12 @@ def read_reference(path: Path | str) -> pd.DataFrame:
     if missing:
         raise CheckError(
             f"Reference {path} lacks column(s) {', '.join(missing)}; expected a leaderboard.csv "
-            "(from hnnbench report, or hnnbench check --update)")
+            "(from hnnbench report, or hnnbench check --update)"
+        )
     if not any(c.endswith("_mean") for c in frame.columns):
-        raise CheckError(f"Reference {path} has no metric columns (<metric>_mean); expected "
-                         "a leaderboard.csv")
+        raise CheckError(
+            f"Reference {path} has no metric columns (<metric>_mean); expected a leaderboard.csv"
+        )
     for col in COUNT_COLUMNS:
         values = pd.to_numeric(frame[col], errors="coerce")
         if values.isna().any():
@@ -57,14 +61,18 @@ def read_reference(path: Path | str) -> pd.DataFrame:
             values = pd.to_numeric(frame[col], errors="coerce")
             bad = values.isna() & frame[col].notna()
             if bad.any():
-                raise CheckError(f"Reference {path}: column {col} holds a non-number "
-                                 f"({frame[col][bad].iloc[0]!r})")
+                raise CheckError(
+                    f"Reference {path}: column {col} holds a non-number "
+                    f"({frame[col][bad].iloc[0]!r})"
+                )
             frame[col] = values.astype(float)
     dupes = frame.duplicated(list(key_columns(frame)))
     if dupes.any():
         r = frame[dupes].iloc[0]
-        raise CheckError(f"Reference {path} has duplicate rows for {r['system']} x "
-                         f"{r['model']} (profile {r['profile']})")
+        raise CheckError(
+            f"Reference {path} has duplicate rows for {r['system']} x "
+            f"{r['model']} (profile {r['profile']})"
+        )
     return frame
 
 

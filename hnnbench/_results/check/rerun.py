@@ -48,8 +48,12 @@ def rerun_config(rec: dict[str, Any], cache_dir: Path) -> dict[str, Any]:
     if not isinstance(config, dict) or not isinstance(config.get("system"), dict):
         raise CheckError(f"--rerun {spec}: the record holds no resolved config to run again")
     try:
-        defaults = provenance.default_config(str(rec.get("system")), str(rec.get("model")),
-                                    str(rec.get("profile") or "paper"), track_of(rec))
+        defaults = provenance.default_config(
+            str(rec.get("system")),
+            str(rec.get("model")),
+            str(rec.get("profile") or "paper"),
+            track_of(rec),
+        )
     except HnnbenchError as err:
         raise CheckError(f"--rerun {spec}: cannot compose its defaults: {err}") from None
     out = {k: v for k, v in config.items() if k not in RUN_ONLY_KEYS}
@@ -62,8 +66,9 @@ def _short(value: Any) -> str:
     return str(value)[:12] if value else "none"
 
 
-def rerun(recs: Sequence[dict[str, Any]], spec: str, rules: tuple[CheckRule, dict[str, CheckRule]]
-          ) -> Rerun:
+def rerun(
+    recs: Sequence[dict[str, Any]], spec: str, rules: tuple[CheckRule, dict[str, CheckRule]]
+) -> Rerun:
     """Run the job ``SYSTEM/MODEL/SEED`` of ``recs`` again (:func:`rerun_config`, in a
     temporary directory with a fresh dataset cache) and compare: its status, its data
     hashes (the re-run's, generated now by the installed system, are the canonical ones),
@@ -78,8 +83,11 @@ def rerun(recs: Sequence[dict[str, Any]], spec: str, rules: tuple[CheckRule, dic
     if len(parts) != 3 or not parts[2].isdigit():
         raise CheckError(f"--rerun {spec}: expected SYSTEM/MODEL/SEED, e.g. spring/hnn_jax/0")
     system, model, seed = parts[0], parts[1], int(parts[2])
-    match = [r for r in recs if r.get("system") == system and r.get("model") == model
-             and r.get("seed") == seed]
+    match = [
+        r
+        for r in recs
+        if r.get("system") == system and r.get("model") == model and r.get("seed") == seed
+    ]
     if not match:
         raise CheckError(f"--rerun {spec}: no record of that job in the checked directories")
     rec = match[0]
@@ -94,11 +102,16 @@ def rerun(recs: Sequence[dict[str, Any]], spec: str, rules: tuple[CheckRule, dic
     def add(name: str, ref: str, cur: str, apart: str, allowed: str, ok: bool) -> None:
         result.rows.append([name, ref, cur, apart, allowed, "ok" if ok else "FAILS"])
         if not ok:
-            result.findings.append(Finding("rerun", name, system, model, ref, cur, apart,
-                                           allowed))
+            result.findings.append(Finding("rerun", name, system, model, ref, cur, apart, allowed))
 
-    add("status", str(rec.get("status")), str(again.get("status")), "", "same status",
-        again.get("status") == rec.get("status"))
+    add(
+        "status",
+        str(rec.get("status")),
+        str(again.get("status")),
+        "",
+        "same status",
+        again.get("status") == rec.get("status"),
+    )
     if again.get("status") == "failed" and again.get("error"):
         result.rows.append(["error", "", str(again["error"]), "", "", ""])
     for key in DATA_HASHES:
@@ -106,11 +119,18 @@ def rerun(recs: Sequence[dict[str, Any]], spec: str, rules: tuple[CheckRule, dic
         canonical = (again.get("data") or {}).get(key)
         if mine is None and canonical is None and rec.get("status") == "skipped":
             continue
-        add(f"data.{key}", _short(mine), _short(canonical), "",
-            "the installed system's data", bool(canonical) and mine == canonical)
+        add(
+            f"data.{key}",
+            _short(mine),
+            _short(canonical),
+            "",
+            "the installed system's data",
+            bool(canonical) and mine == canonical,
+        )
         if canonical and mine != canonical:
-            result.findings[-1].current = (f"canonical {_short(canonical)} ({where} names "
-                                           "other data)")
+            result.findings[-1].current = (
+                f"canonical {_short(canonical)} ({where} names other data)"
+            )
     for name, value in (rec.get("metrics") or {}).items():
         rule = by_metric.get(name, default)
         ref = float(value.get("mean", math.nan))
@@ -120,6 +140,12 @@ def rerun(recs: Sequence[dict[str, Any]], spec: str, rules: tuple[CheckRule, dic
         # A re-run must agree with the record both ways, not merely be no worse.
         worst = max(rule.worsening(ref, cur), rule.worsening(cur, ref))
         ok = not (math.isnan(cur) or math.isnan(ref)) and worst <= rule.factor
-        add(name, format_number(ref), format_number(cur), f"{format_number(worst)}x",
-            f"within {rule.factor:g}x", ok)
+        add(
+            name,
+            format_number(ref),
+            format_number(cur),
+            f"{format_number(worst)}x",
+            f"within {rule.factor:g}x",
+            ok,
+        )
     return result

@@ -22,12 +22,15 @@ RULE_KEYS = {"better", "factor", "floor", "gate"}
 
 def _parse_rule(raw: Any, where: str, base: CheckRule) -> CheckRule:
     if not isinstance(raw, dict):
-        raise CheckError(f"{where}: expected a mapping like {{better: lower, factor: 10}}, "
-                         f"got {raw!r}")
+        raise CheckError(
+            f"{where}: expected a mapping like {{better: lower, factor: 10}}, got {raw!r}"
+        )
     unknown = sorted(set(raw) - RULE_KEYS)
     if unknown:
-        raise CheckError(f"{where}: unknown key(s) {', '.join(map(str, unknown))}; "
-                         f"allowed: {', '.join(sorted(RULE_KEYS))}")
+        raise CheckError(
+            f"{where}: unknown key(s) {', '.join(map(str, unknown))}; "
+            f"allowed: {', '.join(sorted(RULE_KEYS))}"
+        )
     values = {**base.__dict__, **raw}
     if values["better"] not in ("lower", "higher"):
         raise CheckError(f"{where}: better must be 'lower' or 'higher', got {values['better']!r}")
@@ -55,13 +58,13 @@ def _read_yaml(text: str, source: str) -> dict[str, Any]:
     if data is None:
         return {}
     if not isinstance(data, dict) or set(data) - {"default", "metrics"}:
-        raise CheckError(f"rules file {source}: expected top-level keys 'default' and/or "
-                         "'metrics'")
+        raise CheckError(f"rules file {source}: expected top-level keys 'default' and/or 'metrics'")
     return data
 
 
-def _apply(data: dict[str, Any], source: str, default: CheckRule,
-           metrics: dict[str, CheckRule]) -> tuple[CheckRule, dict[str, CheckRule]]:
+def _apply(
+    data: dict[str, Any], source: str, default: CheckRule, metrics: dict[str, CheckRule]
+) -> tuple[CheckRule, dict[str, CheckRule]]:
     if "default" in data:
         default = _parse_rule(data["default"], f"{source}: default", default)
     raw_metrics = data.get("metrics") or {}
@@ -69,8 +72,9 @@ def _apply(data: dict[str, Any], source: str, default: CheckRule,
         raise CheckError(f"{source}: 'metrics' must map metric names to rules")
     metrics = dict(metrics)
     for name, raw in raw_metrics.items():
-        metrics[str(name)] = _parse_rule(raw, f"{source}: metrics.{name}",
-                                         metrics.get(str(name), default))
+        metrics[str(name)] = _parse_rule(
+            raw, f"{source}: metrics.{name}", metrics.get(str(name), default)
+        )
     return default, metrics
 
 

@@ -46,17 +46,21 @@ class Report:
     verdicts: Verdicts | None = None
 
 
-def write_report(sweep_dir: Path | str | Sequence[Path | str], out: Path | str | None = None,
-                 figures: bool = True, strict: bool = False, aggregate: bool = True,
-                 embed_figures: bool = False) -> Report:
+def write_report(
+    sweep_dir: Path | str | Sequence[Path | str],
+    out: Path | str | None = None,
+    figures: bool = True,
+    strict: bool = False,
+    aggregate: bool = True,
+    embed_figures: bool = False,
+) -> Report:
     """Build every table and figure of the sweep directories into ``out`` (default: the
     sweep, when there is one); ``figures=False`` skips the figures, ``aggregate=False``
     the aggregate across systems (a sweep's rewrite while it runs); ``strict``: every
     record is checked in full (:func:`hnnbench._record.loader.load`, strict), and an
     unreadable or invalid record is an error instead of a warning; ``embed_figures``:
     the page holds its figures inline (base64) instead of linking them."""
-    dirs = [Path(sweep_dir)] if isinstance(sweep_dir, (str, Path)) else [Path(d) for d in
-                                                                        sweep_dir]
+    dirs = [Path(sweep_dir)] if isinstance(sweep_dir, (str, Path)) else [Path(d) for d in sweep_dir]
     recs, bad = load_sweeps(dirs, strict=strict)
     if out is None:
         if len(dirs) != 1:
@@ -73,13 +77,17 @@ def write_report(sweep_dir: Path | str | Sequence[Path | str], out: Path | str |
     verdicts = build_verdicts(recs, board, with_aggregate=aggregate)
     report = Report(out=out, board=board, records=recs, unreadable=bad, verdicts=verdicts)
     agg = verdicts.aggregate
-    tables = {"csv": ("leaderboard.csv", board),
-              "families": ("families.csv", verdicts.families.board),
-              "twins": ("twins.csv", verdicts.families.twins)}
+    tables = {
+        "csv": ("leaderboard.csv", board),
+        "families": ("families.csv", verdicts.families.board),
+        "twins": ("twins.csv", verdicts.families.twins),
+    }
     if aggregate:
-        tables.update(aggregate=("aggregate.csv", agg.iqm),
-                      improvement=("improvement.csv", agg.improvement),
-                      scales=("aggregate_scales.csv", agg.scales))
+        tables.update(
+            aggregate=("aggregate.csv", agg.iqm),
+            improvement=("improvement.csv", agg.improvement),
+            scales=("aggregate_scales.csv", agg.scales),
+        )
     for key, (name, frame) in tables.items():
         report.files[key] = out / name
         records.atomic_write_text(report.files[key], frame.to_csv(index=False))
@@ -87,31 +95,41 @@ def write_report(sweep_dir: Path | str | Sequence[Path | str], out: Path | str |
     prov = provenance(recs)
     heatmaps = tuple(m.path.stem for m in report.figures if m.kind == "heatmap")
     report.files["md"] = out / "leaderboard.md"
-    records.atomic_write_text(report.files["md"], leaderboard_markdown(board, verdicts.families,
-                                                                 prov, heatmaps))
+    records.atomic_write_text(
+        report.files["md"], leaderboard_markdown(board, verdicts.families, prov, heatmaps)
+    )
     if aggregate:
         profile = main_profile_figure(report.figures)
         report.files["aggregate_md"] = out / "aggregate.md"
-        records.atomic_write_text(report.files["aggregate_md"], aggregate_markdown(
-            verdicts, f"figures/{profile.name}" if profile is not None else None))
+        records.atomic_write_text(
+            report.files["aggregate_md"],
+            aggregate_markdown(
+                verdicts, f"figures/{profile.name}" if profile is not None else None
+            ),
+        )
     tracks = tracks_frame(verdicts.families)
     if not tracks.empty:
         report.files["tracks"] = out / "tracks.csv"
         records.atomic_write_text(report.files["tracks"], tracks.to_csv(index=False))
     report.files["tracks_md"] = out / "tracks.md"
-    records.atomic_write_text(report.files["tracks_md"], "# Tracks\n\n"
-                        + tracks_markdown(tracks, tuning_costs(verdicts.families)) + "\n")
+    records.atomic_write_text(
+        report.files["tracks_md"],
+        "# Tracks\n\n" + tracks_markdown(tracks, tuning_costs(verdicts.families)) + "\n",
+    )
     chosen = selection_frame(recs)
     report.files["selection"] = out / "selection.csv"
     records.atomic_write_text(report.files["selection"], chosen.to_csv(index=False))
     report.files["selection_md"] = out / "selection.md"
-    records.atomic_write_text(report.files["selection_md"], "# Checkpoint selection\n\n"
-                        + selection_markdown(chosen))
+    records.atomic_write_text(
+        report.files["selection_md"], "# Checkpoint selection\n\n" + selection_markdown(chosen)
+    )
     report.files["paper"] = out / "paper_comparison.md"
     records.atomic_write_text(report.files["paper"], comparison_markdown(board))
     report.files["html"] = out / "leaderboard.html"
-    records.atomic_write_text(report.files["html"], page(board, report.figures, prov, recs, bad,
-                                                   verdicts, base=out, embed=embed_figures))
+    records.atomic_write_text(
+        report.files["html"],
+        page(board, report.figures, prov, recs, bad, verdicts, base=out, embed=embed_figures),
+    )
     return report
 
 
@@ -124,5 +142,7 @@ def on_sweep_end(sweep_dir: Path | str) -> None:
         return
     for item in report.unreadable:
         log.warning("record left out: %s", item)
-    print(f"report: {report.files['html']} (leaderboard.csv/.md, paper_comparison.md, "
-          f"{len(report.figures)} figures)")
+    print(
+        f"report: {report.files['html']} (leaderboard.csv/.md, paper_comparison.md, "
+        f"{len(report.figures)} figures)"
+    )

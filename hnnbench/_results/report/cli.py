@@ -13,35 +13,58 @@ __all__ = ["main"]
 
 
 def _parser() -> OneLineArgumentParser:
-    p = OneLineArgumentParser(prog="hnnbench report",
-                description="Tables (CSV, Markdown, HTML) and figures from run records; "
-                            "several directories merge into one leaderboard.")
-    p.add_argument("dirs", metavar="DIR", nargs="+",
-                   help="sweep or record directories (searched for result.json)")
-    p.add_argument("--out", metavar="OUT", default=None,
-                   help="output directory (default: DIR, when there is one)")
+    p = OneLineArgumentParser(
+        prog="hnnbench report",
+        description="Tables (CSV, Markdown, HTML) and figures from run records; "
+        "several directories merge into one leaderboard.",
+    )
+    p.add_argument(
+        "dirs",
+        metavar="DIR",
+        nargs="+",
+        help="sweep or record directories (searched for result.json)",
+    )
+    p.add_argument(
+        "--out",
+        metavar="OUT",
+        default=None,
+        help="output directory (default: DIR, when there is one)",
+    )
     p.add_argument("--no-figures", action="store_true", help="tables only (faster)")
-    p.add_argument("--embed-figures", action="store_true",
-                   help="put the figures inside leaderboard.html (one self-contained file, "
-                        "many MB) instead of linking them from figures/")
-    p.add_argument("--strict", action="store_true",
-                   help="an unreadable or invalid record is an error (default: left out "
-                        "with a warning)")
+    p.add_argument(
+        "--embed-figures",
+        action="store_true",
+        help="put the figures inside leaderboard.html (one self-contained file, "
+        "many MB) instead of linking them from figures/",
+    )
+    p.add_argument(
+        "--strict",
+        action="store_true",
+        help="an unreadable or invalid record is an error (default: left out with a warning)",
+    )
     return p
 
 
 def main(args: Sequence[str]) -> int:
     ns = _parser().parse_args(list(args))
-    report = write_report([Path(d) for d in ns.dirs], ns.out, figures=not ns.no_figures,
-                          strict=ns.strict, embed_figures=ns.embed_figures)
+    report = write_report(
+        [Path(d) for d in ns.dirs],
+        ns.out,
+        figures=not ns.no_figures,
+        strict=ns.strict,
+        embed_figures=ns.embed_figures,
+    )
     assert report.verdicts is not None
     print(families_markdown(report.verdicts.families))
     print()
     for item in report.unreadable:
         print(f"warning: record left out: {item}")
-    others = ", ".join(path.name for key, path in report.files.items()
-                       if key not in ("csv", "html"))
-    print(f"wrote {report.files['csv']}, {others}, {report.files['html'].name} and "
-          f"{len(report.figures)} figure(s) in {report.out / 'figures'} from "
-          f"{len(report.records)} record(s)")
+    others = ", ".join(
+        path.name for key, path in report.files.items() if key not in ("csv", "html")
+    )
+    print(
+        f"wrote {report.files['csv']}, {others}, {report.files['html'].name} and "
+        f"{len(report.figures)} figure(s) in {report.out / 'figures'} from "
+        f"{len(report.records)} record(s)"
+    )
     return 0

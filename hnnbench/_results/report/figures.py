@@ -57,9 +57,23 @@ from hnnbench._results.report.verdicts import main_scope, scope_label, scopes
 
 log = logging.getLogger("hnnbench")
 
-__all__ = ["CELL_STATES", "FIGURES", "PROFILE_FIGURE", "FigureKind", "Made", "Run",
-           "SystemRuns", "cell_states", "figure", "figure_arrays", "main_profile_figure",
-           "make_figures", "rank_table", "runs_for_figures", "slug"]
+__all__ = [
+    "CELL_STATES",
+    "FIGURES",
+    "PROFILE_FIGURE",
+    "FigureKind",
+    "Made",
+    "Run",
+    "SystemRuns",
+    "cell_states",
+    "figure",
+    "figure_arrays",
+    "main_profile_figure",
+    "make_figures",
+    "rank_table",
+    "runs_for_figures",
+    "slug",
+]
 
 #: How many evaluation trajectories the rollout figures show.
 N_TRAJ_SHOWN = 3
@@ -67,8 +81,7 @@ N_TRAJ_SHOWN = 3
 #: (:func:`figure_arrays`).
 FIGURE_POINTS = 200
 #: The arrays of a rollout file that the system figures draw.
-FIGURE_ARRAYS = ("t", "states_true", "states_hat", "energy_true", "energy_hat",
-                 "learned_energy")
+FIGURE_ARRAYS = ("t", "states_true", "states_hat", "energy_true", "energy_hat", "learned_energy")
 #: The evaluation trajectories' colours in the phase portraits (Okabe & Ito's blue,
 #: orange and bluish green: told apart with any colour vision).
 _TRAJ_COLORS = ("#0072B2", "#E69F00", "#009E73")
@@ -135,11 +148,13 @@ class FigureKind:
 FIGURES: dict[str, FigureKind] = {}
 
 
-def figure(name: str, title: str, scope: Literal["system", "board"] = "system"
-           ) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+def figure(
+    name: str, title: str, scope: Literal["system", "board"] = "system"
+) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     """Register a figure kind. A ``"system"`` figure is ``make(SystemRuns) -> Figure |
     None``; a ``"board"`` figure is ``make(board, records, verdicts) -> {file stem:
     Figure}`` (``verdicts``: :class:`hnnbench._results.report.verdicts.Verdicts`, or ``None``)."""
+
     def register(make: Callable[..., Any]) -> Callable[..., Any]:
         FIGURES[name] = FigureKind(name, title, scope, make)
         return make
@@ -169,8 +184,11 @@ def figure_arrays(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     those of the full file up to the thinning of the time grid."""
     out: dict[str, np.ndarray] = {}
     t = np.asarray(arrays.get("t", np.zeros(0)))
-    keep = np.unique(np.linspace(0, t.size - 1, min(t.size, FIGURE_POINTS)).round()
-                     .astype(int)) if t.size else np.zeros(0, dtype=int)
+    keep = (
+        np.unique(np.linspace(0, t.size - 1, min(t.size, FIGURE_POINTS)).round().astype(int))
+        if t.size
+        else np.zeros(0, dtype=int)
+    )
     for key, value in arrays.items():
         value = np.asarray(value)
         if key == "t":
@@ -188,8 +206,15 @@ def runs_for_figures(recs: list[dict[str, Any]]) -> tuple[Optional[int], list[Ru
     one, in registry order (a record without one, e.g. a published record whose figure
     rollout was not kept, is left out without a warning; the figures name such models:
     :attr:`SystemRuns.missing`)."""
-    seeds = sorted({int(r["seed"]) for r in recs if r.get("seed") is not None
-                    and r.get("path") and (Path(r["path"]) / records.ROLLOUT_NAME).exists()})
+    seeds = sorted(
+        {
+            int(r["seed"])
+            for r in recs
+            if r.get("seed") is not None
+            and r.get("path")
+            and (Path(r["path"]) / records.ROLLOUT_NAME).exists()
+        }
+    )
     if not seeds:
         return None, []
     seed = seeds[0]
@@ -201,16 +226,24 @@ def runs_for_figures(recs: list[dict[str, Any]]) -> tuple[Optional[int], list[Ru
             continue
         arrays = _load_npz(Path(rec["path"]) / records.ROLLOUT_NAME)
         if arrays:
-            runs.append(Run(str(rec.get("model")), str(rec.get("backend") or ""),
-                            str(rec.get("family") or ""), seed, str(rec.get("status")),
-                            arrays))
+            runs.append(
+                Run(
+                    str(rec.get("model")),
+                    str(rec.get("backend") or ""),
+                    str(rec.get("family") or ""),
+                    seed,
+                    str(rec.get("status")),
+                    arrays,
+                )
+            )
     order = registry.ordered("model", [r.model for r in runs])
     runs.sort(key=lambda r: order.index(r.model))
     return seed, runs
 
 
-def _new_figure(n_panels: int, width: float = 4.6, height: float = 3.6,
-                max_columns: int = MAX_COLUMNS) -> Any:
+def _new_figure(
+    n_panels: int, width: float = 4.6, height: float = 3.6, max_columns: int = MAX_COLUMNS
+) -> Any:
     """A figure of ``n_panels`` panels of ``width`` x ``height`` inches, at most
     ``max_columns`` in a row (more wrap into further rows); returns it and its used
     axes (the rest of the last row is hidden)."""
@@ -268,12 +301,16 @@ def phase_figure(ctx: SystemRuns) -> Any:
         ax.set_ylabel("p1")
         ax.grid(alpha=0.3)
     handles = [Line2D([], [], color="k", ls="--", lw=0.9, label="true")]
-    handles += [Line2D([], [], color=_TRAJ_COLORS[k], lw=2.0, label=f"rollout, trajectory {k + 1}")
-                for k in range(n_traj)]
+    handles += [
+        Line2D([], [], color=_TRAJ_COLORS[k], lw=2.0, label=f"rollout, trajectory {k + 1}")
+        for k in range(n_traj)
+    ]
     handles.append(Line2D([], [], color="w", marker="o", mec="k", mfc="0.6", label="start"))
     fig.legend(handles=handles, loc="outside right upper", fontsize=8)
-    fig.suptitle(f"{ctx.label}: phase portraits (q1, p1) of evaluation trajectories 1–{n_traj}, "
-                 f"true vs model rollout (seed {ctx.seed}){ctx.note()}")
+    fig.suptitle(
+        f"{ctx.label}: phase portraits (q1, p1) of evaluation trajectories 1–{n_traj}, "
+        f"true vs model rollout (seed {ctx.seed}){ctx.note()}"
+    )
     return fig
 
 
@@ -289,8 +326,7 @@ def energy_figure(ctx: SystemRuns) -> Any:
     for k, ax in enumerate(axes):
         ax.plot(t, e_true[k], "k--", lw=2.0, label="ground truth")
         for run in shown:
-            ax.plot(run.arrays["t"], run.arrays["energy_hat"][k], label=run.model,
-                    **ctx.line(run))
+            ax.plot(run.arrays["t"], run.arrays["energy_hat"][k], label=run.model, **ctx.line(run))
         ax.set_title(f"trajectory {k + 1}")
         ax.set_xlabel("time")
         ax.set_ylabel("true energy E(x̂(t))")
@@ -321,8 +357,10 @@ def learned_energy_figure(ctx: SystemRuns) -> Any:
         ax.grid(alpha=0.3)
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside right upper", fontsize=8)
-    fig.suptitle(f"{ctx.label}: learned conserved quantity along its own rollout, shifted to "
-                 f"start at 0 (seed {ctx.seed}){ctx.note()}")
+    fig.suptitle(
+        f"{ctx.label}: learned conserved quantity along its own rollout, shifted to "
+        f"start at 0 (seed {ctx.seed}){ctx.note()}"
+    )
     return fig
 
 
@@ -336,9 +374,11 @@ def loss_figure(ctx: SystemRuns) -> Any:
     for run in shown:
         step = run.arrays["history.step"]
         color = ctx.color(run.model)
-        for key, ls, label in ((f"history.{HISTORY_TRAIN}", "-", "train"),
-                               (f"history.{HISTORY_VALID}", "--", "validation"),
-                               ("history.test_loss", ":", "test")):  # before the validation split
+        for key, ls, label in (
+            (f"history.{HISTORY_TRAIN}", "-", "train"),
+            (f"history.{HISTORY_VALID}", "--", "validation"),
+            ("history.test_loss", ":", "test"),
+        ):  # before the validation split
             if key in run.arrays and run.arrays[key].size == step.size:
                 y = np.where(run.arrays[key] > 0, run.arrays[key], np.nan)
                 ax.plot(step, y, ls, color=color, lw=1.3, label=f"{run.model} {label}")
@@ -388,17 +428,21 @@ def rank_table(board: pd.DataFrame, metric: str) -> tuple[pd.DataFrame, pd.DataF
     rows = _family_rows(board)
     key = "family" if "family" in rows and "seeds_from" in rows else "model"
     systems = registry.ordered("system", rows["system"].astype(str))
-    names = family_order(rows) if key == "family" else \
-        registry.ordered("model", rows["model"].astype(str))
-    values = rows.pivot_table(index=key, columns="system", values=f"{metric}_mean",
-                              aggfunc="first", dropna=False).reindex(index=names,
-                                                                     columns=systems)
+    names = (
+        family_order(rows)
+        if key == "family"
+        else registry.ordered("model", rows["model"].astype(str))
+    )
+    values = rows.pivot_table(
+        index=key, columns="system", values=f"{metric}_mean", aggfunc="first", dropna=False
+    ).reindex(index=names, columns=systems)
     ranks = values.rank(axis=0, ascending=not higher, method="min")
     return ranks, values
 
 
-def cell_states(board: pd.DataFrame, metric: str, index: Sequence[str],
-                columns: Sequence[str]) -> pd.DataFrame:
+def cell_states(
+    board: pd.DataFrame, metric: str, index: Sequence[str], columns: Sequence[str]
+) -> pd.DataFrame:
     """families x systems: why a heatmap cell holds no rank (a key of
     :data:`CELL_STATES`), ``"diverged"`` for an ``inf`` mean, ``""`` for a value."""
     rows = _family_rows(board)
@@ -426,8 +470,9 @@ def cell_states(board: pd.DataFrame, metric: str, index: Sequence[str],
 
 
 @figure("heatmap", "Which family wins where: rank by metric", scope="board")
-def heatmap_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
-                    verdicts: Any = None) -> dict[str, Any]:
+def heatmap_figures(
+    board: pd.DataFrame, recs: Sequence[dict[str, Any]], verdicts: Any = None
+) -> dict[str, Any]:
     board = getattr(getattr(verdicts, "families", None), "board", None)
     if board is None or board.empty:
         return {}
@@ -444,8 +489,9 @@ def heatmap_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
                 continue  # a ranking needs two families
             states = cell_states(fams, metric, list(values.index), list(values.columns))
             marks = _marks(fams, metric)
-            out[f"heatmap_{metric}{suffix}"] = _heatmap(ranks, values, states, marks, metric,
-                                                        label if several else "")
+            out[f"heatmap_{metric}{suffix}"] = _heatmap(
+                ranks, values, states, marks, metric, label if several else ""
+            )
     return out
 
 
@@ -453,12 +499,21 @@ def _marks(board: pd.DataFrame, metric: str) -> dict[tuple[str, str], str]:
     if f"{metric}_mark" not in board:
         return {}
     rows = _family_rows(board)
-    return {(str(r["family"]), str(r["system"])): str(r[f"{metric}_mark"])
-            for _, r in rows.iterrows() if str(r[f"{metric}_mark"] or "") in ("best", "tied")}
+    return {
+        (str(r["family"]), str(r["system"])): str(r[f"{metric}_mark"])
+        for _, r in rows.iterrows()
+        if str(r[f"{metric}_mark"] or "") in ("best", "tied")
+    }
 
 
-def _heatmap(ranks: pd.DataFrame, values: pd.DataFrame, states: pd.DataFrame,
-             marks: dict[tuple[str, str], str], metric: str, scope: str = "") -> Any:
+def _heatmap(
+    ranks: pd.DataFrame,
+    values: pd.DataFrame,
+    states: pd.DataFrame,
+    marks: dict[tuple[str, str], str],
+    metric: str,
+    scope: str = "",
+) -> Any:
     import matplotlib as mpl
     from matplotlib.patches import Patch
 
@@ -482,29 +537,48 @@ def _heatmap(ranks: pd.DataFrame, values: pd.DataFrame, states: pd.DataFrame,
         for j, system in enumerate(values.columns):
             state = str(states.iat[i, j])
             if state in CELL_STATES:
-                ax.text(j, i, CELL_STATES[state][1], ha="center", va="center", fontsize=7,
-                        color=CELL_STATES[state][2])
+                ax.text(
+                    j,
+                    i,
+                    CELL_STATES[state][1],
+                    ha="center",
+                    va="center",
+                    fontsize=7,
+                    color=CELL_STATES[state][2],
+                )
                 continue
             v, r = float(cast(float, values.iat[i, j])), float(cast(float, ranks.iat[i, j]))
             mark = marks.get((str(family), str(system)), "")
             text = "diverged" if state == "diverged" else format_value(v, linear=lin)
             red, green, blue = rgba[i, j][:3]  # white text on a dark cell, black on a light
             dark = 0.2126 * red + 0.7152 * green + 0.0722 * blue < 0.45
-            ax.text(j, i, f"{int(r)}{RANK_MARKS.get(mark, '')}\n{text}", ha="center",
-                    va="center", fontsize=7, color="w" if dark else "k",
-                    fontweight="bold" if mark == "best" else "normal")
-    ax.set_xticks(range(n_systems), [str(s) for s in values.columns], rotation=35,
-                  ha="right", fontsize=8)
+            ax.text(
+                j,
+                i,
+                f"{int(r)}{RANK_MARKS.get(mark, '')}\n{text}",
+                ha="center",
+                va="center",
+                fontsize=7,
+                color="w" if dark else "k",
+                fontweight="bold" if mark == "best" else "normal",
+            )
+    ax.set_xticks(
+        range(n_systems), [str(s) for s in values.columns], rotation=35, ha="right", fontsize=8
+    )
     ax.set_yticks(range(n_rows), [str(m) for m in values.index], fontsize=8)
-    title = (f"{scope}: " * bool(scope)
-             + f"Rank of each family by {metric} within each system (1 = best, the mean "
-             "below; \u2605 best: separated from every other family by the sign test; "
-             "= tied: not separated from the leader)")
+    title = (
+        f"{scope}: "
+        * bool(scope)
+        + f"Rank of each family by {metric} within each system (1 = best, the mean "
+        "below; \u2605 best: separated from every other family by the sign test; "
+        "= tied: not separated from the leader)"
+    )
     ax.set_title(textwrap.fill(title, width=int(width * 13)), fontsize=9)  # ~13 chars/inch
     handles = [Patch(facecolor=DIVERGED_COLOR, label="diverged (inf)")]
     handles += [Patch(facecolor=c, edgecolor="0.6", label=t) for c, t, _ in CELL_STATES.values()]
-    fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=7,
-               frameon=False)
+    fig.legend(
+        handles=handles, loc="outside lower center", ncol=len(handles), fontsize=7, frameon=False
+    )
     return fig
 
 
@@ -514,16 +588,21 @@ def _heatmap(ranks: pd.DataFrame, values: pd.DataFrame, states: pd.DataFrame,
 PROFILE_FIGURE = "performance_profile"
 
 
-@figure("profile", "Performance profiles: the share of runs above each normalised score",
-        scope="board")
-def profile_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
-                    verdicts: Any = None) -> dict[str, Any]:
+@figure(
+    "profile", "Performance profiles: the share of runs above each normalised score", scope="board"
+)
+def profile_figures(
+    board: pd.DataFrame, recs: Sequence[dict[str, Any]], verdicts: Any = None
+) -> dict[str, Any]:
     """One panel per headline metric: per family, the share of its (system, seed) runs
     whose normalised score exceeds tau, with the stratified bootstrap's 95% band
     (:mod:`hnnbench._results.aggregate`)."""
     agg = getattr(verdicts, "aggregate", None)
-    if agg is None or not agg.profiles or \
-            max(len(curves) for _, curves in agg.profiles.values()) < 2:
+    if (
+        agg is None
+        or not agg.profiles
+        or max(len(curves) for _, curves in agg.profiles.values()) < 2
+    ):
         return {}  # a profile compares two families at least
     profiles = list(dict.fromkeys(p for p, _ in agg.profiles))
     main = scope_label(main_scope(agg.iqm, verdicts.main))
@@ -545,11 +624,18 @@ def profile_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
             ax.grid(alpha=0.3)
         handles, labels = axes[0].get_legend_handles_labels()
         fig.legend(handles, labels, loc="outside right upper", fontsize=8)
-        fig.suptitle(f"{profile}: " * (len(profiles) > 1 or profile != main)
-                     + "Performance profiles over every (system, seed) run, 95% "
-                     "stratified bootstrap bands", fontsize=9)
-        out[PROFILE_FIGURE if profile == main else
-            f"{PROFILE_FIGURE}_{slug(profile.replace('/', '_'))}"] = fig
+        fig.suptitle(
+            f"{profile}: "
+            * (len(profiles) > 1 or profile != main)
+            + "Performance profiles over every (system, seed) run, 95% "
+            "stratified bootstrap bands",
+            fontsize=9,
+        )
+        out[
+            PROFILE_FIGURE
+            if profile == main
+            else f"{PROFILE_FIGURE}_{slug(profile.replace('/', '_'))}"
+        ] = fig
     return out
 
 
@@ -572,10 +658,10 @@ def _swept_key(recs: Sequence[dict[str, Any]]) -> Optional[str]:
     return key
 
 
-@figure("sweep", "Metric against a swept setting (e.g. the training-set size)",
-        scope="board")
-def sweep_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
-                  verdicts: Any = None) -> dict[str, Any]:
+@figure("sweep", "Metric against a swept setting (e.g. the training-set size)", scope="board")
+def sweep_figures(
+    board: pd.DataFrame, recs: Sequence[dict[str, Any]], verdicts: Any = None
+) -> dict[str, Any]:
     """Per system, each metric of interest against the value of the one numeric setting
     the sweep varied, one line per model (mean ± std over seeds)."""
     key = _swept_key(recs)
@@ -590,23 +676,28 @@ def sweep_figures(board: pd.DataFrame, recs: Sequence[dict[str, Any]],
     return out
 
 
-def _sweep_figures(board: pd.DataFrame, key: str, declared: dict[str, Any], scope: str
-                   ) -> dict[str, Any]:
+def _sweep_figures(
+    board: pd.DataFrame, key: str, declared: dict[str, Any], scope: str
+) -> dict[str, Any]:
     """:func:`sweep_figures` of one scope's rows (``scope``: its label, ``""`` for the
     main one)."""
     out = {}
     for system in registry.ordered("system", board["system"].astype(str)):
         rows = board[board["system"] == system].copy()
         rows["x"] = rows["variant"].astype(str).str.partition("=")[2].astype(float)
-        metrics = [m for m in _plotted("data_efficiency")
-                   if f"{m}_mean" in rows and rows[f"{m}_mean"].notna().any()]
+        metrics = [
+            m
+            for m in _plotted("data_efficiency")
+            if f"{m}_mean" in rows and rows[f"{m}_mean"].notna().any()
+        ]
         if not metrics or rows["x"].nunique() < 2:
             continue
         fig, axes = _new_figure(len(metrics), width=4.2)
         models = registry.ordered("model", rows["model"].astype(str))
         families = {str(r["model"]): str(r.get("family") or "") for _, r in rows.iterrows()}
-        backends = list(dict.fromkeys(str(rows[rows["model"] == m]["backend"].iloc[0])
-                                      for m in models))
+        backends = list(
+            dict.fromkeys(str(rows[rows["model"] == m]["backend"].iloc[0]) for m in models)
+        )
         for ax, metric in zip(axes, metrics, strict=True):
             for model in models:
                 sel = rows[rows["model"] == model].sort_values("x")
@@ -614,8 +705,16 @@ def _sweep_figures(board: pd.DataFrame, key: str, declared: dict[str, Any], scop
                 y = sel[f"{metric}_mean"].to_numpy(dtype=float)
                 err = sel[f"{metric}_std"].to_numpy(dtype=float)
                 props = style.line(model, backend, families, models, backends)
-                ax.errorbar(sel["x"], y, yerr=np.nan_to_num(err), label=model, marker="o",
-                            ms=3, capsize=2, **props)
+                ax.errorbar(
+                    sel["x"],
+                    y,
+                    yerr=np.nan_to_num(err),
+                    label=model,
+                    marker="o",
+                    ms=3,
+                    capsize=2,
+                    **props,
+                )
             if metric in declared and declared[metric].scale == "log":
                 ax.set_yscale("log")
             ax.set_xscale("log")
@@ -624,8 +723,10 @@ def _sweep_figures(board: pd.DataFrame, key: str, declared: dict[str, Any], scop
             ax.grid(alpha=0.3, which="both")
         handles, labels = axes[0].get_legend_handles_labels()
         fig.legend(handles, labels, loc="outside right upper", fontsize=7)
-        fig.suptitle(f"{system}{f' ({scope})' if scope else ''}: metrics against {key} "
-                     "(mean ± std over seeds)")
+        fig.suptitle(
+            f"{system}{f' ({scope})' if scope else ''}: metrics against {key} "
+            "(mean ± std over seeds)"
+        )
         out[f"{system}_sweep_{slug(key)}"] = fig
     return out
 
@@ -657,12 +758,14 @@ class Made:
 def main_profile_figure(made: Sequence[Made]) -> Optional[Path]:
     """The main scope's performance-profile figure among ``made`` (:data:`PROFILE_FIGURE`),
     or ``None``."""
-    return next((m.path for m in made if m.kind == "profile"
-                 and m.path.stem == PROFILE_FIGURE), None)
+    return next(
+        (m.path for m in made if m.kind == "profile" and m.path.stem == PROFILE_FIGURE), None
+    )
 
 
-def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Path,
-                 verdicts: Any = None) -> list[Made]:
+def make_figures(
+    recs: list[dict[str, Any]], board: pd.DataFrame, directory: Path, verdicts: Any = None
+) -> list[Made]:
     """Every registered figure into ``directory``: the board figures (given
     ``verdicts``, a :class:`hnnbench._results.report.verdicts.Verdicts`, for the family heatmaps
     and the performance profiles), then each system's (drawn by
@@ -681,8 +784,13 @@ def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Pat
                 continue
             for stem, fig in figures.items():
                 try:
-                    made.append(Made("all systems", kind.name,
-                                     _save(fig, safe_join(directory, f"{stem}.png"))))
+                    made.append(
+                        Made(
+                            "all systems",
+                            kind.name,
+                            _save(fig, safe_join(directory, f"{stem}.png")),
+                        )
+                    )
                 except UnsafePathError as err:
                     log.warning("figure %s not written: %s", kind.name, err)
         return made
@@ -692,40 +800,54 @@ def make_figures(recs: list[dict[str, Any]], board: pd.DataFrame, directory: Pat
     # its track's main row (its selected settings are no variant), drawn apart from the
     # protocol's runs of the same models.
     groups: dict[tuple[str, str, str, str], list[dict[str, Any]]] = {}
-    for rec, variant in zip(recs, variant_labels([variant_overrides(r) for r in recs]),
-                            strict=True):
+    for rec, variant in zip(
+        recs, variant_labels([variant_overrides(r) for r in recs]), strict=True
+    ):
         # A figure's file is named after the system, profile and track: a record whose
         # names are not names draws none (hnnbench._contracts.paths.safe_join refuses it
         # regardless).
-        problem = name_problem("system", rec.get("system")) or \
-            name_problem("profile", rec.get("profile"))
+        problem = name_problem("system", rec.get("system")) or name_problem(
+            "profile", rec.get("profile")
+        )
         if problem:
             log.warning("no figures from %s: %s", rec.get("path", "a record"), problem)
             continue
         track = track_of(rec)
-        groups.setdefault((str(rec.get("profile")), str(rec.get("system")), track, variant),
-                          []).append(rec)
+        groups.setdefault(
+            (str(rec.get("profile")), str(rec.get("system")), track, variant), []
+        ).append(rec)
     systems = registry.ordered("system", [k[1] for k in groups])
     tasks = []
-    for profile, system, track, variant in sorted(groups, key=lambda k: (
-            k[0], systems.index(k[1]), _track_rank(k[2]), k[2], k[3])):
+    for profile, system, track, variant in sorted(
+        groups, key=lambda k: (k[0], systems.index(k[1]), _track_rank(k[2]), k[2], k[3])
+    ):
         label = system if len(profiles) == 1 else f"{system} ({profile})"
         stem = system if len(profiles) == 1 else f"{profile}_{system}"
         name = system
         if track != DEFAULT_TRACK:
-            label, stem, name = f"{label}, {track} track", f"{stem}_{slug(track)}", \
-                f"{name} ({track})"
+            label, stem, name = (
+                f"{label}, {track} track",
+                f"{stem}_{slug(track)}",
+                f"{name} ({track})",
+            )
         if variant:
-            label, stem, name = f"{label} [{variant}]", f"{stem}__{slug(variant)}", \
-                f"{name} [{variant}]"
-        tasks.append(_SystemTask(label, stem, name, system, directory,
-                                 groups[(profile, system, track, variant)]))
+            label, stem, name = (
+                f"{label} [{variant}]",
+                f"{stem}__{slug(variant)}",
+                f"{name} [{variant}]",
+            )
+        tasks.append(
+            _SystemTask(
+                label, stem, name, system, directory, groups[(profile, system, track, variant)]
+            )
+        )
     taken: set[str] = set()
     for task in tasks:  # two groups whose names join alike must not share a file
         if task.stem in taken:
             task.stem += "-" + hashlib.sha1(task.label.encode()).hexdigest()[:8]
-            log.warning("figures of %s renamed %s: another group's names join alike",
-                        task.label, task.stem)
+            log.warning(
+                "figures of %s renamed %s: another group's names join alike", task.label, task.stem
+            )
         taken.add(task.stem)
     made, per_system = _map(_system_figures, tasks, board_figures)
     for drawn in per_system:
@@ -757,9 +879,14 @@ def _system_figures(task: _SystemTask) -> list[Made]:
     if seed is None:
         return []
     drawn = {r.model for r in runs}
-    missing = registry.ordered("model", {
-        str(r.get("model")) for r in task.records
-        if r.get("status") in ("ok", "diverged") and str(r.get("model")) not in drawn})
+    missing = registry.ordered(
+        "model",
+        {
+            str(r.get("model"))
+            for r in task.records
+            if r.get("status") in ("ok", "diverged") and str(r.get("model")) not in drawn
+        },
+    )
     ctx = SystemRuns(task.name, seed, runs, missing)
     made = []
     for kind in FIGURES.values():
@@ -801,13 +928,17 @@ def _jax_started() -> bool:
         return False
     try:
         from jax._src import xla_bridge
+
         return bool(xla_bridge.backends_are_initialized())
     except (ImportError, AttributeError):  # another JAX layout: do not risk the fork
         return True
 
 
-def _map(fn: Callable[[_SystemTask], list[Made]], tasks: list[_SystemTask],
-         meanwhile: Callable[[], list[Made]]) -> tuple[list[Made], list[list[Made]]]:
+def _map(
+    fn: Callable[[_SystemTask], list[Made]],
+    tasks: list[_SystemTask],
+    meanwhile: Callable[[], list[Made]],
+) -> tuple[list[Made], list[list[Made]]]:
     """``(meanwhile(), [fn(t) for t in tasks])``; the tasks in forked processes when
     there are several tasks and cores (the end of a sweep drew its ~46 quick-sweep
     figures one after the other: 41 s of one core of 2), while this process runs
@@ -818,8 +949,9 @@ def _map(fn: Callable[[_SystemTask], list[Made]], tasks: list[_SystemTask],
     out: list[Optional[list[Made]]] = [None] * len(tasks)
     first: Optional[list[Made]] = None
     try:
-        pool = ProcessPoolExecutor(max_workers=workers,
-                                   mp_context=multiprocessing.get_context("fork"))
+        pool = ProcessPoolExecutor(
+            max_workers=workers, mp_context=multiprocessing.get_context("fork")
+        )
         futures = [pool.submit(fn, t) for t in tasks]
     except (OSError, BrokenProcessPool) as err:  # no process could start: draw here
         log.warning("figures drawn in one process: %s", err)
@@ -836,4 +968,3 @@ def _map(fn: Callable[[_SystemTask], list[Made]], tasks: list[_SystemTask],
                     break
     first = meanwhile() if first is None else first
     return first, [fn(t) if got is None else got for t, got in zip(tasks, out, strict=True)]
-

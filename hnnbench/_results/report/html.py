@@ -94,10 +94,29 @@ document.querySelectorAll("table.sortable th").forEach(function (th, col) {
 });
 """
 
-_TEXT_COLUMNS = {"system", "model", "variant", "status", "task", "metric", "source", "claim",
-                 "backend", "result", "our numbers", "path", "reason", "family",
-                 "seeds_from", "twins", "twin", "seeds from", "shared seeds", "agree",
-                 "difference"}
+_TEXT_COLUMNS = {
+    "system",
+    "model",
+    "variant",
+    "status",
+    "task",
+    "metric",
+    "source",
+    "claim",
+    "backend",
+    "result",
+    "our numbers",
+    "path",
+    "reason",
+    "family",
+    "seeds_from",
+    "twins",
+    "twin",
+    "seeds from",
+    "shared seeds",
+    "agree",
+    "difference",
+}
 
 
 def _sort_value(value: Any) -> str:
@@ -108,16 +127,22 @@ def _sort_value(value: Any) -> str:
     return repr(float(value))
 
 
-def _table(frame: pd.DataFrame, cls: str = "", status_col: Optional[str] = None,
-           numbers: Optional[pd.DataFrame] = None,
-           marks: Optional[dict[tuple[int, str], str]] = None) -> str:
+def _table(
+    frame: pd.DataFrame,
+    cls: str = "",
+    status_col: Optional[str] = None,
+    numbers: Optional[pd.DataFrame] = None,
+    marks: Optional[dict[tuple[int, str], str]] = None,
+) -> str:
     """An HTML table of ``frame`` (display strings); ``numbers`` holds the numeric sort
     keys of its metric columns (same rows), ``marks`` the cells to highlight
     (``"best"`` or ``"tied"``)."""
     txt = ' class="txt"'
     declared = metric_declarations()
-    head = "".join(f"<th{txt if c in _TEXT_COLUMNS else ''}>"
-                   f"{html.escape(direction_header(c, declared))}</th>" for c in frame.columns)
+    head = "".join(
+        f"<th{txt if c in _TEXT_COLUMNS else ''}>{html.escape(direction_header(c, declared))}</th>"
+        for c in frame.columns
+    )
     body = []
     for i, (_, row) in enumerate(frame.iterrows()):
         cells = []
@@ -125,8 +150,11 @@ def _table(frame: pd.DataFrame, cls: str = "", status_col: Optional[str] = None,
             value = str(row[col])
             classes = ["txt"] if col in _TEXT_COLUMNS else []
             if col == status_col:
-                outcome = {"reproduced": "reproduced", "not reproduced": "notrep",
-                           "not run": "notrun"}.get(value)
+                outcome = {
+                    "reproduced": "reproduced",
+                    "not reproduced": "notrep",
+                    "not run": "notrun",
+                }.get(value)
                 if outcome:
                     classes.append(outcome)
                 elif "diverged" in value or "failed" in value:
@@ -145,15 +173,18 @@ def _table(frame: pd.DataFrame, cls: str = "", status_col: Optional[str] = None,
                 attrs += f' data-v="{html.escape(value)}"'
             cells.append(f"<td{attrs}>{html.escape(value)}</td>")
         body.append("<tr>" + "".join(cells) + "</tr>")
-    return (f'<div class="wrap"><table class="{cls}"><thead><tr>{head}</tr></thead>'
-            f"<tbody>{''.join(body)}</tbody></table></div>")
+    return (
+        f'<div class="wrap"><table class="{cls}"><thead><tr>{head}</tr></thead>'
+        f"<tbody>{''.join(body)}</tbody></table></div>"
+    )
 
 
 def _inline_code(markdown: str) -> str:
     """Escape ``markdown`` for HTML, turning its `code` spans into <code> elements."""
     parts = markdown.split("`")
-    return "".join(f"<code>{html.escape(p)}</code>" if i % 2 else html.escape(p)
-                   for i, p in enumerate(parts))
+    return "".join(
+        f"<code>{html.escape(p)}</code>" if i % 2 else html.escape(p) for i, p in enumerate(parts)
+    )
 
 
 def _png_size(path: Path) -> tuple[int, int] | None:
@@ -179,25 +210,38 @@ def _img(path: Path, alt: str, base: Path | None = None, embed: bool = False) ->
         data = base64.b64encode(path.read_bytes()).decode("ascii")
         return f'<img alt="{html.escape(alt)}"{dims} src="data:image/png;base64,{data}">'
     where = Path(os.path.relpath(path, base)) if base is not None else Path(path)
-    return (f'<img loading="lazy" alt="{html.escape(alt)}"{dims} '
-            f'src="{html.escape(where.as_posix())}">')
+    return (
+        f'<img loading="lazy" alt="{html.escape(alt)}"{dims} src="{html.escape(where.as_posix())}">'
+    )
 
 
 def _provenance_table(recs: Sequence[dict[str, Any]]) -> pd.DataFrame:
     rows: dict[tuple[str, str, str], dict[str, Any]] = {}
     for rec in recs:
         env = rec.get("environment") or {}
-        key = (str(rec.get("source") or ""), str(env.get("git_commit") or "?"),
-               str(env.get("host") or env.get("platform") or "?"))
-        row = rows.setdefault(key, {"source": key[0], "commit": key[1][:12], "machine": key[2],
-                                    "records": 0, "dates": set()})
+        key = (
+            str(rec.get("source") or ""),
+            str(env.get("git_commit") or "?"),
+            str(env.get("host") or env.get("platform") or "?"),
+        )
+        row = rows.setdefault(
+            key,
+            {
+                "source": key[0],
+                "commit": key[1][:12],
+                "machine": key[2],
+                "records": 0,
+                "dates": set(),
+            },
+        )
         row["records"] += 1
         row["dates"].add(str(rec.get("created_at") or "")[:10])
     out = []
     for row in rows.values():
         dates = sorted(d for d in row.pop("dates") if d)
-        row["dates"] = f"{dates[0]} – {dates[-1]}" if len(dates) > 1 else (dates[0] if dates
-                                                                          else "?")
+        row["dates"] = (
+            f"{dates[0]} – {dates[-1]}" if len(dates) > 1 else (dates[0] if dates else "?")
+        )
         out.append(row)
     return pd.DataFrame(out)
 
@@ -214,15 +258,16 @@ def _aggregate_section(verdicts: Verdicts, figures: list[Made], img: Any) -> lis
             parts.append(f'<p class="note">{_inline_code(scope)}</p>')
         why = agg.note if agg.empty else "no (system, metric) of this scope is normalised"
         parts.append(f'<p class="note">No aggregate: {html.escape(why)}.</p>')
-        parts += [f'<p class="note">{_inline_code(line)}</p>'
-                  for line in left_out_lines(agg, key)]
+        parts += [f'<p class="note">{_inline_code(line)}</p>' for line in left_out_lines(agg, key)]
         return parts
     rule = stats.aggregate_rule(agg.baseline or "the baseline")
     parts.append(_table(table, "aggregate"))
     if scope:
         parts.append(f'<p class="note">{_inline_code(scope)}</p>')
-    parts += [f'<p class="note">{_inline_code(rule)}</p>',
-              '<p class="note">What the intervals support:</p><ul>']
+    parts += [
+        f'<p class="note">{_inline_code(rule)}</p>',
+        '<p class="note">What the intervals support:</p><ul>',
+    ]
     parts += [f"<li>{_inline_code(line[2:])}</li>" for line in supported_lines(agg, key=key)]
     parts.append(f"<li>{_inline_code(marks_line(verdicts.families, key=key))}</li></ul>")
     parts += [f'<p class="note">{_inline_code(line)}</p>' for line in left_out_lines(agg, key)]
@@ -240,17 +285,27 @@ def _toc(entries: Sequence[tuple[str, str]], systems: Sequence[str]) -> str:
     labels in a row of their own."""
     items = [f'<li><a href="#{html.escape(i)}">{html.escape(t)}</a></li>' for i, t in entries]
     if systems:
-        links = "".join(f'<li><a href="#{html.escape(_anchor(label))}">{html.escape(label)}'
-                        "</a></li>" for label in systems)
-        items.append(f'<li class="systems">Figures by system: <ul class="systems">{links}'
-                     "</ul></li>")
+        links = "".join(
+            f'<li><a href="#{html.escape(_anchor(label))}">{html.escape(label)}</a></li>'
+            for label in systems
+        )
+        items.append(
+            f'<li class="systems">Figures by system: <ul class="systems">{links}</ul></li>'
+        )
     return f'<nav class="toc"><b>Contents</b><ul>{"".join(items)}</ul></nav>'
 
 
-def page(board: pd.DataFrame, figures: list[Made], prov: dict[str, list[str]],
-         recs: Sequence[dict[str, Any]], unreadable: Sequence[records.Unreadable] = (),
-         verdicts: Optional[Verdicts] = None, *, base: Optional[Path] = None,
-         embed: bool = False) -> str:
+def page(
+    board: pd.DataFrame,
+    figures: list[Made],
+    prov: dict[str, list[str]],
+    recs: Sequence[dict[str, Any]],
+    unreadable: Sequence[records.Unreadable] = (),
+    verdicts: Optional[Verdicts] = None,
+    *,
+    base: Optional[Path] = None,
+    embed: bool = False,
+) -> str:
     """The whole page: the figures linked relative to ``base`` (the page's directory)
     and loaded lazily, or inline with ``embed`` (one self-contained file)."""
     if verdicts is None:
@@ -270,18 +325,23 @@ def page(board: pd.DataFrame, figures: list[Made], prov: dict[str, list[str]],
     for made in figures:
         if made.kind not in ("heatmap", "profile"):
             sections.setdefault(made.label, []).append(made)
-    entries = [("across", "Across systems"), ("families", "Families"),
-               *([("heatmaps", "Which family wins where")] if heatmaps else []),
-               ("twins", "Twin agreement"), ("models", "Every model"),
-               *([("published", "Comparison with published results")]
-                 if not comparison.empty else []),
-               ("claims", "Qualitative claims from the literature"),
-               ("provenance", "Provenance")]
+    entries = [
+        ("across", "Across systems"),
+        ("families", "Families"),
+        *([("heatmaps", "Which family wins where")] if heatmaps else []),
+        ("twins", "Twin agreement"),
+        ("models", "Every model"),
+        *([("published", "Comparison with published results")] if not comparison.empty else []),
+        ("claims", "Qualitative claims from the literature"),
+        ("provenance", "Provenance"),
+    ]
     provenance = [f"<li>{_inline_code(line[2:])}</li>" for line in provenance_lines(prov)]
     parts = [
-        "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
         '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        "<title>hnnbench leaderboard</title>", f"<style>{CSS}</style></head><body>",
+        "<title>hnnbench leaderboard</title>",
+        f"<style>{CSS}</style></head><body>",
         "<h1>hnnbench leaderboard</h1>",
         _toc(entries, list(sections)),
         "<details><summary>What the rows are, and where the records come from "
@@ -299,25 +359,36 @@ def page(board: pd.DataFrame, figures: list[Made], prov: dict[str, list[str]],
         f"{_inline_code(stats.best_rule().replace('**', '').replace('*', ''))} "
         "Highlighted: best (bold) and tied (italics); a standing-still cell that no "
         "family's leader improves on is shaded.</p>",
-        _table(shown, "board sortable", status_col="status",
-               numbers=fams.board.reset_index(drop=True), marks=marks),
+        _table(
+            shown,
+            "board sortable",
+            status_col="status",
+            numbers=fams.board.reset_index(drop=True),
+            marks=marks,
+        ),
     ]
     if notes:
-        parts.append('<p class="note">Why runs did not finish <code>ok</code> ([n] after a '
-                     'status):</p><ol class="notes">'
-                     + "".join(f'<li value="{n}">{html.escape(reason)}</li>'
-                               for n, reason in notes) + "</ol>")
+        parts.append(
+            '<p class="note">Why runs did not finish <code>ok</code> ([n] after a '
+            'status):</p><ol class="notes">'
+            + "".join(f'<li value="{n}">{html.escape(reason)}</li>' for n, reason in notes)
+            + "</ol>"
+        )
     note = reversal_note(board)
     if note:
         parts.append(f'<p class="note">{_inline_code(note)}</p>')
     if heatmaps:
         parts.append('<h2 id="heatmaps">Which family wins where</h2>')
-        parts.append('<p class="note">Rank of each ranked family within each system '
-                     "(1 = best, mean below it; best and tied as in the table); rows "
-                     "without a variant only.</p>")
+        parts.append(
+            '<p class="note">Rank of each ranked family within each system '
+            "(1 = best, mean below it; best and tied as in the table); rows "
+            "without a variant only.</p>"
+        )
         parts += [img(m) for m in heatmaps]
-    parts += ['<h2 id="twins">Twin agreement</h2>',
-              f'<p class="note">{_inline_code(twins_line(fams))}</p>']
+    parts += [
+        '<h2 id="twins">Twin agreement</h2>',
+        f'<p class="note">{_inline_code(twins_line(fams))}</p>',
+    ]
     twins = twins_display(fams)
     if not twins.empty:
         parts.append(_table(twins, "twins sortable"))
@@ -325,28 +396,44 @@ def page(board: pd.DataFrame, figures: list[Made], prov: dict[str, list[str]],
         '<h2 id="models">Every model</h2>',
         '<p class="note">Both twins of every family, unmarked: the verdicts are the '
         "families'.</p>",
-        _table(display_frame(board), "models sortable", status_col="status",
-               numbers=board.reset_index(drop=True)),
+        _table(
+            display_frame(board),
+            "models sortable",
+            status_col="status",
+            numbers=board.reset_index(drop=True),
+        ),
     ]
     if not comparison.empty:
-        parts += ['<h2 id="published">Comparison with published results</h2>',
-                  '<p class="note">Natural units; details in paper_comparison.md.</p>',
-                  _table(comparison, "paper")]
-    parts += ['<h2 id="claims">Qualitative claims from the literature</h2>',
-              _table(claims_frame(board), "claims sortable", status_col="result")]
+        parts += [
+            '<h2 id="published">Comparison with published results</h2>',
+            '<p class="note">Natural units; details in paper_comparison.md.</p>',
+            _table(comparison, "paper"),
+        ]
+    parts += [
+        '<h2 id="claims">Qualitative claims from the literature</h2>',
+        _table(claims_frame(board), "claims sortable", status_col="result"),
+    ]
     for label, made_list in sections.items():
         parts.append(f'<h2 id="{html.escape(_anchor(label))}">{html.escape(label)}</h2>')
         for made in made_list:
             parts.append(f"<h3>{html.escape(titles.get(made.kind, made.kind))}</h3>")
             parts.append(img(made, f"{label} {made.kind}"))
-    parts += ['<h2 id="provenance">Provenance</h2>',
-              "<details><summary>Where the records come from: one row per (directory, "
-              "commit, machine)</summary>", _table(_provenance_table(recs), "prov sortable"),
-              "</details>"]
+    parts += [
+        '<h2 id="provenance">Provenance</h2>',
+        "<details><summary>Where the records come from: one row per (directory, "
+        "commit, machine)</summary>",
+        _table(_provenance_table(recs), "prov sortable"),
+        "</details>",
+    ]
     if unreadable:
-        parts += ["<h2>Unreadable records (left out)</h2>",
-                  _table(pd.DataFrame([{"path": str(u.path), "reason": u.reason}
-                                       for u in unreadable]), "bad")]
-    parts.append('<p class="note">Generated by <code>hnnbench report</code> from the run '
-                 f"records.</p><script>{SORT_JS}</script></body></html>")
+        parts += [
+            "<h2>Unreadable records (left out)</h2>",
+            _table(
+                pd.DataFrame([{"path": str(u.path), "reason": u.reason} for u in unreadable]), "bad"
+            ),
+        ]
+    parts.append(
+        '<p class="note">Generated by <code>hnnbench report</code> from the run '
+        f"records.</p><script>{SORT_JS}</script></body></html>"
+    )
     return "\n".join(parts) + "\n"

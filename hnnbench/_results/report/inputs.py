@@ -21,17 +21,18 @@ class ReportError(HnnbenchError):
     """Directories that cannot be reported on."""
 
 
-def load_sweeps(directories: Sequence[Path | str], *, strict: bool = False,
-                refuse: bool | None = None
-                ) -> tuple[list[dict[str, Any]], list[records.Unreadable]]:
+def load_sweeps(
+    directories: Sequence[Path | str], *, strict: bool = False, refuse: bool | None = None
+) -> tuple[list[dict[str, Any]], list[records.Unreadable]]:
     """The records under every directory (several sweeps merge into one leaderboard),
     and the ``result.json`` files left out, unreadable or invalid (the caller names
     them): :func:`hnnbench._record.loader.load`, ``strict`` or not. ``refuse`` (default:
     ``strict``) makes any file left out a :class:`ReportError`, as does a directory
     that does not exist or holds no record."""
     if not directories:
-        raise ReportError("No sweep directory given: expected one or more directories "
-                          "holding result.json records")
+        raise ReportError(
+            "No sweep directory given: expected one or more directories holding result.json records"
+        )
     for directory in map(Path, directories):
         if not directory.exists():
             raise ReportError(f"Sweep directory {directory} does not exist")
@@ -43,9 +44,11 @@ def load_sweeps(directories: Sequence[Path | str], *, strict: bool = False,
     if not recs:
         where = ", ".join(str(d) for d in directories)
         if bad:
-            raise ReportError(f"No valid run records under {where}: {len(bad)} "
-                              f"{records.RECORD_NAME} left out, e.g. {bad[0]}; re-run those jobs "
-                              "(a sweep redoes them) or remove the files")
+            raise ReportError(
+                f"No valid run records under {where}: {len(bad)} "
+                f"{records.RECORD_NAME} left out, e.g. {bad[0]}; re-run those jobs "
+                "(a sweep redoes them) or remove the files"
+            )
         raise ReportError(
             f"No run records ({records.RECORD_NAME}) under {where}; run a sweep first, e.g. "
             "hnnbench -m system=spring model=all profile=quick"
@@ -65,6 +68,7 @@ def load_sweep(*directories: Path | str) -> list[dict[str, Any]]:
 def provenance(recs: Sequence[dict[str, Any]]) -> dict[str, list[str]]:
     """Where the records came from: distinct commands, git commits, machines, devices,
     hnnbench versions, dates and source directories, each sorted."""
+
     def distinct(values: Any) -> list[str]:
         return sorted({str(v) for v in values if v not in (None, "")})
 
@@ -83,6 +87,7 @@ def provenance(recs: Sequence[dict[str, Any]]) -> dict[str, list[str]]:
 def provenance_lines(prov: dict[str, list[str]], limit: int = 6) -> list[str]:
     """Markdown bullet lines for :func:`provenance` (long lists cut at ``limit``; every
     value escaped: :mod:`hnnbench._results.report.markdown`)."""
+
     def join(key: str, code: bool = True) -> str:
         vals = prov.get(key) or ["unknown"]
         shown = [md_code(v) if code else md_text(v) for v in vals[:limit]]

@@ -81,8 +81,10 @@ def board_untrained(board: pd.DataFrame, profile: Optional[str] = None) -> claim
             return None
         bad, seeds = int(row.get("n_untrained") or 0), int(row.get("n_seeds") or 0)
         if seeds and 2 * bad > seeds:
-            return (f"{model} did not train on {bad} of {seeds} seeds (its best validation "
-                    "loss was its first evaluation): not tested")
+            return (
+                f"{model} did not train on {bad} of {seeds} seeds (its best validation "
+                "loss was its first evaluation): not tested"
+            )
         return None
 
     return untrained
@@ -91,8 +93,12 @@ def board_untrained(board: pd.DataFrame, profile: Optional[str] = None) -> claim
 def claim_results(board: pd.DataFrame, profile: Optional[str] = None) -> list[claims.ClaimResult]:
     """Every registered claim evaluated on a leaderboard, per backend."""
     profile = profile if profile is not None else main_profile(board)
-    return claims.evaluate_claims(board_lookup(board, profile), registry.all_claims(),
-                             registry.family_models(), board_untrained(board, profile))
+    return claims.evaluate_claims(
+        board_lookup(board, profile),
+        registry.all_claims(),
+        registry.family_models(),
+        board_untrained(board, profile),
+    )
 
 
 def paper_claim_ratios() -> dict[str, claims.ClaimResult]:
@@ -109,12 +115,24 @@ def paper_table(name: str) -> pd.DataFrame:
     with its role (``model``: the paper's name for it) and family."""
     for claim_set in registry.claim_sets():
         if claim_set.name == name:
-            return pd.DataFrame([{
-                "system": p.system, "task": p.task, "model": p.role, "family": p.family,
-                "metric": p.metric, "value": p.value, "pm": p.pm,
-                "printed_value": p.printed_value, "printed_pm": p.printed_pm,
-                "printed_scale": p.printed_scale, "source": p.source,
-            } for p in claim_set.published])
+            return pd.DataFrame(
+                [
+                    {
+                        "system": p.system,
+                        "task": p.task,
+                        "model": p.role,
+                        "family": p.family,
+                        "metric": p.metric,
+                        "value": p.value,
+                        "pm": p.pm,
+                        "printed_value": p.printed_value,
+                        "printed_pm": p.printed_pm,
+                        "printed_scale": p.printed_scale,
+                        "source": p.source,
+                    }
+                    for p in claim_set.published
+                ]
+            )
     raise KeyError(f"no claim set '{name}' is registered")
 
 
@@ -129,8 +147,9 @@ def _published_cell(p: claims.Published) -> str:
     return value if math.isnan(p.pm) else f"{value} ± {p.pm:.1e}"
 
 
-def ours_cell(board: pd.DataFrame, profile: Optional[str], system: str, model: Optional[str],
-          metric: str) -> str:
+def ours_cell(
+    board: pd.DataFrame, profile: Optional[str], system: str, model: Optional[str], metric: str
+) -> str:
     if model is None:
         return "—"
     sel = plain_rows(board)
@@ -143,8 +162,9 @@ def ours_cell(board: pd.DataFrame, profile: Optional[str], system: str, model: O
     return format_value(row[f"{metric}_mean"], row[f"{metric}_std"])
 
 
-def comparison_frame(board: pd.DataFrame, claim_set: Optional[claims.ClaimSet] = None
-                     ) -> pd.DataFrame:
+def comparison_frame(
+    board: pd.DataFrame, claim_set: Optional[claims.ClaimSet] = None
+) -> pd.DataFrame:
     """Every published cell of ``claim_set`` (default: the first set that has some)
     next to ours, per backend that has a model of the cell's family."""
     if claim_set is None:
@@ -153,16 +173,18 @@ def comparison_frame(board: pd.DataFrame, claim_set: Optional[claims.ClaimSet] =
         return pd.DataFrame()
     profile = main_profile(board)
     pairs = registry.family_models()
-    backends = [b for b, models in pairs.items()
-                if board["model"].isin(list(models.values())).any()]
+    backends = [
+        b for b, models in pairs.items() if board["model"].isin(list(models.values())).any()
+    ]
     roles = list(dict.fromkeys(p.role for p in claim_set.published))
     family_of = {p.role: p.family for p in claim_set.published}
     systems = registry.ordered("system", [p.system for p in claim_set.published])
     rows = []
     for system in systems:
         for metric in dict.fromkeys(p.metric for p in claim_set.published if p.system == system):
-            cells = {p.role: p for p in claim_set.published
-                     if p.system == system and p.metric == metric}
+            cells = {
+                p.role: p for p in claim_set.published if p.system == system and p.metric == metric
+            }
             first = next(iter(cells.values()))
             row: dict[str, Any] = {"task": f"{first.task} ({system})", "metric": metric}
             for role in roles:
@@ -173,8 +195,9 @@ def comparison_frame(board: pd.DataFrame, claim_set: Optional[claims.ClaimSet] =
             for backend in backends:
                 for role in roles:
                     model = pairs[backend].get(family_of[role])
-                    row[f"ours {role} ({backend})"] = ours_cell(board, profile, system, model,
-                                                                metric)
+                    row[f"ours {role} ({backend})"] = ours_cell(
+                        board, profile, system, model, metric
+                    )
             row["source"] = first.source.split(" (")[0]
             row["ours differs"] = claim_set.definition(system, metric) or "—"
             rows.append(row)
@@ -187,14 +210,16 @@ def claims_frame(board: pd.DataFrame) -> pd.DataFrame:
     rows = []
     for res in results:
         p = published.get(res.claim.id)
-        rows.append({
-            "claim": res.claim.text,
-            "backend": res.backend,
-            "result": res.outcome,
-            "our numbers": res.numbers(),
-            "published": f"{claims.fmt_ratio(p.ratio)}" if p else "—",
-            "source": res.claim.source.split(" (")[0],
-        })
+        rows.append(
+            {
+                "claim": res.claim.text,
+                "backend": res.backend,
+                "result": res.outcome,
+                "our numbers": res.numbers(),
+                "published": f"{claims.fmt_ratio(p.ratio)}" if p else "—",
+                "source": res.claim.source.split(" (")[0],
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -204,18 +229,30 @@ def comparison_markdown(board: pd.DataFrame) -> str:
     rows = rows[rows["profile"].astype(str) == str(profile)] if profile is not None else rows
     lines = ["# Comparison with published results", ""]
     if rows.empty:
-        lines += ["No protocol-track rows: the comparison with published results reads the "
-                  "protocol track only (the tuned and recipe tracks are other budgets).", ""]
+        lines += [
+            "No protocol-track rows: the comparison with published results reads the "
+            "protocol track only (the tuned and recipe tracks are other budgets).",
+            "",
+        ]
     else:
         lines += [seed_line(rows), ""]
     if profile is not None and profile != "paper":
-        lines += [f"Note: profile {md_code(profile)} is not the paper settings (profile `paper`); "
-                  "this comparison is indicative only.", ""]
+        lines += [
+            f"Note: profile {md_code(profile)} is not the paper settings (profile `paper`); "
+            "this comparison is indicative only.",
+            "",
+        ]
     for claim_set in registry.claim_sets():
         if not claim_set.published:
             continue
-        lines += [f"## {md_text(claim_set.title)}", "", md_text(claim_set.note), "",
-                  md_table(comparison_frame(board, claim_set)), ""]
+        lines += [
+            f"## {md_text(claim_set.title)}",
+            "",
+            md_text(claim_set.note),
+            "",
+            md_table(comparison_frame(board, claim_set)),
+            "",
+        ]
     claims = claims_frame(board)
     counts = claims["result"].value_counts().to_dict() if not claims.empty else {}
     lines += [

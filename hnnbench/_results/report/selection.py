@@ -28,8 +28,20 @@ from hnnbench._results.report.tables import md_table
 __all__ = ["selection_frame", "selection_markdown"]
 
 #: The columns of :func:`selection_frame`.
-COLUMNS = ("profile", "track", "system", "family", "criterion", "runs", "points",
-           "rel_se", "gap_z", "earlier", "late_z", "converged")
+COLUMNS = (
+    "profile",
+    "track",
+    "system",
+    "family",
+    "criterion",
+    "runs",
+    "points",
+    "rel_se",
+    "gap_z",
+    "earlier",
+    "late_z",
+    "converged",
+)
 
 
 def _num(value: Any) -> float:
@@ -65,20 +77,26 @@ def selection_frame(records: Sequence[dict[str, Any]]) -> pd.DataFrame:
         sel = rec.get("selection")
         if not isinstance(sel, dict) or not sel.get("criterion") or rec.get("status") != "ok":
             continue
-        key: tuple[str, ...] = (str(rec.get("profile", "")), str(rec.get("track") or DEFAULT_TRACK),
-               str(rec.get("system", "")), str(rec.get("family") or rec.get("model", "")))
+        key: tuple[str, ...] = (
+            str(rec.get("profile", "")),
+            str(rec.get("track") or DEFAULT_TRACK),
+            str(rec.get("system", "")),
+            str(rec.get("family") or rec.get("model", "")),
+        )
         names[key] = str(sel["criterion"])
         final, best = _num(sel.get("final_value")), _num(sel.get("best_value"))
         late = _num(sel.get("late_value"))
         final_se, late_se = _num(sel.get("final_se")), _num(sel.get("late_se"))
-        rows.setdefault(key, []).append({
-            "points": _num(sel.get("points")),
-            "rel_se": _ratio(late_se, abs(final)),
-            "gap_z": _ratio(final - best, final_se) if final != best else 0.0,
-            "earlier": float(sel.get("step") != sel.get("final_step")),
-            "late_z": _ratio(late - final, late_se),
-            "converged": float(sel.get("converged") is True),
-        })
+        rows.setdefault(key, []).append(
+            {
+                "points": _num(sel.get("points")),
+                "rel_se": _ratio(late_se, abs(final)),
+                "gap_z": _ratio(final - best, final_se) if final != best else 0.0,
+                "earlier": float(sel.get("step") != sel.get("final_step")),
+                "late_z": _ratio(late - final, late_se),
+                "converged": float(sel.get("converged") is True),
+            }
+        )
     out = []
     for key, runs in rows.items():
         frame = pd.DataFrame(runs)
@@ -88,18 +106,32 @@ def selection_frame(records: Sequence[dict[str, Any]]) -> pd.DataFrame:
             values = values[np.isfinite(values)]
             return float(np.median(values)) if values.size else math.nan
 
-        out.append({"profile": key[0], "track": key[1], "system": key[2], "family": key[3],
-                    "criterion": names[key], "runs": len(runs),
-                    "points": median("points"), "rel_se": median("rel_se"),
-                    "gap_z": median("gap_z"), "earlier": int(frame["earlier"].sum()),
-                    "late_z": median("late_z"), "converged": int(frame["converged"].sum())})
+        out.append(
+            {
+                "profile": key[0],
+                "track": key[1],
+                "system": key[2],
+                "family": key[3],
+                "criterion": names[key],
+                "runs": len(runs),
+                "points": median("points"),
+                "rel_se": median("rel_se"),
+                "gap_z": median("gap_z"),
+                "earlier": int(frame["earlier"].sum()),
+                "late_z": median("late_z"),
+                "converged": int(frame["converged"].sum()),
+            }
+        )
     if not out:
         return pd.DataFrame(columns=list(COLUMNS))
     frame = pd.DataFrame(out)
     systems = registry.ordered("system", frame["system"].astype(str))
     frame["_s"] = [systems.index(s) for s in frame["system"]]
-    return frame.sort_values(["profile", "track", "_s", "family"], kind="stable") \
-        .drop(columns="_s").reset_index(drop=True)[list(COLUMNS)]
+    return (
+        frame.sort_values(["profile", "track", "_s", "family"], kind="stable")
+        .drop(columns="_s")
+        .reset_index(drop=True)[list(COLUMNS)]
+    )
 
 
 def selection_markdown(frame: pd.DataFrame) -> str:
@@ -107,23 +139,27 @@ def selection_markdown(frame: pd.DataFrame) -> str:
     lines = [
         "Each run is scored at its final checkpoint unless the lowest one beats it on the "
         "validation criterion by more than 2 paired standard errors (docs/METRICS.md, "
-        "\"Checkpoint selection\"). Per system and family, medians over seeds: `rel_se`, "
+        '"Checkpoint selection"). Per system and family, medians over seeds: `rel_se`, '
         "the paired standard error of a checkpoint difference relative to the criterion; "
         "`gap_z`, how many standard errors the lowest checkpoint beats the final one by; "
         "`earlier`, the seeds scored at an earlier checkpoint; `late_z`, how many "
         "standard errors the criterion still fell over the last 20% of steps; "
-        "`converged`, the seeds where it stopped falling (`late_z` <= 2).", ""]
+        "`converged`, the seeds where it stopped falling (`late_z` <= 2).",
+        "",
+    ]
     if frame.empty:
-        return "\n".join([*lines, "No record names its selection criterion (records of "
-                          "schema 3 do)."]) + "\n"
+        return (
+            "\n".join([*lines, "No record names its selection criterion (records of schema 3 do)."])
+            + "\n"
+        )
     shown = frame.copy()
     for col in ("rel_se", "gap_z", "late_z"):
         shown[col] = [("—" if not math.isfinite(v) else f"{v:.3g}") for v in shown[col]]
     shown["points"] = [("—" if not math.isfinite(v) else f"{v:g}") for v in shown["points"]]
-    shown["earlier"] = [f"{e}/{n}" for e, n in zip(shown["earlier"], shown["runs"],
-                                                   strict=True)]
-    shown["converged"] = [f"{c}/{n}" for c, n in zip(shown["converged"], shown["runs"],
-                                                     strict=True)]
+    shown["earlier"] = [f"{e}/{n}" for e, n in zip(shown["earlier"], shown["runs"], strict=True)]
+    shown["converged"] = [
+        f"{c}/{n}" for c, n in zip(shown["converged"], shown["runs"], strict=True)
+    ]
     if shown["track"].eq(DEFAULT_TRACK).all():
         shown = shown.drop(columns="track")
     if shown["profile"].nunique() == 1:

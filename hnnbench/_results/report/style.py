@@ -16,15 +16,34 @@ from typing import Any
 
 from hnnbench import _registry as registry
 
-__all__ = ["PALETTE", "REFERENCE_COLORS", "color", "family_color", "line", "model_keys",
-           "twin_rank"]
+__all__ = [
+    "PALETTE",
+    "REFERENCE_COLORS",
+    "color",
+    "family_color",
+    "line",
+    "model_keys",
+    "twin_rank",
+]
 
 #: Colours of the ranked families, in listing order: Okabe & Ito's colour-blind-safe set
 #: (blue, vermillion, bluish green, reddish purple, orange, sky blue; their black and
 #: yellow left out: black is the references', yellow too faint for lines), then Paul
 #: Tol's muted colours for more families.
-PALETTE = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9",
-           "#882255", "#44AA99", "#999933", "#332288", "#DDCC77", "#AA4499")
+PALETTE = (
+    "#0072B2",
+    "#D55E00",
+    "#009E73",
+    "#CC79A7",
+    "#E69F00",
+    "#56B4E9",
+    "#882255",
+    "#44AA99",
+    "#999933",
+    "#332288",
+    "#DDCC77",
+    "#AA4499",
+)
 #: Colours of the references (``ranked = False``: standing still, the oracle), in
 #: listing order.
 REFERENCE_COLORS = ("#7f7f7f", "#b3b3b3", "#4d4d4d", "#d0d0d0")
@@ -86,15 +105,14 @@ def _darker(color: str, amount: float) -> str:
     """``color`` (``#rrggbb``) mixed with black by ``amount`` (0: unchanged)."""
     if amount <= 0:
         return color
-    rgb = [int(color[i:i + 2], 16) for i in (1, 3, 5)]
+    rgb = [int(color[i : i + 2], 16) for i in (1, 3, 5)]
     return "#" + "".join(f"{round(c * (1.0 - amount)):02x}" for c in rgb)
 
 
 def model_keys(models: Sequence[str], families: dict[str, str]) -> list[str]:
     """The colour key of each model (its family, else its name), once each, in listing
     order."""
-    return list(dict.fromkeys(_key(m, families.get(m))
-                              for m in registry.ordered("model", models)))
+    return list(dict.fromkeys(_key(m, families.get(m)) for m in registry.ordered("model", models)))
 
 
 def color(model: str, families: dict[str, str], models: Sequence[str] = ()) -> str:
@@ -105,8 +123,13 @@ def color(model: str, families: dict[str, str], models: Sequence[str] = ()) -> s
     return _darker(family_color(_key(model, family)), SHADES[rank % len(SHADES)])
 
 
-def line(model: str, backend: str, families: dict[str, str], models: Sequence[str] = (),
-         backends: Sequence[str] = ()) -> dict[str, Any]:
+def line(
+    model: str,
+    backend: str,
+    families: dict[str, str],
+    models: Sequence[str] = (),
+    backends: Sequence[str] = (),
+) -> dict[str, Any]:
     """Matplotlib line properties of ``model``: its colour (:func:`color`) and, by its
     twin rank, its dashes and width (``backend``, ``models`` and ``backends`` no longer
     matter: the registry decides)."""

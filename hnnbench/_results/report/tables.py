@@ -21,8 +21,17 @@ from hnnbench._results.leaderboard import (
 from hnnbench._results.report.inputs import provenance_lines
 from hnnbench._results.report.markdown import md_cell, md_code, md_text
 
-__all__ = ["TWIN_FLAG", "families_markdown", "family_display", "leaderboard_markdown",
-           "md_table", "reason_notes", "seed_line", "twins_display", "twins_line"]
+__all__ = [
+    "TWIN_FLAG",
+    "families_markdown",
+    "family_display",
+    "leaderboard_markdown",
+    "md_table",
+    "reason_notes",
+    "seed_line",
+    "twins_display",
+    "twins_line",
+]
 
 #: Appended to a family's cell where its twins disagree on that metric.
 TWIN_FLAG = "≠"
@@ -40,15 +49,20 @@ def md_table(frame: pd.DataFrame) -> str:
     from tabulate import tabulate
 
     declared = metric_declarations()
-    columns = {md_cell(direction_header(c, declared)): [md_cell(v) for v in frame[c]]
-               for c in frame.columns}
-    return tabulate(columns, headers="keys", tablefmt="github", showindex=False,
-                    disable_numparse=True)
+    columns = {
+        md_cell(direction_header(c, declared)): [md_cell(v) for v in frame[c]]
+        for c in frame.columns
+    }
+    return tabulate(
+        columns, headers="keys", tablefmt="github", showindex=False, disable_numparse=True
+    )
 
 
 def _seed_counts(board: pd.DataFrame) -> tuple[str, str]:
-    seeds = sorted({s for v in board["seeds"].astype(str) for s in v.split(";")
-                    if s not in ("", "nan")}, key=lambda s: (len(s), s))
+    seeds = sorted(
+        {s for v in board["seeds"].astype(str) for s in v.split(";") if s not in ("", "nan")},
+        key=lambda s: (len(s), s),
+    )
     n = board["n_seeds"].astype(int)
     counts = f"{n.min()}" if n.min() == n.max() else f"{n.min()}–{n.max()}"
     return counts, ", ".join(seeds)
@@ -58,12 +72,14 @@ def seed_line(board: pd.DataFrame) -> str:
     """What the rows and cells of ``board`` (a leaderboard or a family board) are."""
     profiles = ", ".join(md_code(p) for p in dict.fromkeys(board["profile"].astype(str))) or "?"
     counts, seeds = _seed_counts(board) if not board.empty else ("0", "")
-    return (f"Profile {profiles}; {counts} seed(s) per row (seeds {seeds}). Cells: "
-            f"{stats.cell_rule()}, over the `ok` runs of a pair (its `diverged` runs if "
-            "none is ok; `inf` = rollout diverged; `—` = no value or not applicable; "
-            "`reason` says why a run was skipped, failed, timed out or diverged). "
-            "`cpu_s`: CPU seconds per job, mean over seeds (`—` for records made before "
-            "hnnbench recorded it; wall times are in the CSV).")
+    return (
+        f"Profile {profiles}; {counts} seed(s) per row (seeds {seeds}). Cells: "
+        f"{stats.cell_rule()}, over the `ok` runs of a pair (its `diverged` runs if "
+        "none is ok; `inf` = rollout diverged; `—` = no value or not applicable; "
+        "`reason` says why a run was skipped, failed, timed out or diverged). "
+        "`cpu_s`: CPU seconds per job, mean over seeds (`—` for records made before "
+        "hnnbench recorded it; wall times are in the CSV)."
+    )
 
 
 def family_display(fams: Families) -> tuple[pd.DataFrame, dict[tuple[int, str], str]]:
@@ -80,11 +96,9 @@ def family_display(fams: Families) -> tuple[pd.DataFrame, dict[tuple[int, str], 
             if mark in ("best", "tied", "unbeaten"):
                 marks[(i, metric)] = mark
         if f"{metric}_effect" in board and metric in declared:
-            for i, value in enumerate(pd.to_numeric(board[f"{metric}_effect"],
-                                                    errors="coerce")):
+            for i, value in enumerate(pd.to_numeric(board[f"{metric}_effect"], errors="coerce")):
                 if not math.isnan(value):
-                    marks[(i, f"{metric}:effect")] = effect_text(value,
-                                                                 declared[metric].scale)
+                    marks[(i, f"{metric}:effect")] = effect_text(value, declared[metric].scale)
     if "twins_disagree" in board:
         for i, flagged in enumerate(board["twins_disagree"].fillna("").astype(str)):
             for metric in flagged.split(";"):
@@ -120,14 +134,18 @@ def twins_display(fams: Families) -> pd.DataFrame:
     rows = []
     for _, r in twins.iterrows():
         agree = r["agree"]
-        rows.append({
-            "system": r["system"], "family": r["family"],
-            **({"variant": r["variant"]} if twins["variant"].fillna("").ne("").any() else {}),
-            "seeds from": r["model"], "twin": r["twin"],
-            "shared seeds": str(r["shared_seeds"]).replace(";", ", ") or "—",
-            "agree": "—" if agree is None or pd.isna(agree) else ("yes" if agree else "no"),
-            "difference": short_reason(r["difference"], 120) or "—",
-        })
+        rows.append(
+            {
+                "system": r["system"],
+                "family": r["family"],
+                **({"variant": r["variant"]} if twins["variant"].fillna("").ne("").any() else {}),
+                "seeds from": r["model"],
+                "twin": r["twin"],
+                "shared seeds": str(r["shared_seeds"]).replace(";", ", ") or "—",
+                "agree": "—" if agree is None or pd.isna(agree) else ("yes" if agree else "no"),
+                "difference": short_reason(r["difference"], 120) or "—",
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -138,7 +156,7 @@ def effect_text(value: float, scale: str) -> str:
     if scale == "log":
         if math.isinf(value):
             return "×inf" if value > 0 else "×0"
-        factor = 10.0 ** value
+        factor = 10.0**value
         return f"×{factor:.2g}" if factor < 100 else f"×{factor:.1e}"
     return f"{value:+.2g}"
 
@@ -168,10 +186,12 @@ def twins_line(fams: Families) -> str:
         return "No family has twins here."
     known = twins[twins["agree"].notna()]
     agree = int(known["agree"].astype(bool).sum())
-    return (f"Twins agree on {agree} of {len(known)} (system, family) pairs: the same status "
-            "and every metric within its declared tolerance (the factor `hnnbench check "
-            f"--rerun` allows, both directions) on every shared seed; `{TWIN_FLAG}` marks a "
-            "cell whose metric the twins disagree on.")
+    return (
+        f"Twins agree on {agree} of {len(known)} (system, family) pairs: the same status "
+        "and every metric within its declared tolerance (the factor `hnnbench check "
+        f"--rerun` allows, both directions) on every shared seed; `{TWIN_FLAG}` marks a "
+        "cell whose metric the twins disagree on."
+    )
 
 
 def families_markdown(fams: Families) -> str:
@@ -183,8 +203,15 @@ def families_markdown(fams: Families) -> str:
     table = md_table(_bold(shown, marks))
     if not notes:
         return table
-    return "\n".join([table, "", "Why runs did not finish `ok` ([n] after a status):", "",
-                      *(f"{n}. {md_text(reason)}" for n, reason in notes)])
+    return "\n".join(
+        [
+            table,
+            "",
+            "Why runs did not finish `ok` ([n] after a status):",
+            "",
+            *(f"{n}. {md_text(reason)}" for n, reason in notes),
+        ]
+    )
 
 
 def reversal_note(board: pd.DataFrame) -> str:
@@ -196,28 +223,36 @@ def reversal_note(board: pd.DataFrame) -> str:
     systems = []
     for name in dict.fromkeys(board["system"].astype(str)):
         info = registry.discover("system").get(name)
-        if info is not None and info.ok and not getattr(info.cls, "reversal_in_distribution",
-                                                        True):
+        if info is not None and info.ok and not getattr(info.cls, "reversal_in_distribution", True):
             systems.append(md_code(name))
     if not systems:
         return ""
-    return (f"`reversibility_error` on {', '.join(systems)} is out of distribution: every "
-            "training orbit turns one way, so the momentum-flipped states it starts from "
-            "were never seen (a diagnostic, never ranked; docs/METRICS.md).")
+    return (
+        f"`reversibility_error` on {', '.join(systems)} is out of distribution: every "
+        "training orbit turns one way, so the momentum-flipped states it starts from "
+        "were never seen (a diagnostic, never ranked; docs/METRICS.md)."
+    )
 
 
-def leaderboard_markdown(board: pd.DataFrame, fams: Families,
-                         prov: Optional[dict[str, list[str]]] = None,
-                         figures: tuple[str, ...] = ()) -> str:
+def leaderboard_markdown(
+    board: pd.DataFrame,
+    fams: Families,
+    prov: Optional[dict[str, list[str]]] = None,
+    figures: tuple[str, ...] = (),
+) -> str:
     """leaderboard.md: the family table (first: the README embeds it), the heatmaps,
     the twin agreement, and every model's row."""
     lines = ["# Leaderboard", "", seed_line(fams.board if not fams.board.empty else board), ""]
     if prov is not None:
         lines += [*provenance_lines(prov), ""]
-    lines += ["## Families", "",
-              "One row per family: its primary twin's seeds (`seeds_from`: the twin with "
-              "the most seeds); the other twins are a parity check. " + stats.best_rule(),
-              "", families_markdown(fams)]
+    lines += [
+        "## Families",
+        "",
+        "One row per family: its primary twin's seeds (`seeds_from`: the twin with "
+        "the most seeds); the other twins are a parity check. " + stats.best_rule(),
+        "",
+        families_markdown(fams),
+    ]
     note = reversal_note(board)
     if note:
         lines += ["", note]
@@ -228,10 +263,16 @@ def leaderboard_markdown(board: pd.DataFrame, fams: Families,
     if not twins.empty:
         lines.append(md_table(twins))
         lines.append("")
-    lines += ["## Every model", "",
-              "Both twins of every family, unmarked: the verdicts are the families'.", "",
-              md_table(display_frame(board)), "",
-              "Machine-readable: `leaderboard.csv` (every model), `families.csv` (marks "
-              "and p-values), `twins.csv`, `aggregate.csv`, `improvement.csv`. Built by "
-              "`hnnbench report` from the run records; do not edit by hand.", ""]
+    lines += [
+        "## Every model",
+        "",
+        "Both twins of every family, unmarked: the verdicts are the families'.",
+        "",
+        md_table(display_frame(board)),
+        "",
+        "Machine-readable: `leaderboard.csv` (every model), `families.csv` (marks "
+        "and p-values), `twins.csv`, `aggregate.csv`, `improvement.csv`. Built by "
+        "`hnnbench report` from the run records; do not edit by hand.",
+        "",
+    ]
     return "\n".join(lines)

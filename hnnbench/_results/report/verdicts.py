@@ -18,11 +18,27 @@ from hnnbench._results.leaderboard import metric_declarations, records_frame
 from hnnbench._results.report.markdown import md_code, md_text
 from hnnbench._results.report.tables import effect_text, md_table
 
-__all__ = ["Verdicts", "aggregate_frame", "aggregate_markdown", "build_verdicts",
-           "findings_lines", "left_out_lines", "main_key", "main_scope", "marks_line",
-           "order_lines",
-           "rank_frame", "rank_left_out_lines", "scope_label", "scope_line", "scopes",
-           "supported_lines", "tracks_frame", "tracks_markdown", "tuning_costs"]
+__all__ = [
+    "Verdicts",
+    "aggregate_frame",
+    "aggregate_markdown",
+    "build_verdicts",
+    "findings_lines",
+    "left_out_lines",
+    "main_key",
+    "main_scope",
+    "marks_line",
+    "order_lines",
+    "rank_frame",
+    "rank_left_out_lines",
+    "scope_label",
+    "scope_line",
+    "scopes",
+    "supported_lines",
+    "tracks_frame",
+    "tracks_markdown",
+    "tuning_costs",
+]
 
 
 @dataclass
@@ -40,8 +56,12 @@ class Verdicts:
         return key if key is not None else main_key(self.aggregate.iqm)
 
 
-def build_verdicts(records: list[dict], board: pd.DataFrame, with_aggregate: bool = True,
-                   variants: Optional[list[str]] = None) -> Verdicts:
+def build_verdicts(
+    records: list[dict],
+    board: pd.DataFrame,
+    with_aggregate: bool = True,
+    variants: Optional[list[str]] = None,
+) -> Verdicts:
     """The family view of ``records`` (whose leaderboard is ``board``) and, unless
     ``with_aggregate`` is false, its aggregate across systems."""
     frame = records_frame(records, variants)
@@ -108,8 +128,7 @@ def main_scope(frame: pd.DataFrame, key: Optional[Scope] = None) -> pd.DataFrame
     return frame[(values == pd.Series(key, index=list(SCOPE_KEY))).all(axis=1)]
 
 
-def scopes(frame: pd.DataFrame, key: Optional[Scope] = None
-           ) -> list[tuple[bool, pd.DataFrame]]:
+def scopes(frame: pd.DataFrame, key: Optional[Scope] = None) -> list[tuple[bool, pd.DataFrame]]:
     """``(is_main, rows)`` per scope of ``frame`` present in it, the main scope
     (:func:`main_scope` of ``key``) first."""
     if frame.empty:
@@ -131,8 +150,9 @@ def scope_label(frame: pd.DataFrame) -> str:
     return scope_name(tuple(_scope_values(frame).iloc[0]))
 
 
-def rank_frame(agg: Aggregate, metrics: Optional[list[str]] = None,
-               key: Optional[Scope] = None) -> pd.DataFrame:
+def rank_frame(
+    agg: Aggregate, metrics: Optional[list[str]] = None, key: Optional[Scope] = None
+) -> pd.DataFrame:
     """The headline across systems, free of any normalisation: one row per family, its
     mean rank [interval] of each of ``metrics`` (default: the headline metrics that have
     one) over the systems every family ran, in the main scope (:func:`main_scope`)."""
@@ -150,16 +170,21 @@ def rank_frame(agg: Aggregate, metrics: Optional[list[str]] = None,
                 row[f"{metric} rank"] = "—"
                 continue
             r = sel.iloc[0]
-            row[f"{metric} rank"] = (f"{_interval(r['mean_rank'], r['rank_low'], r['rank_high'])}"
-                                     f" (of {int(r['n_families'])}, {int(r['n_systems'])} sys)")
+            row[f"{metric} rank"] = (
+                f"{_interval(r['mean_rank'], r['rank_low'], r['rank_high'])}"
+                f" (of {int(r['n_families'])}, {int(r['n_systems'])} sys)"
+            )
         rows.append(row)
     frame = pd.DataFrame(rows)
     first = f"{metrics[0]} rank" if metrics else None
     if first is not None and first in frame:
         order = main_scope(agg.ranks, key)
         order = order[order["metric"] == metrics[0]].set_index("family")["mean_rank"]
-        frame = frame.assign(_r=[order.get(f, math.inf) for f in frame["family"]]) \
-            .sort_values("_r", kind="stable").drop(columns="_r")
+        frame = (
+            frame.assign(_r=[order.get(f, math.inf) for f in frame["family"]])
+            .sort_values("_r", kind="stable")
+            .drop(columns="_r")
+        )
     return frame.reset_index(drop=True)
 
 
@@ -172,8 +197,10 @@ def rank_left_out_lines(agg: Aggregate, key: Optional[Scope] = None) -> list[str
         left = ranks[ranks["metric"] == metric]["left_out"].fillna("").astype(str).iloc[0]
         if left:
             names = ", ".join(md_text(x) for x in left.split(";"))
-            lines.append(f"The {md_code(metric)} ranks leave out {names}: not every family "
-                         "ran there (pairs that both ran them count in P(A > B)).")
+            lines.append(
+                f"The {md_code(metric)} ranks leave out {names}: not every family "
+                "ran there (pairs that both ran them count in P(A > B))."
+            )
     return lines
 
 
@@ -185,17 +212,23 @@ def order_lines(agg: Aggregate, key: Optional[Scope] = None) -> list[str]:
     for (scope, metric), (main, alt) in agg.orders.items():
         if scope != label or metric not in headline_metrics():
             continue
-        moves = [f"{md_text(f)} {main.index(f) + 1} -> {alt.index(f) + 1}"
-                 for f in main if f in alt and main.index(f) != alt.index(f)]
+        moves = [
+            f"{md_text(f)} {main.index(f) + 1} -> {alt.index(f) + 1}"
+            for f in main
+            if f in alt and main.index(f) != alt.index(f)
+        ]
         said = ", ".join(moves) if moves else "no family moves"
-        lines.append(f"{md_code(metric)}: with the floor at half the best family's mean on "
-                     f"each system instead, the IQM order is {', '.join(map(md_text, alt))} "
-                     f"({said}).")
+        lines.append(
+            f"{md_code(metric)}: with the floor at half the best family's mean on "
+            f"each system instead, the IQM order is {', '.join(map(md_text, alt))} "
+            f"({said})."
+        )
     return lines
 
 
-def aggregate_frame(agg: Aggregate, metrics: Optional[list[str]] = None,
-                    key: Optional[Scope] = None) -> pd.DataFrame:
+def aggregate_frame(
+    agg: Aggregate, metrics: Optional[list[str]] = None, key: Optional[Scope] = None
+) -> pd.DataFrame:
     """One row per family: the IQM [interval] of each of ``metrics`` (default: the
     headline metrics that have an aggregate) and the systems each covers, in the main
     scope (:func:`main_scope`)."""
@@ -213,14 +246,16 @@ def aggregate_frame(agg: Aggregate, metrics: Optional[list[str]] = None,
                 row[f"{metric} IQM"] = "—"
                 continue
             r = sel.iloc[0]
-            row[f"{metric} IQM"] = (f"{_interval(r['iqm'], r['iqm_low'], r['iqm_high'])} "
-                                    f"({int(r['n_systems'])} sys)")
+            row[f"{metric} IQM"] = (
+                f"{_interval(r['iqm'], r['iqm_low'], r['iqm_high'])} ({int(r['n_systems'])} sys)"
+            )
         rows.append(row)
     return pd.DataFrame(rows)
 
 
-def supported_lines(agg: Aggregate, metrics: Optional[list[str]] = None,
-                    key: Optional[Scope] = None) -> list[str]:
+def supported_lines(
+    agg: Aggregate, metrics: Optional[list[str]] = None, key: Optional[Scope] = None
+) -> list[str]:
     """Markdown bullets: per metric, which family beats which with the interval of P(A > B)
     above one half, and which pairs no interval separates (the main scope)."""
     poi = main_scope(agg.improvement, key)
@@ -237,9 +272,11 @@ def supported_lines(agg: Aggregate, metrics: Optional[list[str]] = None,
         ranked = list(iqm.sort_values("iqm", ascending=False)["family"]) or order
         if "claimable" in sel and not sel["claimable"].fillna(False).astype(bool).any():
             fewest = int(pd.to_numeric(sel["min_seeds"], errors="coerce").min())
-            lines.append(f"- {md_code(metric)}: too few seeds to separate (as few as "
-                         f"{fewest} per system; a claim needs "
-                         f"{stats.MIN_SEPARABLE_SEEDS}).")
+            lines.append(
+                f"- {md_code(metric)}: too few seeds to separate (as few as "
+                f"{fewest} per system; a claim needs "
+                f"{stats.MIN_SEPARABLE_SEEDS})."
+            )
             continue
         if "claimable" in sel:
             sel = sel[sel["claimable"].fillna(False).astype(bool)]
@@ -258,13 +295,13 @@ def supported_lines(agg: Aggregate, metrics: Optional[list[str]] = None,
                 ties.append(f"{md_text(r['family'])}–{md_text(r['other'])}")
         text = "; ".join(beats) if beats else "no family beats another"
         tail = f". Not separated: {', '.join(ties)}" if ties else ""
-        lines.append(f"- {md_code(metric)}: {text} (95% interval of P(A > B) above "
-                     f"0.5){tail}.")
+        lines.append(f"- {md_code(metric)}: {text} (95% interval of P(A > B) above 0.5){tail}.")
     return lines
 
 
-def marks_line(fams: Families, metrics: Optional[list[str]] = None,
-               key: Optional[Scope] = None) -> str:
+def marks_line(
+    fams: Families, metrics: Optional[list[str]] = None, key: Optional[Scope] = None
+) -> str:
     """How many (system, metric) cells have a separated best, of those with a leader
     (the main scope: :func:`main_scope`)."""
     board = main_scope(fams.board, key)
@@ -285,14 +322,19 @@ def marks_line(fams: Families, metrics: Optional[list[str]] = None,
     seeds = int(pd.to_numeric(board["n_seeds"], errors="coerce").min()) if len(board) else 0
     tail = ""
     if seeds < stats.MIN_SEPARABLE_SEEDS:
-        tail = (f" Rows rest on as few as {seeds} seed(s): too few seeds to separate "
-                f"(the two-sided sign test needs {stats.MIN_SEPARABLE_SEEDS} shared seeds; "
-                f"its smallest p with {seeds} is {min(1.0, 2 * 0.5 ** seeds):.3g}).")
+        tail = (
+            f" Rows rest on as few as {seeds} seed(s): too few seeds to separate "
+            f"(the two-sided sign test needs {stats.MIN_SEPARABLE_SEEDS} shared seeds; "
+            f"its smallest p with {seeds} is {min(1.0, 2 * 0.5**seeds):.3g})."
+        )
     names = ", ".join(md_code(m) for m in metrics)
-    still = (f" In {unbeaten} more, no family beats standing still (nothing marked)."
-             if unbeaten else "")
-    return (f"Per system ({names}): {best} of {n} cells with a leader have a separated "
-            f"best (bold); in {tied} the leaders are tied (italics).{still}{tail}")
+    still = (
+        f" In {unbeaten} more, no family beats standing still (nothing marked)." if unbeaten else ""
+    )
+    return (
+        f"Per system ({names}): {best} of {n} cells with a leader have a separated "
+        f"best (bold); in {tied} the leaders are tied (italics).{still}{tail}"
+    )
 
 
 def findings_lines(fams: Families, key: Optional[Scope] = None) -> list[str]:
@@ -306,8 +348,11 @@ def findings_lines(fams: Families, key: Optional[Scope] = None) -> list[str]:
     if "variant" in board:
         board = board[board["variant"].fillna("").astype(str) == ""]
     declared = metric_declarations()
-    metrics = [m[: -len("_mark")] for m in board.columns if m.endswith("_mark")
-               and m[: -len("_mark")] in declared]
+    metrics = [
+        m[: -len("_mark")]
+        for m in board.columns
+        if m.endswith("_mark") and m[: -len("_mark")] in declared
+    ]
     lines = []
     for system, group in board.groupby("system", sort=False):
         said: dict[tuple[str, str], list[str]] = {}
@@ -319,18 +364,23 @@ def findings_lines(fams: Families, key: Optional[Scope] = None) -> list[str]:
             decl = declared[metric]
             effect = ""
             if f"{metric}_effect" in r and not pd.isna(r[f"{metric}_effect"]):
-                effect = (f" ({effect_text(r[f'{metric}_effect'], decl.scale)} "
-                          f"[{effect_text(r[f'{metric}_effect_low'], decl.scale)}, "
-                          f"{effect_text(r[f'{metric}_effect_high'], decl.scale)}] over "
-                          f"{md_text(r[f'{metric}_effect_vs'])})")
+                effect = (
+                    f" ({effect_text(r[f'{metric}_effect'], decl.scale)} "
+                    f"[{effect_text(r[f'{metric}_effect_low'], decl.scale)}, "
+                    f"{effect_text(r[f'{metric}_effect_high'], decl.scale)}] over "
+                    f"{md_text(r[f'{metric}_effect_vs'])})"
+                )
             group_key = (str(r["family"]), decl.evidence or metric)
             said.setdefault(group_key, []).append(f"{md_code(metric)}{effect}")
         if not said:
             continue
         parts = []
         for (family, evidence), items in said.items():
-            joint = " and ".join(items) if len(items) < 3 else \
-                ", ".join(items[:-1]) + f" and {items[-1]}"
+            joint = (
+                " and ".join(items)
+                if len(items) < 3
+                else ", ".join(items[:-1]) + f" and {items[-1]}"
+            )
             one = f" (one {evidence} finding)" if len(items) > 1 else ""
             parts.append(f"{md_text(family)} on {joint}{one}")
         lines.append(f"- {md_code(str(system))}: best: " + "; ".join(parts) + ".")
@@ -351,8 +401,9 @@ def left_out_lines(agg: Aggregate, key: Optional[Scope] = None) -> list[str]:
     return lines
 
 
-def aggregate_markdown(verdicts: Verdicts, figure: Optional[str] = None,
-                       heading: str = "# Across systems") -> str:
+def aggregate_markdown(
+    verdicts: Verdicts, figure: Optional[str] = None, heading: str = "# Across systems"
+) -> str:
     """The aggregate across systems (aggregate.md; the README's aggregate block): the
     method, the IQM table, the verdicts its intervals support, the per-system marks,
     and ``figure`` (a path to the performance-profile figure) if given."""
@@ -372,17 +423,31 @@ def aggregate_markdown(verdicts: Verdicts, figure: Optional[str] = None,
     if not ranks.empty:
         lines += [stats.rank_rule(), "", md_table(ranks), ""]
         lines += [*rank_left_out_lines(agg, key)] + [""] * bool(rank_left_out_lines(agg, key))
-    lines += ["What the intervals support:", "", *supported_lines(agg, key=key),
-              f"- {marks_line(verdicts.families, key=key)}", ""]
+    lines += [
+        "What the intervals support:",
+        "",
+        *supported_lines(agg, key=key),
+        f"- {marks_line(verdicts.families, key=key)}",
+        "",
+    ]
     found = findings_lines(verdicts.families, key)
     if found:
-        lines += ["Separated bests per system, with the leader's median paired effect over "
-                  "the runner-up [interval] (×: a factor on a log-scale metric, +: a "
-                  "difference):", "", *found, ""]
+        lines += [
+            "Separated bests per system, with the leader's median paired effect over "
+            "the runner-up [interval] (×: a factor on a log-scale metric, +: a "
+            "difference):",
+            "",
+            *found,
+            "",
+        ]
     if not table.empty:
-        lines += ["A second view, which depends on a choice of scale: "
-                  + stats.aggregate_rule(md_text(agg.baseline or "the baseline")), "",
-                  md_table(table), ""]
+        lines += [
+            "A second view, which depends on a choice of scale: "
+            + stats.aggregate_rule(md_text(agg.baseline or "the baseline")),
+            "",
+            md_table(table),
+            "",
+        ]
         moves = order_lines(agg, key)
         if moves:
             lines += ["How its order hangs on the floor: " + " ".join(moves), ""]
@@ -401,8 +466,10 @@ def scope_line(verdicts: Verdicts) -> str:
     if board.empty or len(scopes(board)) < 2:
         return ""
     label = scope_label(main_scope(board, verdicts.main))
-    return (f"Of the {md_code(label)} rows (profile/track; the other tracks are set beside "
-            "it in the tracks table, tracks.md).")
+    return (
+        f"Of the {md_code(label)} rows (profile/track; the other tracks are set beside "
+        "it in the tracks table, tracks.md)."
+    )
 
 
 # --------------------------------------------------------------------------- tracks
@@ -423,9 +490,14 @@ def _leaders(rows: pd.DataFrame, metric: str) -> str:
     if best:
         return f"best: {best[0]}"
     few = (marks == "too_few_seeds").any()
-    tied_rows = rows[marks == "tied"] if not few else \
-        rows[pd.to_numeric(rows.get(f"{metric}_mean"), errors="coerce").notna()
-             & rows["ranked"].fillna(True).astype(bool)]
+    tied_rows = (
+        rows[marks == "tied"]
+        if not few
+        else rows[
+            pd.to_numeric(rows.get(f"{metric}_mean"), errors="coerce").notna()
+            & rows["ranked"].fillna(True).astype(bool)
+        ]
+    )
     mean = f"{metric}_mean"
     if mean in tied_rows and len(tied_rows):  # the best mean first
         declared = metric_declarations().get(metric)
@@ -473,10 +545,18 @@ def tracks_frame(fams: Families, metrics: Optional[list[str]] = None) -> pd.Data
             verdicts = {t: _leaders(group[group["track"] == t], metric) for t in present}
             said = [v for v in verdicts.values() if ": " in v]  # those naming families
             leaders = [_leader_set(v) for v in said]
-            changes = any(not (a & b) for i, a in enumerate(leaders) for b in leaders[i + 1:])
+            changes = any(not (a & b) for i, a in enumerate(leaders) for b in leaders[i + 1 :])
             firsts = {v.partition(": ")[2].split(",")[0].strip() for v in said}
-            rows.append({"profile": profile, "system": system, "metric": metric,
-                         **verdicts, "changes": changes, "mean_changes": len(firsts) > 1})
+            rows.append(
+                {
+                    "profile": profile,
+                    "system": system,
+                    "metric": metric,
+                    **verdicts,
+                    "changes": changes,
+                    "mean_changes": len(firsts) > 1,
+                }
+            )
     return pd.DataFrame(rows)
 
 
@@ -501,11 +581,23 @@ def tuning_costs(fams: Families) -> pd.DataFrame:
     order = list(dict.fromkeys(tuned["family"].astype(str)))
     rows = []
     for (profile, system), group in tuned.groupby(["profile", "system"], sort=False):
-        cpu = dict(zip(group["family"].astype(str),
-                       pd.to_numeric(group["tuning_cpu_s"], errors="coerce"), strict=True))
-        rows.append({"profile": profile, "system": system,
-                     **{f: ("—" if f not in cpu or not math.isfinite(cpu[f])
-                            else f"{cpu[f]:,.0f}") for f in order}})
+        cpu = dict(
+            zip(
+                group["family"].astype(str),
+                pd.to_numeric(group["tuning_cpu_s"], errors="coerce"),
+                strict=True,
+            )
+        )
+        rows.append(
+            {
+                "profile": profile,
+                "system": system,
+                **{
+                    f: ("—" if f not in cpu or not math.isfinite(cpu[f]) else f"{cpu[f]:,.0f}")
+                    for f in order
+                },
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -514,44 +606,64 @@ def tracks_markdown(frame: pd.DataFrame, costs: Optional[pd.DataFrame] = None) -
     whose verdict changes between tracks; a line saying so when no other track ran; then,
     where ``costs`` (:func:`tuning_costs`) has rows, what each family's tuning cost."""
     if frame.empty and (costs is None or costs.empty):
-        return ("Only the protocol track has published rows: no tuned or recipe rows yet "
-                "(docs/TUNING.md).")
-    lines = [] if frame.empty else \
-        [md_table(frame.drop(columns=["changes", "mean_changes"]).replace("", "—")), ""]
-    tracks = [c for c in frame.columns
-              if c not in ("profile", "system", "metric", "changes", "mean_changes")]
-    lines += ["Each cell names the best family, or the families tied for the lead with the "
-              "best mean first. A verdict changes between two tracks where their leaders "
-              f"have no family in common. A track of fewer than "
-              f"{stats.MIN_SEPARABLE_SEEDS} seeds never separates its leaders (\"too few "
-              "seeds to separate\": the two-sided sign test with Holm's correction, "
-              "docs/STATISTICS.md), and the recipe track ranks only the families that "
-              "declare a recipe.", ""]
+        return (
+            "Only the protocol track has published rows: no tuned or recipe rows yet "
+            "(docs/TUNING.md)."
+        )
+    lines = (
+        []
+        if frame.empty
+        else [md_table(frame.drop(columns=["changes", "mean_changes"]).replace("", "—")), ""]
+    )
+    tracks = [
+        c
+        for c in frame.columns
+        if c not in ("profile", "system", "metric", "changes", "mean_changes")
+    ]
+    lines += [
+        "Each cell names the best family, or the families tied for the lead with the "
+        "best mean first. A verdict changes between two tracks where their leaders "
+        f"have no family in common. A track of fewer than "
+        f'{stats.MIN_SEPARABLE_SEEDS} seeds never separates its leaders ("too few '
+        "seeds to separate\": the two-sided sign test with Holm's correction, "
+        "docs/STATISTICS.md), and the recipe track ranks only the families that "
+        "declare a recipe.",
+        "",
+    ]
 
     def said(r: pd.Series) -> str:
         return "; ".join(f"{t} {md_text(str(r[t]))}" for t in tracks if r[t])
 
     changed = frame[frame["changes"]]
     if changed.empty:
-        lines += ["No verdict changes between tracks on any system and headline metric "
-                  "shown.", ""]
+        lines += ["No verdict changes between tracks on any system and headline metric shown.", ""]
     else:
         lines += ["Where the verdict changes between tracks:", ""]
-        lines += [f"- {md_code(str(r['system']))}, {md_code(str(r['metric']))}: {said(r)}."
-                  for _, r in changed.iterrows()]
+        lines += [
+            f"- {md_code(str(r['system']))}, {md_code(str(r['metric']))}: {said(r)}."
+            for _, r in changed.iterrows()
+        ]
         lines.append("")
     means = frame[frame["mean_changes"] & ~frame["changes"]]
     if not means.empty:
-        lines += ["Where only the best mean moves to another family (not separated; a "
-                  "difference of means over the seeds, not a verdict):", ""]
-        lines += [f"- {md_code(str(r['system']))}, {md_code(str(r['metric']))}: {said(r)}."
-                  for _, r in means.iterrows()]
+        lines += [
+            "Where only the best mean moves to another family (not separated; a "
+            "difference of means over the seeds, not a verdict):",
+            "",
+        ]
+        lines += [
+            f"- {md_code(str(r['system']))}, {md_code(str(r['metric']))}: {said(r)}."
+            for _, r in means.iterrows()
+        ]
         lines.append("")
     if costs is not None and not costs.empty:
-        lines += ["What each family's tuned settings cost: the CPU seconds of its study "
-                  "(every trial, pruned ones included; the final seeds not counted), the "
-                  "leaderboard's `tuning_cpu_s`. `hnnbench tune` gives every family of a "
-                  "system the same trials of the same steps, and `hnnbench check` flags a "
-                  "system whose tuned records state unequal budgets (docs/TUNING.md).",
-                  "", md_table(costs)]
+        lines += [
+            "What each family's tuned settings cost: the CPU seconds of its study "
+            "(every trial, pruned ones included; the final seeds not counted), the "
+            "leaderboard's `tuning_cpu_s`. `hnnbench tune` gives every family of a "
+            "system the same trials of the same steps, and `hnnbench check` flags a "
+            "system whose tuned records state unequal budgets (docs/TUNING.md).",
+            "",
+            md_table(costs),
+        ]
     return "\n".join(lines).rstrip("\n")

@@ -172,8 +172,14 @@ def adam_direction(weight_decay: Any) -> optax.GradientTransformation:
     )
 
 
-def _loss(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], static: Any,
-          params: Any, *arrays: jax.Array) -> jax.Array:
+def _loss(
+    kind: str,
+    impl: ModuleType,
+    options: tuple[tuple[str, Any], ...],
+    static: Any,
+    params: Any,
+    *arrays: jax.Array,
+) -> jax.Array:
     """One seed's loss on a batch of a :class:`~hnnbench.neural._views.Problem`
     (``kind`` is the problem's, with ``:l1`` appended for the mean absolute error of a
     derivatives problem, ``NeuralConfig.loss``)."""
@@ -181,7 +187,7 @@ def _loss(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], sta
     if kind.startswith("derivatives"):
         z, zdot = arrays
         error = impl.field(nets, z) - zdot
-        return jnp.mean(jnp.abs(error)) if kind.endswith(":l1") else jnp.mean(error ** 2)
+        return jnp.mean(jnp.abs(error)) if kind.endswith(":l1") else jnp.mean(error**2)
     if kind == "windows":
         return impl.window_loss(nets, *arrays, **dict(options))
     return pixel_objective(impl.field, nets, *arrays)
@@ -190,6 +196,7 @@ def _loss(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], sta
 def rk4_step(field: Callable[..., jax.Array]) -> Callable[..., jax.Array]:
     """The classical Runge-Kutta step ``(nets, z, h) -> z'`` of ``field`` (``h``
     broadcasts against ``z``: a ``(M, 1)`` column of step sizes)."""
+
     def step(nets: Any, z: jax.Array, h: jax.Array) -> jax.Array:
         k1 = field(nets, z)
         k2 = field(nets, z + 0.5 * h * k1)
@@ -200,9 +207,13 @@ def rk4_step(field: Callable[..., jax.Array]) -> Callable[..., jax.Array]:
     return step
 
 
-def criterion_values(criterion: str, impl: ModuleType,
-                     options: tuple[tuple[str, Any], ...], nets: Any,
-                     *arrays: jax.Array) -> jax.Array:
+def criterion_values(
+    criterion: str,
+    impl: ModuleType,
+    options: tuple[tuple[str, Any], ...],
+    nets: Any,
+    *arrays: jax.Array,
+) -> jax.Array:
     """The validation criterion of one seed per point or window, ``(V,)``
     (:data:`hnnbench.neural._views.Criterion`; docs/METRICS.md, "Checkpoint
     selection")."""
@@ -211,7 +222,7 @@ def criterion_values(criterion: str, impl: ModuleType,
         error = impl.field(nets, z) - zdot
         if criterion == "field:weighted":  # to the system's dx/dt, point by point
             error = jnp.einsum("vij,vj->vi", arrays[2], error)
-        return jnp.mean(error ** 2, axis=1)
+        return jnp.mean(error**2, axis=1)
     if criterion.startswith("windows"):
         windows, dts = arrays
         substeps = int(dict(options).get("substeps", 1))
@@ -226,13 +237,19 @@ def criterion_values(criterion: str, impl: ModuleType,
 
         _, predicted = jax.lax.scan(interval, windows[:, 0], jnp.swapaxes(dts, 0, 1))
         error = jnp.swapaxes(predicted, 0, 1)[..., :n] - windows[:, 1:, :n]
-        return jnp.mean(error ** 2, axis=(1, 2))
+        return jnp.mean(error**2, axis=(1, 2))
     return pixel_objective_rows(impl.field, nets, *arrays)
 
 
 def scan_steps(
-    loss_fn: Callable[..., jax.Array], optimizer: Any, params: Any, opt_state: Any,
-    idx: Optional[jax.Array], arrays: tuple[jax.Array, ...], lrs: jax.Array, length: int,
+    loss_fn: Callable[..., jax.Array],
+    optimizer: Any,
+    params: Any,
+    opt_state: Any,
+    idx: Optional[jax.Array],
+    arrays: tuple[jax.Array, ...],
+    lrs: jax.Array,
+    length: int,
 ) -> tuple[Any, Any, jax.Array]:
     """``length`` optimizer steps of ``loss_fn(params, *batch)`` under ``lax.scan``;
     ``idx`` is ``(length, batch)`` row indices or ``None`` (full batch), ``lrs`` the
@@ -249,16 +266,25 @@ def scan_steps(
         updates = jax.tree.map(lambda u: (-lr).astype(u.dtype) * u, direction)
         return (optax.apply_updates(params, updates), opt_state), loss
 
-    (params, opt_state), losses = jax.lax.scan(step, (params, opt_state), (idx, lrs),
-                                               length=length)
+    (params, opt_state), losses = jax.lax.scan(step, (params, opt_state), (idx, lrs), length=length)
     return params, opt_state, losses
 
 
-def _chunk(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], static: Any,
-           criterion: tuple[str, tuple[tuple[str, Any], ...]], length: int, params: Any,
-           opt_state: Any, idx: Optional[jax.Array], train: tuple[jax.Array, ...],
-           valid: tuple[jax.Array, ...], lrs: jax.Array, weight_decay: jax.Array
-           ) -> tuple[Any, Any, jax.Array, jax.Array]:
+def _chunk(
+    kind: str,
+    impl: ModuleType,
+    options: tuple[tuple[str, Any], ...],
+    static: Any,
+    criterion: tuple[str, tuple[tuple[str, Any], ...]],
+    length: int,
+    params: Any,
+    opt_state: Any,
+    idx: Optional[jax.Array],
+    train: tuple[jax.Array, ...],
+    valid: tuple[jax.Array, ...],
+    lrs: jax.Array,
+    weight_decay: jax.Array,
+) -> tuple[Any, Any, jax.Array, jax.Array]:
     """One chunk of ``length`` steps at the ``(length,)`` learning rates ``lrs``, then
     the validation criterion per point (:func:`criterion_values`; ``criterion`` is its
     kind and options). ``lrs`` and ``weight_decay`` are traced, so one executable
@@ -268,40 +294,54 @@ def _chunk(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...], st
     def loss_fn(p: Any, *batch: jax.Array) -> jax.Array:
         return _loss(kind, impl, options, static, p, *batch)
 
-    params, opt_state, losses = scan_steps(loss_fn, optimizer, params, opt_state, idx, train,
-                                           lrs, length)
-    values = criterion_values(criterion[0], impl, criterion[1], eqx.combine(params, static),
-                              *valid)
+    params, opt_state, losses = scan_steps(
+        loss_fn, optimizer, params, opt_state, idx, train, lrs, length
+    )
+    values = criterion_values(criterion[0], impl, criterion[1], eqx.combine(params, static), *valid)
     return params, opt_state, losses, values
 
 
-def _batched_chunk(kind: str, impl: ModuleType, options: tuple[tuple[str, Any], ...],
-                   static: Any, criterion: tuple[str, tuple[tuple[str, Any], ...]],
-                   length: int, stacked: bool, params: Any, opt_state: Any,
-                   idx: Optional[jax.Array], train: tuple[jax.Array, ...],
-                   valid: tuple[jax.Array, ...], lrs: jax.Array, weight_decay: jax.Array
-                   ) -> tuple[Any, Any, jax.Array, jax.Array]:
+def _batched_chunk(
+    kind: str,
+    impl: ModuleType,
+    options: tuple[tuple[str, Any], ...],
+    static: Any,
+    criterion: tuple[str, tuple[tuple[str, Any], ...]],
+    length: int,
+    stacked: bool,
+    params: Any,
+    opt_state: Any,
+    idx: Optional[jax.Array],
+    train: tuple[jax.Array, ...],
+    valid: tuple[jax.Array, ...],
+    lrs: jax.Array,
+    weight_decay: jax.Array,
+) -> tuple[Any, Any, jax.Array, jax.Array]:
     """:func:`_chunk` for stacked seeds: ``vmap`` over params, optimizer state, indices
     and, when ``stacked``, each seed's own data (hyperparameters shared)."""
+
     def one(p: Any, o: Any, i: Optional[jax.Array], tr: Any, te: Any) -> Any:
-        return _chunk(kind, impl, options, static, criterion, length, p, o, i, tr, te, lrs,
-                      weight_decay)
+        return _chunk(
+            kind, impl, options, static, criterion, length, p, o, i, tr, te, lrs, weight_decay
+        )
 
     data = 0 if stacked else None
     return jax.vmap(one, in_axes=(0, 0, None if idx is None else 0, data, data))(
-        params, opt_state, idx, train, valid)
+        params, opt_state, idx, train, valid
+    )
 
 
-_CHUNKS = {False: jax.jit(_chunk, static_argnums=(0, 1, 2, 3, 4, 5)),
-           True: jax.jit(_batched_chunk, static_argnums=(0, 1, 2, 3, 4, 5, 6))}
+_CHUNKS = {
+    False: jax.jit(_chunk, static_argnums=(0, 1, 2, 3, 4, 5)),
+    True: jax.jit(_batched_chunk, static_argnums=(0, 1, 2, 3, 4, 5, 6)),
+}
 #: Compiled chunks of this process, keyed by loss, layout, length, argument shapes and
 #: device: a sweep reuses them across seeds.
 _COMPILED: dict[Any, Any] = {}
 _COMPILED_MAX = 32
 
 
-def _compiled(batched: bool, statics: tuple[Any, ...], args: tuple[Any, ...]
-              ) -> tuple[Any, float]:
+def _compiled(batched: bool, statics: tuple[Any, ...], args: tuple[Any, ...]) -> tuple[Any, float]:
     """The executable for one chunk and the seconds spent compiling it (0.0 if cached)."""
     leaves, treedef = jax.tree_util.tree_flatten(args)
     avals = tuple((leaf.shape, str(leaf.dtype), str(leaf.sharding)) for leaf in leaves)
@@ -325,19 +365,24 @@ def _stack(trees: Sequence[Any]) -> Any:
 class JaxTrainer:
     """The parameters and optimizer state of ``S`` seeds (stacked when ``S > 1``)."""
 
-    def __init__(self, backend: JaxBackend, family: Family, impl: ModuleType,
-                 problem: Problem, initial: Sequence[Weights], settings: TrainSettings,
-                 layout: Layout) -> None:
+    def __init__(
+        self,
+        backend: JaxBackend,
+        family: Family,
+        impl: ModuleType,
+        problem: Problem,
+        initial: Sequence[Weights],
+        settings: TrainSettings,
+        layout: Layout,
+    ) -> None:
         self.backend = backend
         self.seeds = len(initial)
         cfg, dtype = backend.cfg, backend.dtype
-        trees = [nets_from_weights(w, layout, cfg.layers, cfg.activation, dtype)
-                 for w in initial]
+        trees = [nets_from_weights(w, layout, cfg.layers, cfg.activation, dtype) for w in initial]
         tree = trees[0] if self.seeds == 1 else _stack(trees)
         params, self.static = eqx.partition(tree, eqx.is_inexact_array)
         optimizer = adam_direction(settings.weight_decay)
-        opt_state = (optimizer.init(params) if self.seeds == 1
-                     else jax.vmap(optimizer.init)(params))
+        opt_state = optimizer.init(params) if self.seeds == 1 else jax.vmap(optimizer.init)(params)
         self.params, self.opt_state = backend.place(params), backend.place(opt_state)
         self.stacked = problem.stacked
         self.train = tuple(backend.array(a) for a in problem.train)
@@ -346,18 +391,31 @@ class JaxTrainer:
         self.lr = settings.lr
         self.weight_decay = backend.array(settings.weight_decay)
         kind = f"{problem.kind}:l1" if cfg.loss == "l1" else problem.kind
-        self.statics = (kind, impl, problem.options, self.static,
-                        (problem.criterion, problem.criterion_options))
+        self.statics = (
+            kind,
+            impl,
+            problem.options,
+            self.static,
+            (problem.criterion, problem.criterion_options),
+        )
 
-    def run_chunk(self, indices: Optional[np.ndarray], length: int,
-                  lrs: Optional[np.ndarray]) -> tuple[Any, Any]:
+    def run_chunk(
+        self, indices: Optional[np.ndarray], length: int, lrs: Optional[np.ndarray]
+    ) -> tuple[Any, Any]:
         idx = None
         if indices is not None:
             block = indices[0] if self.seeds == 1 else indices
             idx = self.backend.place(jnp.asarray(block, dtype=jnp.int32))
         rates = np.full(length, self.lr) if lrs is None else np.asarray(lrs)
-        args = (self.params, self.opt_state, idx, self.train, self.valid,
-                self.backend.array(rates), self.weight_decay)
+        args = (
+            self.params,
+            self.opt_state,
+            idx,
+            self.train,
+            self.valid,
+            self.backend.array(rates),
+            self.weight_decay,
+        )
         batched = self.seeds > 1
         statics = (*self.statics, length, *((self.stacked,) if batched else ()))
         compiled, seconds = _compiled(batched, statics, args)
@@ -376,7 +434,9 @@ class JaxTrainer:
         mask = jnp.asarray(np.asarray(seeds, dtype=bool))
         self.kept = jax.tree.map(
             lambda new, old: jnp.where(mask.reshape((-1,) + (1,) * (new.ndim - 1)), new, old),
-            self.params, self.kept)
+            self.params,
+            self.kept,
+        )
 
     def weights(self) -> list[Weights]:
         """Each seed's kept checkpoint (:meth:`keep`), else its current weights."""
@@ -395,28 +455,48 @@ def _apply(fn: Field, nets: Nets, z: jax.Array) -> jax.Array:
 
 
 @eqx.filter_jit
-def _solve(field: Field, nets: Nets, y0: jax.Array, t: jax.Array, rtol: jax.Array,
-           atol: jax.Array, min_step: jax.Array, max_steps: int
-           ) -> tuple[jax.Array, jax.Array]:
+def _solve(
+    field: Field,
+    nets: Nets,
+    y0: jax.Array,
+    t: jax.Array,
+    rtol: jax.Array,
+    atol: jax.Array,
+    min_step: jax.Array,
+    max_steps: int,
+) -> tuple[jax.Array, jax.Array]:
     """Dopri5 from the ``(M, D)`` batch ``y0`` over ``t``, the batch integrated as one
     system; returns ``ys (M, T, D)`` and the diffrax result code (0: success). A
     proposed step below ``min_step`` ends the solve (``dt_min_reached``: the stall
     rule, :func:`hnnbench.neural._backend.rollout_min_step`)."""
     sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(lambda _t, y, _args: field(nets, y)), diffrax.Dopri5(),
-        t0=t[0], t1=t[-1], dt0=None, y0=y0, saveat=diffrax.SaveAt(ts=t),
-        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol, dtmin=min_step,
-                                                  force_dtmin=False),
-        max_steps=max_steps, throw=False,
+        diffrax.ODETerm(lambda _t, y, _args: field(nets, y)),
+        diffrax.Dopri5(),
+        t0=t[0],
+        t1=t[-1],
+        dt0=None,
+        y0=y0,
+        saveat=diffrax.SaveAt(ts=t),
+        stepsize_controller=diffrax.PIDController(
+            rtol=rtol, atol=atol, dtmin=min_step, force_dtmin=False
+        ),
+        max_steps=max_steps,
+        throw=False,
     )
     return jnp.swapaxes(sol.ys, 0, 1), sol.result._value
 
 
 @eqx.filter_jit
-def _map_solve(step: Callable[[Nets, jax.Array, jax.Array], jax.Array], nets: Nets,
-               y0: jax.Array, counts: jax.Array, sizes: jax.Array) -> jax.Array:
+def _map_solve(
+    step: Callable[[Nets, jax.Array, jax.Array], jax.Array],
+    nets: Nets,
+    y0: jax.Array,
+    counts: jax.Array,
+    sizes: jax.Array,
+) -> jax.Array:
     """``counts[k]`` steps of ``step`` of size ``sizes[k]`` per interval from the
     ``(M, D)`` batch ``y0``; ``(M, T, D)`` with ``y0`` first."""
+
     def interval(z: jax.Array, plan: tuple[jax.Array, jax.Array]) -> tuple[jax.Array, jax.Array]:
         m, h = plan
         z = jax.lax.fori_loop(0, m, lambda _, y: step(nets, y, h), z)
@@ -464,14 +544,22 @@ class JaxInference:
     """One seed's float64 field, energy and rollouts, and its pixel autoencoder in the
     training dtype."""
 
-    def __init__(self, backend: JaxBackend, family: Family, impl: ModuleType,
-                 weights: Weights, layout: Layout) -> None:
+    def __init__(
+        self,
+        backend: JaxBackend,
+        family: Family,
+        impl: ModuleType,
+        weights: Weights,
+        layout: Layout,
+    ) -> None:
         self.backend, self.impl = backend, impl
         cfg = backend.cfg
         self.nets64 = backend.place(
-            nets_from_weights(weights, layout, cfg.layers, cfg.activation, jnp.float64))
+            nets_from_weights(weights, layout, cfg.layers, cfg.activation, jnp.float64)
+        )
         self.nets = backend.place(
-            nets_from_weights(weights, layout, cfg.layers, cfg.activation, backend.dtype))
+            nets_from_weights(weights, layout, cfg.layers, cfg.activation, backend.dtype)
+        )
 
     def field(self, z: np.ndarray) -> np.ndarray:
         return self._rows(self.impl.field, z)
@@ -488,34 +576,51 @@ class JaxInference:
         padded = np.empty((max(1, -(-n // ROWS)) * ROWS, *z.shape[1:]), dtype=np.float64)
         padded[:n] = z
         padded[n:] = z[-1] if n else 0.0
-        outs = [_apply(fn, self.nets64, self.backend.array(padded[i:i + ROWS], jnp.float64))
-                for i in range(0, padded.shape[0], ROWS)]  # dispatched, then gathered
+        outs = [
+            _apply(fn, self.nets64, self.backend.array(padded[i : i + ROWS], jnp.float64))
+            for i in range(0, padded.shape[0], ROWS)
+        ]  # dispatched, then gathered
         return np.concatenate([np.asarray(o, dtype=np.float64) for o in outs])[:n]
 
-    def rollout(self, z0: np.ndarray, t: np.ndarray, rtol: float, atol: float,
-                max_steps: int) -> np.ndarray:
+    def rollout(
+        self, z0: np.ndarray, t: np.ndarray, rtol: float, atol: float, max_steps: int
+    ) -> np.ndarray:
         array = self.backend.array
         min_step = rollout_min_step(t)
-        ys, codes = _solve(self.impl.field, self.nets64, array(z0, jnp.float64),
-                           array(t, jnp.float64), jnp.float64(rtol), jnp.float64(atol),
-                           jnp.float64(min_step), int(max_steps))
+        ys, codes = _solve(
+            self.impl.field,
+            self.nets64,
+            array(z0, jnp.float64),
+            array(t, jnp.float64),
+            jnp.float64(rtol),
+            jnp.float64(atol),
+            jnp.float64(min_step),
+            int(max_steps),
+        )
         out, code = np.asarray(ys, dtype=np.float64), int(np.asarray(codes))
         if code != 0:
             finite = np.all(np.isfinite(out), axis=(0, 2))
             reached = float(t[np.flatnonzero(finite)[-1]]) if finite.any() else float(t[0])
-            why = (f"the step size fell below {stall_text(min_step)}" if code == _STALLED
-                   else f"{_result_message(code)} (model.rollout_max_steps={max_steps})")
-            raise RolloutDiverged(f"dopri5 gave up after t={reached:g} (of {float(t[0]):g}.."
-                                  f"{float(t[-1]):g}): {why}")
+            why = (
+                f"the step size fell below {stall_text(min_step)}"
+                if code == _STALLED
+                else f"{_result_message(code)} (model.rollout_max_steps={max_steps})"
+            )
+            raise RolloutDiverged(
+                f"dopri5 gave up after t={reached:g} (of {float(t[0]):g}..{float(t[-1]):g}): {why}"
+            )
         return out
 
     def map_rollout(self, z0: np.ndarray, t: np.ndarray, step: float) -> np.ndarray:
         counts, sizes = map_plan(t, step)
         array = self.backend.array
-        out = _map_solve(self.impl.step, self.nets64, array(z0, jnp.float64),
-                         jax.device_put(jnp.asarray(counts, dtype=jnp.int32),
-                                        self.backend.device),
-                         array(sizes, jnp.float64))
+        out = _map_solve(
+            self.impl.step,
+            self.nets64,
+            array(z0, jnp.float64),
+            jax.device_put(jnp.asarray(counts, dtype=jnp.int32), self.backend.device),
+            array(sizes, jnp.float64),
+        )
         return np.asarray(out, dtype=np.float64)
 
     def encode(self, x: np.ndarray) -> np.ndarray:
@@ -547,17 +652,23 @@ class JaxBackend:
 
     def array(self, x: Any, dtype: Any = None) -> jax.Array:
         # cast by numpy (the same rounding): JAX would compile a cast per shape
-        return jax.device_put(np.asarray(x, dtype=np.dtype(dtype or self.dtype)),
-                              self.device)
+        return jax.device_put(np.asarray(x, dtype=np.dtype(dtype or self.dtype)), self.device)
 
-    def trainer(self, family: Family, impl: ModuleType, problem: Problem,
-                initial: Sequence[Weights], settings: TrainSettings,
-                layout: Layout) -> JaxTrainer:
+    def trainer(
+        self,
+        family: Family,
+        impl: ModuleType,
+        problem: Problem,
+        initial: Sequence[Weights],
+        settings: TrainSettings,
+        layout: Layout,
+    ) -> JaxTrainer:
         return JaxTrainer(self, family, impl, problem, initial, settings, layout)
 
     def weights(self, trainer: Any) -> list[Weights]:
         return trainer.weights()
 
-    def inference(self, family: Family, impl: ModuleType, weights: Weights,
-                  layout: Layout) -> JaxInference:
+    def inference(
+        self, family: Family, impl: ModuleType, weights: Weights, layout: Layout
+    ) -> JaxInference:
         return JaxInference(self, family, impl, weights, layout)

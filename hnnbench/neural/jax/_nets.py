@@ -66,8 +66,9 @@ def embed(x: jax.Array, angles: tuple[int, ...], embedding: str) -> jax.Array:
     cols = jnp.asarray(angles)
     theta = x[cols]
     if embedding == "wrap":
-        return x.at[cols].set(theta - 2.0 * math.pi * jnp.floor((theta + math.pi)
-                                                                / (2.0 * math.pi)))
+        return x.at[cols].set(
+            theta - 2.0 * math.pi * jnp.floor((theta + math.pi) / (2.0 * math.pi))
+        )
     return jnp.concatenate([x.at[cols].set(jnp.cos(theta)), jnp.sin(theta)])
 
 
@@ -121,18 +122,24 @@ class Nets(eqx.Module):
         return self.nets[self.names.index(name)]
 
 
-def nets_from_weights(weights: Mapping[str, Any], layout: Layout, layers: int,
-                      activation: str, dtype: Any) -> Nets:
+def nets_from_weights(
+    weights: Mapping[str, Any], layout: Layout, layers: int, activation: str, dtype: Any
+) -> Nets:
     """Build :class:`Nets` of ``layout``'s networks from flat weights
     (``"<net>.linears.<i>.weight"``, and ``"autoencoder.<half>.<i>.<weight|bias>"`` if
     present), cast to ``dtype``."""
+
     def array(key: str) -> jax.Array:  # cast by numpy, put as is: nothing compiled per shape
         return jax.device_put(np.asarray(weights[key], dtype=np.dtype(dtype)))
 
     def net(name: str, inputs: NetInput) -> MLPNet:
-        linears = tuple(Dense(array(f"{name}.linears.{i}.weight"),
-                              None if i == layers - 1 else array(f"{name}.linears.{i}.bias"))
-                        for i in range(layers))
+        linears = tuple(
+            Dense(
+                array(f"{name}.linears.{i}.weight"),
+                None if i == layers - 1 else array(f"{name}.linears.{i}.bias"),
+            )
+            for i in range(layers)
+        )
         if not inputs.active:
             return MLPNet(linears, activation)
         return MLPNet(linears, activation, tuple(inputs.angles), inputs.embedding)
@@ -141,9 +148,14 @@ def nets_from_weights(weights: Mapping[str, Any], layout: Layout, layers: int,
     nets = tuple(net(name, inputs) for name, inputs in layout.nets)
     ae = None
     if "autoencoder.encoder.0.weight" in weights:
+
         def stack(half: str) -> tuple[Dense, ...]:
-            return tuple(Dense(array(f"autoencoder.{half}.{i}.weight"),
-                               array(f"autoencoder.{half}.{i}.bias")) for i in range(AE_LAYERS))
+            return tuple(
+                Dense(
+                    array(f"autoencoder.{half}.{i}.weight"), array(f"autoencoder.{half}.{i}.bias")
+                )
+                for i in range(AE_LAYERS)
+            )
 
         ae = Autoencoder(stack("encoder"), stack("decoder"))
     return Nets(names, nets, ae)
@@ -151,6 +163,7 @@ def nets_from_weights(weights: Mapping[str, Any], layout: Layout, layers: int,
 
 def nets_to_weights(nets: Nets, index: Optional[int] = None) -> dict[str, np.ndarray]:
     """Flat numpy weights of ``nets``; ``index`` selects one seed of stacked nets."""
+
     def get(a: jax.Array) -> np.ndarray:
         out = np.asarray(a)
         return out if index is None else out[index].copy()
@@ -170,8 +183,9 @@ def nets_to_weights(nets: Nets, index: Optional[int] = None) -> dict[str, np.nda
     return out
 
 
-def pixel_objective_rows(field: Callable[[Any, jax.Array], jax.Array], nets: Nets,
-                         x: jax.Array, x_next: jax.Array) -> jax.Array:
+def pixel_objective_rows(
+    field: Callable[[Any, jax.Array], jax.Array], nets: Nets, x: jax.Array, x_next: jax.Array
+) -> jax.Array:
     """:func:`pixel_objective` of each pair, ``(N,)`` (each term's mean over its row):
     their mean is the objective, up to rounding."""
     ae = nets.autoencoder
@@ -184,8 +198,9 @@ def pixel_objective_rows(field: Callable[[Any, jax.Array], jax.Array], nets: Net
     return reconstruction + CC_WEIGHT * canonical + DYNAMICS_WEIGHT * dynamics
 
 
-def pixel_objective(field: Callable[[Any, jax.Array], jax.Array], nets: Nets,
-                    x: jax.Array, x_next: jax.Array) -> jax.Array:
+def pixel_objective(
+    field: Callable[[Any, jax.Array], jax.Array], nets: Nets, x: jax.Array, x_next: jax.Array
+) -> jax.Array:
     """The 2019 pixel loss on pairs of consecutive inputs ``x -> x_next`` (scalar):
     reconstruction + canonical coordinates + 0.1 x one Euler step (dt = 1) of ``field``."""
     ae = nets.autoencoder

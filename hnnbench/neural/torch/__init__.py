@@ -41,8 +41,16 @@ from hnnbench.neural.torch._nets import (
 )
 from hnnbench.neural.torch._ode import SolverGaveUp, dopri5
 
-__all__ = ["MLP", "FusedAdam", "Periodic", "TorchBackend", "TrainingMLP", "input_hessian",
-           "resolve_device", "symplectic"]
+__all__ = [
+    "MLP",
+    "FusedAdam",
+    "Periodic",
+    "TorchBackend",
+    "TrainingMLP",
+    "input_hessian",
+    "resolve_device",
+    "symplectic",
+]
 
 Params = dict[str, torch.Tensor]
 
@@ -59,16 +67,24 @@ def resolve_device(requested: str) -> torch.device:
     return torch.device("cuda", index)
 
 
-def networks(params: Mapping[str, Any], layout: Layout, cfg: NeuralConfig,
-             build: Callable[..., Any]) -> dict[str, Any]:
+def networks(
+    params: Mapping[str, Any], layout: Layout, cfg: NeuralConfig, build: Callable[..., Any]
+) -> dict[str, Any]:
     """``{net: network}`` of a layout (``build(params, net, layers, activation,
     inputs)``)."""
-    return {name: build(params, name, cfg.layers, cfg.activation, inputs)
-            for name, inputs in layout.nets}
+    return {
+        name: build(params, name, cfg.layers, cfg.activation, inputs)
+        for name, inputs in layout.nets
+    }
 
 
-def make_loss(impl: ModuleType, kind: str, layout: Layout, cfg: NeuralConfig,
-              options: tuple[tuple[str, Any], ...] = ()) -> Callable[..., torch.Tensor]:
+def make_loss(
+    impl: ModuleType,
+    kind: str,
+    layout: Layout,
+    cfg: NeuralConfig,
+    options: tuple[tuple[str, Any], ...] = (),
+) -> Callable[..., torch.Tensor]:
     """``loss(params, *arrays) -> scalar`` of one seed for a :class:`Problem` kind; its
     networks are :class:`TrainingMLP` s (hand-written backward passes)."""
 
@@ -94,6 +110,7 @@ def make_loss(impl: ModuleType, kind: str, layout: Layout, cfg: NeuralConfig,
 def rk4_step(field: Callable[..., torch.Tensor]) -> Callable[..., torch.Tensor]:
     """The classical Runge-Kutta step ``(nets, z, h) -> z'`` of ``field`` (``h``
     broadcasts against ``z``: a ``(M, 1)`` column of step sizes)."""
+
     def step(nets: Any, z: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
         k1 = field(nets, z)
         k2 = field(nets, z + 0.5 * h * k1)
@@ -104,9 +121,13 @@ def rk4_step(field: Callable[..., torch.Tensor]) -> Callable[..., torch.Tensor]:
     return step
 
 
-def make_criterion(impl: ModuleType, criterion: str, layout: Layout, cfg: NeuralConfig,
-                   options: tuple[tuple[str, Any], ...] = ()
-                   ) -> Callable[..., torch.Tensor]:
+def make_criterion(
+    impl: ModuleType,
+    criterion: str,
+    layout: Layout,
+    cfg: NeuralConfig,
+    options: tuple[tuple[str, Any], ...] = (),
+) -> Callable[..., torch.Tensor]:
     """``values(params, *arrays) -> (V,)``: the validation criterion of one seed per point
     or window (:data:`hnnbench.neural._views.Criterion`; docs/METRICS.md, "Checkpoint
     selection"), as the JAX backend computes it."""
@@ -119,7 +140,7 @@ def make_criterion(impl: ModuleType, criterion: str, layout: Layout, cfg: Neural
         error = impl.field(nets_of(params), z) - zdot
         if criterion == "field:weighted":  # to the system's dx/dt, point by point
             error = torch.einsum("vij,vj->vi", arrays[2], error)
-        return torch.mean(error ** 2, dim=1)
+        return torch.mean(error**2, dim=1)
 
     def windows(params: Params, windows: torch.Tensor, dts: torch.Tensor) -> torch.Tensor:
         nets = nets_of(params)
@@ -133,14 +154,14 @@ def make_criterion(impl: ModuleType, criterion: str, layout: Layout, cfg: Neural
                 z = step(nets, z, h)
             predicted.append(z)
         error = torch.stack(predicted, dim=1)[..., :n] - windows[:, 1:, :n]
-        return torch.mean(error ** 2, dim=(1, 2))
+        return torch.mean(error**2, dim=(1, 2))
 
     def pixels(params: Params, x: torch.Tensor, x_next: torch.Tensor) -> torch.Tensor:
-        return pixel_objective_rows(impl.field, nets_of(params), Autoencoder(params), x,
-                                    x_next)
+        return pixel_objective_rows(impl.field, nets_of(params), Autoencoder(params), x, x_next)
 
-    return pixels if criterion == "pixels" else (
-        windows if criterion.startswith("windows") else field)
+    return (
+        pixels if criterion == "pixels" else (windows if criterion.startswith("windows") else field)
+    )
 
 
 class FusedAdam:
@@ -157,10 +178,12 @@ class FusedAdam:
         self.params = params
         self.lr, self.weight_decay = float(lr), float(weight_decay)
         with torch.no_grad():
-            self.exp_avg = [torch.zeros_like(p, memory_format=torch.preserve_format)
-                            for p in params]
-            self.exp_avg_sq = [torch.zeros_like(p, memory_format=torch.preserve_format)
-                               for p in params]
+            self.exp_avg = [
+                torch.zeros_like(p, memory_format=torch.preserve_format) for p in params
+            ]
+            self.exp_avg_sq = [
+                torch.zeros_like(p, memory_format=torch.preserve_format) for p in params
+            ]
         # torch.optim.Adam's fused state: a float32 step count per parameter, on its device
         self.steps = [torch.zeros((), dtype=torch.float32, device=p.device) for p in params]
 
@@ -177,23 +200,42 @@ class FusedAdam:
         steps = pick(self.steps)
         with torch.no_grad():
             torch._foreach_add_(steps, 1)
-            torch._fused_adam_(pick(self.params), pick(list(grads)), pick(self.exp_avg),
-                               pick(self.exp_avg_sq), [], steps, lr=self.lr, beta1=0.9,
-                               beta2=0.999, weight_decay=self.weight_decay, eps=1e-8,
-                               amsgrad=False, maximize=False)
+            torch._fused_adam_(
+                pick(self.params),
+                pick(list(grads)),
+                pick(self.exp_avg),
+                pick(self.exp_avg_sq),
+                [],
+                steps,
+                lr=self.lr,
+                beta1=0.9,
+                beta2=0.999,
+                weight_decay=self.weight_decay,
+                eps=1e-8,
+                amsgrad=False,
+                maximize=False,
+            )
 
 
 class TorchTrainer:
     """The parameters and Adam state of ``S`` seeds (stacked when ``S > 1``)."""
 
-    def __init__(self, backend: TorchBackend, family: Family, impl: ModuleType,
-                 problem: Problem, initial: Sequence[Weights], settings: TrainSettings,
-                 layout: Layout) -> None:
+    def __init__(
+        self,
+        backend: TorchBackend,
+        family: Family,
+        impl: ModuleType,
+        problem: Problem,
+        initial: Sequence[Weights],
+        settings: TrainSettings,
+        layout: Layout,
+    ) -> None:
         dev, dtype = backend.device, backend.dtype
         self.seeds = len(initial)
         self.loss = make_loss(impl, problem.kind, layout, backend.cfg, problem.options)
-        self.criterion = make_criterion(impl, problem.criterion, layout, backend.cfg,
-                                        problem.criterion_options)
+        self.criterion = make_criterion(
+            impl, problem.criterion, layout, backend.cfg, problem.criterion_options
+        )
 
         def tensor(a: np.ndarray) -> torch.Tensor:
             return torch.as_tensor(np.ascontiguousarray(a), device=dev).to(dtype)
@@ -201,8 +243,9 @@ class TorchTrainer:
         if self.seeds == 1:
             self.params = {k: tensor(v).clone().requires_grad_() for k, v in initial[0].items()}
         else:
-            self.params = {k: tensor(np.stack([w[k] for w in initial])).requires_grad_()
-                           for k in initial[0]}
+            self.params = {
+                k: tensor(np.stack([w[k] for w in initial])).requires_grad_() for k in initial[0]
+            }
         self.stacked = problem.stacked
         self.train = tuple(tensor(a) for a in problem.train)
         self.valid = tuple(tensor(a) for a in problem.valid)
@@ -210,8 +253,12 @@ class TorchTrainer:
         self.device = dev
         self.kept: Optional[Params] = None  # the selected checkpoint (Trainer.keep)
 
-    def _losses(self, arrays: tuple[torch.Tensor, ...], per_seed_rows: bool,
-                fn: Optional[Callable[..., torch.Tensor]] = None) -> torch.Tensor:
+    def _losses(
+        self,
+        arrays: tuple[torch.Tensor, ...],
+        per_seed_rows: bool,
+        fn: Optional[Callable[..., torch.Tensor]] = None,
+    ) -> torch.Tensor:
         """Each seed's loss ``(S,)`` (a scalar when ``S == 1``), or of ``fn`` (the
         criterion: ``(S, V)``, or ``(V,)`` for one seed)."""
         fn = self.loss if fn is None else fn
@@ -230,8 +277,9 @@ class TorchTrainer:
             return tuple(a[seed, idx] for a in self.train)
         return tuple(a[idx] for a in self.train)  # shared data, per-seed rows
 
-    def run_chunk(self, indices: Optional[np.ndarray], length: int,
-                  lrs: Optional[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    def run_chunk(
+        self, indices: Optional[np.ndarray], length: int, lrs: Optional[np.ndarray]
+    ) -> tuple[np.ndarray, np.ndarray]:
         losses = []
         for j in range(length):
             if lrs is not None:
@@ -272,18 +320,29 @@ class TorchInference:
     """One seed's float64 field, energy and rollouts, and its pixel autoencoder in the
     training dtype."""
 
-    def __init__(self, backend: TorchBackend, family: Family, impl: ModuleType,
-                 weights: Weights, layout: Layout) -> None:
+    def __init__(
+        self,
+        backend: TorchBackend,
+        family: Family,
+        impl: ModuleType,
+        weights: Weights,
+        layout: Layout,
+    ) -> None:
         self.backend, self.impl = backend, impl
         cfg, dev = backend.cfg, backend.device
         self.nets64 = networks(
-            weights, layout, cfg,
+            weights,
+            layout,
+            cfg,
             lambda w, name, layers, act, inputs: FrozenMLP.from_weights(
-                w, name, layers, act, torch.float64, dev, inputs))
+                w, name, layers, act, torch.float64, dev, inputs
+            ),
+        )
         self.pixels = "autoencoder.encoder.0.weight" in weights
         if self.pixels:  # training-dtype autoencoder and dynamics, for the objective
-            params = {k: torch.as_tensor(v, device=dev).to(backend.dtype)
-                      for k, v in weights.items()}
+            params = {
+                k: torch.as_tensor(v, device=dev).to(backend.dtype) for k, v in weights.items()
+            }
             self.ae = Autoencoder(params)
             self.nets = networks(params, layout, cfg, MLP.view)
 
@@ -300,14 +359,21 @@ class TorchInference:
             out = self.impl.energy(self.nets64, self._tensor(z, torch.float64))
         return out.cpu().numpy()
 
-    def rollout(self, z0: np.ndarray, t: np.ndarray, rtol: float, atol: float,
-                max_steps: int) -> np.ndarray:
+    def rollout(
+        self, z0: np.ndarray, t: np.ndarray, rtol: float, atol: float, max_steps: int
+    ) -> np.ndarray:
         y0 = self._tensor(z0, torch.float64)
         try:
             with torch.no_grad():  # the fields need no autograd (closed-form gradients)
-                ys = dopri5(lambda y: self.impl.field(self.nets64, y), y0, np.asarray(t),
-                            rtol=rtol, atol=atol, max_steps=max_steps,
-                            min_step=rollout_min_step(t))
+                ys = dopri5(
+                    lambda y: self.impl.field(self.nets64, y),
+                    y0,
+                    np.asarray(t),
+                    rtol=rtol,
+                    atol=atol,
+                    max_steps=max_steps,
+                    min_step=rollout_min_step(t),
+                )
         except SolverGaveUp as err:
             raise RolloutDiverged(f"dopri5 gave up: {err}") from None
         except torch.linalg.LinAlgError as err:  # e.g. a model's own singular solve
@@ -336,8 +402,15 @@ class TorchInference:
     def objective(self, x: np.ndarray, x_next: np.ndarray) -> float:
         dtype = self.backend.dtype
         with torch.no_grad():
-            return float(pixel_objective(self.impl.field, self.nets, self.ae,
-                                         self._tensor(x, dtype), self._tensor(x_next, dtype)))
+            return float(
+                pixel_objective(
+                    self.impl.field,
+                    self.nets,
+                    self.ae,
+                    self._tensor(x, dtype),
+                    self._tensor(x_next, dtype),
+                )
+            )
 
 
 class TorchBackend:
@@ -352,14 +425,21 @@ class TorchBackend:
         self.device_name = str(self.device)
         self.timings: dict[str, float] = {}
 
-    def trainer(self, family: Family, impl: ModuleType, problem: Problem,
-                initial: Sequence[Weights], settings: TrainSettings,
-                layout: Layout) -> TorchTrainer:
+    def trainer(
+        self,
+        family: Family,
+        impl: ModuleType,
+        problem: Problem,
+        initial: Sequence[Weights],
+        settings: TrainSettings,
+        layout: Layout,
+    ) -> TorchTrainer:
         return TorchTrainer(self, family, impl, problem, initial, settings, layout)
 
     def weights(self, trainer: Any) -> list[Weights]:
         return trainer.weights()
 
-    def inference(self, family: Family, impl: ModuleType, weights: Weights,
-                  layout: Layout) -> TorchInference:
+    def inference(
+        self, family: Family, impl: ModuleType, weights: Weights, layout: Layout
+    ) -> TorchInference:
         return TorchInference(self, family, impl, weights, layout)

@@ -47,8 +47,9 @@ def _act(name: str, a: torch.Tensor) -> torch.Tensor:
     return torch.nn.functional.softplus(a)
 
 
-def _times_d1(name: str, grad: torch.Tensor, a: Optional[torch.Tensor], h: torch.Tensor
-              ) -> torch.Tensor:
+def _times_d1(
+    name: str, grad: torch.Tensor, a: Optional[torch.Tensor], h: torch.Tensor
+) -> torch.Tensor:
     """``grad ⊙ σ'(a)`` (``h = σ(a)``; ``a`` is read by softplus only), one kernel for
     tanh and sigmoid."""
     if name == "tanh":
@@ -59,8 +60,9 @@ def _times_d1(name: str, grad: torch.Tensor, a: Optional[torch.Tensor], h: torch
     return grad * torch.sigmoid(a)
 
 
-def _curvature(name: str, s: torch.Tensor, a: Optional[torch.Tensor], h: torch.Tensor
-               ) -> tuple[torch.Tensor, float]:
+def _curvature(
+    name: str, s: torch.Tensor, a: Optional[torch.Tensor], h: torch.Tensor
+) -> tuple[torch.Tensor, float]:
     """``(c, k)`` with ``k · c = s ⊙ σ''(a) / σ'(a)`` (tanh: ``σ''/σ' = -2h``; sigmoid:
     ``1 - 2h``), or, for softplus, ``c = s ⊙ σ''(a)`` and ``k = 1``; ``s`` is
     overwritten."""
@@ -106,8 +108,9 @@ def _add_gram(acc: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> torch.Tens
     return acc.addmm_(a.mT, b)
 
 
-def _forward(name: str, x: torch.Tensor, params: tuple[torch.Tensor, ...]
-             ) -> tuple[list[Optional[torch.Tensor]], list[torch.Tensor]]:
+def _forward(
+    name: str, x: torch.Tensor, params: tuple[torch.Tensor, ...]
+) -> tuple[list[Optional[torch.Tensor]], list[torch.Tensor]]:
     """Pre-activations ``a_k`` (softplus only, else ``None``) and layer inputs
     ``h_0 = x, h_1, ..., h_m``."""
     pre: list[Optional[torch.Tensor]] = []
@@ -148,9 +151,9 @@ class _Value(torch.autograd.Function):
         if grad_out is None:
             return (None,) * (2 * m + 3)
         name, saved = ctx.name, ctx.saved_tensors
-        x, params = saved[0], saved[1:2 * m + 2]
-        hs = [x, *saved[2 * m + 2:3 * m + 2]]
-        pre = list(saved[3 * m + 2:]) if name == "softplus" else [None] * m
+        x, params = saved[0], saved[1 : 2 * m + 2]
+        hs = [x, *saved[2 * m + 2 : 3 * m + 2]]
+        pre = list(saved[3 * m + 2 :]) if name == "softplus" else [None] * m
         grads: list[Any] = [None] * len(params)
         grads[-1] = _gram(grad_out, hs[m])
         dh = grad_out @ params[-1]
@@ -205,13 +208,13 @@ class _InputGradient(torch.autograd.Function):
         if grad_q0 is None:
             return (None,) * (2 * m + 3)
         name, saved = ctx.name, ctx.saved_tensors
-        x, params = saved[0], saved[1:2 * m + 2]
-        rest = saved[2 * m + 2:]
+        x, params = saved[0], saved[1 : 2 * m + 2]
+        rest = saved[2 * m + 2 :]
         hs = [x, *rest[:m]]
-        ts = rest[m:2 * m]
+        ts = rest[m : 2 * m]
         w_last = params[-1]
-        qs: list[Any] = [None, *rest[2 * m:3 * m - 1], w_last]  # q_1..q_m (q_m broadcast)
-        pre = list(rest[3 * m - 1:]) if name == "softplus" else [None] * m
+        qs: list[Any] = [None, *rest[2 * m : 3 * m - 1], w_last]  # q_1..q_m (q_m broadcast)
+        pre = list(rest[3 * m - 1 :]) if name == "softplus" else [None] * m
         grads: list[Any] = [None] * len(params)
         # the sweep, reversed: Q_k = ∂L/∂q_k, T_k = ∂L/∂t_k; T_k ⊙ q_{k+1} = ∂L/∂σ'(a_k)
         big_q = grad_q0
@@ -277,8 +280,7 @@ def value(activation: str, x: torch.Tensor, params: list[torch.Tensor]) -> torch
     return _apply(_Value, activation, x, *params)[0]
 
 
-def input_gradient(activation: str, x: torch.Tensor, params: list[torch.Tensor]
-                   ) -> torch.Tensor:
+def input_gradient(activation: str, x: torch.Tensor, params: list[torch.Tensor]) -> torch.Tensor:
     """``∇ₓf`` ``(N, d)`` of the scalar-output MLP with ``params`` (``w_0, b_0, ...,
     w_m``, ``w_m`` of shape ``(1, hidden)``)."""
     return _apply(_InputGradient, activation, x, *params)[0]

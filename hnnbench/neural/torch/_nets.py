@@ -90,8 +90,7 @@ class Periodic:
         self.cols = torch.tensor(spec.angles, dtype=torch.long, device=device)
 
     @staticmethod
-    def of(spec: Optional[NetInput], device: Optional[torch.device] = None
-           ) -> Optional[Periodic]:
+    def of(spec: Optional[NetInput], device: Optional[torch.device] = None) -> Optional[Periodic]:
         """The embedding of ``spec``, or ``None`` where it changes nothing."""
         return Periodic(spec, device) if spec is not None and spec.active else None
 
@@ -114,34 +113,40 @@ class Periodic:
             return grad_u
         cols = self._cols(x)
         theta = x.index_select(-1, cols)
-        g_cos, g_sin = grad_u.index_select(-1, cols), grad_u[..., self.width:]
-        return grad_u[..., :self.width].index_copy(
-            -1, cols, g_sin * torch.cos(theta) - g_cos * torch.sin(theta))
+        g_cos, g_sin = grad_u.index_select(-1, cols), grad_u[..., self.width :]
+        return grad_u[..., : self.width].index_copy(
+            -1, cols, g_sin * torch.cos(theta) - g_cos * torch.sin(theta)
+        )
 
     def first_tangent(self, w: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
         """``∂(W u(x))/∂x`` transposed, ``(N, w, out)``, for a first-layer weight ``w``
         ``(out, features)``."""
         n = x.shape[0]
         wt = w.t()  # (features, out)
-        base = wt[:self.width].expand(n, -1, -1)
+        base = wt[: self.width].expand(n, -1, -1)
         if self.kind == "wrap":
             return base
         cols = self._cols(x)
         theta = x.index_select(-1, cols)[:, :, None]  # (N, k, 1)
-        rows = (torch.cos(theta) * wt[self.width:][None]
-                - torch.sin(theta) * wt.index_select(0, cols)[None])  # (N, k, out)
+        rows = (
+            torch.cos(theta) * wt[self.width :][None]
+            - torch.sin(theta) * wt.index_select(0, cols)[None]
+        )  # (N, k, out)
         return base.index_copy(1, cols, rows)
 
-    def curvature(self, x: torch.Tensor, grad_u: torch.Tensor, hess: torch.Tensor,
-                  first_row: int) -> torch.Tensor:
+    def curvature(
+        self, x: torch.Tensor, grad_u: torch.Tensor, hess: torch.Tensor, first_row: int
+    ) -> torch.Tensor:
         """``hess`` ``(N, w - first_row, w)`` plus the embedding's own second-derivative
         term ``Σ_j ∂f/∂u_j ∂²u_j/∂x²`` (diagonal, in the angle columns)."""
         if self.kind == "wrap":
             return hess
         cols = self._cols(x)
         theta = x.index_select(-1, cols)
-        diag = -(grad_u.index_select(-1, cols) * torch.cos(theta)
-                 + grad_u[..., self.width:] * torch.sin(theta))  # (N, k)
+        diag = -(
+            grad_u.index_select(-1, cols) * torch.cos(theta)
+            + grad_u[..., self.width :] * torch.sin(theta)
+        )  # (N, k)
         keep = [j for j, c in enumerate(self.angles) if c >= first_row]
         if not keep:  # e.g. the LNN's velocity rows: no angle among them
             return hess
@@ -151,10 +156,14 @@ class Periodic:
         return hess + extra
 
 
-def input_hessian(weights: Sequence[torch.Tensor], biases: Sequence[torch.Tensor],
-                  activation: str, x: torch.Tensor, first_row: int = 0,
-                  periodic: Optional[Periodic] = None
-                  ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+def input_hessian(
+    weights: Sequence[torch.Tensor],
+    biases: Sequence[torch.Tensor],
+    activation: str,
+    x: torch.Tensor,
+    first_row: int = 0,
+    periodic: Optional[Periodic] = None,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Value ``(N,)``, input gradient ``(N, d)`` and the rows ``first_row:`` of the input
     Hessian ``(N, d - first_row, d)`` of a scalar-output MLP (``(out, in)`` weights, an
     activation between layers, no bias on the last), in closed form.
@@ -202,15 +211,26 @@ class MLP:
     """``len(weights)`` linear layers (``(out, in)`` weights) with an activation between
     them; the last has no bias. Maps ``(N, d_in)`` to ``(N, d_out)``."""
 
-    def __init__(self, weights: Sequence[torch.Tensor], biases: Sequence[torch.Tensor],
-                 activation: str, periodic: Optional[Periodic] = None) -> None:
+    def __init__(
+        self,
+        weights: Sequence[torch.Tensor],
+        biases: Sequence[torch.Tensor],
+        activation: str,
+        periodic: Optional[Periodic] = None,
+    ) -> None:
         self.weights, self.biases, self.activation = list(weights), list(biases), activation
         #: The angle embedding before the first layer (``None``: the inputs as they are).
         self.periodic = periodic
 
     @classmethod
-    def view(cls, params: Mapping[str, torch.Tensor], net: str, layers: int,
-             activation: str, inputs: Optional[NetInput] = None) -> MLP:
+    def view(
+        cls,
+        params: Mapping[str, torch.Tensor],
+        net: str,
+        layers: int,
+        activation: str,
+        inputs: Optional[NetInput] = None,
+    ) -> MLP:
         """The network ``net`` of a flat parameter dict (``"<net>.linears.<i>.weight"``);
         ``inputs``: what it reads (its angle embedding)."""
         weights = [params[f"{net}.linears.{i}.weight"] for i in range(layers)]
@@ -239,11 +259,13 @@ class MLP:
             g = (g * activation_grad(self.activation, pre[i], post[i])) @ self.weights[i]
         return g if self.periodic is None else self.periodic.pull(x, g)
 
-    def input_hessian(self, x: torch.Tensor, first_row: int = 0
-                      ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    def input_hessian(
+        self, x: torch.Tensor, first_row: int = 0
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """:func:`input_hessian` of this network (``d_out == 1``)."""
-        return input_hessian(self.weights, self.biases, self.activation, x, first_row,
-                             self.periodic)
+        return input_hessian(
+            self.weights, self.biases, self.activation, x, first_row, self.periodic
+        )
 
 
 class TrainingMLP(MLP):
@@ -267,8 +289,7 @@ class TrainingMLP(MLP):
     def input_gradient(self, x: torch.Tensor) -> torch.Tensor:
         if self.periodic is None:
             return _backprop.input_gradient(self.activation, x, self._params())
-        grad_u = _backprop.input_gradient(self.activation, self.periodic.embed(x),
-                                          self._params())
+        grad_u = _backprop.input_gradient(self.activation, self.periodic.embed(x), self._params())
         return self.periodic.pull(x, grad_u)
 
 
@@ -277,9 +298,15 @@ class FrozenMLP:
     same ``__call__`` and ``input_gradient`` as :class:`MLP`, from detached,
     pre-transposed weights with one ``addmm`` per layer and no autograd."""
 
-    def __init__(self, weights: Sequence[np.ndarray], biases: Sequence[np.ndarray],
-                 activation: str, dtype: torch.dtype, device: torch.device,
-                 inputs: Optional[NetInput] = None) -> None:
+    def __init__(
+        self,
+        weights: Sequence[np.ndarray],
+        biases: Sequence[np.ndarray],
+        activation: str,
+        dtype: torch.dtype,
+        device: torch.device,
+        inputs: Optional[NetInput] = None,
+    ) -> None:
         def tensor(a: np.ndarray) -> torch.Tensor:  # a copy, never a view of ``a``
             return torch.from_numpy(np.array(a, copy=True)).to(device=device, dtype=dtype)
 
@@ -290,12 +317,24 @@ class FrozenMLP:
         self.periodic = Periodic.of(inputs, device)
 
     @classmethod
-    def from_weights(cls, weights: Mapping[str, np.ndarray], net: str, layers: int,
-                     activation: str, dtype: torch.dtype, device: torch.device,
-                     inputs: Optional[NetInput] = None) -> FrozenMLP:
-        return cls([weights[f"{net}.linears.{i}.weight"] for i in range(layers)],
-                   [weights[f"{net}.linears.{i}.bias"] for i in range(layers - 1)],
-                   activation, dtype, device, inputs)
+    def from_weights(
+        cls,
+        weights: Mapping[str, np.ndarray],
+        net: str,
+        layers: int,
+        activation: str,
+        dtype: torch.dtype,
+        device: torch.device,
+        inputs: Optional[NetInput] = None,
+    ) -> FrozenMLP:
+        return cls(
+            [weights[f"{net}.linears.{i}.weight"] for i in range(layers)],
+            [weights[f"{net}.linears.{i}.bias"] for i in range(layers - 1)],
+            activation,
+            dtype,
+            device,
+            inputs,
+        )
 
     def __call__(self, x: torch.Tensor) -> torch.Tensor:
         h = x if self.periodic is None else self.periodic.embed(x)
@@ -317,11 +356,13 @@ class FrozenMLP:
             g = (g * activation_grad(self.activation, pre[i], post[i])) @ self.weights[i]
         return g if self.periodic is None else self.periodic.pull(x, g)
 
-    def input_hessian(self, x: torch.Tensor, first_row: int = 0
-                      ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    def input_hessian(
+        self, x: torch.Tensor, first_row: int = 0
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """As :meth:`MLP.input_hessian`."""
-        return input_hessian(self.weights, self.biases, self.activation, x, first_row,
-                             self.periodic)
+        return input_hessian(
+            self.weights, self.biases, self.activation, x, first_row, self.periodic
+        )
 
 
 class Autoencoder:
@@ -330,8 +371,10 @@ class Autoencoder:
 
     def __init__(self, params: Mapping[str, torch.Tensor]) -> None:
         def stack(half: str) -> list[tuple[torch.Tensor, torch.Tensor]]:
-            return [(params[f"autoencoder.{half}.{i}.weight"],
-                     params[f"autoencoder.{half}.{i}.bias"]) for i in range(AE_LAYERS)]
+            return [
+                (params[f"autoencoder.{half}.{i}.weight"], params[f"autoencoder.{half}.{i}.bias"])
+                for i in range(AE_LAYERS)
+            ]
 
         self.encoder, self.decoder = stack("encoder"), stack("decoder")
 
@@ -349,8 +392,13 @@ class Autoencoder:
         return self._run(self.decoder, z)
 
 
-def pixel_objective(field: Callable[[Any, torch.Tensor], torch.Tensor], nets: Any,
-                    ae: Autoencoder, x: torch.Tensor, x_next: torch.Tensor) -> torch.Tensor:
+def pixel_objective(
+    field: Callable[[Any, torch.Tensor], torch.Tensor],
+    nets: Any,
+    ae: Autoencoder,
+    x: torch.Tensor,
+    x_next: torch.Tensor,
+) -> torch.Tensor:
     """The 2019 pixel loss on pairs of consecutive inputs ``x -> x_next`` (scalar):
     reconstruction + canonical coordinates (``z_p`` tied to the frame-to-frame change
     of ``z_q``) + 0.1 x one Euler step (dt = 1) of the latent dynamics ``field``."""
@@ -362,9 +410,13 @@ def pixel_objective(field: Callable[[Any, torch.Tensor], torch.Tensor], nets: An
     return reconstruction + CC_WEIGHT * canonical + DYNAMICS_WEIGHT * dynamics
 
 
-def pixel_objective_rows(field: Callable[[Any, torch.Tensor], torch.Tensor], nets: Any,
-                         ae: Autoencoder, x: torch.Tensor, x_next: torch.Tensor
-                         ) -> torch.Tensor:
+def pixel_objective_rows(
+    field: Callable[[Any, torch.Tensor], torch.Tensor],
+    nets: Any,
+    ae: Autoencoder,
+    x: torch.Tensor,
+    x_next: torch.Tensor,
+) -> torch.Tensor:
     """:func:`pixel_objective` of each pair, ``(N,)`` (each term's mean over its row):
     their mean is the objective, up to rounding."""
     z, z_next = ae.encode(x), ae.encode(x_next)

@@ -36,9 +36,15 @@ A = (
 B = (35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84)
 E = (71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40)
 # Hairer, Norsett & Wanner's continuous extension of DOPRI5 (their code's CONTD5).
-D = (-12715105075 / 11282082432, 0.0, 87487479700 / 32700410799,
-     -10690763975 / 1880347072, 701980252875 / 199316789632,
-     -1453857185 / 822651844, 69997945 / 29380423)
+D = (
+    -12715105075 / 11282082432,
+    0.0,
+    87487479700 / 32700410799,
+    -10690763975 / 1880347072,
+    701980252875 / 199316789632,
+    -1453857185 / 822651844,
+    69997945 / 29380423,
+)
 
 SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
 
@@ -47,8 +53,9 @@ class SolverGaveUp(RuntimeError):
     """The step size underflowed, the state became non-finite, or the step budget ran out."""
 
 
-def _tableau(dtype: torch.dtype, device: torch.device
-             ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+def _tableau(
+    dtype: torch.dtype, device: torch.device
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """``(A, E, D)`` as tensors. ``A`` is ``(6, 6)``: the stage rows 2-6 and, as its last
     row, the 5th-order weights ``B``, zero-padded on the right; ``E`` and ``D`` are
     ``(1, 7)`` rows."""
@@ -60,8 +67,9 @@ def _tableau(dtype: torch.dtype, device: torch.device
     return a.to(device), e.to(device), d.to(device)
 
 
-def _initial_step(f: Field, y0: torch.Tensor, f0: torch.Tensor, direction: float,
-                  rtol: float, atol: float) -> float:
+def _initial_step(
+    f: Field, y0: torch.Tensor, f0: torch.Tensor, direction: float, rtol: float, atol: float
+) -> float:
     """Hairer's starting step: the order-5 guess from two field evaluations."""
     scale = atol + rtol * y0.abs()
     d0 = float(torch.sqrt(torch.mean((y0 / scale) ** 2)))
@@ -77,7 +85,12 @@ def _initial_step(f: Field, y0: torch.Tensor, f0: torch.Tensor, direction: float
 
 
 def dopri5(
-    f: Field, y0: torch.Tensor, t: np.ndarray, rtol: float, atol: float, max_steps: int,
+    f: Field,
+    y0: torch.Tensor,
+    t: np.ndarray,
+    rtol: float,
+    atol: float,
+    max_steps: int,
     min_step: float = 0.0,
 ) -> torch.Tensor:
     """Integrate ``dy/dt = f(y)`` from ``y0`` ``(N, D)`` and report ``y`` at ``t`` ``(T,)``.
@@ -143,10 +156,10 @@ def dopri5(
                 nxt = last
             t_now, y = t_new, y_new
             ks[0] = ks[6]
-            factor = MAX_FACTOR if err_norm == 0.0 else SAFETY * err_norm ** -0.2
+            factor = MAX_FACTOR if err_norm == 0.0 else SAFETY * err_norm**-0.2
             h = h * min(MAX_FACTOR, max(MIN_FACTOR, factor))
         else:
-            h = h * max(MIN_FACTOR, SAFETY * err_norm ** -0.2)
+            h = h * max(MIN_FACTOR, SAFETY * err_norm**-0.2)
         _check_stall(h, min_step, t_now, nonfinite_at == t_now)
     return out
 
@@ -155,12 +168,20 @@ def _check_stall(h: float, min_step: float, t_now: float, nonfinite: bool) -> No
     """Raise :class:`SolverGaveUp` when the proposed step ``h`` is below ``min_step``."""
     if h < min_step:
         why = " after non-finite trial states" if nonfinite else ""
-        raise SolverGaveUp(f"the step size fell to {h:.3g} at t={t_now:.6g}{why}, below "
-                           f"{stall_text(min_step)}")
+        raise SolverGaveUp(
+            f"the step size fell to {h:.3g} at t={t_now:.6g}{why}, below {stall_text(min_step)}"
+        )
 
 
-def _dense(times: np.ndarray, t0: float, hs: float, y0: torch.Tensor, y1: torch.Tensor,
-           ks: torch.Tensor, d: torch.Tensor) -> torch.Tensor:
+def _dense(
+    times: np.ndarray,
+    t0: float,
+    hs: float,
+    y0: torch.Tensor,
+    y1: torch.Tensor,
+    ks: torch.Tensor,
+    d: torch.Tensor,
+) -> torch.Tensor:
     """The continuous extension at ``times`` ``(M,)`` inside the step from ``y0`` to
     ``y1`` (rows ``(1, N*D)``; ``ks`` the step's ``(7, N*D)`` stages): ``(M, N*D)``."""
     r2 = y1 - y0

@@ -31,22 +31,31 @@ DHNN = Family(
     name="dhnn",
     title="Dissipative HNN: scalars H and D, dynamics J grad H + grad D",
     reference="Sosanya & Greydanus, Dissipative Hamiltonian Neural Networks: Learning "
-              "Dissipative and Conservative Dynamics Separately, arXiv:2201.10085 (2022)",
+    "Dissipative and Conservative Dynamics Separately, arXiv:2201.10085 (2022)",
     networks=lambda d: {"H": (d, 1), "D": (d, 1)},
-    implementations={"torch": "hnnbench_plugins.models.dhnn.torch",
-                     "jax": "hnnbench_plugins.models.dhnn.jax"},
+    implementations={
+        "torch": "hnnbench_plugins.models.dhnn.torch",
+        "jax": "hnnbench_plugins.models.dhnn.jax",
+    },
     order=30,
     learned_energy=True,
     search_space={**SHARED_SPACE, "dissipation_scale": LogUniform(0.1, 10.0)},
-    recipe={"hidden": 256, "layers": 3, "activation": "tanh", "lr": 1e-3,
-            "weight_decay": 0.0, "batch_size": 128, "steps": 5000},
+    recipe={
+        "hidden": 256,
+        "layers": 3,
+        "activation": "tanh",
+        "lr": 1e-3,
+        "weight_decay": 0.0,
+        "batch_size": 128,
+        "steps": 5000,
+    },
 )
 
 
 @dataclass
 class DHNNConfig(NeuralConfig):
     """Attributes:
-        dissipation_scale: ``s`` in ``ż = J ∇H + s ∇D`` (> 0; 1: the paper's model).
+    dissipation_scale: ``s`` in ``ż = J ∇H + s ∇D`` (> 0; 1: the paper's model).
     """
 
     dissipation_scale: float = 1.0
@@ -54,8 +63,10 @@ class DHNNConfig(NeuralConfig):
     def validate(self) -> None:
         super().validate()
         if not (math.isfinite(self.dissipation_scale) and self.dissipation_scale > 0):
-            raise ConfigError(f"model.dissipation_scale={self.dissipation_scale} is invalid: "
-                              "expected a finite number > 0, e.g. model.dissipation_scale=1.")
+            raise ConfigError(
+                f"model.dissipation_scale={self.dissipation_scale} is invalid: "
+                "expected a finite number > 0, e.g. model.dissipation_scale=1."
+            )
 
 
 class _DHNN(NeuralModel):

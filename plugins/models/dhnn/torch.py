@@ -8,11 +8,9 @@ import torch
 from hnnbench.neural.torch import MLP, symplectic
 
 
-def field(nets: dict[str, MLP], z: torch.Tensor,
-          dissipation_scale: float = 1.0) -> torch.Tensor:
+def field(nets: dict[str, MLP], z: torch.Tensor, dissipation_scale: float = 1.0) -> torch.Tensor:
     return symplectic(nets["H"].input_gradient(z)) + dissipation_scale * nets["D"].input_gradient(z)
 
 
-def energy(nets: dict[str, MLP], z: torch.Tensor,
-           dissipation_scale: float = 1.0) -> torch.Tensor:
+def energy(nets: dict[str, MLP], z: torch.Tensor, dissipation_scale: float = 1.0) -> torch.Tensor:
     return nets["H"](z)[:, 0]

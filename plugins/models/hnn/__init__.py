@@ -15,8 +15,10 @@ HNN = Family(
     title="Hamiltonian NN: scalar H, dynamics (dH/dp, -dH/dq)",
     reference="Greydanus, Dzamba & Yosinski, Hamiltonian Neural Networks, NeurIPS 2019",
     networks=lambda d: {"H": (d, 1)},
-    implementations={"torch": "hnnbench_plugins.models.hnn.torch",
-                     "jax": "hnnbench_plugins.models.hnn.jax"},
+    implementations={
+        "torch": "hnnbench_plugins.models.hnn.torch",
+        "jax": "hnnbench_plugins.models.hnn.jax",
+    },
     order=20,
     search_space=SHARED_SPACE,
     observations=("state", "pixels"),

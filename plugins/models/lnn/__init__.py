@@ -63,25 +63,38 @@ PAPER_STREAM = 40
 FIRST_SCALE, MIDDLE_SCALE = 2.2, 0.58
 
 #: The LNN paper's recipe (the module docstring), applied under ``track=recipe``.
-RECIPE = {"hidden": 600, "layers": 4, "activation": "softplus", "kinetic_prior": 0.0,
-          "init": "paper", "loss": "l1", "lr_schedule": "one_cycle", "lr": 1e-3,
-          "batch_size": 512, "weight_decay": 0.0}
+RECIPE = {
+    "hidden": 600,
+    "layers": 4,
+    "activation": "softplus",
+    "kinetic_prior": 0.0,
+    "init": "paper",
+    "loss": "l1",
+    "lr_schedule": "one_cycle",
+    "lr": 1e-3,
+    "batch_size": 512,
+    "weight_decay": 0.0,
+}
 
 LNN = Family(
     name="lnn",
     title="Lagrangian NN: scalar L(q, q'), accelerations from Euler-Lagrange",
     reference="Cranmer, Greydanus, Hoyer, Battaglia, Spergel, Ho, Lagrangian Neural "
-              "Networks, ICLR 2020 workshop (arXiv:2003.04630)",
+    "Networks, ICLR 2020 workshop (arXiv:2003.04630)",
     networks=lambda d: {"L": (d, 1)},
-    implementations={"torch": "hnnbench_plugins.models.lnn.torch",
-                     "jax": "hnnbench_plugins.models.lnn.jax"},
+    implementations={
+        "torch": "hnnbench_plugins.models.lnn.torch",
+        "jax": "hnnbench_plugins.models.lnn.jax",
+    },
     order=40,
     coordinates="velocity",
     learned_energy=True,
     # The shared space, but softplus only (LNNConfig), and the weight of the kinetic
     # term from none (the paper's plain network) to twice the default.
-    search_space={**{k: v for k, v in SHARED_SPACE.items() if k != "activation"},
-                  "kinetic_prior": Categorical((0.0, 0.25, 0.5, 1.0))},
+    search_space={
+        **{k: v for k, v in SHARED_SPACE.items() if k != "activation"},
+        "kinetic_prior": Categorical((0.0, 0.25, 0.5, 1.0)),
+    },
     recipe=RECIPE,
 )
 
@@ -110,6 +123,7 @@ def paper_init_arrays(seed: int, shapes: dict[str, tuple[int, ...]]) -> dict[str
 #: a step several times the HNN's), so quick jobs stay at seconds.
 QUICK = {"quick": {**NeuralModel.profiles["quick"], "hidden": 32}}
 
+
 @dataclass
 class LNNConfig(NeuralConfig):
     """The shared architecture with the LNN paper's activation: softplus, whose second
@@ -128,11 +142,14 @@ class LNNConfig(NeuralConfig):
     def validate(self) -> None:
         super().validate()
         if self.init not in INITS:
-            raise ConfigError(f"model.init='{self.init}' is invalid: expected one of "
-                              f"{', '.join(INITS)}.")
+            raise ConfigError(
+                f"model.init='{self.init}' is invalid: expected one of {', '.join(INITS)}."
+            )
         if not (math.isfinite(self.kinetic_prior) and self.kinetic_prior >= 0):
-            raise ConfigError(f"model.kinetic_prior={self.kinetic_prior} is invalid: "
-                              "expected a finite number >= 0, e.g. model.kinetic_prior=0.5.")
+            raise ConfigError(
+                f"model.kinetic_prior={self.kinetic_prior} is invalid: "
+                "expected a finite number >= 0, e.g. model.kinetic_prior=0.5."
+            )
 
 
 class _LNN(NeuralModel):
@@ -142,13 +159,12 @@ class _LNN(NeuralModel):
     def field_options(self) -> tuple[tuple[str, Any], ...]:
         return (("kinetic_prior", float(self.cfg.kinetic_prior)),)
 
-    def initial_weights(self, seed: int, d_obs: Optional[int] = None
-                        ) -> dict[str, np.ndarray]:
+    def initial_weights(self, seed: int, d_obs: Optional[int] = None) -> dict[str, np.ndarray]:
         shared = super().initial_weights(seed, d_obs)
         if self.cfg.init == "shared":
             return shared
         prefix = "L."
-        mine = {k[len(prefix):]: v.shape for k, v in shared.items() if k.startswith(prefix)}
+        mine = {k[len(prefix) :]: v.shape for k, v in shared.items() if k.startswith(prefix)}
         return {**shared, **{prefix + k: v for k, v in paper_init_arrays(seed, mine).items()}}
 
 

@@ -20,8 +20,9 @@ Lagrangian = Callable[[jax.Array], jax.Array]
 
 def learned(net: Net, kinetic_prior: float = KINETIC_PRIOR) -> Lagrangian:
     """``L(z) = net(z) + kinetic_prior · |q̇|²`` of one state."""
+
     def lagrangian(z: jax.Array) -> jax.Array:
-        qdot = z[z.shape[0] // 2:]
+        qdot = z[z.shape[0] // 2 :]
         return net(z)[0] + kinetic_prior * jnp.sum(qdot * qdot)
 
     return lagrangian
@@ -50,17 +51,20 @@ def acceleration(lagrangian: Lagrangian, z: jax.Array) -> jax.Array:
 def euler_lagrange(lagrangian: Lagrangian, z: jax.Array) -> jax.Array:
     """``(q̇, q̈)`` ``(N, 2n)`` of velocity states ``z`` ``(N, 2n)`` under ``lagrangian``."""
     n = z.shape[-1] // 2
-    return jnp.concatenate([z[:, n:], jax.vmap(lambda zi: acceleration(lagrangian, zi))(z)],
-                           axis=-1)
+    return jnp.concatenate(
+        [z[:, n:], jax.vmap(lambda zi: acceleration(lagrangian, zi))(z)], axis=-1
+    )
 
 
-def field(nets: Nets | dict[str, Net], z: jax.Array,
-          kinetic_prior: float = KINETIC_PRIOR) -> jax.Array:
+def field(
+    nets: Nets | dict[str, Net], z: jax.Array, kinetic_prior: float = KINETIC_PRIOR
+) -> jax.Array:
     return euler_lagrange(learned(nets["L"], kinetic_prior), z)
 
 
-def energy(nets: Nets | dict[str, Net], z: jax.Array,
-           kinetic_prior: float = KINETIC_PRIOR) -> jax.Array:
+def energy(
+    nets: Nets | dict[str, Net], z: jax.Array, kinetic_prior: float = KINETIC_PRIOR
+) -> jax.Array:
     """``E = q̇ · ∂L/∂q̇ − L`` ``(N,)``."""
     lagrangian = learned(nets["L"], kinetic_prior)
 

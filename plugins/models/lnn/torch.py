@@ -15,14 +15,16 @@ from hnnbench_plugins.models.lnn import KINETIC_PRIOR
 
 
 class Net(Protocol):
-    def input_hessian(self, x: torch.Tensor, first_row: int = 0
-                      ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    def input_hessian(
+        self, x: torch.Tensor, first_row: int = 0
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """``(value (N,), gradient (N, d), Hessian rows first_row: (N, d - first_row, d))``."""
         ...
 
 
-def _lagrangian(net: Net, z: torch.Tensor, kinetic_prior: float
-                ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+def _lagrangian(
+    net: Net, z: torch.Tensor, kinetic_prior: float
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """``L = net + kinetic_prior · |q̇|²`` at velocity states ``z = (q, q̇)`` ``(N, 2n)``:
     its value ``(N,)``, gradient ``(N, 2n)`` and velocity rows of the Hessian
     ``∂²L/∂q̇∂z`` ``(N, n, 2n)``."""
@@ -36,8 +38,9 @@ def _lagrangian(net: Net, z: torch.Tensor, kinetic_prior: float
     return value, grad, rows
 
 
-def field(nets: dict[str, Net], z: torch.Tensor,
-          kinetic_prior: float = KINETIC_PRIOR) -> torch.Tensor:
+def field(
+    nets: dict[str, Net], z: torch.Tensor, kinetic_prior: float = KINETIC_PRIOR
+) -> torch.Tensor:
     """``(q̇, q̈)`` ``(N, 2n)`` with ``q̈ = (∂²L/∂q̇²)⁻¹ (∂L/∂q − ∂²L/∂q̇∂q q̇)``."""
     n = z.shape[-1] // 2
     qdot = z[:, n:]
@@ -50,8 +53,9 @@ def field(nets: dict[str, Net], z: torch.Tensor,
     return torch.cat([qdot, qddot], dim=-1)
 
 
-def energy(nets: dict[str, Net], z: torch.Tensor,
-           kinetic_prior: float = KINETIC_PRIOR) -> torch.Tensor:
+def energy(
+    nets: dict[str, Net], z: torch.Tensor, kinetic_prior: float = KINETIC_PRIOR
+) -> torch.Tensor:
     """``E = q̇ · ∂L/∂q̇ − L`` ``(N,)``."""
     n = z.shape[-1] // 2
     value, grad, _ = _lagrangian(nets["L"], z, kinetic_prior)

@@ -13,8 +13,10 @@ MLP = Family(
     title="Baseline MLP predicting dx/dt directly (paper architecture)",
     reference="Greydanus, Dzamba & Yosinski, Hamiltonian Neural Networks, NeurIPS 2019",
     networks=lambda d: {"f": (d, d)},
-    implementations={"torch": "hnnbench_plugins.models.mlp.torch",
-                     "jax": "hnnbench_plugins.models.mlp.jax"},
+    implementations={
+        "torch": "hnnbench_plugins.models.mlp.torch",
+        "jax": "hnnbench_plugins.models.mlp.jax",
+    },
     order=10,
     search_space=SHARED_SPACE,
     observations=("state", "pixels"),

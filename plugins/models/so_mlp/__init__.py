@@ -25,11 +25,13 @@ SO_MLP = Family(
     name="so_mlp",
     title="Second-order MLP: q'' = g(q, q'), q' exact from the system's kinematics",
     reference="the second-order structure of Gruver, Finzi, Stanton, Wilson, Deconstructing "
-              "the Inductive Biases of Hamiltonian Neural Networks, ICLR 2022 (not their "
-              "model)",
+    "the Inductive Biases of Hamiltonian Neural Networks, ICLR 2022 (not their "
+    "model)",
     networks=lambda d: {"g": (d, d // 2)},
-    implementations={"torch": "hnnbench_plugins.models.so_mlp.torch",
-                     "jax": "hnnbench_plugins.models.so_mlp.jax"},
+    implementations={
+        "torch": "hnnbench_plugins.models.so_mlp.torch",
+        "jax": "hnnbench_plugins.models.so_mlp.jax",
+    },
     order=50,
     coordinates="velocity",
     search_space=SHARED_SPACE,

@@ -45,11 +45,12 @@ from hnnbench.neural import SHARED_SPACE, Family, NeuralConfig, NeuralModel
 SRNN = Family(
     name="srnn",
     title="Symplectic recurrent NN: H = T(p) + V(q) trained through leapfrog",
-    reference="Chen, Zhang, Arjovsky, Bottou, Symplectic Recurrent Neural Networks, "
-              "ICLR 2020",
+    reference="Chen, Zhang, Arjovsky, Bottou, Symplectic Recurrent Neural Networks, ICLR 2020",
     networks=lambda d: {"T": (d // 2, 1), "V": (d // 2, 1)},
-    implementations={"torch": "hnnbench_plugins.models.srnn.torch",
-                     "jax": "hnnbench_plugins.models.srnn.jax"},
+    implementations={
+        "torch": "hnnbench_plugins.models.srnn.torch",
+        "jax": "hnnbench_plugins.models.srnn.jax",
+    },
     order=60,
     data="windows",
     window=5,
@@ -58,8 +59,16 @@ SRNN = Family(
     # The window changes the training loss (the error over a longer horizon), not the
     # validation criterion, which is the system's (the same for every setting).
     search_space={**SHARED_SPACE, "window": IntRange(3, 8)},
-    recipe={"hidden": 512, "layers": 4, "activation": "tanh", "lr": 3e-4,
-            "weight_decay": 0.0, "batch_size": 32, "window": 5, "substeps": 1},
+    recipe={
+        "hidden": 512,
+        "layers": 4,
+        "activation": "tanh",
+        "lr": 3e-4,
+        "weight_decay": 0.0,
+        "batch_size": 32,
+        "window": 5,
+        "substeps": 1,
+    },
 )
 
 
@@ -70,13 +79,14 @@ INTEGRATORS = ("leapfrog", "dopri5")
 #: a step several times the HNN's), so quick jobs stay at seconds.
 QUICK = {"quick": {**NeuralModel.profiles["quick"], "hidden": 32}}
 
+
 @dataclass
 class SRNNConfig(NeuralConfig):
     """Attributes:
-        window: observed states per training window (the first is the start).
-        substeps: leapfrog steps per observed interval.
-        integrator: how rollouts are made: ``leapfrog`` (the trained map) or
-            ``dopri5`` (the learned field, adaptive; the module docstring).
+    window: observed states per training window (the first is the start).
+    substeps: leapfrog steps per observed interval.
+    integrator: how rollouts are made: ``leapfrog`` (the trained map) or
+        ``dopri5`` (the learned field, adaptive; the module docstring).
     """
 
     window: int = SRNN.window
@@ -90,7 +100,8 @@ class SRNNConfig(NeuralConfig):
         if self.integrator not in INTEGRATORS:
             raise ConfigError(
                 f"model.integrator='{self.integrator}' is invalid: expected one of "
-                f"{', '.join(INTEGRATORS)}.")
+                f"{', '.join(INTEGRATORS)}."
+            )
 
 
 class _SRNN(NeuralModel):
@@ -109,8 +120,10 @@ class _SRNN(NeuralModel):
         if not self.rolls_out_by_map():
             return None
         if self.data_step is None:
-            raise RuntimeError(f"{self.name}: the leapfrog step is known after fit() or "
-                               "load() of a weights file that records it")
+            raise RuntimeError(
+                f"{self.name}: the leapfrog step is known after fit() or "
+                "load() of a weights file that records it"
+            )
         return self.data_step / int(self.cfg.substeps)
 
 

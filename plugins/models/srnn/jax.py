@@ -23,8 +23,9 @@ def energy(nets: Nets, z: jax.Array) -> jax.Array:
     return jax.vmap(nets["T"])(z[:, n:])[:, 0] + jax.vmap(nets["V"])(z[:, :n])[:, 0]
 
 
-def _leap(grad_t, grad_v, q: jax.Array, p: jax.Array, force: jax.Array, h: jax.Array
-          ) -> tuple[jax.Array, jax.Array, jax.Array]:  # noqa: ANN001 - gradient functions
+def _leap(
+    grad_t, grad_v, q: jax.Array, p: jax.Array, force: jax.Array, h: jax.Array
+) -> tuple[jax.Array, jax.Array, jax.Array]:  # noqa: ANN001 - gradient functions
     """One leapfrog step from ``(q, p)`` with ``force = ∇V(q)`` given; returns the new
     ``(q, p, ∇V(q))``: the last half-kick's force is the next step's first."""
     p = p - 0.5 * h * force
@@ -43,8 +44,7 @@ def step(nets: Nets, z: jax.Array, h: jax.Array) -> jax.Array:
     return jnp.concatenate([q, p], axis=-1)
 
 
-def window_loss(nets: Nets, windows: jax.Array, dts: jax.Array, substeps: int = 1
-                ) -> jax.Array:
+def window_loss(nets: Nets, windows: jax.Array, dts: jax.Array, substeps: int = 1) -> jax.Array:
     """Mean squared error of leapfrog predictions from each window's first state
     against its other states. ``windows`` ``(W, L, 2n)``, ``dts`` ``(W, L - 1)``.
 
@@ -67,6 +67,7 @@ def window_loss(nets: Nets, windows: jax.Array, dts: jax.Array, substeps: int = 
         return (q, p, force), jnp.concatenate([q, p], axis=-1)
 
     q, p = windows[:, 0, :n], windows[:, 0, n:]
-    _, predictions = jax.lax.scan(interval, (q, p, jax.vmap(grad_v)(q)),
-                                  jnp.swapaxes(dts, 0, 1), unroll=True)
+    _, predictions = jax.lax.scan(
+        interval, (q, p, jax.vmap(grad_v)(q)), jnp.swapaxes(dts, 0, 1), unroll=True
+    )
     return jnp.mean((jnp.swapaxes(predictions, 0, 1) - windows[:, 1:]) ** 2)

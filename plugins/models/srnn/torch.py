@@ -9,8 +9,9 @@ from hnnbench.neural.torch import MLP
 
 def field(nets: dict[str, MLP], z: torch.Tensor) -> torch.Tensor:
     n = z.shape[-1] // 2
-    return torch.cat([nets["T"].input_gradient(z[:, n:]),
-                      -nets["V"].input_gradient(z[:, :n])], dim=-1)
+    return torch.cat(
+        [nets["T"].input_gradient(z[:, n:]), -nets["V"].input_gradient(z[:, :n])], dim=-1
+    )
 
 
 def energy(nets: dict[str, MLP], z: torch.Tensor) -> torch.Tensor:
@@ -18,8 +19,13 @@ def energy(nets: dict[str, MLP], z: torch.Tensor) -> torch.Tensor:
     return nets["T"](z[:, n:])[:, 0] + nets["V"](z[:, :n])[:, 0]
 
 
-def _leap(nets: dict[str, MLP], q: torch.Tensor, p: torch.Tensor, force: torch.Tensor,
-          h: torch.Tensor | float) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+def _leap(
+    nets: dict[str, MLP],
+    q: torch.Tensor,
+    p: torch.Tensor,
+    force: torch.Tensor,
+    h: torch.Tensor | float,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """One leapfrog step from ``(q, p)`` with ``force = ∇V(q)`` given; returns the new
     ``(q, p, ∇V(q))``: the last half-kick's force is the next step's first."""
     p = p - 0.5 * h * force
@@ -38,8 +44,9 @@ def step(nets: dict[str, MLP], z: torch.Tensor, h: torch.Tensor | float) -> torc
     return torch.cat([q, p], dim=-1)
 
 
-def window_loss(nets: dict[str, MLP], windows: torch.Tensor, dts: torch.Tensor,
-                substeps: int = 1) -> torch.Tensor:
+def window_loss(
+    nets: dict[str, MLP], windows: torch.Tensor, dts: torch.Tensor, substeps: int = 1
+) -> torch.Tensor:
     """Mean squared error of leapfrog predictions from each window's first state
     against its other states. ``windows`` ``(W, L, 2n)``, ``dts`` ``(W, L - 1)``.
 

@@ -7,5 +7,4 @@ def _boom(ctx):
     raise RuntimeError("this metric is broken")
 
 
-RAISING = Metric(name="raising_metric", description="Always raises (test plugin)",
-                 compute=_boom)
+RAISING = Metric(name="raising_metric", description="Always raises (test plugin)", compute=_boom)

@@ -55,7 +55,7 @@ class Quartic(System):
         return x[..., 0] ** 4 / 4 + x[..., 1] ** 2 / 2
 
     def vector_field(self, x):
-        return np.stack([x[..., 1], -x[..., 0] ** 3], axis=-1)
+        return np.stack([x[..., 1], -(x[..., 0] ** 3)], axis=-1)
 
     def _trajectories(self, rng, n, t_end, n_points):
         x0 = rng.uniform(-1.0, 1.0, size=(n, 2))
@@ -64,24 +64,29 @@ class Quartic(System):
 
     def dataset(self, seed: int) -> Dataset:
         c = self.cfg
-        t, xs = self._trajectories(seed_stream(seed, DATA_STREAM), c.n_traj, c.t_end,
-                                   c.n_points)
+        t, xs = self._trajectories(seed_stream(seed, DATA_STREAM), c.n_traj, c.t_end, c.n_points)
         half = c.n_traj // 2
 
         def split(sl):
             x = xs[sl].reshape(-1, 2)
             n = xs[sl].shape[0]
-            return Split(x=x, dxdt=self.vector_field(x),
-                         traj=np.repeat(np.arange(n), c.n_points), t=np.tile(t, n))
+            return Split(
+                x=x,
+                dxdt=self.vector_field(x),
+                traj=np.repeat(np.arange(n), c.n_points),
+                t=np.tile(t, n),
+            )
 
-        return Dataset(train=split(slice(0, half)), test=split(slice(half, None)),
-                       meta={"dt": float(t[1] - t[0])})
+        return Dataset(
+            train=split(slice(0, half)),
+            test=split(slice(half, None)),
+            meta={"dt": float(t[1] - t[0])},
+        )
 
     def evaluation(self, seed: int) -> Trajectories:
         c = self.cfg
         # fresh trajectories over twice a training trajectory's span (docs/PLUGINS.md)
-        t, xs = self._trajectories(seed_stream(seed, EVAL_STREAM), c.eval_n_traj,
-                                   c.eval_t_end, 50)
+        t, xs = self._trajectories(seed_stream(seed, EVAL_STREAM), c.eval_n_traj, c.eval_t_end, 50)
         return Trajectories(t=t, states=xs, dt=c.t_end / (c.n_points - 1))
 
 
