@@ -37,7 +37,7 @@ quick: setup
 # The CI gate's reference (tests/e2e/test_ci_gate.py sweeps exactly the pairs it holds):
 # every system x the JAX twin of every neural family + the oracle, and the torch twins
 # on the spring; quick, seed 0.
-GATE_MODELS := mlp_jax,hnn_jax,dhnn_jax,lnn_jax,so_mlp_jax,srnn_jax,oracle
+GATE_MODELS := mlp_jax,hnn_jax,dhnn_jax,lnn_jax,so_mlp_jax,srnn_jax,oracle,standing_still
 GATE_TORCH := mlp_torch,hnn_torch,dhnn_torch,lnn_torch,so_mlp_torch,srnn_torch
 GATE_DIR := results/runs/ci-reference
 ci-reference: setup

@@ -360,12 +360,12 @@ def test_tracks_are_separate_rows_never_ranked_together():
     assert board["tuning_cpu_s"].isna().tolist() == [True, True, False, False]
     fams = families(records_frame(recs), board).board
     assert set(fams["track"]) == {"protocol", "tuned"} and len(fams) == 4
-    # each track ranked on its own: its leader is the best of its own rows (tied, as
-    # 2 seeds cannot separate), never the other track's
+    # each track ranked on its own: its leader is the best of its own rows (with too few
+    # seeds to separate: 2), never the other track's
     for track, leader in (("protocol", "hnn"), ("tuned", "mlp")):
         rows = fams[fams["track"] == track].set_index("family")
         assert rows["test_loss_mean"].idxmin() == leader
-        assert rows.loc[leader, "test_loss_mark"] == "tied"
+        assert rows.loc[leader, "test_loss_mark"] == "too_few_seeds"
     # a protocol-only board keeps the plain schema (no track column)
     assert "track" not in leaderboard(recs[:4]) and "tuning_cpu_s" not in leaderboard(recs[:4])
 
