@@ -41,7 +41,7 @@ from matplotlib.lines import Line2D
 from hnnbench import _record as records
 from hnnbench import _registry as registry
 from hnnbench._contracts.errors import UnsafePathError
-from hnnbench._contracts.names import DEFAULT_TRACK, TRACKS, name_problem
+from hnnbench._contracts.names import DEFAULT_TRACK, REFERENCES, TRACKS, name_problem
 from hnnbench._contracts.paths import safe_join
 from hnnbench._contracts.plugin import HISTORY_TRAIN, HISTORY_VALID
 from hnnbench._record.tracks import track_of
@@ -409,6 +409,37 @@ RANK_CMAP = "viridis_r"
 #: A cell's mark after its rank: best (separated by the sign test) and tied (not
 #: separated from the leader), as in the family table.
 RANK_MARKS = {"best": " \u2605", "tied": " ="}
+#: The face colour of a reference row (standing still, the oracle: never ranked) and the
+#: mark of a standing-still cell that no family beats (the family table's ``unbeaten``).
+REFERENCE_COLOR = "#eeeeee"
+UNBEATEN_MARK = " \u25b2"
+
+
+def reference_table(board: pd.DataFrame, metric: str, systems: Sequence[str]) -> pd.DataFrame:
+    """references x systems: the mean of each reference row (a model that declares a
+    ``reference`` role: standing still, the oracle) of a family board, NaN where it has
+    none; no row for a reference without a value on any of these systems."""
+    if "reference" not in board or f"{metric}_mean" not in board:
+        return pd.DataFrame(columns=list(systems), dtype=float)
+    rows = board[board["reference"].fillna("").astype(str) != ""]
+    if "variant" in rows:
+        rows = rows[rows["variant"].fillna("").astype(str) == ""]
+    if rows.empty:
+        return pd.DataFrame(columns=list(systems), dtype=float)
+    key = "family" if "family" in rows else "model"
+    values = rows.pivot_table(
+        index=key, columns="system", values=f"{metric}_mean", aggfunc="first", dropna=False
+    )
+    roles = rows.drop_duplicates(key).set_index(key)["reference"].astype(str)
+    order = sorted(
+        roles.index,
+        key=lambda n: (
+            REFERENCES.index(roles[n]) if roles[n] in REFERENCES else len(REFERENCES),
+            n,
+        ),
+    )
+    values = values.reindex(index=order, columns=list(systems)).astype(float)
+    return values[values.notna().any(axis=1)]  # a reference with no value here: no row
 
 
 def _family_rows(board: pd.DataFrame) -> pd.DataFrame:
@@ -489,20 +520,23 @@ def heatmap_figures(
                 continue  # a ranking needs two families
             states = cell_states(fams, metric, list(values.index), list(values.columns))
             marks = _marks(fams, metric)
+            refs = reference_table(fams, metric, list(values.columns))
             out[f"heatmap_{metric}{suffix}"] = _heatmap(
-                ranks, values, states, marks, metric, label if several else ""
+                ranks, values, states, marks, metric, label if several else "", refs
             )
     return out
 
 
 def _marks(board: pd.DataFrame, metric: str) -> dict[tuple[str, str], str]:
+    """``{(family, system): mark}``: the best and tied marks of the ranked rows, and the
+    ``unbeaten`` mark of a reference row (no family beats standing still)."""
     if f"{metric}_mark" not in board:
         return {}
-    rows = _family_rows(board)
+    rows = board[board["variant"].fillna("").astype(str) == ""] if "variant" in board else board
     return {
         (str(r["family"]), str(r["system"])): str(r[f"{metric}_mark"])
         for _, r in rows.iterrows()
-        if str(r[f"{metric}_mark"] or "") in ("best", "tied")
+        if str(r[f"{metric}_mark"] or "") in ("best", "tied", "unbeaten")
     }
 
 
@@ -513,13 +547,18 @@ def _heatmap(
     marks: dict[tuple[str, str], str],
     metric: str,
     scope: str = "",
+    refs: Optional[pd.DataFrame] = None,
 ) -> Any:
+    """The rank heatmap of the ranked families, with the reference rows (standing still,
+    the oracle) below a line: their means on grey, never ranked."""
     import matplotlib as mpl
     from matplotlib.patches import Patch
 
+    refs = refs if refs is not None else pd.DataFrame(columns=values.columns, dtype=float)
     n_rows, n_systems = ranks.shape
+    n_refs = len(refs.index)
     width = max(6.0, 1.05 * n_systems + 2.5)
-    fig, (ax,) = _new_figure(1, width=width, height=max(3.0, 0.42 * n_rows + 2.0))
+    fig, (ax,) = _new_figure(1, width=width, height=max(3.0, 0.42 * (n_rows + n_refs) + 2.0))
     worst = max(float(np.nanmax(ranks.to_numpy())), 2.0) if ranks.notna().any().any() else 2.0
     shade = ((ranks - 1) / (worst - 1)).to_numpy(dtype=float)
     rgba = mpl.colormaps[RANK_CMAP](np.nan_to_num(shade))
@@ -530,7 +569,12 @@ def _heatmap(
                 rgba[i, j] = mpl.colors.to_rgba(CELL_STATES[state][0])
             elif state == "diverged":
                 rgba[i, j] = mpl.colors.to_rgba(DIVERGED_COLOR)
+    if n_refs:
+        grey = np.array(mpl.colors.to_rgba(REFERENCE_COLOR))
+        rgba = np.concatenate([rgba, np.broadcast_to(grey, (n_refs, n_systems, 4))], axis=0)
     ax.imshow(rgba, aspect="auto")
+    if n_refs:
+        ax.axhline(n_rows - 0.5, color="0.3", lw=1.2)
     linear = metric_declarations().get(metric)
     lin = linear is not None and linear.scale == "linear"
     for i, family in enumerate(values.index):
@@ -565,15 +609,29 @@ def _heatmap(
     ax.set_xticks(
         range(n_systems), [str(s) for s in values.columns], rotation=35, ha="right", fontsize=8
     )
-    ax.set_yticks(range(n_rows), [str(m) for m in values.index], fontsize=8)
+    lin_ref = lin
+    for k, reference in enumerate(refs.index):
+        for j, system in enumerate(refs.columns):
+            v = float(cast(float, refs.iat[k, j]))
+            mark = UNBEATEN_MARK if marks.get((str(reference), str(system))) == "unbeaten" else ""
+            text = "—" if math.isnan(v) else format_value(v, linear=lin_ref)
+            ax.text(j, n_rows + k, f"ref{mark}\n{text}", ha="center", va="center", fontsize=7)
+    labels = [str(m) for m in values.index] + [f"{r} (reference)" for r in refs.index]
+    ax.set_yticks(range(n_rows + n_refs), labels, fontsize=8)
     title = (
         f"{scope}: "
         * bool(scope)
         + f"Rank of each family by {metric} within each system (1 = best, the mean "
         "below; \u2605 best: separated from every other family by the sign test; "
         "= tied: not separated from the leader)"
+        + (
+            "; below the line, the references' means, never ranked (\u25b2: no family "
+            "beats standing still)"
+            if n_refs
+            else ""
+        )
     )
-    ax.set_title(textwrap.fill(title, width=int(width * 13)), fontsize=9)  # ~13 chars/inch
+    ax.set_title(textwrap.fill(title, width=int(width * 11)), fontsize=9)  # ~11 chars/inch
     handles = [Patch(facecolor=DIVERGED_COLOR, label="diverged (inf)")]
     handles += [Patch(facecolor=c, edgecolor="0.6", label=t) for c, t, _ in CELL_STATES.values()]
     fig.legend(
