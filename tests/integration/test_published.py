@@ -207,6 +207,7 @@ def test_the_readme_starts_with_trying_it_and_links_to_the_results():
         "results/leaderboard.html",
         "docs/PLUGINS.md",
         "docs/LEADERBOARD.md",
+        "docs/CI.md",
         "docs/SCALING.md",
         "docs/STATISTICS.md",
     ):

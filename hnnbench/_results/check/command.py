@@ -5,6 +5,8 @@ compare their leaderboard with the reference (or ``--update`` it), print what it
 
 from __future__ import annotations
 
+import contextlib
+import io
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -24,7 +26,8 @@ from hnnbench._results.check.findings import (
     missing_line,
     update_hint,
 )
-from hnnbench._results.check.ranks import rank_lines
+from hnnbench._results.check.output import FORMATS, CheckReport, emit
+from hnnbench._results.check.ranks import ranking
 from hnnbench._results.check.records import (
     plugin_information,
     record_variants,
@@ -34,7 +37,7 @@ from hnnbench._results.check.records import (
 from hnnbench._results.check.reference import read_reference, row_key
 from hnnbench._results.check.rerun import RERUN_HEADERS, Rerun, rerun
 from hnnbench._results.check.rules import load_rules
-from hnnbench._results.leaderboard import leaderboard
+from hnnbench._results.leaderboard import leaderboard_frame, records_frame
 
 __all__ = ["main"]
 
@@ -88,6 +91,18 @@ def _parser() -> _Parser:
         help="two-sided: every gated metric within RTOL relative of the "
         "reference and the same statuses (a reproduction check)",
     )
+    p.add_argument(
+        "--format",
+        choices=FORMATS,
+        default="text",
+        help="text (default), json, junit (JUnit XML) or markdown (docs/CI.md)",
+    )
+    p.add_argument(
+        "--output",
+        metavar="FILE",
+        default=None,
+        help="write the --format report to FILE (the text still goes to stdout)",
+    )
     return p
 
 
@@ -106,9 +121,12 @@ def main(args: Sequence[str]) -> int:
     # Each record's variant is derived from its stored config, never read from its
     # overrides (hnnbench._results.provenance).
     variants = record_variants(recs)
-    board = leaderboard(recs, [v.label for v in variants])
+    frame = records_frame(recs, [v.label for v in variants])
+    board = leaderboard_frame(frame)
     where = " ".join(ns.dirs)
     if ns.update:
+        if ns.format != "text" or ns.output:
+            raise CheckError("--format and --output report a check; --update writes a reference")
         return _update(reference, board, bad, where)
     assert ref_board is not None
     result = compare(ref_board, board, rules, allow_missing=ns.allow_missing, same=ns.same)
@@ -118,6 +136,43 @@ def main(args: Sequence[str]) -> int:
     reruns = [rerun(recs, spec, rules) for spec in ns.rerun]
     for done in reruns:
         result.regressions += done.findings
+    ranks = ranking(ref_board, board, frame=frame)
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text) if ns.format != "text" or ns.output else _as_is():
+        status = _print_text(ns, recs, bad, result, reruns, ranks.lines, reference)
+    report = CheckReport(
+        ns.dirs,
+        str(reference),
+        ns.rules,
+        ns.same,
+        ns.allow_missing,
+        len(recs) + len(bad),
+        len(ns.rerun),
+        result,
+        reruns,
+        ranks,
+        status,
+    )
+    emit(report, ns.format, ns.output, text.getvalue())
+    return status
+
+
+@contextlib.contextmanager
+def _as_is() -> Any:
+    yield
+
+
+def _print_text(
+    ns: Any,
+    recs: Sequence[dict[str, Any]],
+    bad: Sequence[Unreadable],
+    result: CheckResult,
+    reruns: Sequence[Rerun],
+    ranks: Sequence[str],
+    reference: Path,
+) -> int:
+    """The text report (today's output); the exit status."""
+    where = " ".join(ns.dirs)
     print(
         f"hnnbench check: {where} vs {reference}"
         + (
@@ -134,7 +189,7 @@ def main(args: Sequence[str]) -> int:
         f"in the reference" + (f"; re-ran {len(ns.rerun)} job(s)" if ns.rerun else "")
     )
     _print_reruns(reruns)
-    _print_ranks(rank_lines(ref_board, board))
+    _print_ranks(ranks)
     _print_information(result, failing=not ns.allow_missing)
     return _print_verdict(result, reference)
 
@@ -188,7 +243,10 @@ def _print_reruns(reruns: Sequence[Rerun]) -> None:
 def _print_ranks(ranks: Sequence[str]) -> None:
     if ranks:
         print()
-        print("ranks among the reference's families (headline metrics; 95% intervals over seeds):")
+        print(
+            "ranks of the families new to the reference (headline metrics; 95% intervals "
+            "over seeds; among the reference's families unless said):"
+        )
         for line in ranks:
             print(f"  {line}")
 

@@ -136,6 +136,8 @@ def compare(
             cur_value = c.get(f"{metric}_mean", math.nan)
             cur_value = math.nan if cur_value is None or pd.isna(cur_value) else float(cur_value)
             result.n_metrics += rule.gate
+            if rule.gate:
+                result.gated.append((system, model, metric))
             if math.isnan(cur_value):
                 finding = Finding(
                     "metric",

@@ -48,6 +48,8 @@ class CheckResult:
     n_pairs: int = 0
     n_metrics: int = 0
     n_claims: int = 0
+    #: every gated (system, model, metric) value compared (``len`` is ``n_metrics``)
+    gated: list[tuple[str, str, str]] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:

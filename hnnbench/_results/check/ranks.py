@@ -1,24 +1,39 @@
-"""A new model's rank among the reference's families on the headline metrics, with
-the interval its seeds allow (docs/STATISTICS.md).
+"""A new model's rank on the headline metrics, with the interval its seeds allow
+(docs/STATISTICS.md, "A new model in hnnbench check"): among the reference's families
+on its system, or, where the reference has no rows for that system, among the families
+run beside it in the same sweep (then with the leader test over their paired seeds);
+and, where it cannot be ranked, one line saying why.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Optional
 
 import pandas as pd
 
+from hnnbench._contracts.names import STANDING_STILL
 from hnnbench._results import stats
 from hnnbench._results.aggregate import headline_metrics
-from hnnbench._results.families import RANKING_KEY, ROW_KEY, key_of, primary_rows, select
-from hnnbench._results.leaderboard import (
-    format_interval,
+from hnnbench._results.families import (
+    RANKING_KEY,
+    ROW_KEY,
+    TOO_FEW,
+    families,
+    family_order,
+    key_of,
+    primary_rows,
+    select,
 )
+from hnnbench._results.leaderboard import format_interval
 
-__all__ = ["Rank", "rank_lines"]
+__all__ = ["BESIDE", "REFERENCE", "Rank", "Ranking", "rank_lines", "ranking"]
+
+#: What a rank is among: the reference's families on its system, or the families run
+#: beside it in the checked sweep (the reference has no rows for its system).
+REFERENCE, BESIDE = "reference", "beside"
 
 
 def _interval_of(row: Any, metric: str) -> Optional[tuple[float, float]]:
@@ -34,7 +49,9 @@ def _ordinal_text(low: int, high: int) -> str:
 
 @dataclass
 class Rank:
-    """One new family's rank on one (system, metric) among the reference's families."""
+    """One new family's rank on one (system, metric): among the reference's families
+    (``basis`` :data:`REFERENCE`) or the families run beside it (:data:`BESIDE`, with
+    ``leader_test``: what the leader test over the sweep's paired seeds says)."""
 
     name: str
     system: str
@@ -44,10 +61,24 @@ class Rank:
     low: Optional[int]  # the rank interval (None: no interval)
     high: Optional[int]
     line: str
+    basis: str = REFERENCE
+    against: tuple[str, ...] = ()  # the families ranked against (their primary models)
+    n_seeds: int = 0
+    mean: float = math.nan
+    ci_low: float = math.nan
+    ci_high: float = math.nan
+    leader_test: str = ""
+    value_text: str = ""  # the mean and its interval, as the line shows them
 
 
 def _rank_one(
-    name: str, row: Any, others: pd.DataFrame, metric: str, better: str, linear: bool
+    name: str,
+    row: Any,
+    others: pd.DataFrame,
+    metric: str,
+    better: str,
+    linear: bool,
+    basis: str = REFERENCE,
 ) -> Optional[Rank]:
     value = pd.to_numeric(row.get(f"{metric}_mean"), errors="coerce")
     system = str(row["system"])
@@ -82,9 +113,9 @@ def _rank_one(
         )
     elif all(t is None for t in theirs):
         n_ref = int(pd.to_numeric(others["n_seeds"], errors="coerce").min())
+        whose = "the reference has" if basis == REFERENCE else "the families beside it have"
         text = (
-            f"(the reference has {n_ref} seed{'s' if n_ref != 1 else ''} and no "
-            "interval: no rank interval)"
+            f"({whose} {n_ref} seed{'s' if n_ref != 1 else ''} and no interval: no rank interval)"
         )
     else:
         # a reference family without an interval is separated from no one
@@ -102,12 +133,27 @@ def _rank_one(
         f"{system} {metric}: {name} ranks {rank} of {of} families {text}: {shown} over "
         f"{n_seeds} seed{'s' if n_seeds != 1 else ''}"
     )
-    return Rank(name, system, metric, rank, of, low, high, line)
+    interval = _interval_of(row, metric) or (math.nan, math.nan)
+    against = tuple(str(r.get("seeds_from", r["model"])) for _, r in others.iterrows())
+    return Rank(
+        name,
+        system,
+        metric,
+        rank,
+        of,
+        low,
+        high,
+        line,
+        basis,
+        against,
+        n_seeds,
+        value,
+        *interval,
+        value_text=shown,
+    )
 
 
 def _verdict(name: str, ranks: list[Rank]) -> str:
-    if not ranks:
-        return f"verdict: {name} has no value on a headline metric here"
     first = sum(r.rank == 1 for r in ranks)
     top = sum(r.rank <= (r.of + 1) // 2 for r in ranks)
     median = sorted(r.rank for r in ranks)[(len(ranks) - 1) // 2]
@@ -130,49 +176,218 @@ def _verdict(name: str, ranks: list[Rank]) -> str:
     )
 
 
-def rank_lines(
-    reference: pd.DataFrame, current: pd.DataFrame, metrics: Optional[Sequence[str]] = None
-) -> list[str]:
-    """For every family of ``current`` that the reference does not hold (a new model,
-    or a variant), per system and headline metric (default:
-    :func:`hnnbench._results.aggregate.headline_metrics`): its rank among the reference's ranked
-    families on that system (by mean), the rank interval their intervals allow (each
-    family's 95% interval over seeds, ``<metric>_ci_low``/``_ci_high``: ranked ahead of
-    it are the families whose interval lies wholly on the better side), and then one
-    verdict line per new family."""
+@dataclass
+class Ranking:
+    """What :func:`ranking` found: every rank, one verdict per ranked family, and the
+    lines in the order they are printed (each family's basis, its ranks, the reasons it
+    cannot be ranked where it cannot, then the verdicts)."""
+
+    ranks: list[Rank] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)  # what a family is ranked against
+    verdicts: dict[str, str] = field(default_factory=dict)
+    reasons: dict[str, list[str]] = field(default_factory=dict)
+    lines: list[str] = field(default_factory=list)
+
+
+def _scope_text(row: Any, reference: pd.DataFrame) -> str:
+    """Which rows the reference lacks: its system's, or those of its profile and track
+    on that system."""
+    system = str(row["system"])
+    if reference.empty or system not in set(reference["system"].astype(str)):
+        return f"system {system}"
+    keys = [k for k in RANKING_KEY if k not in ("system", "variant")]
+    wanted = ", ".join(f"{k} {v}" for k, v in zip(keys, key_of(row, keys), strict=True))
+    return f"system {system} with {wanted}"
+
+
+def _suggestion(reference: pd.DataFrame, name: str, system: str) -> str:
+    """A command that gives ``name`` a rank on ``system``: the reference's first two
+    families (their primary models) beside it, over the fewest paired seeds with which
+    the leader test can separate the leader from the other two."""
+    models: list[str] = []
+    if not reference.empty:
+        fams = primary_rows(reference)
+        order = family_order(fams) if "models" in fams else []
+        by_family = {str(r["family"]): str(r["seeds_from"]) for _, r in fams.iterrows()}
+        models = [by_family[f] for f in order if f in by_family][:2]
+    if not models:
+        return "run a baseline family beside it over the same seeds"
+    n = stats.min_separable_seeds(comparisons=len(models))
+    seeds = ",".join(str(s) for s in range(n))
+    return (
+        f"run e.g. -m system={system} model={name},{','.join(models)} seed={seeds} "
+        f"({n} paired seeds: the fewest with which the sign test can separate a leader "
+        f"from {len(models)} other famil{'ies' if len(models) > 1 else 'y'})"
+    )
+
+
+def _leader_text(board: pd.DataFrame, row: Any, metric: str, others: int) -> str:
+    """What the leader test over the sweep's paired seeds says of ``row``'s family on
+    ``metric`` among the families beside it (``board``: their family rows, marked)."""
+    cell = select(board, list(RANKING_KEY), key_of(row, RANKING_KEY))
+    column = f"{metric}_mark"
+    if cell.empty or column not in cell:
+        return "not applied"
+    marks = cell[column].fillna("").astype(str)
+    mine = cell[cell["family"].astype(str) == str(row["family"])]
+    mark = str(mine[column].iloc[0]) if not mine.empty else ""
+    if (marks == TOO_FEW).any():
+        needed = stats.min_separable_seeds(comparisons=max(1, others))
+        seeds = int(row.get("n_seeds", 0) or 0)
+        return (
+            f"too few seeds to separate ({seeds} seed{'s' if seeds != 1 else ''}; the "
+            f"sign test needs {needed} paired seeds against {others} other "
+            f"famil{'ies' if others != 1 else 'y'}): no best"
+        )
+    if str(row.get("variant") or ""):
+        return "not applied (a variant is tested among the rows of its own variant)"
+    if mark == "best":
+        p = float(mine[f"{metric}_p"].iloc[0])
+        return f"best (paired sign test, Holm-adjusted p = {p:.3g})"
+    leader = cell[marks.isin(["best", "tied"])]
+    if mark == "tied":
+        return "tied for first (not separated by the paired sign test)"
+    if not leader.empty:
+        p = mine[f"{metric}_p"].iloc[0] if not mine.empty else math.nan
+        return (
+            "separated from the leader by the paired sign test"
+            + (f" (Holm-adjusted p = {float(p):.3g})" if not pd.isna(p) else "")
+            + ": not first"
+        )
+    from hnnbench._results.leaderboard import metric_declarations
+
+    if (
+        metric_declarations()[metric].beat_reference
+        and not (
+            cell.get("reference", pd.Series(dtype=str)).fillna("").astype(str) == STANDING_STILL
+        ).any()
+    ):
+        return (
+            "not applied (marked only where the leader beats the standing-still "
+            "reference, and none ran beside it)"
+        )
+    return "not applied (no family may lead on this metric here)"
+
+
+def ranking(
+    reference: pd.DataFrame,
+    current: pd.DataFrame,
+    metrics: Optional[Sequence[str]] = None,
+    frame: Optional[pd.DataFrame] = None,
+) -> Ranking:
+    """Every family of ``current`` that the reference does not hold (a new model, a
+    variant, or any family on a system the reference has no rows for), per system and
+    headline metric (default: :func:`hnnbench._results.aggregate.headline_metrics`): its
+    rank by mean and the rank interval the 95% intervals over seeds allow (ranked ahead
+    of it are the families whose interval lies wholly on the better side).
+
+    It is ranked among the reference's ranked families on its system; where the
+    reference has none there, among the ranked families run beside it in ``current``
+    (on a system new to the reference, the families the reference knows elsewhere are
+    the comparators of those it does not; if it knows them all, each is ranked against
+    the others), with the leader test over their paired seeds (``frame``: the sweep's
+    records frame; docs/STATISTICS.md, "Best and tied"). Where neither exists, one line
+    says why it has no rank and what to run."""
     from hnnbench._results.leaderboard import linear_metrics, metric_declarations
 
     declared = metric_declarations()
     metrics = [
         m
         for m in (headline_metrics() if metrics is None else metrics)
-        if m in declared and f"{m}_mean" in current and f"{m}_mean" in reference
+        if m in declared and f"{m}_mean" in current
     ]
+    out = Ranking()
     if current.empty:
-        return []
+        return out
     linear = linear_metrics()
 
-    def ranked(frame: pd.DataFrame) -> pd.DataFrame:
-        frame = frame[frame["ranked"].fillna(True).astype(str).str.lower() != "false"]
-        return primary_rows(frame)
+    def ranked(board: pd.DataFrame) -> pd.DataFrame:
+        if board.empty:
+            return board
+        board = board[board["ranked"].fillna(True).astype(str).str.lower() != "false"]
+        return primary_rows(board)
 
     ref, cur = ranked(reference), ranked(current)
     keys = {key_of(r, ROW_KEY) for _, r in ref.iterrows()}
-    ranking = [k for k in RANKING_KEY if k != "variant"]
-    lines: list[str] = []
+    known = set(ref["family"].astype(str)) if not ref.empty else set()
+    ranking_keys = [k for k in RANKING_KEY if k != "variant"]
+    marked: Optional[pd.DataFrame] = None
+
+    def marks() -> pd.DataFrame:
+        nonlocal marked
+        if marked is None:
+            marked = families(frame, current).board if frame is not None else pd.DataFrame()
+        return marked
+
+    def rank_all(name: str, row: Any, others: pd.DataFrame, basis: str) -> list[Rank]:
+        done = []
+        for metric in metrics:
+            if f"{metric}_mean" not in others:
+                continue
+            rank = _rank_one(
+                name, row, others, metric, declared[metric].better, metric in linear, basis
+            )
+            if rank is None:
+                continue
+            if basis == BESIDE:
+                rank.leader_test = _leader_text(marks(), row, metric, len(others))
+                rank.line += f"; leader test: {rank.leader_test}"
+            done.append(rank)
+        return done
+
     by_name: dict[str, list[Rank]] = {}
     for _, row in cur.iterrows():
         if key_of(row, ROW_KEY) in keys:
             continue
         name = str(row["seeds_from"]) + (f" [{row['variant']}]" if row["variant"] else "")
-        others = select(ref, [*ranking, "variant"], (*key_of(row, ranking), ""))
-        by_name.setdefault(name, [])
-        if others.empty:
+        scope = (*key_of(row, ranking_keys), "")
+        others = select(ref, [*ranking_keys, "variant"], scope) if not ref.empty else ref
+        if not others.empty:
+            got = rank_all(name, row, others, REFERENCE)
+            by_name.setdefault(name, []).extend(got)
+            out.lines += [r.line for r in got]
             continue
-        for metric in metrics:
-            done = _rank_one(name, row, others, metric, declared[metric].better, metric in linear)
-            if done is not None:
-                lines.append(done.line)
-                by_name[name].append(done)
-    lines += [_verdict(name, ranks) for name, ranks in by_name.items()]
-    return lines
+        beside = select(cur, [*ranking_keys, "variant"], scope)
+        beside = beside[beside["family"].astype(str) != str(row["family"])]
+        new_here = set(beside["family"].astype(str)) - known
+        if str(row["family"]) in known and new_here:
+            continue  # a comparator of the new families beside it, not a submission
+        system = str(row["system"])
+        where = _scope_text(row, reference if not reference.empty else ref)
+        if beside.empty:
+            reason = (
+                f"no rank for {name} on {system}: the reference has no rows for {where} "
+                f"and no other family ran beside it on {system}; "
+                f"{_suggestion(ref, name, system)}"
+            )
+            out.reasons.setdefault(name, []).append(reason)
+            out.lines.append(reason)
+            continue
+        against = [str(r["seeds_from"]) for _, r in beside.iterrows()]
+        note = (
+            f"{system}: the reference has no rows for {where}; {name} ranked against the "
+            f"families run beside it: {', '.join(against)}"
+        )
+        out.notes.append(note)
+        out.lines.append(note)
+        got = rank_all(name, row, beside, BESIDE)
+        by_name.setdefault(name, []).extend(got)
+        out.lines += [r.line for r in got]
+    for name, ranks in by_name.items():
+        out.ranks += ranks
+        if ranks:
+            out.verdicts[name] = _verdict(name, ranks)
+        elif name not in out.reasons:
+            out.verdicts[name] = f"verdict: {name} has no value on a headline metric here"
+    out.lines += list(out.verdicts.values())
+    return out
+
+
+def rank_lines(
+    reference: pd.DataFrame,
+    current: pd.DataFrame,
+    metrics: Optional[Sequence[str]] = None,
+    frame: Optional[pd.DataFrame] = None,
+) -> list[str]:
+    """:func:`ranking`'s lines, in the order they are printed."""
+    return ranking(reference, current, metrics, frame).lines
