@@ -128,9 +128,9 @@ def rerun(
             bool(canonical) and mine == canonical,
         )
         if canonical and mine != canonical:
-            result.findings[-1].current = (
-                f"canonical {_short(canonical)} ({where} names other data)"
-            )
+            result.findings[
+                -1
+            ].current = f"canonical {_short(canonical)} ({where} names other data)"
     for name, value in (rec.get("metrics") or {}).items():
         rule = by_metric.get(name, default)
         ref = float(value.get("mean", math.nan))
