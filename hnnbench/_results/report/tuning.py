@@ -224,7 +224,11 @@ def cost_figure(studies: pd.DataFrame, path: Path) -> Optional[Path]:
     system's folds as the mean) against the CPU seconds its studies spent, a panel
     per (profile, system), the protocol trial's criterion beside it as an open marker;
     written to ``path`` (``None`` without studies)."""
-    if studies.empty:
+    finite = pd.to_numeric(studies["best"], errors="coerce").gt(0) & pd.to_numeric(
+        studies["cpu_s"], errors="coerce"
+    ).gt(0)
+    studies = studies[finite]
+    if studies.empty:  # records before the criterion (no selected value): nothing to draw
         return None
     per = (
         studies.groupby(["profile", "system", "family"], sort=False)
@@ -242,12 +246,10 @@ def cost_figure(studies: pd.DataFrame, path: Path) -> Optional[Path]:
         for _, r in group.iterrows():
             colour = colours[str(r["family"])]
             ax.scatter([r["cpu_s"]], [r["best"]], color=colour, label=str(r["family"]))
-            if math.isfinite(float(r["protocol"])):
+            if float(r["protocol"]) > 0 and math.isfinite(float(r["protocol"])):
                 ax.scatter([r["cpu_s"]], [r["protocol"]], facecolors="none", edgecolors=colour)
         ax.set_xscale("log")
-        finite = pd.to_numeric(group["best"], errors="coerce")
-        if (finite > 0).all():
-            ax.set_yscale("log")
+        ax.set_yscale("log")
         ax.set_title(f"{system} ({profile})", fontsize=9)
         ax.set_xlabel("tuning CPU s (all trials)", fontsize=8)
         ax.set_ylabel("criterion: selected (filled), protocol (open)", fontsize=7)
