@@ -162,13 +162,14 @@ def tune(
     system: str,
     models: Names,
     trials: int,
-    seeds: Iterable[int] = (0, 1, 2, 3, 4),
+    seeds: Iterable[int] = tuple(range(10)),
     profile: str = "paper",
     out: Optional[Union[str, Path]] = None,
     steps: Optional[int] = None,
     pruner: str = "successive_halving",
     trial_seed: int = 0,
     sampler_seed: int = 0,
+    seeds_per_trial: int = 2,
     **overrides: Any,
 ) -> pd.DataFrame:
     """The tuned track of one system, as ``hnnbench tune system=... model=...
@@ -186,7 +187,8 @@ def tune(
         out: the tuned track's directory (default ``results/runs/tuned_<profile>``).
         steps: steps of every trial and final run (default: the system's protocol).
         pruner: ``successive_halving`` or ``none``.
-        trial_seed, sampler_seed: the trials' seed, the samplers' seed.
+        trial_seed, sampler_seed: the first trial seed, the samplers' seed.
+        seeds_per_trial: seeds each trial trains (its score: their criteria's mean).
         **overrides: ``system__n_traj=10`` and the like (``__`` for a dot), passed to
             every job; model settings are what is tuned and are refused.
 
@@ -221,11 +223,15 @@ def tune(
         pruner=pruner,
         trial_seed=int(trial_seed),
         sampler_seed=int(sampler_seed),
+        seeds_per_trial=int(seeds_per_trial),
         overrides=passed,
         command=f"hnnbench.tune({system!r}, {_names(models)!r}, trials={trials})",
     )
-    if request.trials < 1 or pruner not in PRUNERS:
-        raise ConfigError(f"tune(): trials must be >= 1 and pruner one of {', '.join(PRUNERS)}")
+    if request.trials < 1 or request.seeds_per_trial < 1 or pruner not in PRUNERS:
+        raise ConfigError(
+            "tune(): trials and seeds_per_trial must be >= 1 and pruner one of "
+            + ", ".join(PRUNERS)
+        )
     studies = run_tuning(request)
     board = leaderboard([r for s in studies for r in s.finals])
     board.attrs["tuning_dir"] = str(request.directory.resolve())

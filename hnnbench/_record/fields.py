@@ -291,6 +291,10 @@ FIELDS: tuple[Field, ...] = (
                 "seeds_per_trial": {"type": "integer", "minimum": 1},
                 "trial_seeds": {"type": "array", "items": {"type": "integer", "minimum": 0}},
                 "protocol_trial": {"type": ["integer", "null"], "minimum": 0},
+                "protocol_value": VALUE,
+                "score": {"type": "string"},
+                "fold": _INT_OR_NULL,
+                "cpu_s_per_trial": {"type": "number", "minimum": 0},
                 "trials": {"type": "integer", "minimum": 1},
                 "steps": {"type": "integer", "minimum": 1},
                 "space": {"type": "object"},
@@ -303,9 +307,12 @@ FIELDS: tuple[Field, ...] = (
             },
         },
         "how a tuned run's settings were chosen (hnnbench tune): the objective and "
-        "that it was read on the validation split, the trials per model and the step "
-        "budget of each, the search space, the selected settings, the CPU seconds of "
-        "all trials; a trial's own record has its trial number instead of the "
+        "that it was read on the validation split, the criterion (the system's "
+        "selection criterion), the seeds of each trial and how their criteria make its "
+        "score, the trial of the protocol's settings and its score, the fold of a "
+        "measured system's study, the trials per model and the step budget of each, "
+        "the search space, the selected settings, the CPU seconds of all trials and "
+        "per trial; a trial's own record has its trial number instead of the "
         "selection",
     ),
     Field("traceback", {"type": "string"}, "for a failed job whose error was not a user error"),

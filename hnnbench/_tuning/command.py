@@ -37,8 +37,10 @@ def main(args: Sequence[str]) -> int:
     ]
     for study in studies:
         statuses = ", ".join(str(r.get("status")) for r in study.finals) or "no final runs"
+        fold = "" if study.group.fold is None else f" fold {study.group.fold}"
         print(
-            f"{study.model}: {len(study.trials)} trial(s), tuning CPU {study.cpu_s:.0f} s, "
+            f"{study.model}{fold}: {len(study.trials)} trial(s) of "
+            f"{len(study.group.trial_seeds)} seed(s), tuning CPU {study.cpu_s:.0f} s, "
             f"final: {statuses}",
             file=sys.stderr,
         )

@@ -19,6 +19,7 @@ if TYPE_CHECKING:
 __all__ = [
     "ARGUMENTS",
     "DEFAULT_SEEDS",
+    "DEFAULT_SEEDS_PER_TRIAL",
     "PASSED_KEYS",
     "PASSED_PREFIXES",
     "PRUNERS",
@@ -28,7 +29,7 @@ __all__ = [
 ]
 
 
-#: ``pruner=``: successive halving on the training loop's validation loss, or none.
+#: ``pruner=``: successive halving on the selection criterion, or none.
 PRUNERS = ("successive_halving", "none")
 #: Settings the command passes on to every job (the system's, the evaluation's, and how
 #: jobs run); ``model.*`` is what the tuner searches, and is refused.
@@ -45,21 +46,28 @@ ARGUMENTS = (
     "steps",
     "pruner",
     "trial_seed",
+    "seeds_per_trial",
     "sampler_seed",
 )
-#: The seeds the selected settings train on unless ``seeds=`` says otherwise: five, as
-#: the paired sign test cannot separate two families on fewer (docs/TUNING.md).
-DEFAULT_SEEDS = (0, 1, 2, 3, 4)
+#: The seeds the selected settings train on unless ``seeds=`` says otherwise: the
+#: protocol track's seed plan, 0-9 (docs/STATISTICS.md), so the tuning gain is paired on
+#: every protocol seed.
+DEFAULT_SEEDS = tuple(range(10))
+#: Seeds each trial trains (one batched job); its score is their criteria's mean.
+DEFAULT_SEEDS_PER_TRIAL = 2
 _SEEDS_TEXT = ",".join(map(str, DEFAULT_SEEDS))
 USAGE = f"""\
 usage: hnnbench tune system=NAME model=A,B,... trials=N [seeds={_SEEDS_TEXT}] [profile=paper]
                      [steps=S] [out=DIR] [pruner=successive_halving|none]
-                     [trial_seed=0] [sampler_seed=0] [system.KEY=VALUE ...]
+                     [trial_seed=0] [seeds_per_trial=2] [sampler_seed=0]
+                     [system.KEY=VALUE ...]
 
-Gives every model the same tuning budget on the system (N trials of S steps each,
-default S: the system's protocol steps), selects each model's settings on validation,
-and trains the selection on each seed: the tuned track (docs/TUNING.md). Re-running the
-same command resumes it. Records: OUT/final (report and check it like a sweep).
+Gives every model the same tuning budget on the system (N trials of S steps each on
+seeds_per_trial seeds, default S: the system's protocol steps; trial 0 is the
+protocol's settings), selects each model's settings on the system's selection
+criterion read on validation, and trains the selection on each seed: the tuned track
+(docs/TUNING.md). Re-running the same command resumes it. Records: OUT/final (report
+and check it like a sweep).
 """
 
 
@@ -77,7 +85,11 @@ class TuneRequest:
         steps: optimizer steps of every trial and final run (``None``: the system's
             protocol steps of the profile).
         pruner: one of :data:`PRUNERS`.
-        trial_seed: the seed of every trial's data, initial weights and minibatches.
+        trial_seed: the first trial seed (data, initial weights, minibatches); a trial
+            trains ``seeds_per_trial`` seeds from it (on a measured system: the seeds
+            of each fold, docs/TUNING.md).
+        seeds_per_trial: seeds each trial trains, as one batched job; the trial's
+            score is the mean of their criteria.
         sampler_seed: the seed of each study's sampler (TPE).
         overrides: settings passed to every job (``system.*``, ``evaluation.*``,
             :data:`PASSED_KEYS`).
@@ -93,6 +105,7 @@ class TuneRequest:
     steps: Optional[int] = None
     pruner: str = "successive_halving"
     trial_seed: int = 0
+    seeds_per_trial: int = DEFAULT_SEEDS_PER_TRIAL
     sampler_seed: int = 0
     overrides: list[str] = field(default_factory=list)
     command: Optional[str] = None
@@ -177,6 +190,9 @@ def parse(args: Sequence[str]) -> TuneRequest:
         steps=_int("steps", values["steps"], 1) if values.get("steps") else None,
         pruner=pruner,
         trial_seed=_int("trial_seed", values.get("trial_seed", "0"), 0),
+        seeds_per_trial=_int(
+            "seeds_per_trial", values.get("seeds_per_trial", str(DEFAULT_SEEDS_PER_TRIAL)), 1
+        ),
         sampler_seed=_int("sampler_seed", values.get("sampler_seed", "0"), 0),
         overrides=overrides,
         command=shlex.join(["hnnbench", "tune", *args]),

@@ -1,6 +1,8 @@
-"""The tuned track of one system: one Optuna study per model with the same budget,
-each trial a job on the sweep's job path, the selection on validation, and the
-final runs on each seed (docs/TUNING.md).
+"""The tuned track of one system: one Optuna study per model (per fold of a measured
+system) with the same budget, each trial one batched job of ``seeds_per_trial`` seeds on
+the sweep's job path, trial 0 the protocol's settings, trials scored, pruned and
+selected on the system's selection criterion read on validation, and the final runs on
+each seed (docs/TUNING.md).
 """
 
 from __future__ import annotations
@@ -46,13 +48,44 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("hnnbench")
 
-__all__ = ["FIRST_RUNG", "REDUCTION", "Study", "Tuner", "objective_metric", "run_tuning"]
+__all__ = [
+    "CRITERION",
+    "FIRST_RUNG",
+    "PROTOCOL_TRIAL",
+    "REDUCTION",
+    "SCORE",
+    "FoldGroup",
+    "Study",
+    "Tuner",
+    "objective_metric",
+    "run_tuning",
+    "trial_score",
+]
 
 
 #: Successive halving: the first rung at this fraction of the step budget, each next one
 #: this many times later; at a rung the best ``1 / REDUCTION`` of the trials go on.
 REDUCTION = 3
 FIRST_RUNG = 1 / 9
+#: What a trial is scored on: each seed's selection criterion at its scored checkpoint
+#: (the record's ``selection.validation_loss``, named by ``selection.criterion``), the
+#: same value the protocol track's checkpoint selection reads (docs/METRICS.md).
+CRITERION = "selection.validation_loss"
+#: How a trial's seeds are combined into its score.
+SCORE = "mean over the trial's seeds (the worst value if any seed is not ok)"
+#: The trial number of the protocol's settings in every study (enqueued first).
+PROTOCOL_TRIAL = 0
+
+
+@dataclass(frozen=True)
+class FoldGroup:
+    """One study's data: the seeds its trials train and the final seeds its selection
+    trains on. ``fold``: the measured series' fold they share (``None``: a simulated
+    system, one study for every final seed)."""
+
+    fold: Optional[int]
+    trial_seeds: tuple[int, ...]
+    final_seeds: tuple[int, ...]
 
 
 @dataclass
@@ -65,6 +98,8 @@ class Study:
     steps: int
     objective: Metric
     pruner: str
+    group: FoldGroup = FoldGroup(None, (0,), ())
+    criterion: Optional[str] = None
     trials: list[dict[str, Any]] = field(default_factory=list)
     selected: Optional[dict[str, Any]] = None
     finals: list[dict[str, Any]] = field(default_factory=list)
@@ -74,13 +109,35 @@ class Study:
         """CPU seconds of every trial's job (pruned and failed ones included)."""
         return float(sum(t.get("cpu_s") or 0.0 for t in self.trials))
 
+    @property
+    def cpu_s_per_trial(self) -> float:
+        """The mean CPU seconds of a counted trial (0 without trials)."""
+        return self.cpu_s / len(self.trials) if self.trials else 0.0
+
+    @property
+    def protocol_value(self) -> Optional[float]:
+        """The protocol trial's score (``None``: not run)."""
+        for trial in self.trials:
+            if trial.get("protocol") and trial.get("value") is not None:
+                return float(trial["value"])
+        return None
+
     def tuning(self, study_name: str) -> dict[str, Any]:
         """The ``tuning`` block of the final records (``hnnbench._record.fields``)."""
         assert self.selected is not None
         states = [t["state"] for t in self.trials]
         return {
             "selected_on": SELECTED_ON,
-            "objective": self.objective.name,
+            "objective": CRITERION,
+            "criterion": self.criterion or self.objective.name,
+            "score": SCORE,
+            "seeds_per_trial": len(self.group.trial_seeds),
+            "trial_seeds": list(self.group.trial_seeds),
+            "fold": self.group.fold,
+            "protocol_trial": PROTOCOL_TRIAL,
+            "protocol_value": records.encode(self.protocol_value)
+            if self.protocol_value is not None
+            else None,
             "trials": self.budget_trials,
             "steps": self.steps,
             "space": space_json(self.space),
@@ -93,12 +150,15 @@ class Study:
             "pruner": self.pruner,
             "sampler": "TPE",
             "cpu_s": round(self.cpu_s, 3),
+            "cpu_s_per_trial": round(self.cpu_s_per_trial, 3),
             "study": study_name,
         }
 
 
 def objective_metric() -> Metric:
-    """The registered metric declared to select on (:attr:`Metric.selects`)."""
+    """The registered metric declared to select on (:attr:`Metric.selects`): what a
+    trial of a model without a selection criterion (a plugin that keeps its last
+    iterate) is scored on, and the worst value and direction of every score."""
     found = [m for m in registry.metrics() if m.selects]
     if len(found) != 1:
         raise ConfigError(
@@ -155,17 +215,40 @@ def _pruned(record: Mapping[str, Any]) -> bool:
     return str(stopped).startswith(STOPPED_BY_CALLER)
 
 
-def _value(record: Mapping[str, Any], objective: Metric) -> float:
-    """The trial's objective: its metric's mean where it is ``ok``, else the metric's
-    worst value (a diverged, failed or timed-out trial is a result of its settings)."""
-    if record.get("status") != "ok":
-        return objective.worst()
-    mean: Any = ((record.get("metrics") or {}).get(objective.name) or {}).get("mean")
+def _number(value: Any) -> float:
     try:
-        value = float(mean)
+        return float(value)
     except (TypeError, ValueError):
-        return objective.worst()
-    return objective.worst() if math.isnan(value) else value
+        return math.nan
+
+
+def _criterion(record: Mapping[str, Any], objective: Metric) -> tuple[float, str]:
+    """One seed's ``(criterion value, criterion name)``: its selection criterion at the
+    scored checkpoint (:data:`CRITERION`), or, for a model that records no selection,
+    the fallback metric's mean; the worst value where the seed is not ``ok`` (a
+    diverged, failed or timed-out seed is a result of its settings)."""
+    selection = record.get("selection")
+    if isinstance(selection, Mapping) and "validation_loss" in selection:
+        name = str(selection.get("criterion") or "validation_loss")
+        value = _number(selection.get("validation_loss"))
+    else:
+        name = objective.name
+        value = _number(((record.get("metrics") or {}).get(objective.name) or {}).get("mean"))
+    if record.get("status") != "ok" or math.isnan(value):
+        return objective.worst(), name
+    return value, name
+
+
+def trial_score(recs: Sequence[Mapping[str, Any]], objective: Metric) -> tuple[float, str]:
+    """A trial's ``(score, criterion name)``: the mean of its seeds' criteria
+    (:func:`_criterion`; :data:`SCORE`), the worst value if any seed has none."""
+    if not recs:
+        return objective.worst(), objective.name
+    values, names = zip(*(_criterion(r, objective) for r in recs), strict=True)
+    worst = objective.worst()
+    if any(v == worst or not math.isfinite(v) for v in values):
+        return worst, names[0]
+    return float(sum(values) / len(values)), names[0]
 
 
 class Tuner:
@@ -199,21 +282,20 @@ class Tuner:
         tuning: dict[str, Any],
         extra: Sequence[str] = (),
         rerun: bool = False,
-    ) -> dict[str, Any]:
+    ) -> list[dict[str, Any]]:
         """Run one job, as a sweep's Hydra task does (its config composed by
         :func:`~hnnbench._running.compose.compose`, run by the one job entry
         :func:`~hnnbench._running.job.run_job` in this command's launch context), and
-        return its record; ``extra``: overrides not stored as the job's."""
+        return its records (one per seed of a ``seed_batch``); ``extra``: overrides
+        not stored as the job's."""
         cfg = compose([*overrides, *extra])
         with open_dict(cfg):
             cfg.tuning = OmegaConf.create(tuning)
             if rerun:
                 cfg.rerun = True
-        (outcome,) = run_job(cfg, directory, overrides=[*overrides, *extra])
-        return outcome.record
+        return [o.record for o in run_job(cfg, directory, overrides=[*overrides, *extra])]
 
-    def protocol_steps(self, model: str) -> int:
-        """The system's protocol steps of the profile (the default step budget)."""
+    def _prepared(self, model: str) -> Any:
         cfg = compose(
             [
                 f"system={self.system}",
@@ -222,12 +304,54 @@ class Tuner:
                 *self.request.overrides,
             ]
         )
-        job = prepare_job(cfg)
+        return prepare_job(cfg)
+
+    def protocol_steps(self, model: str) -> int:
+        """The system's protocol steps of the profile (the default step budget)."""
+        job = self._prepared(model)
         return TrainSettings.resolve(job.system_cfg, job.model_cfg).steps
 
+    def protocol_settings(self, model: str, space: SearchSpace) -> dict[str, Any]:
+        """The protocol's value of every setting of ``space`` (``{"model.lr": 0.001,
+        ...}``): the model's config under the profile, its training fields resolved
+        against the system's protocol as a protocol job resolves them."""
+        job = self._prepared(model)
+        train = TrainSettings.resolve(job.system_cfg, job.model_cfg)
+        out: dict[str, Any] = {}
+        for name in space:
+            value = getattr(train, name) if hasattr(train, name) else getattr(job.model_cfg, name)
+            out[f"model.{name}"] = value
+        return out
+
+    def groups(self, model: str) -> list[FoldGroup]:
+        """The studies of ``model``: one over every final seed on a simulated system;
+        on a measured one (a system whose seeds choose folds, ``System.fold``), one per
+        fold of the final seeds, whose trials train seeds of that fold only, so no
+        study's selection ever read the test block its final seeds are scored on."""
+        first, count = self.request.trial_seed, self.request.seeds_per_trial
+        job = self._prepared(model)
+        fold = getattr(job.system_cls(job.system_cfg), "fold", None)
+        if not callable(fold):
+            trial_seeds = tuple(range(first, first + count))
+            return [FoldGroup(None, trial_seeds, tuple(self.request.seeds))]
+        by_fold: dict[int, list[int]] = {}
+        for seed in self.request.seeds:
+            by_fold.setdefault(int(fold(seed)), []).append(seed)
+        out = []
+        for k, finals in by_fold.items():
+            seeds: list[int] = []
+            candidate = first
+            while len(seeds) < count:
+                if int(fold(candidate)) == k:
+                    seeds.append(candidate)
+                candidate += 1
+            out.append(FoldGroup(k, tuple(seeds), tuple(finals)))
+        return out
+
     # -- one study -------------------------------------------------------------------
-    def study_name(self, model: str) -> str:
-        return f"{self.system}/{model}"
+    def study_name(self, model: str, group: Optional[FoldGroup] = None) -> str:
+        fold = "" if group is None or group.fold is None else f"/fold{group.fold}"
+        return f"{self.system}/{model}{fold}"
 
     def _storage(self) -> Any:
         import optuna
@@ -238,14 +362,18 @@ class Tuner:
             f"sqlite:///{path}", engine_kwargs={"connect_args": {"timeout": 60}}
         )
 
-    def _identity(self, model: str, space: SearchSpace, steps: int) -> dict[str, Any]:
+    def _identity(
+        self, model: str, space: SearchSpace, steps: int, group: FoldGroup
+    ) -> dict[str, Any]:
         """What a study is of: resuming with anything else is refused."""
         return {
             "steps": steps,
             "profile": self.request.profile,
-            "objective": self.objective.name,
+            "objective": CRITERION,
+            "score": SCORE,
             "space": space_json(space),
-            "trial_seed": self.request.trial_seed,
+            "trial_seeds": list(group.trial_seeds),
+            "protocol_trial": PROTOCOL_TRIAL,
             # what the jobs compute, not how they run
             "overrides": sorted(
                 o for o in self.request.overrides if o.split("=", 1)[0] not in PASSED_KEYS
@@ -259,13 +387,19 @@ class Tuner:
             return "none"
         if loss_knobs:
             return f"none ({', '.join(loss_knobs)} changes the training loss)"
-        return f"successive_halving (rungs at 1/9 and 1/3 of the steps, best 1/{REDUCTION} on)"
+        return (
+            "successive_halving on the criterion (rungs at 1/9 and 1/3 of the steps, "
+            f"best 1/{REDUCTION} on; the protocol trial never pruned)"
+        )
 
-    def _open(self, model: str, space: SearchSpace, steps: int) -> optuna.Study:
+    def _open(
+        self, model: str, space: SearchSpace, steps: int, group: Optional[FoldGroup] = None
+    ) -> optuna.Study:
         import optuna
 
+        group = group or self.groups(model)[0]
         optuna.logging.set_verbosity(optuna.logging.WARNING)
-        identity = self._identity(model, space, steps)
+        identity = self._identity(model, space, steps, group)
         pruning = identity["pruner"].startswith("successive_halving")
         pruner = (
             optuna.pruners.SuccessiveHalvingPruner(
@@ -275,7 +409,7 @@ class Tuner:
             else optuna.pruners.NopPruner()
         )
         storage = self._storage()
-        name = self.study_name(model)
+        name = self.study_name(model, group)
         study = optuna.create_study(
             storage=storage,
             study_name=name,
@@ -293,6 +427,14 @@ class Tuner:
                 f"({', '.join(f'{k}: {stored.get(k)!r} -> {identity[k]!r}' for k in differs)})"
                 "; resume with the settings it was made with, or choose another out="
             )
+        if not study.trials:  # trial 0: the protocol's settings, before any draw
+            settings = self.protocol_settings(model, space)
+            params = {
+                n: settings[f"model.{n}"]
+                for n, d in space.items()
+                if _admissible(d, settings[f"model.{n}"])
+            }
+            study.enqueue_trial(params, user_attrs={"protocol": True, "settings": settings})
         # Reseeded on each start by the trials so far (interrupted ones included), so a
         # resumed study does not repeat its first draws.
         study.sampler = optuna.samplers.TPESampler(
@@ -301,91 +443,126 @@ class Tuner:
         )
         return study
 
-    def _trial_dir(self, model: str, number: int) -> Path:
-        return self.root / "trials" / self.system / model / f"trial{number:03d}"
+    def _trial_dir(self, model: str, number: int, group: Optional[FoldGroup] = None) -> Path:
+        fold = () if group is None or group.fold is None else (f"fold{group.fold}",)
+        return self.root / "trials" / self.system / model / Path(*fold) / f"trial{number:03d}"
 
-    def _recover(self, study: optuna.Study, model: str, space: SearchSpace) -> None:
-        """Trials an interruption left running: told from their record where it was
-        written, else failed and their settings queued again (they are not counted)."""
+    def _trial_records(self, model: str, number: int, group: FoldGroup) -> list[dict[str, Any]]:
+        """The records of trial ``number`` that were written (one per trial seed)."""
+        directory = self._trial_dir(model, number, group)
+        found = [
+            records.read_record(directory / f"seed{s}" / records.RECORD_NAME)
+            for s in group.trial_seeds
+        ]
+        return [r for r in found if r is not None]
+
+    def _recover(
+        self, study: optuna.Study, model: str, space: SearchSpace, group: FoldGroup
+    ) -> None:
+        """Trials an interruption left running: told from their records where every
+        seed's was written, else failed and their settings queued again (they are not
+        counted)."""
         import optuna
 
         for trial in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
-            record = records.read_record(self._trial_dir(model, trial.number) / records.RECORD_NAME)
-            if record is not None and record.get("status") in (
-                *records.FINISHED,
-                "failed",
-                "timeout",
+            recs = self._trial_records(model, trial.number, group)
+            finished = (*records.FINISHED, "failed", "timeout")
+            if len(recs) == len(group.trial_seeds) and all(
+                r.get("status") in finished for r in recs
             ):
-                state = optuna.trial.TrialState.PRUNED if _pruned(record) else None
-                study.tell(
-                    trial.number, None if state else _value(record, self.objective), state=state
-                )
+                state = optuna.trial.TrialState.PRUNED if any(map(_pruned, recs)) else None
+                value = None if state else trial_score(recs, self.objective)[0]
+                study.tell(trial.number, value, state=state)
                 log.info(
-                    "%s trial %d: recovered from its record", self.study_name(model), trial.number
+                    "%s trial %d: recovered from its records",
+                    self.study_name(model, group),
+                    trial.number,
                 )
                 continue
             study.tell(trial.number, state=optuna.trial.TrialState.FAIL)
-            study.enqueue_trial(dict(trial.params), user_attrs={"replays": trial.number})
+            attrs: dict[str, Any] = {"replays": trial.number}
+            if trial.user_attrs.get("protocol"):
+                attrs.update(protocol=True, settings=trial.user_attrs.get("settings"))
+            study.enqueue_trial(dict(trial.params), user_attrs=attrs)
             log.info(
                 "%s trial %d: interrupted; its settings run again",
-                self.study_name(model),
+                self.study_name(model, group),
                 trial.number,
             )
 
     def _run_trial(
-        self, study: optuna.Study, model: str, space: SearchSpace, steps: int, k: int
+        self,
+        study: optuna.Study,
+        model: str,
+        space: SearchSpace,
+        steps: int,
+        k: int,
+        group: Optional[FoldGroup] = None,
     ) -> None:
         import optuna
 
+        group = group or self.groups(model)[0]
         distributions = {n: _distribution(d) for n, d in space.items()}
         trial = study.ask(distributions)
-        settings = _settings(space, trial.params)
-        pruning = not isinstance(study.pruner, optuna.pruners.NopPruner)
-        best = [math.inf]  # the training loop's validation loss: lower is better
-        asked = [False]
+        protocol = bool(trial.user_attrs.get("protocol"))
+        settings = (
+            dict(trial.user_attrs["settings"])
+            if protocol and trial.user_attrs.get("settings")
+            else _settings(space, trial.params)
+        )
+        pruning = not isinstance(study.pruner, optuna.pruners.NopPruner) and not protocol
+        best = [math.inf]  # the criterion: lower is better
 
         def observe(step: int, losses: Mapping[str, float]) -> Optional[bool]:
-            # The training loop's own validation loss (the family's objective on the
-            # validation split), best so far: what the pruner compares at its rungs.
+            # The training loop's validation criterion after each chunk (the mean over
+            # the batch's seeds; the system's selection criterion, the same for every
+            # family), best so far: what the pruner compares at its rungs.
             value = losses.get(HISTORY_VALID)
             if value is None or not math.isfinite(value):
                 return None
             best[0] = min(best[0], value)
             trial.report(best[0], step)
             if pruning and step < steps and trial.should_prune():
-                asked[0] = True
                 return True
             return None
 
-        directory = self._trial_dir(model, trial.number)
+        directory = self._trial_dir(model, trial.number, group)
+        seeds = list(group.trial_seeds)
         tuning = {
             "selected_on": SELECTED_ON,
-            "objective": self.objective.name,
+            "objective": CRITERION,
             "trial": trial.number,
-            "study": self.study_name(model),
+            "study": self.study_name(model, group),
+            "seeds_per_trial": len(seeds),
+            "trial_seeds": seeds,
+            "protocol_trial": PROTOCOL_TRIAL if protocol else None,
         }
+        batch = [f"seed_batch=[{','.join(map(str, seeds))}]"] if len(seeds) > 1 else []
         start = time.perf_counter()
         with progress.observing(observe):
-            record = self._job(
-                self._overrides(model, self.request.trial_seed, settings, steps),
-                directory,
+            recs = self._job(
+                [*self._overrides(model, seeds[0], settings, steps), *batch],
+                directory / f"seed{seeds[0]}",
                 tuning,
                 extra=[f"evaluation.metrics=[{self.objective.name}]", "save_model=false"],
             )
-        cpu = float((record.get("timings") or {}).get("cpu_s") or 0.0)
+        cpu = float(sum(float((r.get("timings") or {}).get("cpu_s") or 0.0) for r in recs))
+        statuses = [str(r.get("status")) for r in recs]
         trial.set_user_attr("settings", settings)
-        trial.set_user_attr("status", record.get("status"))
+        trial.set_user_attr("status", statuses[0] if len(set(statuses)) == 1 else statuses)
         trial.set_user_attr("cpu_s", cpu)
-        if record.get("status") == "skipped":
+        if "skipped" in statuses:
             study.tell(trial, state=optuna.trial.TrialState.FAIL)
-            raise _Skipped(str(record.get("error")))
-        if asked[0] or _pruned(record):
+            raise _Skipped(str(recs[statuses.index("skipped")].get("error")))
+        score, criterion = trial_score(recs, self.objective)
+        trial.set_user_attr("criterion", criterion)
+        trial.set_user_attr("seed_values", [_criterion(r, self.objective)[0] for r in recs])
+        if any(map(_pruned, recs)):
             study.tell(trial, state=optuna.trial.TrialState.PRUNED)
-            outcome = f"pruned at step {record.get('steps')}"
+            outcome = f"pruned at step {max(int(r.get('steps') or 0) for r in recs)}"
         else:
-            value = _value(record, self.objective)
-            study.tell(trial, value)
-            outcome = f"{record.get('status')}, {self.objective.name}={value:.3g}"
+            study.tell(trial, score)
+            outcome = f"{', '.join(sorted(set(statuses)))}, {criterion}={score:.3g}"
         spent = [
             float(t.user_attrs.get("cpu_s") or 0.0)
             for t in study.get_trials(deepcopy=False)
@@ -393,12 +570,14 @@ class Tuner:
         ]
         left = (self.request.trials - k) * sum(spent) / max(len(spent), 1)
         log.info(
-            "%s trial %d/%d (#%d): %s; %.1f s CPU, %.1f s wall; %s; this study so "
-            "far %.0f s CPU, about %.0f s CPU to go (at its mean per trial)",
-            self.study_name(model),
+            "%s trial %d/%d (#%d%s, seeds %s): %s; %.1f s CPU, %.1f s wall; %s; this study "
+            "so far %.0f s CPU, about %.0f s CPU to go (at its mean per trial)",
+            self.study_name(model, group),
             k,
             self.request.trials,
             trial.number,
+            ", the protocol's settings" if protocol else "",
+            ",".join(map(str, seeds)),
             outcome,
             cpu,
             time.perf_counter() - start,
@@ -407,38 +586,49 @@ class Tuner:
             left,
         )
 
-    def tune_model(self, model: str) -> Study:
-        """Tune ``model`` to the budget (resuming its study), then train its selected
-        settings on each seed."""
+    def tune_model(self, model: str) -> list[Study]:
+        """Tune ``model`` to the budget (resuming its studies: one, or one per fold of
+        a measured system), then train each study's selected settings on its final
+        seeds."""
+        return [self._tune_group(model, group) for group in self.groups(model)]
+
+    def _tune_group(self, model: str, group: FoldGroup) -> Study:
         import optuna
 
         space = registry.discover("model")[model].search_space
         assert space is not None
         steps = self.request.steps or self.protocol_steps(model)
-        optuna_study = self._open(model, space, steps)
-        name = self.study_name(model)
+        optuna_study = self._open(model, space, steps, group)
+        name = self.study_name(model, group)
         result = Study(
-            model, space, self.request.trials, steps, self.objective, self._pruner_name(space)
+            model,
+            space,
+            self.request.trials,
+            steps,
+            self.objective,
+            self._pruner_name(space),
+            group=group,
         )
-        self._recover(optuna_study, model, space)
+        self._recover(optuna_study, model, space, group)
         counted = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)
 
         def done() -> int:
             return len(optuna_study.get_trials(deepcopy=False, states=counted))
 
         log.info(
-            "%s: %d/%d trials done; space: %s; %d steps per trial; pruner: %s",
+            "%s: %d/%d trials done; space: %s; %d steps per trial on seeds %s; pruner: %s",
             name,
             done(),
             self.request.trials,
             describe(space),
             steps,
+            ",".join(map(str, group.trial_seeds)),
             result.pruner,
         )
         skipped: Optional[str] = None
         while done() < self.request.trials:
             try:
-                self._run_trial(optuna_study, model, space, steps, done() + 1)
+                self._run_trial(optuna_study, model, space, steps, done() + 1, group)
             except _Skipped as err:
                 skipped = str(err)
                 log.warning("%s: skipped (%s); no tuning", name, skipped)
@@ -449,45 +639,61 @@ class Tuner:
             if t.state in (*counted, optuna.trial.TrialState.FAIL)
             and t.user_attrs.get("status") is not None
         ]
+        criteria = [t["criterion"] for t in result.trials if t.get("criterion")]
+        result.criterion = criteria[0] if criteria else None
         if skipped is None:
             result.selected = _select(optuna_study, self.objective)
-        self._write_summary(result)
+        self._write_summary(result, name)
         if result.selected is None:
             return result
         log.info(
-            "%s: selected trial %d (%s=%.3g) of %d; tuning CPU %.0f s: %s",
+            "%s: selected trial %d (%s=%.3g; the protocol's %s) of %d; tuning CPU %.0f s: %s",
             name,
             result.selected["number"],
-            self.objective.name,
+            result.criterion,
             result.selected["value"],
+            "not run" if result.protocol_value is None else f"{result.protocol_value:.3g}",
             len(result.trials),
             result.cpu_s,
             " ".join(f"{k}={_override_value(v)}" for k, v in result.selected["settings"].items()),
         )
         tuning = result.tuning(name)
-        for seed in self.request.seeds:
+        for seed in group.final_seeds:
             directory = self.root / "final" / self.system / model / f"seed{seed}"
             existing = records.read_record(directory / records.RECORD_NAME)
             stale = existing is not None and existing.get("tuning") != tuning
             overrides = self._overrides(model, seed, result.selected["settings"], steps)
-            record = self._job(overrides, directory, tuning, rerun=stale)
-            result.finals.append(record)
+            result.finals.extend(self._job(overrides, directory, tuning, rerun=stale))
         return result
 
-    def _write_summary(self, study: Study) -> None:
-        path = self.root / "tuning" / self.system / f"{study.model}.json"
+    def _summary_path(self, model: str, group: FoldGroup) -> Path:
+        fold = "" if group.fold is None else f".fold{group.fold}"
+        return self.root / "tuning" / self.system / f"{model}{fold}.json"
+
+    def _write_summary(self, study: Study, name: str) -> None:
+        path = self._summary_path(study.model, study.group)
         path.parent.mkdir(parents=True, exist_ok=True)
         summary = {
             "system": self.system,
             "model": study.model,
+            "study": name,
             "profile": self.request.profile,
             "trials_budget": study.budget_trials,
             "steps": study.steps,
-            "objective": study.objective.name,
+            "objective": CRITERION,
+            "criterion": study.criterion,
+            "score": SCORE,
+            "seeds_per_trial": len(study.group.trial_seeds),
+            "trial_seeds": list(study.group.trial_seeds),
+            "fold": study.group.fold,
+            "final_seeds": list(study.group.final_seeds),
+            "protocol_trial": PROTOCOL_TRIAL,
+            "protocol_value": study.protocol_value,
             "selected_on": SELECTED_ON,
             "space": space_json(study.space),
             "pruner": study.pruner,
             "cpu_s": round(study.cpu_s, 3),
+            "cpu_s_per_trial": round(study.cpu_s_per_trial, 3),
             "selected": study.selected,
             "trials": study.trials,
         }
@@ -496,10 +702,12 @@ class Tuner:
     def run(self) -> list[Study]:
         models = resolve_models(self.request)
         log.info(
-            "hnnbench tune: %s, %d model(s) x %d trial(s), seeds %s, profile %s, into %s",
+            "hnnbench tune: %s, %d model(s) x %d trial(s) of %d seed(s), final seeds %s, "
+            "profile %s, into %s",
             self.system,
             len(models),
             self.request.trials,
+            self.request.seeds_per_trial,
             ",".join(map(str, self.request.seeds)),
             self.request.profile,
             self.root,
@@ -507,8 +715,21 @@ class Tuner:
         out = []
         with sweep_lock(self.root / "trials" / self.system, self.request.command):
             for model in models:
-                out.append(self.tune_model(model))
+                out.extend(self.tune_model(model))
         return out
+
+
+def _admissible(dist: Distribution, value: Any) -> bool:
+    """Whether ``value`` lies in ``dist`` (the protocol's value can lie outside a
+    space, e.g. the quick profile's narrow network)."""
+    if isinstance(dist, Categorical):
+        return any(value == c and type(value) is type(c) for c in dist.choices)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    if isinstance(dist, IntRange) and value != int(value):
+        return False
+    low, high = dist.low, dist.high
+    return bool(low <= value <= high)
 
 
 class _Skipped(Exception):
@@ -524,6 +745,9 @@ def _trial_summary(trial: Any) -> dict[str, Any]:
         "settings": trial.user_attrs.get("settings"),
         "cpu_s": trial.user_attrs.get("cpu_s"),
         "last_step": trial.last_step,
+        "protocol": bool(trial.user_attrs.get("protocol")),
+        "criterion": trial.user_attrs.get("criterion"),
+        "seed_values": trial.user_attrs.get("seed_values"),
     }
 
 

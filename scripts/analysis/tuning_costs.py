@@ -14,7 +14,7 @@ It is an estimate: no pruning is assumed (successive halving stops most trials a
 or 1/3 of the steps, so the tuning costs less), the per-step cost of the space's mean
 draw stands for every trial, and CPU seconds are one core's.
 
-    python scripts/analysis/tuning_costs.py results/runs/tuned_cost --trials 20 --seeds 3
+    python scripts/analysis/tuning_costs.py results/runs/tuned_cost --trials 16 --seeds 10
 """
 
 from __future__ import annotations
@@ -64,7 +64,13 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("dir", type=Path, help="the tiny run's out= directory")
     p.add_argument("--trials", type=int, default=20, help="trials per model (default 20)")
-    p.add_argument("--seeds", type=int, default=3, help="final seeds (default 3)")
+    p.add_argument("--seeds", type=int, default=10, help="final seeds (default 10)")
+    p.add_argument(
+        "--seeds-per-trial",
+        type=int,
+        default=2,
+        help="seeds each trial trains (default 2; a record is one seed of a trial's batch)",
+    )
     p.add_argument(
         "--steps",
         type=int,
@@ -73,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     ns = p.parse_args(argv)
     parts: dict[tuple[str, str, str], list[tuple[float, float]]] = defaultdict(list)
-    for path in sorted((ns.dir / "trials").glob("*/*/trial*/result.json")):
+    for path in sorted((ns.dir / "trials").rglob("result.json")):
         rec = json.loads(path.read_text("utf-8"))
         found = trial_parts(rec)
         if found is not None and rec.get("status") in ("ok", "diverged"):
@@ -91,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
         fixed = statistics.mean(v[0] for v in values)
         per_step = statistics.mean(v[1] for v in values)
         steps = ns.steps or protocol_steps(system, model, profile)
-        tuning = ns.trials * (fixed + per_step * steps)
+        tuning = ns.trials * ns.seeds_per_trial * (fixed + per_step * steps)
         evaluation = published_eval(system, model, profile) or 0.0
         finals = ns.seeds * (fixed + per_step * steps + evaluation)
         totals[system] += tuning + finals
@@ -102,8 +108,9 @@ def main(argv: list[str] | None = None) -> int:
     print()
     for system, seconds in totals.items():
         print(
-            f"{system}: about {seconds / 3600:.1f} CPU hours for {ns.trials} trials per "
-            f"model and {ns.seeds} final seeds, without pruning (one core)"
+            f"{system}: about {seconds / 3600:.1f} CPU hours for {ns.trials} trials of "
+            f"{ns.seeds_per_trial} seed(s) per model and {ns.seeds} final seeds, without "
+            "pruning (one core; a measured system's studies per fold: times its folds)"
         )
     return 0
 

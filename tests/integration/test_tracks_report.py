@@ -185,3 +185,84 @@ def test_a_track_that_cannot_separate_its_leaders_changes_no_verdict(tmp_path):
         "- `pendulum`, `energy_mse`: protocol best: hnn; recipe too few seeds to "
         "separate: mlp, hnn." in text.split("Where only the best mean moves")[1]
     )
+
+
+def _with_study(root: Path, cpu_s: float, best: float, protocol: float) -> None:
+    """The tuned records under ``root`` with the study fields ``hnnbench tune`` writes."""
+    for path in root.rglob(records.RECORD_NAME):
+        rec = records.read_record(path)
+        assert rec is not None
+        tuning = {
+            **rec["tuning"],
+            "criterion": "field_mse_clean",
+            "seeds_per_trial": 2,
+            "trial_seeds": [0, 1],
+            "protocol_trial": 0,
+            "protocol_value": protocol,
+            "selected_value": best,
+            "cpu_s": cpu_s,
+            "cpu_s_per_trial": cpu_s / 4,
+            "study": f"{rec['system']}/{rec['model']}",
+        }
+        records.write_record(path.parent, {**rec, "tuning": tuning})
+
+
+def test_the_tracks_table_shows_the_tuning_gain_with_its_interval_negative_where_it_hurt(
+    tmp_path,
+):
+    """Tuned against protocol on the same seeds, paired: the MLP's spring energy error 10x
+    worse when tuned is a gain of x0.1 (negative on the log scale) with its interval, the
+    HNN's pendulum one 10x better x10; the studies table shows each study's criterion,
+    budget and CPU, and the cost figure is drawn."""
+    from hnnbench._results.report.tuning import cost_figure, studies_frame
+
+    protocol = make_sweep(tmp_path / "protocol", pairs=PAIRS, seeds=SEEDS)
+    tuned = make_sweep(tmp_path / "tuned", pairs=PAIRS, seeds=SEEDS)
+    _as_tuned(tuned, 0.003)
+    _with_study(tuned, 40.0, 0.01, 0.02)
+    scale_metric(tuned, "spring", "mlp_torch", "energy_mse", 10.0)
+    scale_metric(tuned, "pendulum", "hnn_torch", "energy_mse", 0.1)
+    report = write_report([protocol, tuned], tmp_path / "out", figures=False)
+    gain = pd.read_csv(report.files["tuning_gain"])
+    energy = gain[gain["metric"] == "energy_mse"].set_index(["system", "family"])
+    worse = energy.loc[("spring", "mlp")]
+    assert worse["n"] == len(SEEDS) and worse["scale"] == "log"
+    assert abs(worse["gain"] + 1.0) < 1e-9 and worse["low"] <= worse["gain"] <= worse["high"]
+    assert worse["high"] < 0  # every paired seed worse: the interval is below 0
+    assert abs(energy.loc[("pendulum", "hnn"), "gain"] - 1.0) < 1e-9
+    assert abs(energy.loc[("spring", "hnn"), "gain"]) < 1e-9  # untouched: no gain
+    text = report.files["tracks_md"].read_text()
+    assert "## Tuning gain" in text and "×0.1 [×0.1, ×0.1] (6)" in text and "×10" in text
+    assert "## The studies" in text and "4 x 20 x 2" in text and "field_mse_clean" in text
+    tracks = pd.read_csv(report.files["tracks"], keep_default_na=False)
+    assert {"protocol", "tuned", "protocol_effect", "tuned_effect", "standing_still"} <= set(
+        tracks.columns
+    )
+    studies = studies_frame(report.records)
+    assert len(studies) == 4 and set(studies["budget"]) == {"4 x 20 x 2"}
+    made = cost_figure(studies, tmp_path / "cost.png")
+    assert made is not None and made.stat().st_size > 0
+
+
+def test_the_tracks_table_shows_the_standing_still_reference():
+    """The standing-still reference's mean sits beside the tracks' verdicts."""
+    from hnnbench._contracts.names import STANDING_STILL
+    from hnnbench._results.families import Families
+    from hnnbench._results.report.verdicts import tracks_frame
+
+    board = pd.DataFrame(
+        [
+            {"profile": "paper", "system": "spring", "family": "hnn", "track": "protocol",
+             "reference": None, "energy_mse_mean": 1e-3, "energy_mse_mark": "best",
+             "energy_mse_effect": 1.0, "energy_mse_effect_low": 0.5,
+             "energy_mse_effect_high": 1.5, "energy_mse_effect_vs": "mlp"},
+            {"profile": "paper", "system": "spring", "family": "still", "track": "protocol",
+             "reference": STANDING_STILL, "energy_mse_mean": 0.25, "energy_mse_mark": ""},
+            {"profile": "paper", "system": "spring", "family": "hnn", "track": "tuned",
+             "reference": None, "energy_mse_mean": 2e-3, "energy_mse_mark": "best"},
+        ]
+    )  # fmt: skip
+    frame = tracks_frame(Families(board), ["energy_mse"])
+    row = frame.iloc[0]
+    assert row["standing_still"] == "0.25" or row["standing_still"].startswith("2.5")
+    assert row["protocol_effect"] == "×10 [×3.2, ×32] vs mlp" and row["tuned_effect"] == ""

@@ -444,7 +444,7 @@ optuna = pytest.importorskip("optuna")
 def _trial_records(root: Path, model: str) -> list[dict]:
     return [
         json.loads(p.read_text())
-        for p in sorted((root / "trials" / "spring" / model).glob("trial*/result.json"))
+        for p in sorted((root / "trials" / "spring" / model).glob("trial*/seed*/result.json"))
     ]
 
 
@@ -465,14 +465,23 @@ def test_tune_gives_every_model_the_same_budget_and_selects_on_validation(tmp_pa
     assert (board["tuning_cpu_s"] > 0).all()
     for model in ("mlp_jax", "hnn_jax"):
         trials = _trial_records(out, model)
-        assert len(trials) == 3
+        assert len(trials) == 6  # 3 trials of 2 seeds, each trial one batched job
         for trial in trials:  # a trial computes the selecting metric alone, never a test one
             assert set(trial["metrics"]) == {"val_loss"}
             assert trial["track"] == "tuned" and trial["tuning"]["selected_on"] == "validation"
+            assert trial["seed_batch"] == [0, 1] and trial["tuning"]["trial_seeds"] == [0, 1]
+            assert trial["selection"]["criterion"] == "field_mse_clean"
         summary = json.loads((out / "tuning" / "spring" / f"{model}.json").read_text())
+        assert (summary["criterion"], summary["seeds_per_trial"]) == ("field_mse_clean", 2)
+        for t in summary["trials"]:  # a trial's score: the mean of its seeds' criteria
+            seeds = [r for r in trials if r["tuning"]["trial"] == t["number"]]
+            mean = sum(r["selection"]["validation_loss"] for r in seeds) / 2
+            assert t["state"] == "complete" and math.isclose(t["value"], mean, rel_tol=1e-12)
+        assert summary["trials"][0]["protocol"] and summary["protocol_value"] is not None
         complete = [t for t in summary["trials"] if t["state"] == "complete"]
         best = min(complete, key=lambda t: (t["value"], t["number"]))
         assert summary["selected"]["number"] == best["number"]
+        assert best["value"] <= summary["protocol_value"]  # never worse than trial 0
         finals = [
             json.loads(p.read_text())
             for p in sorted((out / "final" / "spring" / model).glob("seed*/result.json"))
@@ -491,8 +500,13 @@ def test_tune_gives_every_model_the_same_budget_and_selects_on_validation(tmp_pa
             assert math.isclose(
                 tuning["cpu_s"], sum(t["cpu_s"] for t in summary["trials"]), abs_tol=1e-3
             )  # rounded to ms
-        # the selected trial ran seed 0 with the same settings: the same validation loss
-        assert math.isclose(finals[0]["metrics"]["val_loss"]["mean"], best["value"], rel_tol=1e-9)
+            assert (tuning["criterion"], tuning["seeds_per_trial"]) == ("field_mse_clean", 2)
+            assert (tuning["protocol_trial"], tuning["trial_seeds"]) == (0, [0, 1])
+            assert tuning["cpu_s_per_trial"] > 0
+        # the selected trial ran seeds 0 and 1 with the same settings (as one batch): the
+        # same criterion as the final runs of those seeds, up to float32 batching
+        final_mean = sum(f["selection"]["validation_loss"] for f in finals) / 2
+        assert math.isclose(final_mean, best["value"], rel_tol=1e-4)
 
     # resuming runs nothing new; another step budget on the same studies is refused
     again = hnnbench.tune(
@@ -505,7 +519,7 @@ def test_tune_gives_every_model_the_same_budget_and_selects_on_validation(tmp_pa
         steps=40,
         pin_cpu=False,
     )
-    assert len(_trial_records(out, "mlp_jax")) == 3
+    assert len(_trial_records(out, "mlp_jax")) == 6
     assert list(again["test_loss_mean"]) == list(board["test_loss_mean"])
     with pytest.raises(ConfigError, match="made with other settings .*steps: 40 -> 41"):
         hnnbench.tune(
@@ -546,7 +560,7 @@ def test_tune_gives_every_model_the_same_budget_and_selects_on_validation(tmp_pa
         timeout=600,
     )
     assert costs.returncode == 0, costs.stderr
-    assert "| spring | hnn_jax | 3 |" in costs.stdout and "spring: about" in costs.stdout
+    assert "| spring | hnn_jax | 6 |" in costs.stdout and "spring: about" in costs.stdout
     table = subprocess.run(
         [sys.executable, str(scripts / "tracks_table.py"), str(out / "final")],
         capture_output=True,
@@ -572,17 +586,111 @@ def test_an_interrupted_trial_runs_its_settings_again(tmp_path):
         out=out,
         steps=20,
         pruner="none",
+        seeds_per_trial=1,
         overrides=["pin_cpu=false"],
     )
     tuner = tuning.Tuner(request)
     space = registry.discover("model")["mlp_jax"].search_space
     study = tuner._open("mlp_jax", space, 20)
     # a trial left running by a killed process (no record written)
+    # a trial left running by a killed process (no record written): the protocol's
     left = study.ask({n: tuning._distribution(d) for n, d in space.items()})
-    params = dict(left.params)
+    assert left.user_attrs.get("protocol")
     studies = tuning.run_tuning(request)
     trials = studies[0].trials
     assert len(trials) == 2 and all(t["state"] == "complete" for t in trials)
     assert trials[0]["number"] == 1  # the replay, with the interrupted trial's settings
-    assert trials[0]["settings"] == tuning._settings(space, params)
-    assert trials[1]["settings"] != trials[0]["settings"]  # not the same first draw again
+    assert trials[0]["protocol"] and trials[0]["settings"] == tuner.protocol_settings(
+        "mlp_jax", space
+    )
+    assert trials[1]["settings"] != trials[0]["settings"]  # a draw of the sampler
+
+
+@pytest.mark.slow
+def test_the_protocol_trial_is_trial_0_and_never_pruned(tmp_path):
+    """A study's trial 0 runs the protocol's settings (the model's config under the
+    profile, its training fields as the protocol resolves them) and is never pruned, even
+    by a pruner that prunes everything; the trials after it are pruned on the criterion
+    the observer reports (the mean over the trial's seeds)."""
+    from hnnbench._tuning import tuner as tuning
+    from hnnbench._tuning.request import TuneRequest
+
+    class _Always(optuna.pruners.BasePruner):
+        def prune(self, study, trial) -> bool:
+            return True
+
+    request = TuneRequest(
+        system="spring",
+        models=["mlp_jax"],
+        trials=2,
+        seeds=[0],
+        profile="quick",
+        out=tmp_path / "tuned",
+        steps=30,
+        overrides=["pin_cpu=false"],
+    )
+    tuner = tuning.Tuner(request)
+    space = registry.discover("model")["mlp_jax"].search_space
+    (group,) = tuner.groups("mlp_jax")
+    assert group.trial_seeds == (0, 1) and group.fold is None
+    study = tuner._open("mlp_jax", space, 30, group)
+    study.pruner = _Always()
+    for k in (1, 2):
+        tuner._run_trial(study, "mlp_jax", space, 30, k, group)
+    first, second = study.trials[:2]
+    assert first.user_attrs["protocol"] and first.state == optuna.trial.TrialState.COMPLETE
+    protocol = tuner.protocol_settings("mlp_jax", space)
+    assert first.user_attrs["settings"] == protocol
+    job = compose(["system=spring", "model=mlp_jax", "profile=quick"])
+    settings = TrainSettings.resolve(prepare_job(job).system_cfg, prepare_job(job).model_cfg)
+    assert protocol["model.lr"] == settings.lr and protocol["model.hidden"] == job.model.hidden
+    assert second.state == optuna.trial.TrialState.PRUNED
+    records_of = tuner._trial_records("mlp_jax", first.number, group)
+    assert [r["seed"] for r in records_of] == [0, 1]
+    assert first.value == tuning.trial_score(records_of, tuner.objective)[0]
+    assert first.intermediate_values  # reported to the pruner, never pruned
+
+
+def test_a_measured_system_gets_one_study_per_fold_whose_trials_never_see_its_test_block():
+    """On a measured system each fold of the final seeds has its own study, whose trials
+    train seeds of that fold only: the selection for a final seed never read its test
+    block (docs/TUNING.md); a simulated system has one study on seeds 0 and 1."""
+    from hnnbench._tuning import tuner as tuning
+    from hnnbench._tuning.request import DEFAULT_SEEDS, TuneRequest
+
+    request = TuneRequest(system="real_pendulum", models=["hnn_jax"], trials=2, profile="quick")
+    assert list(request.seeds) == list(range(10)) == list(DEFAULT_SEEDS)
+    groups = tuning.Tuner(request).groups("hnn_jax")
+    assert [g.fold for g in groups] == [4, 3, 2, 1, 0]
+    for g in groups:
+        assert len(g.trial_seeds) == 2 and set(g.trial_seeds) == set(g.final_seeds)
+        assert all((4 - s) % 5 == g.fold for s in (*g.trial_seeds, *g.final_seeds))
+    assert sorted(s for g in groups for s in g.final_seeds) == list(range(10))
+    simulated = TuneRequest(system="spring", models=["hnn_jax"], trials=2, seeds_per_trial=3)
+    (one,) = tuning.Tuner(simulated).groups("hnn_jax")
+    assert one.trial_seeds == (0, 1, 2) and one.final_seeds == tuple(range(10))
+
+
+def test_a_trials_score_is_the_mean_of_its_seeds_criteria_and_worst_if_one_fails():
+    from hnnbench._tuning import tuner as tuning
+
+    objective = tuning.objective_metric()
+
+    def rec(value: float, status: str = "ok") -> dict:
+        return {
+            "status": status,
+            "selection": {"criterion": "rollout_q_mse_4", "validation_loss": value},
+        }
+
+    assert tuning.trial_score([rec(1.0), rec(3.0)], objective) == (2.0, "rollout_q_mse_4")
+    assert tuning.trial_score([rec(1.0), rec(3.0, "diverged")], objective)[0] == objective.worst()
+    no_selection = {"status": "ok", "metrics": {"val_loss": {"mean": 0.5}}}
+    assert tuning.trial_score([no_selection], objective) == (0.5, "val_loss")
+
+
+def test_unequal_seeds_per_trial_are_unequal_budgets():
+    base = _record("hnn_jax", 0, "tuned")
+    other = _record("mlp_jax", 0, "tuned")
+    other["tuning"] = {**other["tuning"], "seeds_per_trial": 2}
+    found = budget_findings([base, other])
+    assert len(found) == 1 and "x 2 seed(s): mlp_jax" in found[0].current

@@ -132,21 +132,22 @@ def validate_records(
 
 def budget_findings(recs: Sequence[dict[str, Any]]) -> list[Finding]:
     """The tuned track's promise, checked: on each (profile, system), every tuned model
-    had the same number of trials, each of the same step budget (docs/TUNING.md)."""
-    budgets: dict[tuple[str, str], dict[tuple[Any, Any], set[str]]] = {}
+    had the same number of trials, each of the same step budget on the same number of
+    seeds (docs/TUNING.md; records before ``seeds_per_trial``: one seed)."""
+    budgets: dict[tuple[str, str], dict[tuple[Any, Any, Any], set[str]]] = {}
     for rec in recs:
         tuning = rec.get("tuning")
         if track_of(rec) != "tuned" or not isinstance(tuning, dict):
             continue
         pair = (str(rec.get("profile")), str(rec.get("system")))
-        budget = (tuning.get("trials"), tuning.get("steps"))
+        budget = (tuning.get("trials"), tuning.get("steps"), tuning.get("seeds_per_trial", 1))
         budgets.setdefault(pair, {}).setdefault(budget, set()).add(str(rec.get("model")))
     out = []
     for (profile, system), found in budgets.items():
         if len(found) > 1:
             shown = "; ".join(
-                f"{t} trials x {s} steps: {', '.join(sorted(models))}"
-                for (t, s), models in found.items()
+                f"{t} trials x {s} steps x {n} seed(s): {', '.join(sorted(models))}"
+                for (t, s, n), models in found.items()
             )
             out.append(
                 Finding(
@@ -157,7 +158,7 @@ def budget_findings(recs: Sequence[dict[str, Any]]) -> list[Finding]:
                     f"{profile} profile",
                     f"unequal tuning budgets ({shown})",
                     "",
-                    "the same trials and steps for every model",
+                    "the same trials, steps and seeds per trial for every model",
                 )
             )
     return out

@@ -21,6 +21,7 @@ from hnnbench._results.report.inputs import ReportError, load_sweeps, provenance
 from hnnbench._results.report.published import comparison_markdown
 from hnnbench._results.report.selection import selection_frame, selection_markdown
 from hnnbench._results.report.tables import leaderboard_markdown
+from hnnbench._results.report.tuning import cost_figure, gain_markdown, studies_frame, tuning_gain
 from hnnbench._results.report.verdicts import (
     Verdicts,
     aggregate_markdown,
@@ -111,10 +112,24 @@ def write_report(
     if not tracks.empty:
         report.files["tracks"] = out / "tracks.csv"
         records.atomic_write_text(report.files["tracks"], tracks.to_csv(index=False))
+    studies = studies_frame(recs)
+    gain = tuning_gain(verdicts.families)
+    if not studies.empty:
+        report.files["studies"] = out / "tuning_studies.csv"
+        records.atomic_write_text(report.files["studies"], studies.to_csv(index=False))
+        if figures:
+            made = cost_figure(studies, out / "figures" / "tuning_cost.png")
+            if made is not None:
+                report.figures.append(Made("tuned track", "tuning_cost", made))
+    if not gain.empty:
+        report.files["tuning_gain"] = out / "tuning_gain.csv"
+        records.atomic_write_text(report.files["tuning_gain"], gain.to_csv(index=False))
     report.files["tracks_md"] = out / "tracks.md"
     records.atomic_write_text(
         report.files["tracks_md"],
-        "# Tracks\n\n" + tracks_markdown(tracks, tuning_costs(verdicts.families)) + "\n",
+        "# Tracks\n\n"
+        + tracks_markdown(tracks, tuning_costs(verdicts.families), gain_markdown(gain, studies))
+        + "\n",
     )
     chosen = selection_frame(recs)
     report.files["selection"] = out / "selection.csv"

@@ -10,7 +10,7 @@ from typing import Optional
 
 import pandas as pd
 
-from hnnbench._contracts.names import DEFAULT_TRACK, TRACKS
+from hnnbench._contracts.names import DEFAULT_TRACK, STANDING_STILL, TRACKS
 from hnnbench._results import stats
 from hnnbench._results.aggregate import Aggregate, aggregate, headline_metrics
 from hnnbench._results.families import RANKING_KEY, SCOPE_KEY, Families, families, scope_name
@@ -521,12 +521,16 @@ def _main_rows_by_track(board: pd.DataFrame) -> pd.DataFrame:
 def tracks_frame(fams: Families, metrics: Optional[list[str]] = None) -> pd.DataFrame:
     """The verdicts of every track side by side (docs/TUNING.md): one row per (profile,
     system, metric of ``metrics``, default the headline ones) where some track other
-    than the protocol has family rows; a column per track present (its
-    :func:`_leaders` text) and ``changes``: whether two tracks with a verdict name
-    leaders that have no family in common (``best: lnn`` against ``tied: dhnn, lnn`` is
-    no change: the second track does not separate its leaders, the LNN among them), and
-    ``mean_changes``: whether the family with the best mean (the first named) differs, a
-    statement about means. Empty when every row is of the protocol track."""
+    than the protocol has family rows; ``standing_still``: the standing-still
+    reference's mean (the first track that has one; ``""`` where none ran); a column per
+    track present (its :func:`_leaders` text) and ``<track>_effect``: its leader's paired
+    effect over the runner-up with its interval (the families table's ``<metric>_effect``,
+    ``""`` where the track names no single leader's effect); ``changes``: whether two
+    tracks with a verdict name leaders that have no family in common (``best: lnn``
+    against ``tied: dhnn, lnn`` is no change: the second track does not separate its
+    leaders, the LNN among them), and ``mean_changes``: whether the family with the best
+    mean (the first named) differs, a statement about means. Empty when every row is of
+    the protocol track."""
     board = fams.board
     if board.empty or "track" not in board:
         return pd.DataFrame()
@@ -543,6 +547,7 @@ def tracks_frame(fams: Families, metrics: Optional[list[str]] = None) -> pd.Data
             continue
         for metric in metrics:
             verdicts = {t: _leaders(group[group["track"] == t], metric) for t in present}
+            effects = {f"{t}_effect": _effect(group[group["track"] == t], metric) for t in present}
             said = [v for v in verdicts.values() if ": " in v]  # those naming families
             leaders = [_leader_set(v) for v in said]
             changes = any(not (a & b) for i, a in enumerate(leaders) for b in leaders[i + 1 :])
@@ -552,12 +557,46 @@ def tracks_frame(fams: Families, metrics: Optional[list[str]] = None) -> pd.Data
                     "profile": profile,
                     "system": system,
                     "metric": metric,
+                    "standing_still": _standing_still_text(group, metric),
                     **verdicts,
+                    **effects,
                     "changes": changes,
                     "mean_changes": len(firsts) > 1,
                 }
             )
     return pd.DataFrame(rows)
+
+
+def _standing_still_text(rows: pd.DataFrame, metric: str) -> str:
+    """The standing-still reference's mean of ``metric`` among ``rows`` (the first
+    track's that has one), formatted; ``""`` where no standing-still row has one."""
+    column = f"{metric}_mean"
+    if "reference" not in rows or column not in rows:
+        return ""
+    still = rows[rows["reference"].fillna("").astype(str) == STANDING_STILL]
+    values = pd.to_numeric(still[column], errors="coerce").dropna()
+    return _fmt(float(values.iloc[0])) if len(values) else ""
+
+
+def _effect(rows: pd.DataFrame, metric: str) -> str:
+    """A track's leader's paired effect over its runner-up on ``metric``, with its
+    interval (``×12 [×3, ×40] vs mlp``); ``""`` where none was computed."""
+    column = f"{metric}_effect"
+    if column not in rows:
+        return ""
+    decl = metric_declarations().get(metric)
+    scale = decl.scale if decl is not None else "log"
+    for _, r in rows.iterrows():
+        value = pd.to_numeric(pd.Series([r[column]]), errors="coerce").iloc[0]
+        if pd.isna(value):
+            continue
+        low, high = r.get(f"{column}_low", math.nan), r.get(f"{column}_high", math.nan)
+        against = r.get(f"{column}_vs", "")
+        return (
+            f"{effect_text(float(value), scale)} [{effect_text(float(low), scale)}, "
+            f"{effect_text(float(high), scale)}]" + (f" vs {against}" if against else "")
+        )
+    return ""
 
 
 def _leader_set(verdict: str) -> set[str]:
@@ -601,11 +640,15 @@ def tuning_costs(fams: Families) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def tracks_markdown(frame: pd.DataFrame, costs: Optional[pd.DataFrame] = None) -> str:
+def tracks_markdown(
+    frame: pd.DataFrame, costs: Optional[pd.DataFrame] = None, tuning: str = ""
+) -> str:
     """The tracks side by side (:func:`tracks_frame`) and one line per (system, metric)
     whose verdict changes between tracks; a line saying so when no other track ran; then,
-    where ``costs`` (:func:`tuning_costs`) has rows, what each family's tuning cost."""
-    if frame.empty and (costs is None or costs.empty):
+    where ``costs`` (:func:`tuning_costs`) has rows, what each family's tuning cost; then
+    ``tuning`` (the tuning gain and the studies,
+    :func:`hnnbench._results.report.tuning.gain_markdown`)."""
+    if frame.empty and (costs is None or costs.empty) and not tuning:
         return (
             "Only the protocol track has published rows: no tuned or recipe rows yet "
             "(docs/TUNING.md)."
@@ -618,11 +661,15 @@ def tracks_markdown(frame: pd.DataFrame, costs: Optional[pd.DataFrame] = None) -
     tracks = [
         c
         for c in frame.columns
-        if c not in ("profile", "system", "metric", "changes", "mean_changes")
+        if c not in ("profile", "system", "metric", "changes", "mean_changes", "standing_still")
+        and not c.endswith("_effect")
     ]
     lines += [
         "Each cell names the best family, or the families tied for the lead with the "
-        "best mean first. A verdict changes between two tracks where their leaders "
+        "best mean first; `<track>_effect` is that track's leader's paired effect over "
+        "its runner-up with its interval (docs/STATISTICS.md), and `standing_still` the "
+        "standing-still reference's mean, the value a model that predicts no motion "
+        "scores. A verdict changes between two tracks where their leaders "
         f"have no family in common. A track of fewer than "
         f'{stats.MIN_SEPARABLE_SEEDS} seeds never separates its leaders ("too few '
         "seeds to separate\": the two-sided sign test with Holm's correction, "
@@ -665,5 +712,8 @@ def tracks_markdown(frame: pd.DataFrame, costs: Optional[pd.DataFrame] = None) -
             "system whose tuned records state unequal budgets (docs/TUNING.md).",
             "",
             md_table(costs),
+            "",
         ]
+    if tuning:
+        lines += [tuning, ""]
     return "\n".join(lines).rstrip("\n")

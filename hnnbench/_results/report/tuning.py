@@ -1,0 +1,262 @@
+"""The tuned track's own tables and figure (docs/TUNING.md): what each study was and
+cost (:func:`studies_frame`), the tuning gain per family and system, tuned against the
+protocol on the final seeds, paired by seed (:func:`tuning_gain`), and each family's
+best criterion against the CPU its studies spent (:func:`cost_figure`)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, Optional
+
+import pandas as pd
+from matplotlib.figure import Figure
+
+from hnnbench._contracts.names import DEFAULT_TRACK
+from hnnbench._record.tracks import track_of
+from hnnbench._results import stats
+from hnnbench._results.families import Families
+from hnnbench._results.leaderboard import metric_declarations
+from hnnbench._results.report.tables import effect_text, md_table
+
+__all__ = ["STUDY_COLUMNS", "cost_figure", "gain_markdown", "studies_frame", "tuning_gain"]
+
+#: The columns of :func:`studies_frame`.
+STUDY_COLUMNS = (
+    "profile",
+    "system",
+    "family",
+    "model",
+    "fold",
+    "criterion",
+    "seeds_per_trial",
+    "trials",
+    "steps",
+    "budget",
+    "cpu_s",
+    "cpu_s_per_trial",
+    "best",
+    "protocol",
+)
+
+
+def _number(value: Any) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def studies_frame(recs: Sequence[Mapping[str, Any]]) -> pd.DataFrame:
+    """One row per study of the tuned records (a model's study on a system, one per
+    fold on a measured system): its criterion, seeds per trial, trials, steps, the
+    declared budget (trials x steps x seeds per trial), its CPU seconds (in all and per
+    trial), the selected trial's criterion (``best``) and the protocol trial's
+    (``protocol``). Empty without tuned records."""
+    rows: dict[tuple[Any, ...], dict[str, Any]] = {}
+    for rec in recs:
+        tuning = rec.get("tuning")
+        if track_of(rec) != "tuned" or not isinstance(tuning, Mapping):
+            continue
+        if "selected" not in tuning:  # a trial's own record
+            continue
+        seeds = tuning.get("seeds_per_trial", 1)
+        trials, steps = tuning.get("trials"), tuning.get("steps")
+        key = (
+            rec.get("profile"),
+            rec.get("system"),
+            rec.get("model"),
+            tuning.get("study"),
+        )
+        rows[key] = {
+            "profile": rec.get("profile"),
+            "system": rec.get("system"),
+            "family": rec.get("family") or rec.get("model"),
+            "model": rec.get("model"),
+            "fold": tuning.get("fold"),
+            "criterion": tuning.get("criterion") or tuning.get("objective"),
+            "seeds_per_trial": seeds,
+            "trials": trials,
+            "steps": steps,
+            "budget": f"{trials} x {steps} x {seeds}",
+            "cpu_s": _number(tuning.get("cpu_s")),
+            "cpu_s_per_trial": _number(tuning.get("cpu_s_per_trial")),
+            "best": _number(tuning.get("selected_value")),
+            "protocol": _number(tuning.get("protocol_value")),
+        }
+    return pd.DataFrame(list(rows.values()), columns=list(STUDY_COLUMNS))
+
+
+def tuning_gain(fams: Families, metrics: Optional[Sequence[str]] = None) -> pd.DataFrame:
+    """The tuning gain per (profile, system, family, metric of ``metrics``, default
+    every ranked one with values): the tuned track against the protocol track on the
+    seeds both ran, paired by seed (:func:`hnnbench._results.stats.paired_effect`, the
+    tuned side as the leader: positive where tuning helped, negative where it hurt),
+    with ``n`` paired seeds, the median ``gain``, its interval ``low``-``high`` and the
+    interval's ``coverage``; ``scale``: ``log`` (a log10 ratio) or ``linear``. Empty
+    without both tracks."""
+    runs = fams.runs
+    columns = ["profile", "system", "family", "metric", "n", "gain", "low", "high", "coverage"]
+    if runs.empty or "track" not in runs:
+        return pd.DataFrame(columns=[*columns, "scale"])
+    runs = runs.assign(track=runs["track"].fillna(DEFAULT_TRACK).astype(str))
+    if "variant" in runs:
+        runs = runs[runs["variant"].fillna("").astype(str) == ""]
+    if "ranked" in runs:
+        runs = runs[runs["ranked"].fillna(True).astype(bool)]
+    declared = metric_declarations()
+    if metrics is None:
+        metrics = [m for m in declared if declared[m].ranked and m in runs]
+    order = list(dict.fromkeys(fams.board["family"].astype(str))) if "family" in fams.board else []
+    order += [f for f in dict.fromkeys(runs["family"].astype(str)) if f not in order]
+    rows = []
+    for (profile, system), group in runs.groupby(["profile", "system"], sort=False):
+        tuned, protocol = group[group["track"] == "tuned"], group[group["track"] == DEFAULT_TRACK]
+        if tuned.empty or protocol.empty:
+            continue
+        for family in [f for f in order if f in set(tuned["family"].astype(str))]:
+            a = tuned[tuned["family"].astype(str) == family]
+            b = protocol[protocol["family"].astype(str) == family]
+            for metric in metrics:
+                decl = declared.get(metric)
+                if decl is None or metric not in a or metric not in b:
+                    continue
+                mine = dict(zip(a["seed"], pd.to_numeric(a[metric], errors="coerce"), strict=True))
+                theirs = dict(
+                    zip(b["seed"], pd.to_numeric(b[metric], errors="coerce"), strict=True)
+                )
+                shared = sorted(
+                    s
+                    for s in set(mine) & set(theirs)
+                    if not (pd.isna(mine[s]) and pd.isna(theirs[s]))
+                )
+                if not shared:
+                    continue
+                gain, low, high, coverage = stats.paired_effect(
+                    [mine[s] for s in shared], [theirs[s] for s in shared], decl.better, decl.scale
+                )
+                rows.append(
+                    {
+                        "profile": profile,
+                        "system": system,
+                        "family": family,
+                        "metric": metric,
+                        "n": len(shared),
+                        "gain": gain,
+                        "low": low,
+                        "high": high,
+                        "coverage": coverage,
+                        "scale": decl.scale,
+                    }
+                )
+    return pd.DataFrame(rows, columns=[*columns, "scale"])
+
+
+def _gain_text(row: Mapping[str, Any]) -> str:
+    scale = str(row["scale"])
+    return (
+        f"{effect_text(float(row['gain']), scale)} "
+        f"[{effect_text(float(row['low']), scale)}, {effect_text(float(row['high']), scale)}]"
+        f" ({int(row['n'])})"
+    )
+
+
+def gain_markdown(gain: pd.DataFrame, studies: pd.DataFrame) -> str:
+    """The tuning gain as a table (a row per system and metric, a column per family:
+    ``×factor [low, high] (seeds)``; above 1 tuning helped, below 1 it hurt), then what
+    each study was: its criterion, budget, CPU, and best criterion against the
+    protocol trial's. ``""`` when both are empty."""
+    lines: list[str] = []
+    if not gain.empty:
+        families = list(dict.fromkeys(gain["family"].astype(str)))
+        rows = []
+        for (_, system, metric), group in gain.groupby(["profile", "system", "metric"], sort=False):
+            cells = {str(r["family"]): _gain_text(r) for _, r in group.iterrows()}
+            rows.append(
+                {"system": system, "metric": metric, **{f: cells.get(f, "—") for f in families}}
+            )
+        lines += [
+            "## Tuning gain",
+            "",
+            "The tuned track against the protocol track, family by family, on the seeds "
+            "both ran, paired by seed: the median over seeds of protocol / tuned (a "
+            "lower-is-better metric; tuned / protocol for a higher-is-better one; a "
+            "difference on a linear scale), with its order-statistic interval "
+            f"(coverage at least {stats.CONFIDENCE:.0%} from 6 seeds; the whole range "
+            "below) and the number of paired seeds. Above ×1 (or +) tuning helped; below "
+            "×1 (or −) it made the family worse on the final seeds, although its "
+            "selection was never worse than the protocol's settings on the criterion "
+            "within its study (the protocol's settings are trial 0 of every study): a "
+            "winner's curse, or a criterion that does not carry to the metric.",
+            "",
+            md_table(pd.DataFrame(rows)),
+            "",
+        ]
+    if not studies.empty:
+        shown = studies.assign(
+            fold=studies["fold"].map(lambda v: "—" if v is None or pd.isna(v) else str(int(v))),
+            criterion=studies["criterion"].astype(str),
+            cpu_s=studies["cpu_s"].map(lambda v: f"{v:,.0f}"),
+            cpu_s_per_trial=studies["cpu_s_per_trial"].map(lambda v: f"{v:,.1f}"),
+            best=studies["best"].map(lambda v: f"{v:.3g}"),
+            protocol=studies["protocol"].map(lambda v: f"{v:.3g}"),
+        ).drop(columns=["profile", "model", "trials", "steps", "seeds_per_trial"])
+        lines += [
+            "## The studies",
+            "",
+            "Each study's criterion (the system's selection criterion, read on "
+            "validation), its budget (trials x steps x seeds per trial: the same for "
+            "every family of a system), its CPU seconds (every trial, pruned ones "
+            "included; the final seeds not counted) in all and per trial, the selected "
+            "trial's criterion and the protocol trial's (the mean over the trial's "
+            "seeds). Equal budgets are not equal CPU: figures/tuning_cost.png plots each "
+            "family's best criterion against its CPU.",
+            "",
+            md_table(shown),
+            "",
+        ]
+    return "\n".join(lines).rstrip("\n")
+
+
+def cost_figure(studies: pd.DataFrame, path: Path) -> Optional[Path]:
+    """Each family's best criterion (its selected trial's, summed over a measured
+    system's folds as the mean) against the CPU seconds its studies spent, a panel
+    per (profile, system), the protocol trial's criterion beside it as an open marker;
+    written to ``path`` (``None`` without studies)."""
+    finite = pd.to_numeric(studies["best"], errors="coerce").gt(0) & pd.to_numeric(
+        studies["cpu_s"], errors="coerce"
+    ).gt(0)
+    studies = studies[finite]
+    if studies.empty:  # records before the criterion (no selected value): nothing to draw
+        return None
+    per = (
+        studies.groupby(["profile", "system", "family"], sort=False)
+        .agg(cpu_s=("cpu_s", "sum"), best=("best", "mean"), protocol=("protocol", "mean"))
+        .reset_index()
+    )
+    panels = list(per.groupby(["profile", "system"], sort=False))
+    cols = min(len(panels), 3)
+    rows = math.ceil(len(panels) / cols)
+    fig = Figure(figsize=(4.2 * cols, 3.4 * rows))
+    axes = fig.subplots(rows, cols, squeeze=False)
+    families = list(dict.fromkeys(per["family"].astype(str)))
+    colours = {f: f"C{i % 10}" for i, f in enumerate(families)}
+    for ax, ((profile, system), group) in zip(axes.flat, panels, strict=False):
+        for _, r in group.iterrows():
+            colour = colours[str(r["family"])]
+            ax.scatter([r["cpu_s"]], [r["best"]], color=colour, label=str(r["family"]))
+            if float(r["protocol"]) > 0 and math.isfinite(float(r["protocol"])):
+                ax.scatter([r["cpu_s"]], [r["protocol"]], facecolors="none", edgecolors=colour)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(f"{system} ({profile})", fontsize=9)
+        ax.set_xlabel("tuning CPU s (all trials)", fontsize=8)
+        ax.set_ylabel("criterion: selected (filled), protocol (open)", fontsize=7)
+        ax.legend(fontsize=6)
+    for ax in list(axes.flat)[len(panels) :]:
+        ax.set_visible(False)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    return path
