@@ -42,7 +42,7 @@ def neutral_frame(frame: Any) -> Any:
     :func:`csv_cell`'s."""
     out = frame.copy()
     for column in out.columns:
-        if out[column].dtype == object:
+        if out[column].dtype.kind not in "biufcmM":  # text (object or string dtype)
             out[column] = out[column].map(csv_cell)
     out.columns = [csv_cell(c) for c in out.columns]
     return out

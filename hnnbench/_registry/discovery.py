@@ -282,14 +282,12 @@ class PluginGroup(Generic[T]):
             return f"{target} is not a subclass of hnnbench.{base.__name__}"
         if order_problem:
             return f"{target}: {order_problem}"
-        for attr in ("version", "name", "backend"):
-            value = getattr(obj, attr, None)
-            if attr == "version" or value is not None:
-                if not isinstance(value, str) or not value:
-                    return (
-                        f"{target}.{attr} is {type(value).__name__} {value!r}: expected a "
-                        f'non-empty str (e.g. {attr} = "1"); a record stores it as text'
-                    )
+        version = getattr(obj, "version", None)
+        if not isinstance(version, str) or not version:
+            return (
+                f"{target}.version is {type(version).__name__} {version!r}: expected a "
+                'non-empty str (e.g. version = "1"); a record stores it as text'
+            )
         config_cls = getattr(obj, "Config", None)
         config_base = self.config_base
         if config_base is not None and not (

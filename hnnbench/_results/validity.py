@@ -16,7 +16,7 @@ record's fields against each other, duplicate JSON keys, interpolations), it che
   verified: a failure unless the caller allows it (``--allow-unverified``), and then
   said;
 - **complete rows**: every seed of a row carries every metric another seed of the row
-  carries, and a record of the current schema carries every registered metric;
+  carries;
 - **equal tuning budgets** across a system's tuned models.
 """
 
@@ -31,7 +31,7 @@ from typing import Any, Optional
 from hnnbench import _record as records
 from hnnbench import _registry as registry
 from hnnbench._contracts.errors import HnnbenchError
-from hnnbench._record.fields import PROVENANCE_FIELDS, SCHEMA_VERSION
+from hnnbench._record.fields import PROVENANCE_FIELDS
 from hnnbench._record.tracks import track_of, track_problem
 from hnnbench._record.validation import variant_problem
 from hnnbench._results import provenance
@@ -309,10 +309,9 @@ def row_problems(
 ) -> list[Problem]:
     """Complete rows: within each row (profile, system, model, variant, track), every
     ``ok`` seed carries every metric another ``ok`` seed carries (a missing or ``null``
-    value is not averaged out of the row's mean), and an ``ok`` record of the current
-    schema carries every registered metric (``null`` where it does not apply)."""
+    value is not averaged out of the row's mean; a row of one seed is held to the
+    reference by ``compare``, where a value the reference has and the row lacks fails)."""
     labels = labels if labels is not None else [""] * len(recs)
-    registered = [m.name for m in registry.metrics()]
     rows: dict[tuple[str, ...], list[dict[str, Any]]] = {}
     out: list[Problem] = []
     for rec, label in zip(recs, labels, strict=True):
@@ -326,24 +325,6 @@ def row_problems(
             track_of(rec),
         )
         rows.setdefault(key, []).append(rec)
-        metrics = rec.get("metrics") or {}
-        if rec.get("schema_version") == SCHEMA_VERSION:
-            absent = [name for name in registered if name not in metrics]
-            if absent:
-                system, model, where = _names(rec)
-                out.append(
-                    Problem(
-                        "incomplete",
-                        absent[0],
-                        system,
-                        model,
-                        where,
-                        f"metrics.{absent[0]} is absent"
-                        + (f" (and {len(absent) - 1} more)" if len(absent) > 1 else ""),
-                        "",
-                        f"every registered metric in a schema {SCHEMA_VERSION} record",
-                    )
-                )
     for group in rows.values():
         if len(group) < 2:
             continue
