@@ -353,6 +353,7 @@ VALID_PREDICTION_TIME = Metric(
     beat_reference=True,
     evidence="rollout",
     domain=NONNEGATIVE,
+    within_horizon=True,
 )
 VPT_CENSORED = Metric(
     "vpt_censored",

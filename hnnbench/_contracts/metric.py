@@ -151,6 +151,9 @@ class Metric:
             on the README and the report page, its performance profile, and the ranks
             ``hnnbench check`` prints for a new model lead with it
             (docs/STATISTICS.md).
+        within_horizon: its mean is a time along the evaluation rollout, at most the
+            evaluation horizon the record's data states (``data.evaluation_meta.
+            horizon``); a strict load refuses a larger one.
         selects: the metric ``hnnbench tune`` selects on (in its direction), computed
             on the validation split only, never on test: one registered metric at most
             declares it (docs/TUNING.md). A trial of the tuner computes it alone.
@@ -177,6 +180,7 @@ class Metric:
     evidence: str = ""
     headline: bool = False
     selects: bool = False
+    within_horizon: bool = False
 
     def __post_init__(self) -> None:
         low, high = self.domain

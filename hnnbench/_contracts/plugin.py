@@ -28,6 +28,7 @@ from typing import Any, ClassVar, Optional
 
 import numpy as np
 
+from hnnbench._contracts import jsonio
 from hnnbench._contracts.errors import ConfigError
 from hnnbench._contracts.kinematics import Kinematics
 from hnnbench._contracts.names import ORACLE, REFERENCES, STANDING_STILL
@@ -266,7 +267,7 @@ class Dataset:
     def load(cls, path: Path) -> Dataset:
         with np.load(path, allow_pickle=False) as npz:
             arrays = {key: npz[key] for key in npz.files}
-        meta = json.loads(str(arrays.pop("__meta__")))
+        meta = jsonio.loads(str(arrays.pop("__meta__")))
 
         def split(prefix: str) -> Split:
             extras = {
@@ -330,7 +331,7 @@ class Trajectories:
                 states=npz["states"],
                 dt=float(npz["dt"]),
                 observations=npz["observations"] if "observations" in npz.files else None,
-                meta=json.loads(str(npz["__meta__"])),
+                meta=jsonio.loads(str(npz["__meta__"])),
             )
 
 

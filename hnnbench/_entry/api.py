@@ -238,17 +238,21 @@ def tune(
     return board
 
 
-def load(*dirs: Union[str, Path]) -> pd.DataFrame:
+def load(
+    *dirs: Union[str, Path], strict: bool = False, allow_unverified: bool = False
+) -> pd.DataFrame:
     """The records under the directories as a DataFrame: one row per record, with
     identity columns, ``<metric>`` means and ``<metric>_sem``, timings and provenance
     (:func:`hnnbench._results.leaderboard.records_frame`). Unreadable or invalid files are named in
-    a warning."""
+    a warning; ``strict=True``: the one strict validation of ``hnnbench check`` and
+    publishing (:mod:`hnnbench._results.validity`), and any record that fails it an error
+    (``allow_unverified``: records whose plugins cannot be verified here pass)."""
     from hnnbench._results.leaderboard import records_frame
     from hnnbench._results.report.inputs import load_sweep
 
     if not dirs:
         raise TypeError("load() needs at least one directory")
-    return records_frame(load_sweep(*dirs))
+    return records_frame(load_sweep(*dirs, strict=strict, allow_unverified=allow_unverified))
 
 
 def leaderboard(frame: Union[pd.DataFrame, Iterable[dict[str, Any]]]) -> pd.DataFrame:

@@ -135,7 +135,9 @@ def _full_error() -> bool:
 
 def _error_line(message: str) -> None:
     """``hnnbench: error: <message>`` on one line, whatever the message holds."""
-    print(f"hnnbench: error: {' '.join(message.split())}", file=sys.stderr)
+    from hnnbench._contracts.text import printable
+
+    print(f"hnnbench: error: {' '.join(printable(message).split())}", file=sys.stderr)
 
 
 # --------------------------------------------------------------------------- list

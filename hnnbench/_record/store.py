@@ -16,6 +16,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from hnnbench._contracts import jsonio
 from hnnbench._contracts.errors import HnnbenchError
 from hnnbench._contracts.names import LOADER_FIELDS
 from hnnbench._record.codec import MAX_DEPTH, decode, depth_problems, encode
@@ -164,15 +165,18 @@ def _read_bounded(path: Path, limit: int) -> bytes | UnsafeFile:
 
 def parse_file(path: Path) -> dict[str, Any] | str:
     """The JSON object at ``path``, or why there is none (one line): read bounded
-    (:func:`_read_bounded`), valid UTF-8 JSON, an object, nested at most
+    (:func:`_read_bounded`), valid UTF-8 JSON with no key twice in one object
+    (:func:`hnnbench._contracts.jsonio.loads`), an object, nested at most
     :data:`~hnnbench._record.codec.MAX_DEPTH` levels."""
     raw = _read_bounded(path, MAX_RECORD_BYTES)
     if isinstance(raw, UnsafeFile):
         return str(raw)
     try:
-        data = json.loads(raw.decode("utf-8"))
+        data = jsonio.loads(raw.decode("utf-8"))
     except UnicodeDecodeError:
         return "not valid JSON (not UTF-8 text)"
+    except jsonio.DuplicateKeyError as err:
+        return f"not valid JSON: {err}; write each key once"
     except RecursionError:
         return f"not a record: JSON nested deeper than {MAX_DEPTH} levels"
     except ValueError as err:

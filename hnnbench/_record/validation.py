@@ -14,6 +14,7 @@ from typing import Any, Optional
 
 from hnnbench._contracts.names import LOADER_FIELDS, pattern_matches, shown_value
 from hnnbench._record.codec import depth_problems, encode
+from hnnbench._record.consistency import consistency_problems, interpolation_problems
 from hnnbench._record.fields import FIELDS, REQUIRED, json_schema
 
 __all__ = [
@@ -22,6 +23,7 @@ __all__ = [
     "VARIANT_TOKEN_PATTERN",
     "created_at_problem",
     "created_at_problems",
+    "field_consistency_problems",
     "history_problems",
     "is_date_time",
     "metric_domain_problems",
@@ -126,7 +128,7 @@ def shape_problems(record: Mapping[str, Any]) -> list[str]:
                 )
         if problem is not None:
             out.append(problem)
-    return out
+    return out or interpolation_problems(record)
 
 
 #: What a training history's values may be (the schema's ``history`` items; bare NaN
@@ -289,11 +291,24 @@ def metric_domain_problems(record: dict[str, Any]) -> list[str]:
     return []
 
 
+def _horizon_metrics() -> frozenset[str]:
+    from hnnbench import _registry as registry
+
+    return frozenset(m.name for m in registry.metrics() if m.within_horizon)
+
+
+def field_consistency_problems(record: dict[str, Any]) -> list[str]:
+    """Fields that contradict each other, read by the rule of the record's schema
+    version (:func:`hnnbench._record.consistency.consistency_problems`)."""
+    return consistency_problems(record, _horizon_metrics)
+
+
 #: The checks of a strict load after the JSON Schema, in order (each: a decoded record
 #: -> its problems, one line each).
 STRICT_CHECKS: tuple[Callable[[dict[str, Any]], list[str]], ...] = (
     created_at_problems,
     metric_domain_problems,
+    field_consistency_problems,
 )
 
 

@@ -282,6 +282,12 @@ class PluginGroup(Generic[T]):
             return f"{target} is not a subclass of hnnbench.{base.__name__}"
         if order_problem:
             return f"{target}: {order_problem}"
+        version = getattr(obj, "version", None)
+        if not isinstance(version, str) or not version:
+            return (
+                f"{target}.version is {type(version).__name__} {version!r}: expected a "
+                'non-empty str (e.g. version = "1"); a record stores it as text'
+            )
         config_cls = getattr(obj, "Config", None)
         config_base = self.config_base
         if config_base is not None and not (

@@ -4,7 +4,9 @@ Entries are keyed by system name, version, the config fields that determine the 
 the seed and the kind (``dataset`` or ``evaluation``). Writes go to a unique temporary
 file that is then renamed over the target (``os.replace``), so concurrent workers that
 build the same entry never leave a torn file: the last complete write wins, and all
-writes are identical.
+writes are identical. Each entry's SHA-256 is recorded beside it when it is written
+(``<entry>.sha256``); an entry whose content no longer has that hash (altered, or
+written without one) is rebuilt, never used.
 """
 
 from __future__ import annotations
@@ -59,6 +61,18 @@ def entry_key(system: System, seed: int, kind: str) -> str:
     return hashlib.sha256(blob).hexdigest()[:20]
 
 
+def _hash_problem(path: Path, recorded: Path) -> Optional[str]:
+    """Why the entry at ``path`` does not have the content hash recorded when it was
+    written (``recorded``), or ``None``."""
+    try:
+        want = recorded.read_text(encoding="ascii").strip()
+    except (OSError, UnicodeDecodeError):
+        return "without its recorded content hash"
+    if file_sha256(path) != want:
+        return "not what was written (its content hash changed)"
+    return None
+
+
 def cached(
     system: System,
     seed: int,
@@ -79,16 +93,22 @@ def cached(
     with paths.cache_root_override(root):
         directory = paths.dataset_cache_dir() / system.name
     path = directory / f"v{system.version}-seed{seed}-{kind}-{entry_key(system, seed, kind)}.npz"
+    recorded = path.with_name(path.name + ".sha256")
     if path.exists():
-        try:
-            return loader(path), path, True
-        except Exception as err:  # a corrupt entry is rebuilt, never fatal
-            log.warning("cache entry %s is unreadable (%s); rebuilding it", path, err)
+        problem = _hash_problem(path, recorded)
+        if problem is None:
+            try:
+                return loader(path), path, True
+            except Exception as err:  # a corrupt entry is rebuilt, never fatal
+                problem = f"unreadable ({err})"
+        log.warning("cache entry %s is %s; rebuilding it", path, problem)
     log.info("generating %s %s (seed %d) ...", system.name, kind, seed)
     start = time.perf_counter()
     value = build()
     with atomic_path(path) as tmp:
         value.save(tmp)
+    with atomic_path(recorded) as tmp:
+        tmp.write_text(file_sha256(path) + "\n", encoding="ascii")
     log.info("  %s %s ready in %.1f s -> %s", system.name, kind, time.perf_counter() - start, path)
     # Return what a cache hit would load (same dtypes and memory layout), so a job's
     # metrics never depend on whether it or another worker built the entry.

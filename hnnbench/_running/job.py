@@ -40,7 +40,7 @@ from hnnbench._contracts.metric import EvaluationConfig
 from hnnbench._contracts.names import DEFAULT_TRACK, TRACKS
 from hnnbench._contracts.plugin import HISTORY_STEP, Dataset, FitResult, TrainSettings, Trajectories
 from hnnbench._record.fields import new_record
-from hnnbench._running import affinity, dataset_cache, launch_context, tracking
+from hnnbench._running import affinity, dataset_cache, isolation, launch_context, tracking
 from hnnbench._running.config import RUN_ONLY_KEYS, Job, fingerprint, prepare_job
 from hnnbench._running.evaluation import evaluate, failed_metrics
 from hnnbench._running.progress import EvaluationProgress, TrainingProgress
@@ -411,7 +411,12 @@ def run_job(
             job = _prepared(cfg) or prepare_job(cfg)
             # The job's cache_dir and data_dir settings hold for all it does: the dataset
             # cache, measured data files (data.locate) and the JAX compilation cache.
-            with paths.overrides(cache_dir=cfg.cache_dir, data_dir=cfg.data_dir):
+            # A plugin's changes to the process (environment, working directory,
+            # global settings) end with its job (_running/isolation.py).
+            with (
+                isolation.isolated(),
+                paths.overrides(cache_dir=cfg.cache_dir, data_dir=cfg.data_dir),
+            ):
                 _execute(job, cfg, pending, dirs, runs)
     except KeyboardInterrupt:
         raise

@@ -31,6 +31,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
+from hnnbench._contracts import jsonio
+
 __all__ = ["ENV", "LaunchContext", "abandoned", "current", "exported", "launched", "local"]
 
 #: The environment variable holding the context for jobs in other processes (JSON).
@@ -76,7 +78,7 @@ def current() -> Optional[LaunchContext]:
     if not value:
         return None
     try:
-        data = json.loads(value)
+        data = jsonio.loads(value)
         return LaunchContext(**{k: data.get(k) for k in _EXPORTED})
     except (ValueError, TypeError, AttributeError):  # set by hand: "started by the CLI"
         return LaunchContext()

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Optional
 
 from hnnbench import _record as records
+from hnnbench._contracts import jsonio
 from hnnbench._contracts.errors import HnnbenchError
 
 __all__ = ["LOCK_NAME", "sweep_lock"]
@@ -72,7 +73,7 @@ def sweep_lock(directory: Path, command: Optional[str] = None) -> Iterator[None]
 def _holder(text: str) -> str:
     """``pid 123 on host, since <time>: <command>`` from a lock file's content."""
     try:
-        info = json.loads(text)
+        info = jsonio.loads(text)
         assert isinstance(info, dict)
     except Exception:  # noqa: BLE001 - written in the middle, or by something else
         return "holder unknown"

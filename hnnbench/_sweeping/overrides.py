@@ -6,10 +6,11 @@ and Python values quoted as Hydra override values.
 from __future__ import annotations
 
 import argparse
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any, NoReturn, Optional
 
 from hnnbench import _registry as registry
 from hnnbench._contracts.errors import ConfigError, UnknownNameError
@@ -81,9 +82,9 @@ def parse_flags(argv: list[str]) -> argparse.Namespace:
         # code it holds, so hnnbench never loads one.
         raise ConfigError(
             f"--experimental-rerun {ns.experimental_rerun} is refused: it unpickles the "
-            "file, which can run any code. Re-run a sweep with its command line (a "
-            "record's rerun_command; the same hydra.sweep.dir resumes it), or check it "
-            "with hnnbench check DIR --rerun"
+            "file, which can run any code. Re-run a sweep with the command line you "
+            "typed (the same hydra.sweep.dir resumes it), or check a record with "
+            "hnnbench check DIR --reference CSV --rerun SYSTEM/MODEL/SEED"
         )
     return ns
 
@@ -131,6 +132,37 @@ def _expand_names(kind: str, values: list[str]) -> list[str]:
 _PREFIX = {"ADD": "+", "FORCE_ADD": "++", "DEL": "~", "CHANGE": ""}
 
 
+#: Hydra settings whose overrides install code or read files chosen on the command line
+#: (user callbacks, config search paths, logging handlers, which may name any class):
+#: refused unless :data:`DEVELOPER_ENV` is ``1``. hnnbench's own callbacks (the
+#: summary, the exporters of ``log_to=``) are switched on by hnnbench settings.
+CODE_OVERRIDES = (
+    "hydra.callbacks",
+    "hydra/callbacks",
+    "hydra.searchpath",
+    "hydra/job_logging",
+    "hydra/hydra_logging",
+    "hydra.job_logging",
+    "hydra.hydra_logging",
+)
+#: The developer switch that allows :data:`CODE_OVERRIDES`.
+DEVELOPER_ENV = "HNNBENCH_ALLOW_CODE_OVERRIDES"
+
+
+def code_override_problem(key: str) -> Optional[str]:
+    """Why an override of ``key`` is refused (it would install code or read files), or
+    ``None``."""
+    if os.environ.get(DEVELOPER_ENV) == "1":
+        return None
+    if any(key == k or key.startswith(f"{k}.") for k in CODE_OVERRIDES):
+        return (
+            "this Hydra override installs callbacks or reads files chosen on the command "
+            "line, which hnnbench refuses (its own exporters are log_to=[mlflow,tensorboard]); "
+            f"a developer may set {DEVELOPER_ENV}=1 to allow it"
+        )
+    return None
+
+
 def parse_override(parser: Any, text: str) -> Entry:
     from hydra.core.override_parser.types import Glob
 
@@ -141,6 +173,9 @@ def parse_override(parser: Any, text: str) -> Entry:
     key = ov.key_or_group
     if not key:
         raise ConfigError(f"Cannot parse override '{text}': expected KEY=VALUE, e.g. seed=0")
+    code_problem = code_override_problem(key)
+    if code_problem is not None:
+        raise ConfigError(f"{text}: {code_problem}")
     prefix = _PREFIX.get(ov.type.name, "")
     if ov.is_delete():
         return Entry(text, prefix, key, [], False)

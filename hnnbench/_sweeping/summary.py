@@ -9,6 +9,8 @@ from typing import Any
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
 
+from hnnbench._contracts.text import csv_text
+
 log = logging.getLogger("hnnbench")
 
 __all__ = ["SweepSummary", "print_summary"]
@@ -74,7 +76,7 @@ def print_summary(sweep_dir: Path) -> None:
     if frame.empty:
         log.warning("no run records under %s", sweep_dir)
         return
-    frame.to_csv(sweep_dir / "summary.csv", index=False)
+    (sweep_dir / "summary.csv").write_text(csv_text(frame), encoding="utf-8")
     counts = frame["status"].value_counts().to_dict()
     shown = summary_frame(frames, summary_metrics())
     shown = shown[[c for c in shown.columns if not shown[c].isna().all()]]  # none applies

@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from hnnbench._contracts import jsonio
+
 __all__ = ["FORMAT", "load_weights", "save_weights"]
 
 #: Format tag written into the file's metadata.
@@ -39,7 +41,7 @@ def load_weights(path: Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     except Exception as err:  # safetensors raises its own error types
         raise ValueError(f"{path} is not a readable weight file: {err}") from None
     try:
-        info = json.loads(header.get("hnnbench", "{}"))
+        info = jsonio.loads(header.get("hnnbench", "{}"))
     except ValueError:
         info = {}
     if info.get("format") != FORMAT:

@@ -113,7 +113,7 @@ def sentence_after(markdown: str, heading: str) -> str:
     return next((line for line in lines[at + 1 :] if line.strip()), "")
 
 
-def record_dir(rec: dict) -> Path:
+def record_dir(rec: dict, root: Path | None = None) -> Path:
     """``results/records/<system>/<model>/seed<k>`` of a protocol record, and
     ``results/records/<system>/<model>/<track>/seed<k>`` of a tuned or recipe one (so a
     row of another track never replaces the protocol's), built by
@@ -147,7 +147,7 @@ def record_dir(rec: dict) -> Path:
         f"seed{seed}",
     ]
     try:
-        return safe_join(RECORDS, *parts)
+        return safe_join(RECORDS if root is None else root, *parts)
     except UnsafePathError as err:
         raise SystemExit(f"publish: {where}: {err}") from None
 
@@ -159,11 +159,13 @@ def job_of(rec: dict) -> tuple[str, str, str, int]:
     return track_of(rec), str(rec["system"]), str(rec["model"]), int(rec["seed"])
 
 
-def copy_figure_rollouts(sweeps: list[Path]) -> tuple[int, int]:
+def copy_figure_rollouts(sweeps: list[Path], root: Path | None = None) -> tuple[int, int]:
     """For each published (system, model), the figure rollout of its lowest seed that has
-    a ``rollout.npz`` in the sweeps, next to its record in results/records; any other
-    ``rollout.npz`` there is removed. Returns (files, bytes)."""
+    a ``rollout.npz`` in the sweeps, next to its record in results/records (``root``);
+    any other ``rollout.npz`` there is removed. Returns (files, bytes); a rollout that
+    cannot be read safely is ``SystemExit`` (one line) before anything is published."""
     import io
+    import zipfile
 
     import numpy as np
 
@@ -190,15 +192,22 @@ def copy_figure_rollouts(sweeps: list[Path]) -> tuple[int, int]:
             "track": track,
             "path": str(source.parent),
         }
-        target = safe_join(record_dir(rec), records.ROLLOUT_NAME)
+        target = safe_join(record_dir(rec, root), records.ROLLOUT_NAME)
         buffer = io.BytesIO()
-        np.savez_compressed(buffer, **figure_arrays(records.load_arrays(source)))
+        try:
+            arrays = figure_arrays(records.load_arrays(source))
+        except (records.UnsafeFile, OSError, ValueError, KeyError, zipfile.BadZipFile) as err:
+            raise SystemExit(
+                f"publish: {source}: the rollout cannot be read safely ({err}); re-run "
+                "the job or remove the file; nothing was published"
+            ) from None
+        np.savez_compressed(buffer, **arrays)
         target.parent.mkdir(parents=True, exist_ok=True)
         tmp = target.with_name(f".{target.name}.tmp")
         tmp.write_bytes(buffer.getvalue())
         tmp.replace(target)
         written[target.resolve()] = len(buffer.getvalue())
-    for stale in RECORDS.rglob(records.ROLLOUT_NAME):
+    for stale in (RECORDS if root is None else root).rglob(records.ROLLOUT_NAME):
         if stale.resolve() not in written:
             stale.unlink()
     return len(written), sum(written.values())
@@ -219,15 +228,24 @@ def given_records(sweeps: list[Path]) -> list[dict]:
     strict load), the paper profile, the paper settings (its variant derived from its
     stored config), and no job twice (``SystemExit`` naming the record otherwise)."""
     from hnnbench import _record as records
+    from hnnbench._results import validity
     from hnnbench._results.provenance import config_variant
 
     out: list[dict] = []
     seen: dict[tuple[str, str, str, int], str] = {}
     for sweep in sweeps:
+        if not Path(sweep).is_dir():
+            raise SystemExit(f"publish: {sweep} is not a directory of records")
         recs, bad = records.load(sweep, strict=True)
-        if bad:
+        # The one strict validation of every door: what `hnnbench check` refuses is
+        # never published.
+        checked = validity.validate(recs, bad)
+        if checked.problems:
+            first, more = checked.problems[0], len(checked.problems) - 1
             raise SystemExit(
-                f"publish: {len(bad)} unreadable or invalid record(s) in {sweep}, e.g. {bad[0]}"
+                f"publish: {sweep}: {first.line()}"
+                + (f" (and {more} more problem(s))" if more else "")
+                + "; hnnbench check lists every one; nothing was published"
             )
         for rec in recs:
             if rec.get("profile") != "paper":
@@ -260,7 +278,9 @@ def given_records(sweeps: list[Path]) -> list[dict]:
     return out
 
 
-def copy_records(sweeps: list[Path], recs: list[dict] | None = None) -> int:
+def copy_records(
+    sweeps: list[Path], recs: list[dict] | None = None, root: Path | None = None
+) -> int:
     """Copy each sweep's records (:func:`given_records`, unless already given as
     ``recs``) into results/records; returns how many."""
     from hnnbench import _record as records
@@ -270,7 +290,7 @@ def copy_records(sweeps: list[Path], recs: list[dict] | None = None) -> int:
     recs = given_records(sweeps) if recs is None else recs
     for rec in recs:
         source = Path(rec["path"]) / records.RECORD_NAME
-        target = record_dir(rec)
+        target = record_dir(rec, root)
         text = source.read_text()
         if len(text.encode()) > MAX_RECORD_BYTES:
             raise SystemExit(f"publish: {source} grew over {MAX_RECORD_BYTES} bytes")
@@ -279,22 +299,35 @@ def copy_records(sweeps: list[Path], recs: list[dict] | None = None) -> int:
     return len(recs)
 
 
-def published_jobs() -> set[tuple[str, str, str, int]]:
+def published_jobs(root: Path | None = None) -> set[tuple[str, str, str, int]]:
     """The (track, system, model, seed) of every record under results/records
-    (:func:`record_dir`'s layout)."""
-    from hnnbench._contracts.names import DEFAULT_TRACK
+    (:func:`record_dir`'s layout); a record anywhere else there (a stray directory) is
+    ``SystemExit`` naming it, before anything is written."""
+    from hnnbench._contracts.names import DEFAULT_TRACK, TRACKS, name_problem
 
-    jobs = {
-        (DEFAULT_TRACK, p.parts[-4], p.parts[-3], int(p.parts[-2].removeprefix("seed")))
-        for p in RECORDS.glob("*/*/seed*/result.json")
-    }
-    return jobs | {
-        (p.parts[-3], p.parts[-5], p.parts[-4], int(p.parts[-2].removeprefix("seed")))
-        for p in RECORDS.glob("*/*/*/seed*/result.json")
-    }
+    root = RECORDS if root is None else root
+    jobs: set[tuple[str, str, str, int]] = set()
+    for path in sorted(root.rglob("result.json")):
+        parts = path.relative_to(root).parts[:-1]
+        track = parts[2] if len(parts) == 4 else DEFAULT_TRACK
+        seed = parts[-1].removeprefix("seed") if parts else ""
+        if (
+            len(parts) not in (3, 4)
+            or name_problem("system", parts[0])
+            or name_problem("model", parts[1])
+            or (len(parts) == 4 and (track == DEFAULT_TRACK or track not in TRACKS))
+            or not parts[-1].startswith("seed")
+            or not seed.isdigit()
+        ):
+            raise SystemExit(
+                f"publish: {path} is not at records/<system>/<model>/[<track>/]seed<k>/"
+                "result.json; move or remove it; nothing was published"
+            )
+        jobs.add((track, parts[0], parts[1], int(seed)))
+    return jobs
 
 
-def remove_jobs(jobs: set[tuple[str, str, str, int]]) -> int:
+def remove_jobs(jobs: set[tuple[str, str, str, int]], root: Path | None = None) -> int:
     """Remove the published records (and figure rollouts) of ``jobs`` ((track, system,
     model, seed)); returns how many."""
     import shutil
@@ -307,10 +340,13 @@ def remove_jobs(jobs: set[tuple[str, str, str, int]]) -> int:
                 "seed": seed,
                 "track": track,
                 "path": "results/records",
-            }
+            },
+            root,
         )
         shutil.rmtree(directory)
-    for empty in sorted(RECORDS.rglob("*"), key=lambda p: len(p.parts), reverse=True):
+    for empty in sorted(
+        (RECORDS if root is None else root).rglob("*"), key=lambda p: len(p.parts), reverse=True
+    ):
         if empty.is_dir() and not any(empty.iterdir()):
             empty.rmdir()
     return len(jobs)
@@ -386,9 +422,9 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    copied = copy_records(args.sweeps, recs)
-    removed_records = remove_jobs(superseded)
-    rollouts, rollout_bytes = copy_figure_rollouts(args.sweeps)
+    copied, removed_records, rollouts, rollout_bytes = stage_and_publish(
+        args.sweeps, recs, superseded
+    )
     status, summary = write_pages(args.figure)
     if status:
         return status
@@ -407,6 +443,46 @@ def main(argv: list[str] | None = None) -> int:
         )
     )
     return 0
+
+
+def stage_and_publish(
+    sweeps: list[Path], recs: list[dict], superseded: set[tuple[str, str, str, int]]
+) -> tuple[int, int, int, int]:
+    """All or nothing: the new results/records is built in a staging directory beside it
+    (a copy of the published records, the given records copied in, the superseded ones
+    removed, the figure rollouts written), loaded back strictly, and only then moved
+    into place; any failure leaves results/records as it was. Returns (records copied,
+    records removed, figure rollouts, their bytes)."""
+    import os
+    import shutil
+    import tempfile
+
+    from hnnbench import _record as records
+
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=".publish-", dir=RESULTS))
+    try:
+        stage = staging / "records"
+        if RECORDS.is_dir():
+            shutil.copytree(RECORDS, stage, symlinks=True)
+        else:
+            stage.mkdir()
+        copied = copy_records(sweeps, recs, root=stage)
+        removed = remove_jobs(superseded, root=stage)
+        rollouts, rollout_bytes = copy_figure_rollouts(sweeps, root=stage)
+        staged, bad = records.load(stage, strict=True)
+        if bad:
+            raise SystemExit(
+                f"publish: a staged record does not load: {bad[0]}; nothing was published"
+            )
+        published_jobs(stage)
+        old = staging / "old"
+        if RECORDS.exists():
+            os.replace(RECORDS, old)
+        os.replace(stage, RECORDS)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return copied, removed, rollouts, rollout_bytes
 
 
 def write_pages(figure_name: str) -> tuple[int, dict[str, Any]]:

@@ -50,7 +50,7 @@ def test_a_record_of_other_settings_is_not_published(tmp_path, monkeypatch):
     record = json.loads((job / "result.json").read_text())
     record["config"]["model"]["hidden"] = 300
     (job / "result.json").write_text(json.dumps(record))
-    with pytest.raises(SystemExit, match=f"{job}: .*model.hidden=300"):
+    with pytest.raises(SystemExit, match=f"{job}/result.json; .*model.hidden=300"):
         publish_results.copy_records([stripped])
     assert not (tmp_path / "records").exists()
 
@@ -66,7 +66,12 @@ def test_a_row_of_another_track_is_published_beside_the_protocols(tmp_path, monk
     write_run(protocol, "spring", "hnn_torch", 0, profile="paper", rollout=False)
     job = write_run(recipe, "spring", "hnn_torch", 0, profile="paper", rollout=False)
     record = json.loads((job / "result.json").read_text())
-    (job / "result.json").write_text(json.dumps({**record, "track": "recipe"}))
+    # A recipe record's stored config is the recipe track's (check derives its track
+    # and variant from it).
+    from hnnbench._results.provenance import default_config
+
+    config = {**default_config("spring", "hnn_torch", "paper", "recipe"), "seed": 0}
+    (job / "result.json").write_text(json.dumps({**record, "track": "recipe", "config": config}))
     assert publish_results.copy_records([protocol, recipe]) == 2
     assert (records_dir / "spring" / "hnn_torch" / "seed0" / "result.json").is_file()
     kept = json.loads(

@@ -16,7 +16,7 @@ import pandas as pd
 from hnnbench import _record as records
 from hnnbench._contracts import claims
 from hnnbench._contracts.errors import OneLineArgumentParser
-from hnnbench._record.loader import Unreadable
+from hnnbench._contracts.text import csv_text
 from hnnbench._results.check.compare import compare
 from hnnbench._results.check.findings import (
     HEADERS,
@@ -24,20 +24,17 @@ from hnnbench._results.check.findings import (
     CheckResult,
     Finding,
     missing_line,
+    published_reference,
     update_hint,
 )
 from hnnbench._results.check.output import FORMATS, CheckReport, emit
 from hnnbench._results.check.ranks import ranking
-from hnnbench._results.check.records import (
-    plugin_information,
-    record_variants,
-    validate_records,
-    variant_findings,
-)
+from hnnbench._results.check.records import findings, record_variants
 from hnnbench._results.check.reference import read_reference, row_key
 from hnnbench._results.check.rerun import RERUN_HEADERS, Rerun, rerun
 from hnnbench._results.check.rules import load_rules
 from hnnbench._results.leaderboard import leaderboard_frame, records_frame
+from hnnbench._results.validity import ALLOW_UNVERIFIED, Validation, validate
 
 __all__ = ["main"]
 
@@ -103,6 +100,18 @@ def _parser() -> _Parser:
         default=None,
         help="write the --format report to FILE (the text still goes to stdout)",
     )
+    p.add_argument(
+        ALLOW_UNVERIFIED,
+        action="store_true",
+        help="records whose plugins cannot be verified here (not installed, unusable, "
+        "no 'plugins' field) are information, not failures (the output says so)",
+    )
+    p.add_argument(
+        "--overwrite-published",
+        action="store_true",
+        help="with --update: allow rewriting a published leaderboard.csv (one next to "
+        "a records/ directory), which publishing rebuilds",
+    )
     return p
 
 
@@ -121,25 +130,25 @@ def main(args: Sequence[str]) -> int:
     # Each record's variant is derived from its stored config, never read from its
     # overrides (hnnbench._results.provenance).
     variants = record_variants(recs)
+    checked = validate(recs, bad, variants=variants, allow_unverified=ns.allow_unverified)
     frame = records_frame(recs, [v.label for v in variants])
     board = leaderboard_frame(frame)
     where = " ".join(ns.dirs)
     if ns.update:
         if ns.format != "text" or ns.output:
             raise CheckError("--format and --output report a check; --update writes a reference")
-        return _update(reference, board, bad, where)
+        return _update(reference, board, checked, where, ns.overwrite_published)
     assert ref_board is not None
     result = compare(ref_board, board, rules, allow_missing=ns.allow_missing, same=ns.same)
-    variant_bad, variant_info = variant_findings(recs, variants)
-    result.regressions[:0] = validate_records(recs, bad) + variant_bad
-    result.info += variant_info + plugin_information(recs)
+    result.regressions[:0] = findings(checked.problems)
+    result.info += findings(checked.information)
     reruns = [rerun(recs, spec, rules) for spec in ns.rerun]
     for done in reruns:
         result.regressions += done.findings
     ranks = ranking(ref_board, board, frame=frame)
     text = io.StringIO()
     with contextlib.redirect_stdout(text) if ns.format != "text" or ns.output else _as_is():
-        status = _print_text(ns, recs, bad, result, reruns, ranks.lines, reference)
+        status = _print_text(ns, recs, bad, checked, result, reruns, ranks.lines, reference)
     report = CheckReport(
         ns.dirs,
         str(reference),
@@ -165,7 +174,8 @@ def _as_is() -> Any:
 def _print_text(
     ns: Any,
     recs: Sequence[dict[str, Any]],
-    bad: Sequence[Unreadable],
+    bad: Sequence[records.Unreadable],
+    checked: Validation,
     result: CheckResult,
     reruns: Sequence[Rerun],
     ranks: Sequence[str],
@@ -188,22 +198,38 @@ def _print_text(
         f"{result.n_metrics} gated metric value(s), {result.n_claims} claim(s) reproduced "
         f"in the reference" + (f"; re-ran {len(ns.rerun)} job(s)" if ns.rerun else "")
     )
+    if checked.unverified and ns.allow_unverified:
+        print(
+            f"UNVERIFIED ({ALLOW_UNVERIFIED}): {len(checked.unverified)} record plugin(s) "
+            f"could not be verified and were accepted, e.g. {checked.unverified[0].line()}"
+        )
     _print_reruns(reruns)
     _print_ranks(ranks)
     _print_information(result, failing=not ns.allow_missing)
     return _print_verdict(result, reference)
 
 
-def _update(reference: Path, board: pd.DataFrame, bad: Sequence[Unreadable], where: str) -> int:
-    """``--update``: write the reference from the checked records (none unreadable),
-    saying how many pairs of the old reference it drops."""
-    if bad:
+def _update(
+    reference: Path, board: pd.DataFrame, checked: Validation, where: str, overwrite: bool
+) -> int:
+    """``--update``: write the reference from the checked records, only when every one
+    passed the strict validation, saying how many pairs of the old reference it drops;
+    a published leaderboard.csv is rewritten only with ``--overwrite-published``."""
+    if checked.problems:
+        first, more = checked.problems[0], len(checked.problems) - 1
         raise CheckError(
-            f"{len(bad)} unreadable record(s), e.g. {bad[0]}: fix or remove "
-            "them before writing a reference"
+            f"not writing a reference from records that fail validation: {first.line()}"
+            + (f" (and {more} more)" if more else "")
+            + "; fix or remove them (hnnbench check without --update lists each)"
         )
     if reference.is_dir():
         raise CheckError(f"Reference {reference} is a directory; give a CSV file path")
+    if published_reference(reference) and reference.exists() and not overwrite:
+        raise CheckError(
+            f"{reference} is a published leaderboard (next to records/): publishing "
+            "rebuilds it (scripts/maintainer/publish_results.py); write the reference "
+            "elsewhere, or pass --overwrite-published"
+        )
     dropped = 0
     if reference.is_file():
         try:
@@ -213,7 +239,7 @@ def _update(reference: Path, board: pd.DataFrame, bad: Sequence[Unreadable], whe
         except CheckError:
             dropped = 0
     try:
-        records.atomic_write_text(reference, board.to_csv(index=False))
+        records.atomic_write_text(reference, csv_text(board))
     except OSError as err:
         raise CheckError(f"Cannot write reference {reference}: {err.strerror}") from None
     print(

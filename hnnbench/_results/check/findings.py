@@ -9,8 +9,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from hnnbench._contracts.errors import HnnbenchError
+from hnnbench._contracts.text import printable
 
-__all__ = ["CheckError", "CheckResult", "Finding", "HEADERS", "missing_line", "update_hint"]
+__all__ = [
+    "CheckError",
+    "CheckResult",
+    "Finding",
+    "HEADERS",
+    "missing_line",
+    "published_reference",
+    "update_hint",
+]
 
 
 class CheckError(HnnbenchError):
@@ -29,15 +38,19 @@ class Finding:
     limit: str = ""
 
     def row(self) -> list[str]:
+        """The table's cells, control characters stripped (they are printed)."""
         return [
-            self.check,
-            self.metric,
-            self.system,
-            self.model,
-            self.reference,
-            self.current,
-            self.factor,
-            self.limit,
+            printable(cell)
+            for cell in (
+                self.check,
+                self.metric,
+                self.system,
+                self.model,
+                self.reference,
+                self.current,
+                self.factor,
+                self.limit,
+            )
         ]
 
 
@@ -86,6 +99,12 @@ def missing_line(
     return "missing: " + "; ".join(parts) + tail
 
 
+def published_reference(reference: Path) -> bool:
+    """Whether ``reference`` is a published leaderboard (a ``leaderboard.csv`` next to a
+    ``records/`` directory), which only publishing rebuilds."""
+    return reference.name == "leaderboard.csv" and (reference.parent / "records").is_dir()
+
+
 def update_hint(result: CheckResult, reference: Path) -> str:
     """What to do about the regressions: ``--allow-missing`` where every one is a pair
     the sweep did not run; ``--update`` only where it is safe, i.e. the sweep covers
@@ -98,8 +117,7 @@ def update_hint(result: CheckResult, reference: Path) -> str:
             " Every regression is a reference pair this sweep did not run: pass "
             "--allow-missing to compare the pairs it ran."
         )
-    published = reference.name == "leaderboard.csv" and (reference.parent / "records").is_dir()
-    if published:
+    if published_reference(reference):
         return (
             " The reference is a published leaderboard: it is rebuilt from records by "
             "scripts/maintainer/publish_results.py (docs/LEADERBOARD.md), never by --update."

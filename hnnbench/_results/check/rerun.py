@@ -19,7 +19,7 @@ from hnnbench._results.check.findings import CheckError, Finding
 from hnnbench._results.check.records import record_file
 from hnnbench._running.config import RUN_ONLY_KEYS
 
-__all__ = ["DATA_HASHES", "RERUN_HEADERS", "Rerun", "rerun", "rerun_config"]
+__all__ = ["DATA_HASHES", "RERUN_HEADERS", "Rerun", "addressed", "rerun", "rerun_config"]
 
 
 #: The record's ``data`` hashes a re-run must reproduce.
@@ -62,6 +62,53 @@ def rerun_config(rec: dict[str, Any], cache_dir: Path) -> dict[str, Any]:
     return out
 
 
+def _address(rec: dict[str, Any]) -> str:
+    return f"{rec.get('system')}/{rec.get('model')}/{track_of(rec)}/{rec.get('seed')}"
+
+
+def addressed(recs: Sequence[dict[str, Any]], spec: str) -> dict[str, Any]:
+    """The one record ``spec`` names: ``SYSTEM/MODEL/SEED``, ``SYSTEM/MODEL/TRACK/SEED``,
+    or the record's directory (or its ``result.json``). No record, or several (other
+    tracks, profiles, variants or directories), is a :class:`CheckError` listing the
+    candidates: a re-run runs exactly what was named."""
+    as_path = Path(spec)
+    by_path = [
+        r
+        for r in recs
+        if r.get("path") and as_path in (Path(r["path"]), Path(r["path"]) / "result.json")
+    ]
+    if by_path:
+        return by_path[0]
+    parts = spec.split("/")
+    if len(parts) not in (3, 4) or not parts[-1].isdigit():
+        raise CheckError(
+            f"--rerun {spec}: expected SYSTEM/MODEL/SEED, SYSTEM/MODEL/TRACK/SEED or a "
+            "record's directory, e.g. spring/hnn_jax/0"
+        )
+    system, model, seed = parts[0], parts[1], int(parts[-1])
+    track = parts[2] if len(parts) == 4 else None
+    match = [
+        r
+        for r in recs
+        if r.get("system") == system
+        and r.get("model") == model
+        and r.get("seed") == seed
+        and (track is None or track_of(r) == track)
+    ]
+    if not match:
+        raise CheckError(f"--rerun {spec}: no record of that job in the checked directories")
+    if len(match) > 1:
+        shown = "; ".join(
+            f"{_address(r)} (profile {r.get('profile')}, {record_file(r)})" for r in match[:6]
+        )
+        raise CheckError(
+            f"--rerun {spec}: {len(match)} records match ({shown}"
+            + (f"; and {len(match) - 6} more" if len(match) > 6 else "")
+            + "): name one by SYSTEM/MODEL/TRACK/SEED or by its directory"
+        )
+    return match[0]
+
+
 def _short(value: Any) -> str:
     return str(value)[:12] if value else "none"
 
@@ -69,28 +116,19 @@ def _short(value: Any) -> str:
 def rerun(
     recs: Sequence[dict[str, Any]], spec: str, rules: tuple[CheckRule, dict[str, CheckRule]]
 ) -> Rerun:
-    """Run the job ``SYSTEM/MODEL/SEED`` of ``recs`` again (:func:`rerun_config`, in a
-    temporary directory with a fresh dataset cache) and compare: its status, its data
-    hashes (the re-run's, generated now by the installed system, are the canonical ones),
-    and each metric with the record's by ``rules``, in both directions."""
+    """Run the job ``spec`` names (:func:`addressed`: exactly one record) again
+    (:func:`rerun_config`, in a temporary directory with a fresh dataset cache) and
+    compare: its status, its data hashes (the re-run's, generated now by the installed
+    system, are the canonical ones), and each metric either side has with the record's
+    by ``rules``, in both directions."""
     import tempfile
 
     from omegaconf import OmegaConf
 
     from hnnbench._running.job import run_job
 
-    parts = spec.split("/")
-    if len(parts) != 3 or not parts[2].isdigit():
-        raise CheckError(f"--rerun {spec}: expected SYSTEM/MODEL/SEED, e.g. spring/hnn_jax/0")
-    system, model, seed = parts[0], parts[1], int(parts[2])
-    match = [
-        r
-        for r in recs
-        if r.get("system") == system and r.get("model") == model and r.get("seed") == seed
-    ]
-    if not match:
-        raise CheckError(f"--rerun {spec}: no record of that job in the checked directories")
-    rec = match[0]
+    rec = addressed(recs, spec)
+    system, model = str(rec.get("system")), str(rec.get("model"))
     result = Rerun(spec)
     with tempfile.TemporaryDirectory(prefix="hnnbench-rerun-") as tmp:
         cfg = OmegaConf.create(rerun_config(rec, Path(tmp) / "cache"))
@@ -131,10 +169,12 @@ def rerun(
             result.findings[
                 -1
             ].current = f"canonical {_short(canonical)} ({where} names other data)"
-    for name, value in (rec.get("metrics") or {}).items():
+    mine_all, theirs_all = rec.get("metrics") or {}, again.get("metrics") or {}
+    # Every metric either side has: one the re-run produces and the record lacks fails.
+    for name in dict.fromkeys([*mine_all, *theirs_all]):
         rule = by_metric.get(name, default)
-        ref = float(value.get("mean", math.nan))
-        cur = float((again.get("metrics") or {}).get(name, {}).get("mean", math.nan))
+        ref = _mean(mine_all.get(name))
+        cur = _mean(theirs_all.get(name))
         if math.isnan(ref) and math.isnan(cur):
             continue
         # A re-run must agree with the record both ways, not merely be no worse.
@@ -142,10 +182,18 @@ def rerun(
         ok = not (math.isnan(cur) or math.isnan(ref)) and worst <= rule.factor
         add(
             name,
-            format_number(ref),
+            format_number(ref) if name in mine_all else "absent",
             format_number(cur),
             f"{format_number(worst)}x",
             f"within {rule.factor:g}x",
             ok,
         )
     return result
+
+
+def _mean(value: Any) -> float:
+    """A metric's mean as a float (NaN: absent, ``null`` or not a number)."""
+    mean = value.get("mean", math.nan) if isinstance(value, dict) else math.nan
+    if isinstance(mean, bool) or not isinstance(mean, (int, float)):
+        return math.nan
+    return float(mean)

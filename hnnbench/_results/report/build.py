@@ -13,6 +13,7 @@ from typing import Any
 import pandas as pd
 
 from hnnbench import _record as records
+from hnnbench._contracts.text import csv_text
 from hnnbench._record.loader import Unreadable
 from hnnbench._results.leaderboard import leaderboard
 from hnnbench._results.report.figures import Made, main_profile_figure, make_figures
@@ -54,15 +55,18 @@ def write_report(
     strict: bool = False,
     aggregate: bool = True,
     embed_figures: bool = False,
+    allow_unverified: bool = False,
 ) -> Report:
     """Build every table and figure of the sweep directories into ``out`` (default: the
     sweep, when there is one); ``figures=False`` skips the figures, ``aggregate=False``
     the aggregate across systems (a sweep's rewrite while it runs); ``strict``: every
-    record is checked in full (:func:`hnnbench._record.loader.load`, strict), and an
-    unreadable or invalid record is an error instead of a warning; ``embed_figures``:
+    record is checked in full (the strict validation of every door,
+    :mod:`hnnbench._results.validity`), and an unreadable or invalid record is an error
+    instead of a warning (``allow_unverified``: not a record whose plugins cannot be
+    verified); ``embed_figures``:
     the page holds its figures inline (base64) instead of linking them."""
     dirs = [Path(sweep_dir)] if isinstance(sweep_dir, (str, Path)) else [Path(d) for d in sweep_dir]
-    recs, bad = load_sweeps(dirs, strict=strict)
+    recs, bad = load_sweeps(dirs, strict=strict, allow_unverified=allow_unverified)
     if out is None:
         if len(dirs) != 1:
             raise ReportError("Several directories merge into one report: give --out OUT")
@@ -91,7 +95,7 @@ def write_report(
         )
     for key, (name, frame) in tables.items():
         report.files[key] = out / name
-        records.atomic_write_text(report.files[key], frame.to_csv(index=False))
+        records.atomic_write_text(report.files[key], csv_text(frame))
     report.figures = make_figures(recs, board, out / "figures", verdicts) if figures else []
     prov = provenance(recs)
     heatmaps = tuple(m.path.stem for m in report.figures if m.kind == "heatmap")
@@ -111,19 +115,19 @@ def write_report(
     tracks = tracks_frame(verdicts.families)
     if not tracks.empty:
         report.files["tracks"] = out / "tracks.csv"
-        records.atomic_write_text(report.files["tracks"], tracks.to_csv(index=False))
+        records.atomic_write_text(report.files["tracks"], csv_text(tracks))
     studies = studies_frame(recs)
     gain = tuning_gain(verdicts.families)
     if not studies.empty:
         report.files["studies"] = out / "tuning_studies.csv"
-        records.atomic_write_text(report.files["studies"], studies.to_csv(index=False))
+        records.atomic_write_text(report.files["studies"], csv_text(studies))
         if figures:
             made = cost_figure(studies, out / "figures" / "tuning_cost.png")
             if made is not None:
                 report.figures.append(Made("tuned track", "tuning_cost", made))
     if not gain.empty:
         report.files["tuning_gain"] = out / "tuning_gain.csv"
-        records.atomic_write_text(report.files["tuning_gain"], gain.to_csv(index=False))
+        records.atomic_write_text(report.files["tuning_gain"], csv_text(gain))
     report.files["tracks_md"] = out / "tracks.md"
     records.atomic_write_text(
         report.files["tracks_md"],
@@ -133,7 +137,7 @@ def write_report(
     )
     chosen = selection_frame(recs)
     report.files["selection"] = out / "selection.csv"
-    records.atomic_write_text(report.files["selection"], chosen.to_csv(index=False))
+    records.atomic_write_text(report.files["selection"], csv_text(chosen))
     report.files["selection_md"] = out / "selection.md"
     records.atomic_write_text(
         report.files["selection_md"], "# Checkpoint selection\n\n" + selection_markdown(chosen)

@@ -40,7 +40,13 @@ def _parser() -> OneLineArgumentParser:
     p.add_argument(
         "--strict",
         action="store_true",
-        help="an unreadable or invalid record is an error (default: left out with a warning)",
+        help="every record must pass the strict validation of hnnbench check; an "
+        "unreadable or invalid one is an error (default: left out with a warning)",
+    )
+    p.add_argument(
+        "--allow-unverified",
+        action="store_true",
+        help="with --strict: records whose plugins cannot be verified here pass (said)",
     )
     return p
 
@@ -53,7 +59,13 @@ def main(args: Sequence[str]) -> int:
         figures=not ns.no_figures,
         strict=ns.strict,
         embed_figures=ns.embed_figures,
+        allow_unverified=ns.allow_unverified,
     )
+    if ns.strict and ns.allow_unverified:
+        print(
+            "report --strict --allow-unverified: records whose plugins cannot be "
+            "verified were accepted"
+        )
     assert report.verdicts is not None
     print(families_markdown(report.verdicts.families))
     print()

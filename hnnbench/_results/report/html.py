@@ -17,6 +17,7 @@ from typing import Any, Optional
 import pandas as pd
 
 from hnnbench import _record as records
+from hnnbench._contracts.text import printable
 from hnnbench._results import stats
 from hnnbench._results.leaderboard import direction_header, display_frame, metric_declarations
 from hnnbench._results.report.figures import FIGURES, Made
@@ -38,6 +39,12 @@ from hnnbench._results.report.verdicts import (
     scope_line,
     supported_lines,
 )
+
+
+def _esc(value: Any) -> str:
+    """``value`` escaped for HTML, control characters stripped first."""
+    return html.escape(printable(value))
+
 
 __all__ = ["page"]
 
@@ -140,7 +147,7 @@ def _table(
     txt = ' class="txt"'
     declared = metric_declarations()
     head = "".join(
-        f"<th{txt if c in _TEXT_COLUMNS else ''}>{html.escape(direction_header(c, declared))}</th>"
+        f"<th{txt if c in _TEXT_COLUMNS else ''}>{_esc(direction_header(c, declared))}</th>"
         for c in frame.columns
     )
     body = []
@@ -170,8 +177,8 @@ def _table(
             if numbers is not None and f"{col}_mean" in numbers.columns:
                 attrs += f' data-v="{_sort_value(numbers.iloc[i][f"{col}_mean"])}"'
             elif col in ("n_seeds",):
-                attrs += f' data-v="{html.escape(value)}"'
-            cells.append(f"<td{attrs}>{html.escape(value)}</td>")
+                attrs += f' data-v="{_esc(value)}"'
+            cells.append(f"<td{attrs}>{_esc(value)}</td>")
         body.append("<tr>" + "".join(cells) + "</tr>")
     return (
         f'<div class="wrap"><table class="{cls}"><thead><tr>{head}</tr></thead>'
@@ -182,9 +189,7 @@ def _table(
 def _inline_code(markdown: str) -> str:
     """Escape ``markdown`` for HTML, turning its `code` spans into <code> elements."""
     parts = markdown.split("`")
-    return "".join(
-        f"<code>{html.escape(p)}</code>" if i % 2 else html.escape(p) for i, p in enumerate(parts)
-    )
+    return "".join(f"<code>{_esc(p)}</code>" if i % 2 else _esc(p) for i, p in enumerate(parts))
 
 
 def _png_size(path: Path) -> tuple[int, int] | None:
@@ -208,11 +213,9 @@ def _img(path: Path, alt: str, base: Path | None = None, embed: bool = False) ->
     dims = f' width="{size[0]}" height="{size[1]}"' if size else ""
     if embed:
         data = base64.b64encode(path.read_bytes()).decode("ascii")
-        return f'<img alt="{html.escape(alt)}"{dims} src="data:image/png;base64,{data}">'
+        return f'<img alt="{_esc(alt)}"{dims} src="data:image/png;base64,{data}">'
     where = Path(os.path.relpath(path, base)) if base is not None else Path(path)
-    return (
-        f'<img loading="lazy" alt="{html.escape(alt)}"{dims} src="{html.escape(where.as_posix())}">'
-    )
+    return f'<img loading="lazy" alt="{_esc(alt)}"{dims} src="{_esc(where.as_posix())}">'
 
 
 def _provenance_table(recs: Sequence[dict[str, Any]]) -> pd.DataFrame:
@@ -257,7 +260,7 @@ def _aggregate_section(verdicts: Verdicts, figures: list[Made], img: Any) -> lis
         if scope:
             parts.append(f'<p class="note">{_inline_code(scope)}</p>')
         why = agg.note if agg.empty else "no (system, metric) of this scope is normalised"
-        parts.append(f'<p class="note">No aggregate: {html.escape(why)}.</p>')
+        parts.append(f'<p class="note">No aggregate: {_esc(why)}.</p>')
         parts += [f'<p class="note">{_inline_code(line)}</p>' for line in left_out_lines(agg, key)]
         return parts
     rule = stats.aggregate_rule(agg.baseline or "the baseline")
@@ -283,11 +286,10 @@ def _anchor(label: str) -> str:
 def _toc(entries: Sequence[tuple[str, str]], systems: Sequence[str]) -> str:
     """The table of contents: ``(id, title)`` of each section, and the figure sections'
     labels in a row of their own."""
-    items = [f'<li><a href="#{html.escape(i)}">{html.escape(t)}</a></li>' for i, t in entries]
+    items = [f'<li><a href="#{_esc(i)}">{_esc(t)}</a></li>' for i, t in entries]
     if systems:
         links = "".join(
-            f'<li><a href="#{html.escape(_anchor(label))}">{html.escape(label)}</a></li>'
-            for label in systems
+            f'<li><a href="#{_esc(_anchor(label))}">{_esc(label)}</a></li>' for label in systems
         )
         items.append(
             f'<li class="systems">Figures by system: <ul class="systems">{links}</ul></li>'
@@ -371,7 +373,7 @@ def page(
         parts.append(
             '<p class="note">Why runs did not finish <code>ok</code> ([n] after a '
             'status):</p><ol class="notes">'
-            + "".join(f'<li value="{n}">{html.escape(reason)}</li>' for n, reason in notes)
+            + "".join(f'<li value="{n}">{_esc(reason)}</li>' for n, reason in notes)
             + "</ol>"
         )
     note = reversal_note(board)
@@ -414,9 +416,9 @@ def page(
         _table(claims_frame(board), "claims sortable", status_col="result"),
     ]
     for label, made_list in sections.items():
-        parts.append(f'<h2 id="{html.escape(_anchor(label))}">{html.escape(label)}</h2>')
+        parts.append(f'<h2 id="{_esc(_anchor(label))}">{_esc(label)}</h2>')
         for made in made_list:
-            parts.append(f"<h3>{html.escape(titles.get(made.kind, made.kind))}</h3>")
+            parts.append(f"<h3>{_esc(titles.get(made.kind, made.kind))}</h3>")
             parts.append(img(made, f"{label} {made.kind}"))
     parts += [
         '<h2 id="provenance">Provenance</h2>',

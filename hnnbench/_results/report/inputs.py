@@ -10,6 +10,7 @@ from typing import Any
 
 from hnnbench import _record as records
 from hnnbench._contracts.errors import HnnbenchError
+from hnnbench._results import validity
 from hnnbench._results.report.markdown import md_code, md_text
 
 log = logging.getLogger("hnnbench")
@@ -22,13 +23,20 @@ class ReportError(HnnbenchError):
 
 
 def load_sweeps(
-    directories: Sequence[Path | str], *, strict: bool = False, refuse: bool | None = None
+    directories: Sequence[Path | str],
+    *,
+    strict: bool = False,
+    refuse: bool | None = None,
+    allow_unverified: bool = False,
 ) -> tuple[list[dict[str, Any]], list[records.Unreadable]]:
     """The records under every directory (several sweeps merge into one leaderboard),
     and the ``result.json`` files left out, unreadable or invalid (the caller names
     them): :func:`hnnbench._record.loader.load`, ``strict`` or not. ``refuse`` (default:
     ``strict``) makes any file left out a :class:`ReportError`, as does a directory
-    that does not exist or holds no record."""
+    that does not exist or holds no record. ``strict`` and refusing: the records must
+    also pass the one strict validation of every door
+    (:func:`hnnbench._results.validity.require_valid`; ``allow_unverified``: records
+    whose plugins cannot be verified pass)."""
     if not directories:
         raise ReportError(
             "No sweep directory given: expected one or more directories holding result.json records"
@@ -41,6 +49,8 @@ def load_sweeps(
     recs, bad = records.load(*directories, strict=strict)
     if bad and (strict if refuse is None else refuse):
         raise ReportError(f"{len(bad)} record(s) unreadable or invalid, e.g. {bad[0]}")
+    if strict and (strict if refuse is None else refuse) and recs:
+        validity.require_valid(recs, bad, door="strict load", allow_unverified=allow_unverified)
     if not recs:
         where = ", ".join(str(d) for d in directories)
         if bad:
@@ -56,10 +66,13 @@ def load_sweeps(
     return recs, bad
 
 
-def load_sweep(*directories: Path | str) -> list[dict[str, Any]]:
+def load_sweep(
+    *directories: Path | str, strict: bool = False, allow_unverified: bool = False
+) -> list[dict[str, Any]]:
     """The records under the directories (see :func:`load_sweeps`); a warning names
-    each file left out. What :func:`hnnbench.load` and :func:`hnnbench.sweep` read."""
-    recs, bad = load_sweeps(list(directories))
+    each file left out. What :func:`hnnbench.load` and :func:`hnnbench.sweep` read;
+    ``strict``: every record must pass the strict validation (an error otherwise)."""
+    recs, bad = load_sweeps(list(directories), strict=strict, allow_unverified=allow_unverified)
     for item in bad:
         log.warning("record left out: %s", item)
     return recs

@@ -16,6 +16,8 @@ from __future__ import annotations
 import re
 from typing import Any
 
+from hnnbench._contracts.text import printable
+
 __all__ = ["md_cell", "md_code", "md_text"]
 
 # "<" that could open raw HTML, a comment or a processing instruction (CommonMark: a
@@ -25,8 +27,10 @@ _INLINE = str.maketrans({"\\": "&#92;", "`": "&#96;"})
 
 
 def _one_line(value: Any) -> str:
-    """``str(value)`` with every line break and run of whitespace as one space."""
-    return " ".join(str(value).split())
+    """``str(value)`` without control characters (terminal escapes:
+    :func:`hnnbench._contracts.text.printable`), every line break and run of whitespace
+    as one space."""
+    return " ".join(printable(value).split())
 
 
 def md_text(value: Any) -> str:
