@@ -2,7 +2,7 @@
 
     python scripts/maintainer/publish_results.py SWEEP_DIR [SWEEP_DIR ...] \
         [--figure two_body_energy]
-        [--replace SYSTEM[,SYSTEM]]
+        [--replace SYSTEM[,SYSTEM]] [--withdraw SYSTEM[/TRACK][,...]]
     python scripts/maintainer/publish_results.py --pages-only     # steps 2 and 3 alone
 
 1. Copies every ``result.json`` of the sweeps into ``results/records/<system>/<model>/
@@ -14,7 +14,10 @@
    systems, run at different times or on different machines, merge there; a record
    already present for the same job is replaced. ``--replace S`` re-publishes system
    ``S``: its published protocol records that the directories do not hold (another
-   seed plan, a model gone) are removed in the same step. ``results/records`` itself may be one
+   seed plan, a model gone) are removed in the same step. ``--withdraw S`` (or ``S/TRACK``)
+   removes the published records of ``S`` (of that track) that the directories do not
+   hold, with no replacement: records that today's code refuses (another step budget,
+   another data version) until their re-publication. ``results/records`` itself may be one
    of the directories (a new model's sweep is published with it: docs/LEADERBOARD.md).
 2. ``hnnbench report`` over ``results/records`` (its records and figure rollouts) into
    ``results/``: leaderboard.{csv,md,html},
@@ -375,6 +378,14 @@ def main(argv: list[str] | None = None) -> int:
         "the same step",
     )
     parser.add_argument(
+        "--withdraw",
+        default="",
+        metavar="SYSTEM[/TRACK][,...]",
+        help="remove the published records of these systems (of every track, or of "
+        "TRACK) that the directories given do not hold, without a replacement: records "
+        "today's code refuses, until they are re-published",
+    )
+    parser.add_argument(
         "--pages-only",
         action="store_true",
         help="no sweeps: rebuild the report, figures and results/README.md "
@@ -383,8 +394,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     if args.pages_only:
-        if args.sweeps or args.replace:
-            parser.error("--pages-only takes no sweeps and no --replace")
+        if args.sweeps or args.replace or args.withdraw:
+            parser.error("--pages-only takes no sweeps, no --replace and no --withdraw")
         status, _ = write_pages(args.figure)
         return status
     if not args.sweeps:
@@ -392,7 +403,20 @@ def main(argv: list[str] | None = None) -> int:
 
     recs = given_records(args.sweeps)
     replaced = {s for s in args.replace.split(",") if s}
-    from hnnbench._contracts.names import DEFAULT_TRACK, name_problem
+    from hnnbench._contracts.names import DEFAULT_TRACK, TRACKS, name_problem
+
+    withdrawn: set[tuple[str, str | None]] = set()
+    for item in (s for s in args.withdraw.split(",") if s):
+        system, _, track = item.partition("/")
+        problem = name_problem("system", system) or (
+            f"unknown track {track!r} (tracks: {', '.join(TRACKS)})"
+            if track and track not in TRACKS
+            else None
+        )
+        if problem:
+            print(f"publish: --withdraw {item}: {problem}", file=sys.stderr)
+            return 2
+        withdrawn.add((system, track or None))
 
     for system in sorted(replaced):
         problem = name_problem("system", system)
@@ -411,7 +435,11 @@ def main(argv: list[str] | None = None) -> int:
     # replaced system go.
     given = {job_of(r) for r in recs}
     superseded = {
-        job for job in published_jobs() - given if job[0] == DEFAULT_TRACK and job[1] in replaced
+        job
+        for job in published_jobs() - given
+        if (job[0] == DEFAULT_TRACK and job[1] in replaced)
+        or (job[1], None) in withdrawn
+        or (job[1], job[0]) in withdrawn
     }
     stale = published_jobs() - given - superseded
     if stale:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 import types
 
@@ -145,6 +146,36 @@ def test_a_system_is_replaced_in_one_step(tree, tmp_path):
         ("spring", "mlp_jax", "seed0"),
         ("pendulum", "hnn_jax", "seed0"),
     }
+
+
+def test_a_system_is_withdrawn_until_its_republication(tree, tmp_path):
+    """--withdraw S removes S's published records (every track) with no replacement;
+    S/TRACK only that track's; a bad name or track is one line and nothing moves."""
+    first = tmp_path / "first"
+    for model in ("hnn_jax", "mlp_jax"):
+        write_run(first, "spring", model, 0, profile="paper", rollout=False)
+        write_run(first, "pendulum", model, 0, profile="paper", rollout=False)
+    tuned = tmp_path / "tuned"
+    job = write_run(tuned, "pendulum", "hnn_jax", 0, profile="paper", rollout=False)
+    record = json.loads((job / "result.json").read_text())
+    record["track"] = "recipe"
+    record["config"]["track"] = "recipe"
+    (job / "result.json").write_text(json.dumps(record))
+    assert publish_results.copy_records([first, tuned]) == 5
+    published = tree / "results" / "records"
+    spring = published / "spring"
+    assert publish_results.main([str(spring), "--withdraw", "pendulum/nosuchtrack"]) == 2
+    assert publish_results.main([str(spring), "--withdraw", "../x"]) == 2
+    assert len(list(published.rglob("result.json"))) == 5  # nothing moved
+    assert (
+        publish_results.main(
+            [str(spring), str(published / "pendulum" / "mlp_jax"), "--withdraw", "pendulum/recipe"]
+        )
+        == 2
+    )  # hnn_jax protocol
+    assert publish_results.main([str(spring), "--withdraw", "pendulum"]) == 0
+    kept = {(p.parts[-4], p.parts[-3], p.parts[-2]) for p in published.rglob("result.json")}
+    assert kept == {("spring", "hnn_jax", "seed0"), ("spring", "mlp_jax", "seed0")}
 
 
 def test_the_family_table_is_published_with_the_notes_of_its_status_cells():
