@@ -11,7 +11,7 @@ JOBS ?= $(shell env -u OMP_NUM_THREADS nproc 2>/dev/null || echo 1)
 SYSTEMS ?= all
 MODELS ?= all
 # Seeds of `make benchmark` (the committed leaderboard is built by scripts/maintainer/paper_sweep.sh:
-# seeds 0-4 of the JAX twins and the oracle, 0-2 of the torch twins).
+# seeds 0-9 of the JAX twins, the oracle and standing_still; 0-2 of the torch twins).
 SEEDS ?= 0
 PYTEST_ARGS ?=
 
@@ -35,8 +35,8 @@ quick: setup
 	$(VENV)/hnnbench -m system=all model=all profile=quick hydra/launcher=joblib hydra.launcher.n_jobs=$(JOBS)
 
 # The CI gate's reference (tests/e2e/test_ci_gate.py sweeps exactly the pairs it holds):
-# every system x the JAX twin of every neural family + the oracle, and the torch twins
-# on the spring; quick, seed 0.
+# every system x the JAX twin of every neural family + the oracle and the standing_still
+# reference, and the torch twins on the spring; quick, seed 0.
 GATE_MODELS := mlp_jax,hnn_jax,dhnn_jax,lnn_jax,so_mlp_jax,srnn_jax,oracle,standing_still
 GATE_TORCH := mlp_torch,hnn_torch,dhnn_torch,lnn_torch,so_mlp_torch,srnn_torch
 GATE_DIR := results/runs/ci-reference

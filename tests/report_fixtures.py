@@ -130,6 +130,28 @@ def _installed_version(kind: str, name: str) -> str:
     return info.version if info is not None and info.ok else "1"
 
 
+def _declared(model: str) -> dict[str, Any]:
+    """``family``, ``backend``, ``ranked`` (and ``reference`` where it has one) as the
+    installed model's class declares them (what a strict load compares a record's fields
+    with); for a model not installed, guessed from its name."""
+    info = registry.discover("model").get(model)
+    if info is not None and info.ok:
+        cls = info.cls
+        out = {
+            "backend": getattr(cls, "backend", None),
+            "family": getattr(getattr(cls, "family", None), "name", None),
+            "ranked": bool(getattr(cls, "ranked", True)),
+        }
+        if getattr(cls, "reference", None) is not None:
+            out["reference"] = cls.reference
+        return out
+    return {
+        "backend": BACKEND.get(model, model.rsplit("_", 1)[-1]),
+        "family": model.rsplit("_", 1)[0] if model != "oracle" else None,
+        "ranked": model != "oracle",
+    }
+
+
 @functools.cache
 def _config_text(system: str, model: str, profile: str, overrides: tuple[str, ...]) -> str:
     from omegaconf import OmegaConf
@@ -181,9 +203,7 @@ def write_run(
         "system_version": _installed_version("system", system),
         "model": model,
         "model_version": _installed_version("model", model),
-        "backend": BACKEND.get(model, model.rsplit("_", 1)[-1]),
-        "family": model.rsplit("_", 1)[0] if model != "oracle" else None,
-        "ranked": model != "oracle",
+        **_declared(model),
         "seed": seed,
         "profile": profile,
         "status": status,

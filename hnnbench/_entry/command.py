@@ -295,7 +295,7 @@ def summary_rows(record: dict) -> list[list[Any]]:
     is left out; so is one that has no value for this model)."""
     import math
 
-    from hnnbench._table import direction_header, metric_declarations
+    from hnnbench._results.leaderboard import direction_header, metric_declarations
 
     declared = metric_declarations()
     rows = []

@@ -453,13 +453,10 @@ def _holm(
 ) -> tuple[dict[Any, float], dict[Any, bool]]:
     """:func:`hnnbench._results.stats.leader_test` of the leader against ``others``, each on the
     seeds it shares with the leader: ``({other: Holm-adjusted p}, {other: separated})``."""
-    raw = {}
-    for i in others:
-        p, _, n = stats.sign_test(
-            [seeds[leader][s] for s in shared[i]], [seeds[i][s] for s in shared[i]], better
-        )
-        raw[i] = min(1.0, 2.0 * p) if n else 1.0
-    adjusted, separated = stats.holm(list(raw.values()))
+    pairs = [
+        ([seeds[leader][s] for s in shared[i]], [seeds[i][s] for s in shared[i]]) for i in others
+    ]
+    adjusted, separated = stats.paired_leader_test(pairs, better)
     return dict(zip(others, adjusted, strict=True)), dict(zip(others, separated, strict=True))
 
 

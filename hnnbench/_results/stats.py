@@ -33,6 +33,7 @@ __all__ = [
     "holm",
     "iqm",
     "leader_test",
+    "paired_leader_test",
     "mean_intervals",
     "min_separable_seeds",
     "normalisation_scale",
@@ -171,9 +172,19 @@ def leader_test(
     doubled), the p-values adjusted by Holm's step-down. Returns ``(adjusted p,
     separated)`` per other, in order: ``separated[j]`` where Holm rejects "the leader
     and other ``j`` are alike" at ``alpha``. The leader is best when every one is."""
+    return paired_leader_test([(leader, other) for other in others], better, alpha)
+
+
+def paired_leader_test(
+    pairs: Sequence[tuple[Sequence[float] | np.ndarray, Sequence[float] | np.ndarray]],
+    better: str = "lower",
+    alpha: float = ALPHA,
+) -> tuple[list[float], list[bool]]:
+    """:func:`leader_test` where each comparison has its own paired seeds: ``pairs[j]``
+    is ``(the leader's values, other j's values)`` on the seeds the two share."""
     raw = []
-    for other in others:
-        p, _, n = sign_test(np.asarray(leader, dtype=float), np.asarray(other, dtype=float), better)
+    for mine, theirs in pairs:
+        p, _, n = sign_test(np.asarray(mine, dtype=float), np.asarray(theirs, dtype=float), better)
         raw.append(min(1.0, 2.0 * p) if n else 1.0)
     return holm(raw, alpha)
 

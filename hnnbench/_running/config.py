@@ -102,7 +102,7 @@ class RunConfig:
             space, selected settings, CPU seconds; set by ``hnnbench tune``), copied into
             the record; ``null`` for every other track.
         log_to: experiment trackers each finished job is exported to
-            (:mod:`hnnbench._tracking`): ``[mlflow, tensorboard]``, ``mlflow`` or
+            (:mod:`hnnbench._running.tracking`): ``[mlflow, tensorboard]``, ``mlflow`` or
             ``tensorboard``; ``[]`` (default): none.
         mlflow_uri: the MLflow tracking store (``null``: ``sqlite:///<sweep
             dir>/mlflow.db``).

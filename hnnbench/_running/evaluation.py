@@ -61,7 +61,7 @@ def failed_metrics(
 
 
 #: ``progress(metric, index, total, seconds)``: a metric that applies starts
-#: (``seconds`` None) or is done (:class:`hnnbench._progress.EvaluationProgress`).
+#: (``seconds`` None) or is done (:class:`hnnbench._running.progress.EvaluationProgress`).
 MetricProgress = Callable[[str, int, int, Optional[float]], None]
 
 

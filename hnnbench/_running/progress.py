@@ -116,7 +116,7 @@ class TrainingProgress:
 
 
 class EvaluationProgress:
-    """Context manager; pass :meth:`update` to :func:`hnnbench._evaluate.evaluate` as its
+    """Context manager; pass :meth:`update` to :func:`hnnbench._running.evaluation.evaluate` as its
     ``progress``: called with ``(metric, index, total, None)`` when a metric that applies
     starts and ``(metric, index, total, seconds)`` when it is done. A bar shows the metric
     being computed; a log says when the evaluation starts (``spring/hnn_jax s0

@@ -2,7 +2,7 @@
 TensorBoard, when the ``log_to`` setting asks for them (off by default).
 
 The job hands each record to :func:`export` right after writing it
-(:func:`hnnbench._running.job.run_seed_outcomes`; a record kept from an earlier run is not sent
+(:func:`hnnbench._running.job.run_job`; a record kept from an earlier run is not sent
 again), which sends
 
 - to **MLflow** (``log_to=mlflow``): one run per record, named

@@ -456,7 +456,7 @@ def main(argv: list[str] | None = None) -> int:
     status, summary = write_pages(args.figure)
     if status:
         return status
-    import job_costs  # scripts/: the sweep's estimate reads the published job times
+    import job_costs  # scripts/maintainer/: the sweep's estimate reads the published job times
 
     job_costs.main([])
     print(

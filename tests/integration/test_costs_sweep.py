@@ -27,19 +27,3 @@ def test_the_committed_job_costs_are_what_the_script_writes():
     assert published, "no published records"
     assert all(table[("paper", system, model)] > 0 for system, model in published)
     assert table[("quick", "spring", "oracle")] > 0
-
-
-def test_a_sweep_prints_its_estimate_and_progress(tmp_path):
-    from conftest import hnnbench
-
-    proc = hnnbench(
-        "-m",
-        "system=spring",
-        "model=oracle",
-        "profile=quick",
-        "seed=0,1",
-        f"hydra.sweep.dir={tmp_path / 'sweep'}",
-        cwd=tmp_path,
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert "hnnbench: the published runs of these jobs took" in proc.stderr, proc.stderr

@@ -578,7 +578,7 @@ def test_a_claim_on_a_model_that_did_not_train_is_not_tested_and_a_recipe_is_nam
 
 
 def test_figures_of_many_panels_wrap_into_rows():
-    from hnnbench._report.figures import MAX_COLUMNS, _new_figure
+    from hnnbench._results.report.figures import MAX_COLUMNS, _new_figure
 
     fig, axes = _new_figure(13, width=3.8, height=3.4)
     assert len(axes) == 13 and MAX_COLUMNS == 4
@@ -592,7 +592,7 @@ def test_figures_of_many_panels_wrap_into_rows():
 def test_colours_are_the_familys_shaded_per_twin_and_stable():
     """One colour per family, from the registry's order, whatever rows a figure holds;
     its twins in shades of it; colour-blind-safe hues; no red-green rank scale."""
-    from hnnbench._report import figures, style
+    from hnnbench._results.report import figures, style
 
     families = {"mlp_torch": "mlp", "mlp_jax": "mlp", "hnn_torch": "hnn", "hnn_jax": "hnn"}
     alone = style.color("hnn_jax", {"hnn_jax": "hnn"}, ["hnn_jax"])
@@ -603,9 +603,15 @@ def test_colours_are_the_familys_shaded_per_twin_and_stable():
     assert style.family_color("mlp") != style.family_color("hnn")
     assert style.family_color("mlp") in style.PALETTE[:6]  # Okabe & Ito's
     assert style.family_color("oracle") in style.REFERENCE_COLORS
-    assert style.family_color("a_family_not_installed") == style.family_color(
-        "a_family_not_installed"
+    import subprocess
+    import sys
+
+    code = (
+        "from hnnbench._results.report import style; "
+        "print(style.family_color('a_family_not_installed'))"
     )
+    other = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert other.stdout.strip() == style.family_color("a_family_not_installed")  # stable
     torch, jax = (style.line(m, "", families, [m]) for m in ("hnn_torch", "hnn_jax"))
     assert torch["ls"] != jax["ls"] and torch["lw"] > jax["lw"]
     assert "RdYlGn" not in figures.RANK_CMAP and "viridis" in figures.RANK_CMAP

@@ -23,10 +23,8 @@ from hnnbench._results.check.findings import (
 from hnnbench._results.check.ranks import Rank, rank_lines
 from hnnbench._results.check.records import (
     budget_findings,
-    plugin_information,
     record_variants,
     validate_records,
-    variant_findings,
 )
 from hnnbench._results.check.reference import (
     COUNT_COLUMNS,
@@ -56,7 +54,6 @@ __all__ = [
     "load_rules",
     "main",
     "missing_line",
-    "plugin_information",
     "rank_lines",
     "read_reference",
     "record_variants",
@@ -65,5 +62,4 @@ __all__ = [
     "row_key",
     "update_hint",
     "validate_records",
-    "variant_findings",
 ]
