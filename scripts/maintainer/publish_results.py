@@ -565,7 +565,7 @@ def write_pages(figure_name: str) -> tuple[int, dict[str, Any]]:
         text, "tracks", report.files["tracks_md"].read_text().removeprefix("# Tracks").strip()
     )
     listing = f"- Systems published: {', '.join(md_code(s) for s in systems)}"
-    for line in partial_lines(published):
+    for line in protocol_lines(report.records) + partial_lines(published):
         listing += "\n" + line
     results_readme.write_text(replace_block(text, "provenance", f"{prov}\n{listing}"))
     return 0, {
@@ -574,6 +574,39 @@ def write_pages(figure_name: str) -> tuple[int, dict[str, Any]]:
         "figures": len(report.figures),
         "stale_figures_removed": [p.name for p in removed],
     }
+
+
+def protocol_lines(recs: list[dict[str, Any]]) -> list[str]:
+    """Which protocol each published system's protocol-track records were made under
+    (their record schema and hnnbench versions: a leaderboard re-published in parts
+    mixes them), and the installed systems with no published record."""
+    from hnnbench._contracts.names import DEFAULT_TRACK
+    from hnnbench._record.tracks import track_of
+    from hnnbench._registry.groups import available
+    from hnnbench._results.report.markdown import md_code
+
+    made: dict[tuple[int, str], set[str]] = {}
+    for rec in recs:
+        if track_of(rec) != DEFAULT_TRACK:
+            continue
+        version = str((rec.get("environment") or {}).get("hnnbench") or "?")
+        made.setdefault((int(rec.get("schema_version") or 0), version), set()).add(rec["system"])
+    lines = []
+    newest = max((schema for schema, _ in made), default=0)
+    for (schema, version), systems in sorted(made.items(), reverse=True):
+        when = "the current protocol" if schema == newest else "an earlier protocol"
+        lines.append(
+            f"- Under {when} (record schema {schema}, hnnbench {version}): "
+            + ", ".join(md_code(s) for s in sorted(systems))
+        )
+    published = {s for systems in made.values() for s in systems}
+    absent = [s for s in available("system") if s not in published]
+    if absent:
+        lines.append(
+            f"- Not published: {', '.join(md_code(s) for s in absent)} (withdrawn until "
+            "re-published under the current protocol, or not run)"
+        )
+    return lines
 
 
 def partial_lines(published: set[Path] | list[Path]) -> list[str]:

@@ -221,3 +221,34 @@ def test_pages_only_rebuilds_the_pages_of_the_committed_records(tree, tmp_path):
     assert (tree / "results" / "leaderboard.html").is_file()
     with pytest.raises(SystemExit):
         publish_results.main(["--pages-only", str(first)])
+
+
+def test_the_results_page_says_which_protocol_each_system_was_published_under():
+    """A leaderboard re-published in parts mixes protocols: the provenance block names
+    each system's record schema and hnnbench version, and the systems not published."""
+
+    def rec(system: str, schema: int, version: str, track: str = "protocol") -> dict:
+        return {
+            "system": system,
+            "schema_version": schema,
+            "track": track,
+            "environment": {"hnnbench": version},
+        }
+
+    lines = publish_results.protocol_lines(
+        [
+            rec("spring", 2, "0.4.0"),
+            rec("real_pendulum", 3, "0.5.0"),
+            rec("real_pendulum", 3, "0.5.0", track="tuned"),
+            rec("pendulum", 2, "0.4.0"),
+        ]
+    )
+    assert (
+        lines[0]
+        == "- Under the current protocol (record schema 3, hnnbench 0.5.0): `real_pendulum`"
+    )
+    assert lines[1] == (
+        "- Under an earlier protocol (record schema 2, hnnbench 0.4.0): `pendulum`, `spring`"
+    )
+    assert lines[2].startswith("- Not published: `two_body`") or "`two_body`" in lines[2]
+    assert "`spring`" not in lines[2] and "`real_pendulum`" not in lines[2]
