@@ -35,6 +35,8 @@ __all__ = [
 #: The selection rule of records of schema versions 1 and 2: the checkpoint of the
 #: lowest validation loss (``selection.rule``).
 LEGACY_SELECTION_RULE = "lowest validation loss over the evaluations"
+#: The test loss's column in a schema-1 record's training log (later logs have none).
+LEGACY_HISTORY_TEST = "test_loss"
 #: How far apart two copies of one float may be (the record's JSON round trip is exact;
 #: this only absorbs a plugin's float32 losses printed through float64).
 REL_TOL = 1e-9
@@ -64,10 +66,13 @@ class SchemaRule:
 #: standard errors (docs/METRICS.md, "Checkpoint selection").
 RULES: Mapping[int, SchemaRule] = {
     1: SchemaRule(
-        1, "legacy rule of schema 1", (LEGACY_SELECTION_RULE,), ("val_loss", "test_loss")
+        1,
+        "legacy rule of schema 1",
+        (LEGACY_SELECTION_RULE,),
+        (HISTORY_VALID, LEGACY_HISTORY_TEST),
     ),
-    2: SchemaRule(2, "legacy rule of schema 2", (LEGACY_SELECTION_RULE,), ("val_loss",)),
-    3: SchemaRule(3, "rule of schema 3", (SELECTION_RULE,), ("val_loss",)),
+    2: SchemaRule(2, "legacy rule of schema 2", (LEGACY_SELECTION_RULE,), (HISTORY_VALID,)),
+    3: SchemaRule(3, "rule of schema 3", (SELECTION_RULE,), (HISTORY_VALID,)),
 }
 
 

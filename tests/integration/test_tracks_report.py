@@ -235,7 +235,7 @@ def test_the_tracks_table_shows_the_tuning_gain_with_its_interval_negative_where
     assert "## Tuning gain" in text and "×0.1 [×0.1, ×0.1] (6)" in text and "×10" in text
     assert "## The studies" in text and "4 x 20 x 2" in text and "field_mse_clean" in text
     tracks = pd.read_csv(report.files["tracks"], keep_default_na=False)
-    assert {"protocol", "tuned", "protocol_effect", "tuned_effect", "standing_still"} <= set(
+    assert {"protocol", "tuned", "protocol_effect", "tuned_effect", "still_mean"} <= set(
         tracks.columns
     )
     studies = studies_frame(report.records)
@@ -264,5 +264,5 @@ def test_the_tracks_table_shows_the_standing_still_reference():
     )  # fmt: skip
     frame = tracks_frame(Families(board), ["energy_mse"])
     row = frame.iloc[0]
-    assert row["standing_still"] == "0.25" or row["standing_still"].startswith("2.5")
+    assert row["still_mean"] == "0.25" or row["still_mean"].startswith("2.5")
     assert row["protocol_effect"] == "×10 [×3.2, ×32] vs mlp" and row["tuned_effect"] == ""

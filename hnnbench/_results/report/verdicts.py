@@ -40,6 +40,10 @@ __all__ = [
     "tuning_costs",
 ]
 
+#: The tracks table's column of the standing-still reference's mean (the zero-field
+#: reference: a model that predicts no motion).
+STILL_COLUMN = "still_mean"
+
 
 @dataclass
 class Verdicts:
@@ -521,7 +525,7 @@ def _main_rows_by_track(board: pd.DataFrame) -> pd.DataFrame:
 def tracks_frame(fams: Families, metrics: Optional[list[str]] = None) -> pd.DataFrame:
     """The verdicts of every track side by side (docs/TUNING.md): one row per (profile,
     system, metric of ``metrics``, default the headline ones) where some track other
-    than the protocol has family rows; ``standing_still``: the standing-still
+    than the protocol has family rows; ``still_mean``: the standing-still
     reference's mean (the first track that has one; ``""`` where none ran); a column per
     track present (its :func:`_leaders` text) and ``<track>_effect``: its leader's paired
     effect over the runner-up with its interval (the families table's ``<metric>_effect``,
@@ -557,7 +561,7 @@ def tracks_frame(fams: Families, metrics: Optional[list[str]] = None) -> pd.Data
                     "profile": profile,
                     "system": system,
                     "metric": metric,
-                    "standing_still": _standing_still_text(group, metric),
+                    STILL_COLUMN: _standing_still_text(group, metric),
                     **verdicts,
                     **effects,
                     "changes": changes,
@@ -661,13 +665,13 @@ def tracks_markdown(
     tracks = [
         c
         for c in frame.columns
-        if c not in ("profile", "system", "metric", "changes", "mean_changes", "standing_still")
+        if c not in ("profile", "system", "metric", "changes", "mean_changes", STILL_COLUMN)
         and not c.endswith("_effect")
     ]
     lines += [
         "Each cell names the best family, or the families tied for the lead with the "
         "best mean first; `<track>_effect` is that track's leader's paired effect over "
-        "its runner-up with its interval (docs/STATISTICS.md), and `standing_still` the "
+        "its runner-up with its interval (docs/STATISTICS.md), and `still_mean` the "
         "standing-still reference's mean, the value a model that predicts no motion "
         "scores. A verdict changes between two tracks where their leaders "
         f"have no family in common. A track of fewer than "
