@@ -172,6 +172,7 @@ def jobs(system_name: str, model_name: str, steps: int) -> tuple[float, float]:
 
 
 def main() -> int:
+    global SEEDS
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--systems", nargs="+", default=["two_body", "real_pendulum"])
     parser.add_argument("--models", nargs="+", default=list(JAX_TWINS))
@@ -188,7 +189,6 @@ def main() -> int:
         "--ops", action="store_true", help="count ATen calls per step instead (torch models only)"
     )
     args = parser.parse_args()
-    global SEEDS
     SEEDS = tuple(range(args.seeds))
 
     if args.ops:
