@@ -631,3 +631,16 @@ def test_a_long_figure_title_is_wrapped_to_the_figure_width():
     fig.suptitle("short")
     _fit_suptitle(fig)
     assert fig._suptitle.get_text() == "short"
+
+
+def test_the_pages_across_systems_section_leads_with_the_mean_ranks(sweep):
+    """The HTML page's headline is aggregate.md's: the mean ranks (no normalisation)
+    before the IQM of normalised scores, which is labelled a second view."""
+    report.main([str(sweep), "--no-figures"])
+    page = (sweep / "leaderboard.html").read_text()
+    section = page.split('id="across"')[1].split("<h2")[0]
+    assert "mean rank" in section
+    if "second view" in section:
+        assert section.index("mean rank") < section.index("second view")
+    md = (sweep / "aggregate.md").read_text()
+    assert ("second view" in md) == ("second view" in section)

@@ -34,8 +34,12 @@ from hnnbench._results.report.tables import (
 from hnnbench._results.report.verdicts import (
     Verdicts,
     aggregate_frame,
+    findings_lines,
     left_out_lines,
     marks_line,
+    order_lines,
+    rank_frame,
+    rank_left_out_lines,
     scope_line,
     supported_lines,
 )
@@ -250,29 +254,53 @@ def _provenance_table(recs: Sequence[dict[str, Any]]) -> pd.DataFrame:
 
 
 def _aggregate_section(verdicts: Verdicts, figures: list[Made], img: Any) -> list[str]:
-    """The headline: the aggregate's table first, then how to read it and what its
-    intervals support, then the performance profiles (``img(made)``: the figure's tag)."""
+    """The headline as aggregate.md has it: the mean ranks (free of any normalisation)
+    first, what the intervals of P(A > B) support, the separated bests with their
+    effects, then the IQM of normalised scores as a second view and how its order hangs
+    on the floor, then the performance profiles (``img(made)``: the figure's tag)."""
     agg, key = verdicts.aggregate, verdicts.main
     parts = ['<h2 id="across">Across systems</h2>']
     scope = scope_line(verdicts)
-    table = aggregate_frame(agg, key=key) if not agg.empty else pd.DataFrame()
-    if table.empty:
-        if scope:
-            parts.append(f'<p class="note">{_inline_code(scope)}</p>')
-        why = agg.note if agg.empty else "no (system, metric) of this scope is normalised"
-        parts.append(f'<p class="note">No aggregate: {_esc(why)}.</p>')
-        parts += [f'<p class="note">{_inline_code(line)}</p>' for line in left_out_lines(agg, key)]
-        return parts
-    rule = stats.aggregate_rule(agg.baseline or "the baseline")
-    parts.append(_table(table, "aggregate"))
     if scope:
         parts.append(f'<p class="note">{_inline_code(scope)}</p>')
-    parts += [
-        f'<p class="note">{_inline_code(rule)}</p>',
-        '<p class="note">What the intervals support:</p><ul>',
-    ]
+    ranks = rank_frame(agg, key=key) if not agg.ranks.empty else pd.DataFrame()
+    table = aggregate_frame(agg, key=key) if not agg.iqm.empty else pd.DataFrame()
+    if ranks.empty and table.empty:
+        why = agg.note if agg.empty else "no (system, metric) of this scope is normalised"
+        parts.append(f'<p class="note">No aggregate: {_esc(why or "nothing to aggregate")}.</p>')
+        parts += [f'<p class="note">{_inline_code(line)}</p>' for line in left_out_lines(agg, key)]
+        return parts
+    if not ranks.empty:
+        parts.append(f'<p class="note">{_inline_code(stats.rank_rule())}</p>')
+        parts.append(_table(ranks, "aggregate"))
+        parts += [
+            f'<p class="note">{_inline_code(line)}</p>' for line in rank_left_out_lines(agg, key)
+        ]
+    parts.append('<p class="note">What the intervals support:</p><ul>')
     parts += [f"<li>{_inline_code(line[2:])}</li>" for line in supported_lines(agg, key=key)]
     parts.append(f"<li>{_inline_code(marks_line(verdicts.families, key=key))}</li></ul>")
+    found = findings_lines(verdicts.families, key)
+    if found:
+        parts.append(
+            '<p class="note">Separated bests per system, with the leader\'s median paired '
+            "effect over the runner-up [interval] (×: a factor on a log-scale metric, +: a "
+            "difference):</p><ul>"
+        )
+        parts += [f"<li>{_inline_code(line[2:])}</li>" for line in found]
+        parts.append("</ul>")
+    if not table.empty:
+        rule = stats.aggregate_rule(agg.baseline or "the baseline")
+        parts.append(
+            f'<p class="note">A second view, which depends on a choice of scale: '
+            f"{_inline_code(rule)}</p>"
+        )
+        parts.append(_table(table, "aggregate-iqm"))
+        moves = order_lines(agg, key)
+        if moves:
+            parts.append(
+                f'<p class="note">How its order hangs on the floor: '
+                f"{_inline_code(' '.join(moves))}</p>"
+            )
     parts += [f'<p class="note">{_inline_code(line)}</p>' for line in left_out_lines(agg, key)]
     parts += [img(m) for m in figures if m.kind == "profile"]
     return parts
