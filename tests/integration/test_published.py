@@ -103,10 +103,12 @@ def test_the_family_table_and_the_aggregate_are_those_of_the_committed_records(r
 
 
 def test_the_results_page_sets_the_tracks_of_the_committed_records_side_by_side(rebuilt, committed):
+    from hnnbench._results.report.tuning import gain_markdown, studies_frame, tuning_gain
     from hnnbench._results.report.verdicts import tracks_frame, tracks_markdown, tuning_costs
 
     fams = families(records_frame(committed), rebuilt)
-    expected = tracks_markdown(tracks_frame(fams), tuning_costs(fams)).strip()
+    gain = gain_markdown(tuning_gain(fams), studies_frame(committed))
+    expected = tracks_markdown(tracks_frame(fams), tuning_costs(fams), gain).strip()
     assert _block(PAGE.read_text(), "tracks").strip() == expected
     assert (RESULTS / "tracks.md").read_text().strip() == f"# Tracks\n\n{expected}"
 
@@ -253,7 +255,9 @@ def test_every_tuned_system_has_every_family_on_equal_budgets(committed):
     """docs/TUNING.md's promise, read from the committed records: on each system with
     tuned rows, every ranked family of the protocol track has them, each family's study
     had the same trials of the same steps, selected on validation, and each family's
-    seeds 0 to 4 share the one selected configuration; at least five such systems."""
+    seeds 0 to 4 share the one selected configuration; at least one such system (the
+    earlier tuner's rows of systems whose protocol rows were re-published are
+    withdrawn until issue 50's studies replace them)."""
     from hnnbench._record.tracks import track_of
     from hnnbench._results.check.records import budget_findings
 
@@ -278,4 +282,4 @@ def test_every_tuned_system_has_every_family_on_equal_budgets(committed):
                 system,
                 fam,
             )
-    assert len({s for s, _ in pairs}) >= 5, sorted({s for s, _ in pairs})  # issue #32
+    assert pairs, "no tuned rows"
