@@ -202,3 +202,31 @@ def _absl_logging_writes_to_the_real_stderr():
         if handler.stream is not sys.__stderr__:
             handler.stream = sys.__stderr__
     yield
+
+
+@pytest.fixture()
+def tree(tmp_path, monkeypatch):
+    """A repository root of its own: README.md (no markers: the blocks are the results
+    page's) and results/README.md with their markers, results/figures holding a stale
+    figure; publish_results writes there."""
+    import types
+
+    from publish_fixtures import publish_results
+
+    root = tmp_path / "repo"
+    (root / "results" / "figures").mkdir(parents=True)
+    (root / "README.md").write_text("# x\n\nSee [results](results/README.md).\n")
+    (root / "results" / "README.md").write_text(
+        "# x\n\n<!-- aggregate:begin -->\n<!-- aggregate:end -->\n\n"
+        "<!-- leaderboard:begin -->\n<!-- leaderboard:end -->\n\n"
+        "<!-- tracks:begin -->\n<!-- tracks:end -->\n\n"
+        "<!-- provenance:begin -->\n<!-- provenance:end -->\n"
+    )
+    (root / "results" / "figures" / "old_system_energy.png").write_bytes(b"stale")
+    monkeypatch.setattr(publish_results, "ROOT", root)
+    monkeypatch.setattr(publish_results, "RESULTS", root / "results")
+    monkeypatch.setattr(publish_results, "RECORDS", root / "results" / "records")
+    fake = types.ModuleType("job_costs")
+    fake.main = lambda argv: 0  # the real one rewrites the installed job costs
+    monkeypatch.setitem(sys.modules, "job_costs", fake)
+    return root

@@ -60,6 +60,19 @@ def _mode() -> str:
     return mode
 
 
+def _exit_if_abandoned(label: str) -> None:
+    """A launcher worker whose command was killed alone: nothing waits for this job or
+    this process. Exit now; no record, so a re-run redoes it."""
+    if launch_context.abandoned():
+        log.warning(
+            "%s: the hnnbench command that started this job has gone; "
+            "exiting (re-run the command to resume the sweep)",
+            label,
+        )
+        logging.shutdown()
+        os._exit(130)
+
+
 class TrainingProgress:
     """Context manager; pass :meth:`update` to ``Model.fit`` as its ``progress``."""
 
@@ -85,16 +98,7 @@ class TrainingProgress:
         """Show the update; return the observer's answer (``True``: stop training)."""
         if time.monotonic() >= self._next_check:
             self._next_check = time.monotonic() + CHECK_EVERY_S
-            if launch_context.abandoned():
-                # A launcher worker whose command was killed alone: nothing waits for
-                # this job or this process. Exit now; no record, so a re-run redoes it.
-                log.warning(
-                    "%s: the hnnbench command that started this job has gone; "
-                    "exiting (re-run the command to resume the sweep)",
-                    self.label,
-                )
-                logging.shutdown()
-                os._exit(130)
+            _exit_if_abandoned(self.label)
         if self._bar is not None:
             self._bar.update(step - self._last)
             self._bar.set_postfix({k: f"{v:.3g}" for k, v in losses.items()}, refresh=False)
@@ -138,14 +142,7 @@ class EvaluationProgress:
         (``seconds`` None) or is done."""
         if time.monotonic() >= self._next_check:
             self._next_check = time.monotonic() + CHECK_EVERY_S
-            if launch_context.abandoned():  # as TrainingProgress: nobody waits for this job
-                log.warning(
-                    "%s: the hnnbench command that started this job has gone; "
-                    "exiting (re-run the command to resume the sweep)",
-                    self.label,
-                )
-                logging.shutdown()
-                os._exit(130)
+            _exit_if_abandoned(self.label)
         if self.mode == "bar":
             from tqdm.auto import tqdm
 

@@ -3,40 +3,10 @@ whole report; tests/unit/test_publish_script.py has the rest)."""
 
 from __future__ import annotations
 
-import sys
-import types
-
 import pandas as pd
 import pytest
-from conftest import REPO
+from publish_fixtures import publish_results
 from report_fixtures import write_run
-
-sys.path.insert(0, str(REPO / "scripts" / "maintainer"))
-import publish_results  # noqa: E402
-
-
-@pytest.fixture()
-def tree(tmp_path, monkeypatch):
-    """A repository root of its own: README.md (no markers: the blocks are the results
-    page's) and results/README.md with their markers, results/figures holding a stale
-    figure; publish_results writes there."""
-    root = tmp_path / "repo"
-    (root / "results" / "figures").mkdir(parents=True)
-    (root / "README.md").write_text("# x\n\nSee [results](results/README.md).\n")
-    (root / "results" / "README.md").write_text(
-        "# x\n\n<!-- aggregate:begin -->\n<!-- aggregate:end -->\n\n"
-        "<!-- leaderboard:begin -->\n<!-- leaderboard:end -->\n\n"
-        "<!-- tracks:begin -->\n<!-- tracks:end -->\n\n"
-        "<!-- provenance:begin -->\n<!-- provenance:end -->\n"
-    )
-    (root / "results" / "figures" / "old_system_energy.png").write_bytes(b"stale")
-    monkeypatch.setattr(publish_results, "ROOT", root)
-    monkeypatch.setattr(publish_results, "RESULTS", root / "results")
-    monkeypatch.setattr(publish_results, "RECORDS", root / "results" / "records")
-    fake = types.ModuleType("job_costs")
-    fake.main = lambda argv: 0  # the real one rewrites the installed job costs
-    monkeypatch.setitem(sys.modules, "job_costs", fake)
-    return root
 
 
 @pytest.mark.slow

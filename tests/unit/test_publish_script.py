@@ -3,15 +3,10 @@
 from __future__ import annotations
 
 import json
-import sys
-import types
 
 import pytest
-from conftest import REPO
+from publish_fixtures import publish_results
 from report_fixtures import write_run
-
-sys.path.insert(0, str(REPO / "scripts" / "maintainer"))
-import publish_results  # noqa: E402
 
 
 def test_a_job_in_two_sweeps_is_refused_not_counted_twice(tmp_path, monkeypatch):
@@ -85,30 +80,6 @@ def test_a_row_of_another_track_is_published_beside_the_protocols(tmp_path, monk
     }
     with pytest.raises(SystemExit, match=r"\('recipe', 'spring', 'hnn_torch', 0\) is in both"):
         publish_results.copy_records([recipe, recipe])
-
-
-@pytest.fixture()
-def tree(tmp_path, monkeypatch):
-    """A repository root of its own: README.md (no markers: the blocks are the results
-    page's) and results/README.md with their markers, results/figures holding a stale
-    figure; publish_results writes there."""
-    root = tmp_path / "repo"
-    (root / "results" / "figures").mkdir(parents=True)
-    (root / "README.md").write_text("# x\n\nSee [results](results/README.md).\n")
-    (root / "results" / "README.md").write_text(
-        "# x\n\n<!-- aggregate:begin -->\n<!-- aggregate:end -->\n\n"
-        "<!-- leaderboard:begin -->\n<!-- leaderboard:end -->\n\n"
-        "<!-- tracks:begin -->\n<!-- tracks:end -->\n\n"
-        "<!-- provenance:begin -->\n<!-- provenance:end -->\n"
-    )
-    (root / "results" / "figures" / "old_system_energy.png").write_bytes(b"stale")
-    monkeypatch.setattr(publish_results, "ROOT", root)
-    monkeypatch.setattr(publish_results, "RESULTS", root / "results")
-    monkeypatch.setattr(publish_results, "RECORDS", root / "results" / "records")
-    fake = types.ModuleType("job_costs")
-    fake.main = lambda argv: 0  # the real one rewrites the installed job costs
-    monkeypatch.setitem(sys.modules, "job_costs", fake)
-    return root
 
 
 def test_publishing_without_the_published_records_is_refused(tree, tmp_path):
