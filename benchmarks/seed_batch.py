@@ -215,7 +215,12 @@ def main() -> int:
             if args.jobs:
                 row += jobs(system_name, model_name, args.steps)
             rows.append(row)
-            print(f"  measured {system_name} x {model_name}", file=sys.stderr, flush=True)
+            print(
+                f"  measured {system_name} x {model_name}: {len(SEEDS)} fits {sep:.2f} s, "
+                f"one batch {bat:.2f} s, ratio {sep / bat:.2f}x",
+                file=sys.stderr,
+                flush=True,
+            )
     n = len(SEEDS)
     head = f"| system | model | {n} fits s | 1 batched fit s | training ratio |"
     rule = "|---|---|---|---|---|"
