@@ -208,10 +208,10 @@ def _cost(compiled: Any) -> dict[str, float]:
 def jax_fit_flops(
     model_cls: Any, model_cfg: Any, system: Any, data: Any, train: Any, seed: int = 0
 ) -> dict[str, float]:
-    """FLOPs of one training step and one test evaluation of the JAX model's own
+    """FLOPs of one training step and one validation evaluation of the JAX model's own
     ``fit``, from the chunk it compiles (here of length 1). Returns ``step_dot`` /
     ``eval_dot`` (dot FLOPs in the optimised HLO: the step's dots sit in the ``while``
-    of the chunk's ``lax.scan``, the test loss after it) and ``step_xla`` / ``eval_xla``
+    of the chunk's ``lax.scan``, the selection criterion's after it) and ``step_xla`` / ``eval_xla``
     (XLA's ``cost_analysis()["flops"]``, all ops; XLA counts a ``while`` body once, so
     the chunk's figure is one step plus the evaluation, and the evaluation is compiled
     alone to split them). A loop inside the loss (SRNN's leapfrog ``lax.scan``) is a
@@ -220,12 +220,11 @@ def jax_fit_flops(
 
     The hook: ``fit`` runs for one step (one chunk of length 1) while the JAX backend's
     ``_compiled`` (which lowers and compiles, or finds in its cache, the executable of a
-    training chunk) is wrapped to keep the executable and its arguments; the test
-    loss is then compiled alone from the same loss (``hnnbench.neural.jax._loss``), the
-    same parameters and the same test arrays.
+    training chunk) is wrapped to keep the executable and its arguments; the selection
+    criterion is then compiled alone (``hnnbench.neural.jax.criterion_values``), with
+    the same parameters and the same validation arrays.
     """
-    import functools
-
+    import equinox as eqx
     import jax
 
     import hnnbench.neural.jax as jx
@@ -248,11 +247,16 @@ def jax_fit_flops(
     if "compiled" not in seen:
         raise RuntimeError(f"{model_cls.__name__}: fit compiled no JAX training chunk")
     chunk = seen["compiled"]
-    kind, impl, options, static = seen["statics"][:4]
-    params, test = seen["args"][0], seen["args"][4]
-    loss = functools.partial(jx._loss, kind, impl, options, static)
+    _, impl, _, static, criterion = seen["statics"][:5]
+    params, valid = seen["args"][0], seen["args"][4]  # the chunk's validation arrays
+
+    def evaluate(p: Any, *arrays: Any) -> Any:  # the chunk's criterion, alone
+        return jx.criterion_values(
+            criterion[0], impl, criterion[1], eqx.combine(p, static), *arrays
+        )
+
     with jax.default_matmul_precision("highest"):  # as the backend compiles its chunks
-        evaluation = jax.jit(loss).lower(params, *test).compile()
+        evaluation = jax.jit(evaluate).lower(params, *valid).compile()
     dots = hlo_dot_flops(chunk.as_text())
 
     def in_step(name: str) -> bool:  # "jit(_chunk)/while/...": the scan over the steps

@@ -293,3 +293,17 @@ def test_fuzz_the_publish_path_one_line_or_published(tmp_path_factory, key, valu
         assert "\n" not in str(err)
     finally:
         publish_results.RECORDS = old
+
+
+def test_a_fit_without_a_training_loop_reports_its_own_steps():
+    """A closed-form fit (no step logged, e.g. the example plugin's least squares) may
+    report fewer steps than the protocol's; an iterative one may not."""
+    from hnnbench._record import consistency
+
+    rec = _real()
+    rec["steps"] = 1
+    assert consistency._steps_problems(rec)  # steps logged: 1 is a contradiction
+    rec["history"] = {}
+    assert consistency._steps_problems(rec) == []
+    rec["steps"] = rec["train"]["steps"] + 1
+    assert consistency._steps_problems(rec)  # never more than the protocol's
