@@ -106,7 +106,8 @@ configure() {  # writes the config; prints "changed" when a daemon must (re)read
   local host changed=""
   host=$(hostname -s)
   mkdir -p "$CONF_DIR" "$RUN" "$LOG" "$LIB/slurmctld" "$LIB/slurmd"
-  if [ -f "$CONF_DIR/slurm.conf" ] && ! grep -qF "$MARK" "$CONF_DIR/slurm.conf"; then
+  # Any copy of this script wrote it (the script has moved: the mark names its path).
+  if [ -f "$CONF_DIR/slurm.conf" ] && ! grep -q "^# written by hnnbench scripts/" "$CONF_DIR/slurm.conf"; then
     die "$CONF_DIR/slurm.conf exists and was not written by this script: not replacing it"
   fi
   write_if_changed "$CONF_DIR/slurm.conf" 644 <<EOF && changed=1
