@@ -142,10 +142,55 @@ def _records(directory: Path) -> list[dict[str, Any]]:
     return [json.loads(p.read_text()) for p in sorted(directory.rglob("result.json"))]
 
 
-def _published(system: str, model: str, seed: int = 0) -> dict[str, Any] | None:
-    """The published (CPU) record of the job, or None."""
+#: Beside a run's records: what the published CPU records of its jobs held when it ran
+#: (their timings and test loss), so that its tables stay what they were when the
+#: leaderboard is re-published (``--freeze-published``).
+FROZEN = "published.json"
+
+
+def _published(
+    system: str, model: str, seed: int = 0, out: Path | None = None
+) -> dict[str, Any] | None:
+    """The published (CPU) record of the job as the run at ``out`` compared it (its
+    frozen copy), else as results/records holds it now; None when there is none."""
+    frozen = out / FROZEN if out is not None else None
+    if frozen is not None and frozen.is_file():
+        return json.loads(frozen.read_text()).get(f"{system}/{model}/seed{seed}")
     path = PUBLISHED / system / model / f"seed{seed}" / "result.json"
     return json.loads(path.read_text()) if path.is_file() else None
+
+
+def freeze_published(out: Path, rev: str | None = None) -> Path:
+    """Write ``out/published.json``: for each job of the run's GPU records, the
+    published record's status, timings and test loss, from results/records as it is now or at
+    git revision ``rev``."""
+    import subprocess
+
+    kept: dict[str, Any] = {}
+    for rec in _records(out / "gpu"):
+        key = f"{rec['system']}/{rec['model']}/seed{rec.get('seed', 0)}"
+        relative = f"results/records/{key}/result.json"
+        if rev is None:
+            path = REPO / relative
+            text = path.read_text() if path.is_file() else None
+        else:
+            proc = subprocess.run(
+                ["git", "show", f"{rev}:{relative}"], cwd=REPO, capture_output=True, text=True
+            )
+            text = proc.stdout if proc.returncode == 0 else None
+        if text is None:
+            continue
+        full = json.loads(text)
+        test_loss = (full.get("metrics") or {}).get("test_loss")
+        kept[key] = {
+            "status": full.get("status"),
+            "timings": {k: (full.get("timings") or {}).get(k) for k in ("fit_s", "total_s")},
+            "metrics": {"test_loss": test_loss} if test_loss is not None else {},
+            "environment": {"git_commit": (full.get("environment") or {}).get("git_commit")},
+        }
+    path = out / FROZEN
+    path.write_text(json.dumps(kept, indent=1, sort_keys=True) + "\n")
+    return path
 
 
 def measure(args: argparse.Namespace) -> int:
@@ -213,6 +258,7 @@ def measure(args: argparse.Namespace) -> int:
         )
     (out / "walls.json").write_text(json.dumps(walls, indent=1) + "\n")
     (out / "exits.json").write_text(json.dumps(exits, indent=1) + "\n")
+    freeze_published(out)
     summarize(out)
     failed = sorted(k for k, rc in exits.items() if rc != 0)
     if failed:
@@ -259,7 +305,7 @@ def summarize(out: Path) -> str:
     ]
     for rec in _records(out / "gpu"):
         system, model = rec["system"], rec["model"]
-        pub, host = _published(system, model), host_cpu.get((system, model))
+        pub, host = _published(system, model, out=out), host_cpu.get((system, model))
         losses = [
             ((r or {}).get("metrics", {}).get("test_loss") or {}).get("mean") for r in (rec, pub)
         ]
@@ -342,7 +388,16 @@ def main() -> int:
         help="start no job after this many seconds (default 480)",
     )
     parser.add_argument("--job-timeout-s", type=float, default=240.0)
+    parser.add_argument(
+        "--freeze-published",
+        metavar="DIR",
+        help="write DIR/published.json: the published CPU records its tables compare with",
+    )
+    parser.add_argument("--at", metavar="REV", help="with --freeze-published: a git revision")
     args = parser.parse_args()
+    if args.freeze_published:
+        print(freeze_published(Path(args.freeze_published), args.at))
+        return 0
     if args.summarize:
         summarize(Path(args.summarize))
         return 0

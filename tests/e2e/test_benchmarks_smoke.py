@@ -368,7 +368,8 @@ GPU_RUNS = REPO / "benchmarks" / "results" / "gpu-h100-2026-11-28"
 @pytest.mark.parametrize("run", ["1-default-autotuning", "2-seeds-per-job", "3-autotune-off"])
 def test_gpu_summaries_are_what_their_committed_records_give(run, tmp_path):
     """benchmarks/README.md's GPU figures: each committed summary.md is what
-    ``gpu.py --summarize`` prints from the records beside it (and results/records), and
+    ``gpu.py --summarize`` prints from the records beside it (and the published records
+    it compared with, frozen beside them in published.json), and
     every GPU record validates against the record schema."""
     from hnnbench._record.validation import shape_problems
 
