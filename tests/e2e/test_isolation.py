@@ -404,7 +404,9 @@ def test_experimental_rerun_is_refused_and_never_unpickled(tmp_path, capsys):
         plan(["--experimental-rerun", str(payload)])
     assert command.run(["--experimental-rerun", str(payload)]) == 2
     err = capsys.readouterr().err
-    assert len(err.strip().splitlines()) == 1 and "hnnbench check DIR --rerun" in err
+    assert (
+        len(err.strip().splitlines()) == 1 and "hnnbench check DIR --reference CSV --rerun" in err
+    )
     assert not marker.exists()
 
 

@@ -253,8 +253,10 @@ def test_sweep_benchmark_summarises_existing_sweeps(sweeps: Sweeps) -> None:
 
 
 def test_a_users_own_launcher_file_on_the_searchpath_is_accepted(tmp_path: Path) -> None:
-    """``hydra/launcher=<name>`` from a user's directory on ``hydra.searchpath`` passes
-    the up-front check and runs; a typo of it gets a did-you-mean."""
+    """A ``hydra.searchpath`` reads config files chosen on the command line: refused in
+    one line unless a developer allows such overrides (issue 48); then
+    ``hydra/launcher=<name>`` from that directory passes the up-front check and runs, and
+    a typo of it gets a did-you-mean."""
     conf = tmp_path / "myconf" / "hydra" / "launcher"
     conf.mkdir(parents=True)
     (conf / "my_local.yaml").write_text(
@@ -262,6 +264,12 @@ def test_a_users_own_launcher_file_on_the_searchpath_is_accepted(tmp_path: Path)
         "_target_: hydra._internal.core_plugins.basic_launcher.BasicLauncher\n"
     )
     searchpath = f"hydra.searchpath=[file://{tmp_path / 'myconf'}]"
+    refused = hnnbench(
+        "-m", "system=spring", "model=oracle", "profile=quick", searchpath, cwd=tmp_path
+    )
+    assert refused.returncode == 2 and "HNNBENCH_ALLOW_CODE_OVERRIDES=1" in refused.stderr
+    assert len(refused.stderr.strip().splitlines()) == 1, refused.stderr
+    allow = {"HNNBENCH_ALLOW_CODE_OVERRIDES": "1"}
     typo = hnnbench(
         "-m",
         "system=spring",
@@ -270,6 +278,7 @@ def test_a_users_own_launcher_file_on_the_searchpath_is_accepted(tmp_path: Path)
         "hydra/launcher=my_locl",
         searchpath,
         cwd=tmp_path,
+        env=allow,
     )
     assert typo.returncode == 2 and "Did you mean 'my_local'" in typo.stderr, typo.stderr
     proc = hnnbench(
@@ -281,6 +290,7 @@ def test_a_users_own_launcher_file_on_the_searchpath_is_accepted(tmp_path: Path)
         searchpath,
         f"hydra.sweep.dir={tmp_path / 'sweep'}",
         cwd=tmp_path,
+        env=allow,
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "1 jobs: 1 ok" in proc.stdout, proc.stdout[-2000:]

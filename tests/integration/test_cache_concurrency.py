@@ -158,6 +158,8 @@ def test_two_processes_store_the_same_entry_at_once(tmp_path: Path) -> None:
         assert hit and str(again) == path and _digest(value) == digest
 
     directory = root / "datasets" / "spring"
-    names = sorted(p.name for p in directory.iterdir())
+    names = sorted(p.name for p in directory.iterdir() if p.suffix != ".sha256")
+    hashes = sorted(p.name for p in directory.iterdir() if p.suffix == ".sha256")
+    assert hashes == [f"{n}.sha256" for n in names], hashes  # each its recorded hash
     assert len(names) == len(RACES), names  # one file per entry ...
     assert not [n for n in names if n.startswith(".") or ".tmp" in n], names  # no leftovers
