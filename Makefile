@@ -16,7 +16,7 @@ SEEDS ?= 0
 PYTEST_ARGS ?=
 
 .PHONY: setup benchmark benchmark-serial quick test test-fast unit integration e2e \
-	test-distributed lint typecheck imports clean \
+	test-distributed fuzz lint typecheck imports clean \
 	ci-reference guard-reference
 
 setup:
@@ -66,6 +66,12 @@ test: setup
 # `make test` runs them too (pytest selects every marker).
 test-distributed: setup
 	$(VENV)/python -m pytest -m distributed -v $(PYTEST_ARGS)
+
+# The property tests with fresh random examples, FUZZ_RUNS times (the gate's are fixed).
+FUZZ_RUNS ?= 10
+fuzz: setup
+	for i in $$(seq $(FUZZ_RUNS)); do HNNBENCH_HYPOTHESIS=explore $(VENV)/python -m pytest \
+	  $$(grep -rl "from hypothesis" tests) -q -p no:cacheprovider $(PYTEST_ARGS) || exit 1; done
 
 test-fast: setup
 	$(VENV)/python -m pytest -m "not slow" $(PYTEST_ARGS)

@@ -131,6 +131,24 @@ def shown_value(value: Any, limit: int = 60) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+def one_line(text: str, limit: int = 400) -> str:
+    """``text`` with every character that is not printable escaped (``\\n``,
+    ``\\x1b``...), cut to ``limit`` characters: a message of one line, whatever a
+    record's keys or values hold."""
+    shown = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+    return shown if len(shown) <= limit else shown[: limit - 3] + "..."
+
+
+_PLAIN_KEY = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]{0,63}\Z")
+
+
+def shown_key(key: Any) -> str:
+    """A mapping key as part of a field path in a message: the key itself when it is
+    plain text (letters, digits, ``_.+-``; at most 64 characters), else
+    :func:`shown_value` (quoted, escaped), so a key never breaks the message's line."""
+    return key if isinstance(key, str) and _PLAIN_KEY.match(key) else shown_value(key, 40)
+
+
 @lru_cache(maxsize=64)
 def _compiled(pattern: str) -> re.Pattern[str]:
     # JSON Schema's "$" is the end of the text; Python's also matches before a final

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from hnnbench._contracts.names import one_line
 from hnnbench._record.codec import decode
 from hnnbench._record.fields import RECORD_NAME
 from hnnbench._record.store import parse_file
@@ -94,7 +95,7 @@ def _load_one(path: Path, strict: bool) -> dict[str, Any] | str:
         record = decode(record)
         problems = decoded_problems(record) if strict else []
     if problems:
-        return f"invalid record: {problems[0]}"
+        return one_line(f"invalid record: {problems[0]}")
     return record
 
 

@@ -18,7 +18,7 @@ from typing import Any
 
 from hnnbench._contracts import jsonio
 from hnnbench._contracts.errors import HnnbenchError
-from hnnbench._contracts.names import LOADER_FIELDS
+from hnnbench._contracts.names import LOADER_FIELDS, one_line
 from hnnbench._record.codec import MAX_DEPTH, decode, depth_problems, encode
 from hnnbench._record.fields import RECORD_NAME
 from hnnbench._record.validation import (
@@ -103,7 +103,9 @@ def write_record(directory: Path, record: dict[str, Any]) -> Path:
     data = encode({k: v for k, v in record.items() if k not in LOADER_FIELDS})
     problems = shape_problems(data) or depth_problems(data) or schema_problems(data)
     if problems:
-        raise InvalidRecord(f"refusing to write {path}: invalid record: {problems[0]}")
+        raise InvalidRecord(
+            one_line(f"refusing to write {path}: invalid record: {problems[0]}", 2000)
+        )
     text = json.dumps(data, indent=2, allow_nan=False)
     atomic_write_text(path, text + "\n")
     return path

@@ -12,7 +12,7 @@ from collections.abc import Callable, Mapping
 from functools import lru_cache
 from typing import Any, Optional
 
-from hnnbench._contracts.names import LOADER_FIELDS, pattern_matches, shown_value
+from hnnbench._contracts.names import LOADER_FIELDS, pattern_matches, shown_key, shown_value
 from hnnbench._record.codec import depth_problems, encode
 from hnnbench._record.consistency import consistency_problems, interpolation_problems
 from hnnbench._record.fields import FIELDS, REQUIRED, json_schema
@@ -80,7 +80,9 @@ def _item_problem(where: str, value: Any, schema: Mapping[str, Any]) -> Optional
     problem = _value_problem(where, value, schema)
     if problem is None and isinstance(value, dict):
         for key, inner in (schema.get("properties") or {}).items():
-            if key in value and (problem := _value_problem(f"{where}.{key}", value[key], inner)):
+            if key in value and (
+                problem := _value_problem(f"{where}.{shown_key(key)}", value[key], inner)
+            ):
                 break
     return problem
 
@@ -110,7 +112,7 @@ def shape_problems(record: Mapping[str, Any]) -> list[str]:
                 if names and not pattern_matches(names, key):
                     problem = f"{f.name}: the key {shown_value(key)} does not match {names!r}"
                 elif isinstance(inner, Mapping):
-                    problem = _item_problem(f"{f.name}.{key}", item, inner)
+                    problem = _item_problem(f"{f.name}.{shown_key(key)}", item, inner)
                 if problem is not None:
                     break
         if problem is None and f.name == "history":
@@ -145,7 +147,7 @@ def history_problems(history: Any) -> list[str]:
         return [f"history: {shown_value(history)} is not of type 'object'"]
     for key, values in history.items():
         if not isinstance(values, list):
-            return [f"history.{key}: {shown_value(values)} is not of type 'array'"]
+            return [f"history.{shown_key(key)}: {shown_value(values)} is not of type 'array'"]
         for i, value in enumerate(values):
             if (
                 value is None
@@ -154,7 +156,8 @@ def history_problems(history: Any) -> list[str]:
             ):
                 continue
             return [
-                f"history.{key}.{i}: {shown_value(value)} is not a number, null, 'inf' or '-inf'"
+                f"history.{shown_key(key)}.{i}: {shown_value(value)} is not a number, "
+                "null, 'inf' or '-inf'"
             ]
     return []
 
@@ -245,7 +248,9 @@ def schema_problems(data: Any) -> list[str]:
         for err in sorted(
             validator.iter_errors(rest), key=lambda e: list(map(str, e.absolute_path))
         ):
-            where = ".".join(str(p) for p in err.absolute_path)
+            where = ".".join(
+                shown_key(p) if isinstance(p, str) else str(p) for p in err.absolute_path
+            )
             message = " ".join(str(err.message).split())
             message = message if len(message) <= 300 else message[:297] + "..."
             out.append(f"{where}: {message}" if where else message)
@@ -287,7 +292,7 @@ def metric_domain_problems(record: dict[str, Any]) -> list[str]:
             math.nan if mean is None else mean, math.nan if sem is None else sem
         )
         if problem:
-            return [f"metrics.{name}: {problem}"]
+            return [f"metrics.{shown_key(name)}: {problem}"]
     return []
 
 

@@ -507,3 +507,17 @@ def test_a_value_outside_its_domain_is_never_marked_best(tmp_path):
             write_run(tmp_path, "spring", model, seed, metrics={"energy_mse": value}, rollout=False)
     board = families(records_frame(records.load(tmp_path).records)).board.set_index("family")
     assert board["energy_mse_mark"].to_dict() == {"mlp": "", "hnn": "best", "dhnn": ""}
+
+
+@pytest.mark.parametrize("field", ["history", "metrics", "selection", "timings", "config", "data"])
+@pytest.mark.parametrize("key", ["\n", "a\nb", "\r", "\x1b[31m", "\u2028"])
+def test_a_key_that_breaks_lines_is_named_in_one_line(real, tmp_path, field, key):
+    """A record's key holding a line break or a control character is named escaped:
+    the loader's reason stays one line (a case the fuzz test above found)."""
+    rec = copy.deepcopy(real[0])
+    rec[field] = {key: None}
+    _put(tmp_path, "job", rec)
+    for strict in (False, True):
+        loaded = records.load(tmp_path, strict=strict)
+        for problem in loaded.problems:
+            assert _one_line(problem.reason) and problem.reason.isprintable(), problem.reason
