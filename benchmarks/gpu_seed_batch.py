@@ -13,8 +13,8 @@ Parts, in order, each started only while ``--budget-s`` is not spent:
    ``hnnbench -m system=S model=M seed=0,...,9 seeds_per_job=10 device=cuda``: one job
    training the ten seeds as one batch (``jax.vmap`` inside the compiled ``lax.scan``),
    each seed evaluated and recorded as a job of its own would be. ``--parallel`` pairs
-   share the device at a time, each process taking ``0.9 / parallel`` of its memory
-   (``XLA_PYTHON_CLIENT_MEM_FRACTION``), the dearest pairs first;
+   share the device at a time (``device_share=parallel``: each process takes a slot of
+   the GPU and ``0.9 / parallel`` of its memory), the dearest pairs first;
 2. XLA's kernel autotuning: ``--autotune-pair`` again with the autotuning level XLA
    defaults to (hnnbench turns it off on GPUs), its ``compile_s`` against part 1's.
 
@@ -60,13 +60,11 @@ def _hnnbench() -> list[str]:
 
 
 def _env(parallel: int, extra: dict[str, str] | None = None) -> dict[str, str]:
-    """A job's environment: progress lines, and JAX taking a share of the device's
-    memory as it needs it (several processes share one GPU)."""
+    """A job's environment: progress lines (each job's share of the GPU comes from the
+    ``device_share`` setting the commands pass: docs/SCALING.md)."""
     env = {
         **os.environ,
         "HNNBENCH_PROGRESS": "log",
-        "XLA_PYTHON_CLIENT_PREALLOCATE": "false",
-        "XLA_PYTHON_CLIENT_MEM_FRACTION": f"{0.9 / max(1, parallel):.3f}",
         # every compilation timed as on a fresh machine (no persistent cache hits)
         "JAX_ENABLE_COMPILATION_CACHE": "false",
     }
@@ -109,7 +107,12 @@ def measure(args: argparse.Namespace) -> int:
     walls: dict[str, float] = {}
     exits: dict[str, int] = {}
     seeds = ",".join(str(s) for s in range(args.seeds))
-    common = [f"profile={args.profile}", "save_model=false", f"device={args.device}"]
+    common = [
+        f"profile={args.profile}",
+        "save_model=false",
+        f"device={args.device}",
+        f"device_share={args.parallel}",
+    ]
 
     def spent() -> float:
         return time.perf_counter() - start

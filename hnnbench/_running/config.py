@@ -43,6 +43,7 @@ RUN_ONLY_KEYS = frozenset(
     {
         "rerun",
         "device",
+        "device_share",
         "threads",
         "pin_cpu",
         "save_model",
@@ -72,6 +73,10 @@ class RunConfig:
     Attributes:
         seed: seeds data generation, evaluation trajectories and model init (int >= 0).
         device: ``auto`` (GPU if present), ``cpu``, ``cuda`` or ``cuda:N``.
+        device_share: job processes that share one GPU (run ``N × GPUs`` of them with a
+            launcher): each takes a slot of the least-held GPU and ``0.9 / N`` of its
+            memory (:mod:`hnnbench._running.device_share`). 1: one job per GPU; no
+            effect on the CPU.
         rerun: redo jobs that already have a finished record in their directory.
         threads: CPU threads per job for torch/BLAS/XLA (0: the library default). One
             thread is fastest for the paper-sized networks and keeps parallel workers
@@ -113,6 +118,7 @@ class RunConfig:
     profile: ProfileConfig = field(default_factory=ProfileConfig)
     seed: int = 0
     device: str = "auto"
+    device_share: int = 1
     rerun: bool = False
     threads: int = 1
     pin_cpu: Optional[bool] = None
@@ -214,6 +220,12 @@ def validate_run(cfg: Any) -> None:
                 f"seed={seed}; let seeds_per_job set it."
             )
     device_request(str(cfg.device))  # a ConfigError saying what is accepted
+    share = cfg.device_share
+    if isinstance(share, bool) or not isinstance(share, int) or share < 1:
+        raise ConfigError(
+            f"device_share={share} is invalid: expected the number of jobs that share one "
+            "GPU, an integer >= 1, e.g. device_share=4."
+        )
     limit = cfg.get("timeout_s")
     if limit is not None and (
         isinstance(limit, bool)

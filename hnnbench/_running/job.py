@@ -40,7 +40,14 @@ from hnnbench._contracts.metric import EvaluationConfig
 from hnnbench._contracts.names import DEFAULT_TRACK, TRACKS
 from hnnbench._contracts.plugin import HISTORY_STEP, Dataset, FitResult, TrainSettings, Trajectories
 from hnnbench._record.fields import new_record
-from hnnbench._running import affinity, dataset_cache, isolation, launch_context, tracking
+from hnnbench._running import (
+    affinity,
+    dataset_cache,
+    device_share,
+    isolation,
+    launch_context,
+    tracking,
+)
 from hnnbench._running.config import RUN_ONLY_KEYS, Job, fingerprint, prepare_job
 from hnnbench._running.evaluation import evaluate, failed_metrics
 from hnnbench._running.progress import EvaluationProgress, TrainingProgress
@@ -575,7 +582,8 @@ def _execute(
     label = f"{cfg.system.name}/{cfg.model.name} s{','.join(map(str, seeds))}"
     t0 = time.perf_counter()
     try:
-        model = job.model_cls(job.model_cfg, system, str(cfg.device))
+        device = device_share.share_device(str(cfg.device), int(cfg.get("device_share", 1)))
+        model = job.model_cls(job.model_cfg, system, device)
         with TrainingProgress(label, train.steps) as bar:
             if len(seeds) == 1:
                 fits = [(model, model.fit(datas[seeds[0]], train, seeds[0], bar.update))]

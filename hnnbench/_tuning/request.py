@@ -34,7 +34,15 @@ PRUNERS = ("successive_halving", "none")
 #: Settings the command passes on to every job (the system's, the evaluation's, and how
 #: jobs run); ``model.*`` is what the tuner searches, and is refused.
 PASSED_PREFIXES = ("system.", "evaluation.")
-PASSED_KEYS = ("timeout_s", "cache_dir", "data_dir", "device", "threads", "pin_cpu")
+PASSED_KEYS = (
+    "timeout_s",
+    "cache_dir",
+    "data_dir",
+    "device",
+    "device_share",
+    "threads",
+    "pin_cpu",
+)
 #: The tuner's own arguments, ``key=value``.
 ARGUMENTS = (
     "system",

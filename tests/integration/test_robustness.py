@@ -133,6 +133,7 @@ def test_bad_input_console_script(args, needles, tmp_path):
         (["evaluation=5"], ["evaluation"]),
         (["device=gpu"], ["device=gpu is invalid"]),
         (["threads=-1"], ["threads=-1 is invalid"]),
+        (["device_share=0"], ["device_share=0 is invalid", "e.g. device_share=4"]),
         (["rerun=maybe"], ["rerun"]),
         (["system="], ["Unknown system ''"]),
         (["=x"], ["Cannot parse override '=x'"]),
