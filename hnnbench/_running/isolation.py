@@ -28,8 +28,15 @@ GLOBALS = (
     "torch random state",
     "JAX x64",
 )
-#: Environment variables the harness itself sets for a job (one thread per job): kept.
-HARNESS_ENV = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+#: Environment variables the harness itself sets for a job (one thread per job; a GPU's
+#: share of memory under ``device_share``, which JAX reads once, at its start): kept.
+HARNESS_ENV = (
+    "OMP_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    "OPENBLAS_NUM_THREADS",
+    "XLA_PYTHON_CLIENT_MEM_FRACTION",
+    "XLA_PYTHON_CLIENT_PREALLOCATE",
+)
 
 
 def _snapshot() -> dict[str, Any]:
