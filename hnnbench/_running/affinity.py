@@ -9,9 +9,10 @@ import logging
 import os
 import tempfile
 from pathlib import Path
-from typing import IO, Optional
+from typing import Optional
 
 from hnnbench._running import launch_context
+from hnnbench._running.slots import claim_least_held
 
 __all__ = ["claim_core", "started_by_cli", "CLI_ENV"]
 
@@ -76,7 +77,7 @@ def _claim(lock_dir: Optional[Path]) -> Optional[int]:
     if not hasattr(os, "sched_setaffinity"):
         return None
     try:
-        import fcntl
+        import fcntl  # noqa: F401 - the slots' locks
     except ImportError:  # not POSIX
         return None
     allowed = sorted(os.sched_getaffinity(0))
@@ -84,37 +85,21 @@ def _claim(lock_dir: Optional[Path]) -> Optional[int]:
         _held["cpu"] = allowed[0]
         return allowed[0]
     directory = lock_dir or _lock_dir()
-    # Each core has _LEVELS slots (cpu<n>.lock, cpu<n>.2.lock, ...), one lock file each.
-    # Count every core's holders and keep one free slot per core while counting (so no
-    # other claimant takes it meanwhile); take the least-held core (the lowest on a tie)
-    # and let the other slots go. Counting, not filling level by level: with cores 0
-    # and 1 held and a third claimant on core 0's second slot, once the first two exit
-    # the next claimant goes to core 1, not to core 0's free first slot.
-    holders = dict.fromkeys(allowed, 0)
-    free: dict[int, IO[str]] = {}
-    for cpu in allowed:
-        for level in range(1, _LEVELS + 1):
-            name = f"cpu{cpu}.lock" if level == 1 else f"cpu{cpu}.{level}.lock"
-            handle: IO[str] = open(directory / name, "a+")  # noqa: SIM115
-            try:
-                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
-                holders[cpu] += 1
-                handle.close()
-                continue
-            if cpu in free:  # a second free slot of this core: not needed
-                handle.close()
-            else:
-                free[cpu] = handle
-    if not free:  # every slot taken: share one
+    # Each core has _LEVELS slots (cpu<n>.lock, cpu<n>.2.lock, ...), one lock file each;
+    # the least-held core is taken (hnnbench._running.slots).
+    slots = {
+        cpu: [
+            f"cpu{cpu}.lock" if level == 1 else f"cpu{cpu}.{level}.lock"
+            for level in range(1, _LEVELS + 1)
+        ]
+        for cpu in allowed
+    }
+    chosen, handle = claim_least_held(directory, slots)
+    if chosen is None:  # every slot taken: share one
         cpu = allowed[os.getpid() % len(allowed)]
         _pin_all_threads(cpu)
         _held["cpu"] = cpu
         return cpu
-    cpu = min(free, key=lambda c: (holders[c], c))
-    for other, handle in free.items():
-        if other != cpu:
-            handle.close()  # closing releases the lock
-    _pin_all_threads(cpu)
-    _held.update(cpu=cpu, handle=free[cpu])  # the lock lives as long as the process
-    return cpu
+    _pin_all_threads(chosen)
+    _held.update(cpu=chosen, handle=handle)  # the lock lives as long as the process
+    return chosen

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import IO, Optional
 
 from hnnbench._contracts.device import device_request
+from hnnbench._running.slots import claim_least_held
 
 __all__ = ["MEMORY_SHARE", "claim_gpu", "memory_fraction", "share_device", "visible_gpus"]
 
@@ -60,33 +61,12 @@ def _lock_dir() -> Path:
 
 def claim_slot(directory: Path, gpus: int, share: int) -> tuple[int, Optional[IO[str]]]:
     """Take a free slot (``gpu<i>.<slot>.lock``, ``slot < share``) of the GPU whose slots
-    are least held (the lowest index on a tie): ``(gpu, the open lock file)``, which
-    holds the slot until it is closed. Every slot taken: ``(pid mod gpus, None)``, the
-    GPU shared beyond ``share``."""
-    import fcntl
-
-    held = dict.fromkeys(range(gpus), 0)
-    free: dict[int, IO[str]] = {}
-    for gpu in range(gpus):
-        for slot in range(share):
-            handle: IO[str] = open(directory / f"gpu{gpu}.{slot}.lock", "a+")  # noqa: SIM115
-            try:
-                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
-                held[gpu] += 1
-                handle.close()
-                continue
-            if gpu in free:  # a second free slot of this GPU: not needed
-                handle.close()
-            else:
-                free[gpu] = handle
-    if not free:
-        return os.getpid() % gpus, None
-    gpu = min(free, key=lambda g: (held[g], g))
-    for other, handle in free.items():
-        if other != gpu:
-            handle.close()  # closing releases the lock
-    return gpu, free[gpu]
+    are least held (the lowest index on a tie; :mod:`hnnbench._running.slots`): ``(gpu,
+    the open lock file)``, which holds the slot until it is closed. Every slot taken:
+    ``(pid mod gpus, None)``, the GPU shared beyond ``share``."""
+    slots = {gpu: [f"gpu{gpu}.{slot}.lock" for slot in range(share)] for gpu in range(gpus)}
+    gpu, handle = claim_least_held(directory, slots)
+    return (os.getpid() % gpus, None) if gpu is None else (gpu, handle)
 
 
 def claim_gpu(gpus: int, share: int, lock_dir: Optional[Path] = None) -> int:

@@ -1,0 +1,53 @@
+"""Slots held by file locks: each of several resources (CPU cores, GPUs) has a few slots,
+one ``flock`` each, and a process takes a free slot of the least-held resource and holds
+it while its lock file stays open. :mod:`hnnbench._running.affinity` (a core per job)
+and :mod:`hnnbench._running.device_share` (a GPU slot per job) claim through it. POSIX
+only (``fcntl``)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import IO, Optional
+
+__all__ = ["claim_least_held"]
+
+
+def claim_least_held(
+    directory: Path, slots: Mapping[int, Sequence[str]]
+) -> tuple[Optional[int], Optional[IO[str]]]:
+    """Take a free slot of the resource whose slots are least held (the lowest key on a
+    tie): ``(key, the open lock file)``; closing the file frees the slot.
+    ``slots``: each resource's lock-file names under ``directory``, in order. Every
+    slot held: ``(None, None)``.
+
+    Counting, not filling level by level: one free slot per resource is kept locked
+    while counting (so no other claimant takes it meanwhile), and the others are let go
+    once the least-held resource is chosen. With cores 0 and 1 held and a third claimant
+    on core 0's second slot, once the first two exit the next claimant goes to core 1,
+    not to core 0's free first slot.
+    """
+    import fcntl
+
+    held = dict.fromkeys(slots, 0)
+    free: dict[int, IO[str]] = {}
+    for key, names in slots.items():
+        for name in names:
+            handle: IO[str] = open(directory / name, "a+")  # noqa: SIM115
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                held[key] += 1
+                handle.close()
+                continue
+            if key in free:  # a second free slot of this resource: not needed
+                handle.close()
+            else:
+                free[key] = handle
+    if not free:
+        return None, None
+    chosen = min(free, key=lambda k: (held[k], k))
+    for other, handle in free.items():
+        if other != chosen:
+            handle.close()  # closing releases the lock
+    return chosen, free[chosen]
