@@ -60,11 +60,14 @@ def _hnnbench() -> list[str]:
 
 
 def _env(parallel: int, extra: dict[str, str] | None = None) -> dict[str, str]:
-    """A job's environment: progress lines (each job's share of the GPU comes from the
-    ``device_share`` setting the commands pass: docs/SCALING.md)."""
+    """A job's environment: progress lines, and JAX taking ``0.9 / parallel`` of the
+    device's memory as it needs it (what ``device_share=parallel`` sets, here for every
+    part, the single autotuning pair too: the conditions of the earlier runs)."""
     env = {
         **os.environ,
         "HNNBENCH_PROGRESS": "log",
+        "XLA_PYTHON_CLIENT_PREALLOCATE": "false",
+        "XLA_PYTHON_CLIENT_MEM_FRACTION": f"{0.9 / max(1, parallel):.4f}",
         # every compilation timed as on a fresh machine (no persistent cache hits)
         "JAX_ENABLE_COMPILATION_CACHE": "false",
     }
@@ -107,6 +110,8 @@ def measure(args: argparse.Namespace) -> int:
     walls: dict[str, float] = {}
     exits: dict[str, int] = {}
     seeds = ",".join(str(s) for s in range(args.seeds))
+    # device_share: each process sees one GPU's slot (a machine of several GPUs spreads
+    # the pairs over them); the memory share is the environment's (_env).
     common = [
         f"profile={args.profile}",
         "save_model=false",

@@ -14,7 +14,7 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any, Optional
 
-from hnnbench._contracts.names import shown_value
+from hnnbench._contracts.names import shown_key, shown_value
 from hnnbench._contracts.plugin import (
     HISTORY_STEP,
     HISTORY_VALID,
@@ -92,8 +92,8 @@ def _strings(value: Any, where: str) -> Iterator[tuple[str, str]]:
             yield at, item
         elif isinstance(item, dict):
             for key, inner in item.items():
-                yield f"{at}.{key}", str(key)
-                stack.append((inner, f"{at}.{key}"))
+                yield f"{at}.{shown_key(key)}", str(key)
+                stack.append((inner, f"{at}.{shown_key(key)}"))
         elif isinstance(item, list):
             stack.extend((inner, f"{at}.{i}") for i, inner in enumerate(item))
 
@@ -169,7 +169,8 @@ def _history_problems(record: Mapping[str, Any]) -> list[str]:
     for key, values in history.items():
         if isinstance(values, list) and len(values) != len(logged):
             return [
-                f"history.{key}: {len(values)} values for {len(logged)} logged steps (one per step)"
+                f"history.{shown_key(key)}: {len(values)} values for {len(logged)} "
+                "logged steps (one per step)"
             ]
     numbers = [_num(s) for s in logged]
     if any(not (b > a) for a, b in zip(numbers, numbers[1:], strict=False)):

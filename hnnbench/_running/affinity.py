@@ -7,12 +7,11 @@ from __future__ import annotations
 
 import logging
 import os
-import tempfile
 from pathlib import Path
 from typing import Optional
 
 from hnnbench._running import launch_context
-from hnnbench._running.slots import claim_least_held
+from hnnbench._running.slots import claim_least_held, slots_dir
 
 __all__ = ["claim_core", "started_by_cli", "CLI_ENV"]
 
@@ -31,13 +30,6 @@ def started_by_cli() -> bool:
     under the basic launcher, or a launcher's worker), not for a caller of
     :func:`hnnbench._running.job.run_job` such as a notebook or a test, which is left alone."""
     return launch_context.current() is not None
-
-
-def _lock_dir() -> Path:
-    uid = os.getuid() if hasattr(os, "getuid") else 0
-    path = Path(tempfile.gettempdir()) / f"hnnbench-cpus-{uid}"
-    path.mkdir(parents=True, exist_ok=True)
-    return path
 
 
 def _pin_all_threads(cpu: int) -> None:
@@ -84,7 +76,7 @@ def _claim(lock_dir: Optional[Path]) -> Optional[int]:
     if len(allowed) == 1:
         _held["cpu"] = allowed[0]
         return allowed[0]
-    directory = lock_dir or _lock_dir()
+    directory = lock_dir or slots_dir("cpus")
     # Each core has _LEVELS slots (cpu<n>.lock, cpu<n>.2.lock, ...), one lock file each;
     # the least-held core is taken (hnnbench._running.slots).
     slots = {

@@ -20,6 +20,7 @@ from hnnbench._contracts.metric import EvaluationConfig
 from hnnbench._contracts.names import DEFAULT_TRACK, TRACKS
 from hnnbench._contracts.plugin import Model, ModelConfig, System, SystemConfig
 from hnnbench._running import tracking
+from hnnbench._running.device_share import MAX_SHARE
 
 __all__ = [
     "Job",
@@ -73,10 +74,11 @@ class RunConfig:
     Attributes:
         seed: seeds data generation, evaluation trajectories and model init (int >= 0).
         device: ``auto`` (GPU if present), ``cpu``, ``cuda`` or ``cuda:N``.
-        device_share: job processes that share one GPU (run ``N × GPUs`` of them with a
-            launcher): each takes a slot of the least-held GPU and ``0.9 / N`` of its
-            memory (:mod:`hnnbench._running.device_share`). 1: one job per GPU; no
-            effect on the CPU.
+        device_share: job processes that share one GPU (1 to 64; run ``N × GPUs`` of
+            them with a launcher): each takes a slot of the least-held GPU, sees only
+            it, and lets JAX take ``0.9 / N`` of its memory
+            (:mod:`hnnbench._running.device_share`). 1: one job per GPU; no effect on
+            the CPU.
         rerun: redo jobs that already have a finished record in their directory.
         threads: CPU threads per job for torch/BLAS/XLA (0: the library default). One
             thread is fastest for the paper-sized networks and keeps parallel workers
@@ -221,10 +223,10 @@ def validate_run(cfg: Any) -> None:
             )
     device_request(str(cfg.device))  # a ConfigError saying what is accepted
     share = cfg.device_share
-    if isinstance(share, bool) or not isinstance(share, int) or share < 1:
+    if isinstance(share, bool) or not isinstance(share, int) or not 1 <= share <= MAX_SHARE:
         raise ConfigError(
             f"device_share={share} is invalid: expected the number of jobs that share one "
-            "GPU, an integer >= 1, e.g. device_share=4."
+            f"GPU, an integer from 1 to {MAX_SHARE}, e.g. device_share=4."
         )
     limit = cfg.get("timeout_s")
     if limit is not None and (

@@ -1,9 +1,11 @@
 """Several jobs on one GPU (``device_share=N``): the paper-sized networks use a small part
 of a GPU, so a launcher runs ``N × GPUs`` job processes and each takes one of ``N``
-slots of a GPU (a ``flock`` per slot, the least-held GPU first, as
-:mod:`hnnbench._running.affinity` does for CPU cores) and at most ``0.9 / N`` of its
-memory (JAX preallocates 75 % of a GPU by default; torch's allocator grows on demand).
-docs/SCALING.md, "Several jobs per GPU". Linux only; elsewhere a job keeps its device.
+slots of a GPU (a ``flock`` per slot, the least-held GPU first:
+:mod:`hnnbench._running.slots`), sees only that GPU (``CUDA_VISIBLE_DEVICES``, so
+``device=auto`` still falls back to the CPU in a backend without CUDA) and lets JAX take
+at most ``0.9 / N`` of its memory (JAX preallocates 75 % of a GPU by default; torch's
+allocator grows on demand). docs/SCALING.md, "Several jobs per GPU". The slots need
+POSIX file locks; without them a job takes GPU ``pid mod GPUs``.
 """
 
 from __future__ import annotations
@@ -11,40 +13,51 @@ from __future__ import annotations
 import logging
 import os
 import sys
-import tempfile
 from pathlib import Path
 from typing import IO, Optional
 
 from hnnbench._contracts.device import device_request
-from hnnbench._running.slots import claim_least_held
+from hnnbench._running.slots import claim_least_held, slots_dir
 
-__all__ = ["MEMORY_SHARE", "claim_gpu", "memory_fraction", "share_device", "visible_gpus"]
+__all__ = [
+    "MAX_SHARE",
+    "MEMORY_SHARE",
+    "apply_device_share",
+    "claim_gpu",
+    "claim_slot",
+    "gpu_backend_started",
+    "memory_fraction",
+    "visible_gpus",
+]
 
 #: The part of a GPU's memory that ``N`` sharing jobs divide among them.
 MEMORY_SHARE = 0.9
+#: The most jobs that may share one GPU.
+MAX_SHARE = 64
 _NVIDIA_GPUS = Path("/proc/driver/nvidia/gpus")
 _held: dict[str, object] = {}
 log = logging.getLogger("hnnbench")
 
 
-def visible_gpus() -> int:
-    """The NVIDIA GPUs this process may use, without starting a backend:
-    ``CUDA_VISIBLE_DEVICES`` when set (``""`` or ``-1``: none), else the GPUs the driver
-    lists under ``/proc/driver/nvidia/gpus``; 0 without a driver."""
+def visible_gpus() -> list[str]:
+    """The NVIDIA GPUs this process may use, named as ``CUDA_VISIBLE_DEVICES`` names
+    them, found without starting a backend: its entries when it is set (up to the first
+    invalid one, as CUDA reads it: ``""`` or ``-1`` hide every GPU), else ``0..n-1``
+    for the ``n`` GPUs the driver lists under ``/proc/driver/nvidia/gpus``; ``[]``
+    without a driver."""
     listed = os.environ.get("CUDA_VISIBLE_DEVICES")
     if listed is not None:
-        ids = [part.strip() for part in listed.split(",") if part.strip()]
-        # CUDA stops at the first invalid id; "-1" is the usual way to hide every GPU.
-        count = 0
-        for part in ids:
-            if part.startswith("-"):
+        ids: list[str] = []
+        for part in (p.strip() for p in listed.split(",")):
+            if not part or part.startswith("-"):
                 break
-            count += 1
-        return count
+            ids.append(part)
+        return ids
     try:
-        return sum(1 for entry in _NVIDIA_GPUS.iterdir() if entry.is_dir())
+        count = sum(1 for entry in _NVIDIA_GPUS.iterdir() if entry.is_dir())
     except OSError:
-        return 0
+        return []
+    return [str(i) for i in range(count)]
 
 
 def memory_fraction(share: int) -> float:
@@ -52,65 +65,89 @@ def memory_fraction(share: int) -> float:
     return MEMORY_SHARE / share
 
 
-def _lock_dir() -> Path:
-    uid = os.getuid() if hasattr(os, "getuid") else 0
-    path = Path(tempfile.gettempdir()) / f"hnnbench-gpus-{uid}"
-    path.mkdir(parents=True, exist_ok=True)
-    return path
+def gpu_backend_started() -> bool:
+    """Whether JAX's backends or torch's CUDA have started in this process (then they
+    keep the GPUs and memory limit they started with)."""
+    bridge = sys.modules.get("jax._src.xla_bridge")
+    torch = sys.modules.get("torch")
+    cuda = getattr(torch, "cuda", None)
+    return bool(getattr(bridge, "_backends", None)) or bool(
+        cuda is not None and cuda.is_initialized()
+    )
 
 
-def claim_slot(directory: Path, gpus: int, share: int) -> tuple[int, Optional[IO[str]]]:
-    """Take a free slot (``gpu<i>.<slot>.lock``, ``slot < share``) of the GPU whose slots
-    are least held (the lowest index on a tie; :mod:`hnnbench._running.slots`): ``(gpu,
-    the open lock file)``, which holds the slot until it is closed. Every slot taken:
-    ``(pid mod gpus, None)``, the GPU shared beyond ``share``."""
-    slots = {gpu: [f"gpu{gpu}.{slot}.lock" for slot in range(share)] for gpu in range(gpus)}
-    gpu, handle = claim_least_held(directory, slots)
-    return (os.getpid() % gpus, None) if gpu is None else (gpu, handle)
+def _lock_name(gpu: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in gpu)[:80]
 
 
-def claim_gpu(gpus: int, share: int, lock_dir: Optional[Path] = None) -> int:
-    """This process's GPU among ``gpus`` shared by ``share`` jobs each; the slot is held
-    for the life of the process (a launcher's worker runs its jobs on one GPU).
-    Idempotent. Without file locks (not POSIX, an unwritable temporary directory): the
-    process id modulo ``gpus``, with a warning."""
+def claim_slot(directory: Path, gpus: list[str], share: int) -> tuple[str, Optional[IO[str]]]:
+    """Take a free slot (``gpu-<id>.<slot>.lock``, ``slot < share``: named by the GPU's
+    id, so sweeps that see different GPUs of one host do not collide) of the GPU among
+    ``gpus`` whose slots are least held: ``(its id, the open lock file)``, which holds
+    the slot until it is closed. Every slot taken: ``(gpus[pid mod len], None)``."""
+    slots = {
+        i: [f"gpu-{_lock_name(gpu)}.{slot}.lock" for slot in range(share)]
+        for i, gpu in enumerate(gpus)
+    }
+    index, handle = claim_least_held(directory, slots)
+    return (gpus[os.getpid() % len(gpus)], None) if index is None else (gpus[index], handle)
+
+
+def claim_gpu(gpus: list[str], share: int, lock_dir: Optional[Path] = None) -> str:
+    """This process's GPU (an id of ``gpus``) when ``share`` jobs share each; the slot is
+    held for the life of the process (a launcher's worker runs its jobs on one GPU).
+    Idempotent. Without file locks (not POSIX, an unwritable temporary directory): GPU
+    ``pid mod len(gpus)``, with a warning."""
     if "gpu" in _held:
-        return int(_held["gpu"])  # type: ignore[call-overload]
+        return str(_held["gpu"])
     try:
-        gpu, handle = claim_slot(lock_dir or _lock_dir(), gpus, share)
+        gpu, handle = claim_slot(lock_dir or slots_dir("gpus"), gpus, share)
     except (OSError, ImportError) as err:
-        gpu, handle = os.getpid() % gpus, None
-        log.warning("hnnbench: no GPU slot could be claimed (%s); using GPU %d", err, gpu)
+        gpu, handle = gpus[os.getpid() % len(gpus)], None
+        log.warning("hnnbench: no GPU slot could be claimed (%s); using GPU %s", err, gpu)
     _held.update(gpu=gpu, handle=handle)
     return gpu
 
 
-def share_device(requested: str, share: int, lock_dir: Optional[Path] = None) -> str:
-    """The device a job passes to its model when ``share`` jobs share each GPU.
+def apply_device_share(
+    requested: str, share: int, lock_dir: Optional[Path] = None
+) -> Optional[str]:
+    """Give this job process its part of a GPU when ``share`` jobs share each; call it
+    before the job's backend starts. Returns the GPU it was given (its
+    ``CUDA_VISIBLE_DEVICES`` id), or ``None`` where nothing applies: ``share == 1``,
+    ``device=cpu``, no GPU visible.
 
-    ``share == 1``, ``device=cpu`` or no GPU visible: ``requested`` as it is. Otherwise
-    JAX is told to take at most :func:`memory_fraction` of the GPU and not to
-    preallocate (``XLA_PYTHON_CLIENT_MEM_FRACTION``, ``XLA_PYTHON_CLIENT_PREALLOCATE``;
-    values already set are kept; they take effect only before JAX starts its GPU
-    backend, so a warning says when it had), and ``auto`` or ``cuda`` becomes
-    ``cuda:<the claimed slot's GPU>``; ``cuda:N`` stays on GPU ``N``.
+    JAX may take at most :func:`memory_fraction` of the GPU, allocated as it goes
+    (``XLA_PYTHON_CLIENT_MEM_FRACTION``, ``XLA_PYTHON_CLIENT_PREALLOCATE``; values the
+    user set are kept). With ``device=auto`` or ``cuda`` the process takes a slot of
+    the least-held GPU and sees only it (``CUDA_VISIBLE_DEVICES``), so the job's
+    device is that GPU as ``cuda:0``, or the CPU in a backend without CUDA;
+    ``device=cuda:N`` keeps every GPU visible and runs on ``N``. A backend that started
+    before any of this keeps what it started with: a warning says so, once.
     """
     kind, _ = device_request(requested)
     if share <= 1 or kind == "cpu":
-        return requested
+        return None
+    if "gpu" in _held:  # a later job of this worker: set up by its first
+        return None if _held["gpu"] is None else str(_held["gpu"])
     gpus = visible_gpus()
-    if gpus == 0:
-        return requested
+    if not gpus:
+        return None
+    late = gpu_backend_started()
     os.environ.setdefault("XLA_PYTHON_CLIENT_MEM_FRACTION", f"{memory_fraction(share):.4f}")
     os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
-    bridge = sys.modules.get("jax._src.xla_bridge")
-    if getattr(bridge, "_backends", None) and "gpu_warned" not in _held:
-        _held["gpu_warned"] = True
+    gpu: Optional[str] = None
+    if ":" not in requested:
+        gpu = claim_gpu(gpus, share, lock_dir)
+        os.environ["CUDA_VISIBLE_DEVICES"] = gpu
+        log.info("hnnbench: device_share=%d: this process uses GPU %s", share, gpu)
+    else:
+        _held["gpu"] = None
+    if late:
         log.warning(
-            "JAX had started before device_share=%d applied: its GPU memory limit is the "
-            "one it started with; run from the hnnbench command for the shared limit",
+            "a GPU backend had started in this process before device_share=%d applied: "
+            "it keeps the GPUs and memory limit it started with; run jobs from the "
+            "hnnbench command for the shared setting",
             share,
         )
-    if ":" in requested:
-        return requested
-    return f"cuda:{claim_gpu(gpus, share, lock_dir)}"
+    return gpu

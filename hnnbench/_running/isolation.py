@@ -28,12 +28,14 @@ GLOBALS = (
     "torch random state",
     "JAX x64",
 )
-#: Environment variables the harness itself sets for a job (one thread per job; a GPU's
-#: share of memory under ``device_share``, which JAX reads once, at its start): kept.
+#: Environment variables the harness itself sets for a job (one thread per job; under
+#: ``device_share``, the GPU a worker process sees and JAX's share of its memory, read
+#: once, when a backend starts): kept.
 HARNESS_ENV = (
     "OMP_NUM_THREADS",
     "MKL_NUM_THREADS",
     "OPENBLAS_NUM_THREADS",
+    "CUDA_VISIBLE_DEVICES",
     "XLA_PYTHON_CLIENT_MEM_FRACTION",
     "XLA_PYTHON_CLIENT_PREALLOCATE",
 )

@@ -541,6 +541,7 @@ def _execute(
             record["cpu_pin"] = core
         if core is not None:
             _warn_if_xla_started()
+    device_share.apply_device_share(str(cfg.device), int(cfg.get("device_share", 1)))
 
     datas, trajs = {}, {}
     for seed in seeds:
@@ -582,8 +583,7 @@ def _execute(
     label = f"{cfg.system.name}/{cfg.model.name} s{','.join(map(str, seeds))}"
     t0 = time.perf_counter()
     try:
-        device = device_share.share_device(str(cfg.device), int(cfg.get("device_share", 1)))
-        model = job.model_cls(job.model_cfg, system, device)
+        model = job.model_cls(job.model_cfg, system, str(cfg.device))
         with TrainingProgress(label, train.steps) as bar:
             if len(seeds) == 1:
                 fits = [(model, model.fit(datas[seeds[0]], train, seeds[0], bar.update))]

@@ -6,11 +6,22 @@ only (``fcntl``)."""
 
 from __future__ import annotations
 
+import os
+import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import IO, Optional
 
-__all__ = ["claim_least_held"]
+__all__ = ["claim_least_held", "slots_dir"]
+
+
+def slots_dir(kind: str) -> Path:
+    """The directory of one kind of slot's lock files (``cpus``, ``gpus``): one per user
+    under the temporary directory, shared by every process of that user."""
+    uid = os.getuid() if hasattr(os, "getuid") else 0
+    path = Path(tempfile.gettempdir()) / f"hnnbench-{kind}-{uid}"
+    path.mkdir(parents=True, exist_ok=True)
+    return path
 
 
 def claim_least_held(

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
 
 import pytest
@@ -172,3 +173,38 @@ def test_a_run_after_jax_started_unpinned_warns(tmp_path, jax_first):
     assert proc.returncode == 0, proc.stderr[-2000:]
     warned = "JAX was started in this process before the job pinned it" in proc.stderr + proc.stdout
     assert warned == jax_first, proc.stderr[-2000:]
+
+
+@pytest.mark.parametrize("model", ["mlp_jax", "mlp_torch"])
+def test_device_share_on_a_machine_whose_backends_see_no_gpu_keeps_auto_s_cpu(tmp_path, model):
+    """``device_share`` on a host that lists a GPU (``CUDA_VISIBLE_DEVICES=0``) with CPU
+    builds of the backends: the job takes the GPU's slot, sees only it, and
+    ``device=auto`` still falls back to the CPU; the record is ok and says ``cpu``."""
+    import subprocess
+    import sys
+
+    script = "\n".join(
+        [
+            "import os, hnnbench",
+            f"rec = hnnbench.run('spring', {model!r}, out={str(tmp_path / 'r')!r}, "
+            "profile='quick', device_share=3, system__steps=20, system__eval_n_traj=2)",
+            "assert rec['status'] == 'ok', rec['error']",
+            "assert rec['device'] == 'cpu', rec['device']",
+            "assert rec['config']['device_share'] == 3",
+            "assert os.environ['CUDA_VISIBLE_DEVICES'] == '0'",
+            "assert os.environ['XLA_PYTHON_CLIENT_MEM_FRACTION'] == '0.3000'",
+        ]
+    )
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("XLA_PYTHON_CLIENT_MEM_FRACTION", "XLA_PYTHON_CLIENT_PREALLOCATE")
+    }
+    proc = subprocess.run(
+        [sys.executable, "-c", script],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env={**env, "CUDA_VISIBLE_DEVICES": "0", "TMPDIR": str(tmp_path)},
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]

@@ -521,3 +521,13 @@ def test_a_key_that_breaks_lines_is_named_in_one_line(real, tmp_path, field, key
         loaded = records.load(tmp_path, strict=strict)
         for problem in loaded.problems:
             assert _one_line(problem.reason) and problem.reason.isprintable(), problem.reason
+
+
+@pytest.mark.parametrize("key", ["a\nb", "\x1b[31m"])
+def test_a_history_key_is_named_escaped_by_the_consistency_rules(real, tmp_path, key):
+    """A history series of the wrong length under a key that breaks lines: the
+    consistency rule names it escaped, in ``strict_problems`` too."""
+    rec = copy.deepcopy(real[0])
+    rec["history"] = {"step": [1, 2], "train_loss": [0.5, 0.25], key: [0.0, 0.0, 0.0]}
+    problems = records.strict_problems(rec)
+    assert problems and all(_one_line(p) and p.isprintable() for p in problems), problems

@@ -91,58 +91,124 @@ def test_jax_gpu_autotuning_is_off_unless_the_user_sets_its_level(monkeypatch):
 
 # --------------------------------------------------------------------------- device_share
 
+_SHARE_ENV = (
+    "CUDA_VISIBLE_DEVICES",
+    "XLA_PYTHON_CLIENT_MEM_FRACTION",
+    "XLA_PYTHON_CLIENT_PREALLOCATE",
+)
+
+
+@pytest.fixture
+def share_env(monkeypatch):
+    """The variables device_share sets, restored after the test (set first, so that
+    monkeypatch records them), and a process that holds no GPU slot yet."""
+    for var in _SHARE_ENV:
+        monkeypatch.setenv(var, "x")
+        monkeypatch.delenv(var)
+    monkeypatch.setattr(device_share, "_held", {})
+    return monkeypatch
+
 
 @pytest.mark.parametrize(
-    ("listed", "count"),
-    [("0", 1), ("0,1", 2), ("", 0), ("-1", 0), ("0,-1,1", 1), (" 2 , 3 ", 2), ("GPU-ab12", 1)],
+    ("listed", "ids"),
+    [
+        ("0", ["0"]),
+        ("0,1", ["0", "1"]),
+        ("", []),
+        ("-1", []),
+        ("0,-1,1", ["0"]),
+        (" 2 , 3 ", ["2", "3"]),
+        ("GPU-ab12", ["GPU-ab12"]),
+    ],
 )
-def test_visible_gpus_reads_cuda_visible_devices_as_cuda_does(monkeypatch, listed, count):
-    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", listed)
-    assert device_share.visible_gpus() == count
+def test_visible_gpus_reads_cuda_visible_devices_as_cuda_does(share_env, listed, ids):
+    share_env.setenv("CUDA_VISIBLE_DEVICES", listed)
+    assert device_share.visible_gpus() == ids
 
 
-def test_visible_gpus_without_a_driver_is_zero(monkeypatch, tmp_path):
-    monkeypatch.delenv("CUDA_VISIBLE_DEVICES", raising=False)
-    monkeypatch.setattr(device_share, "_NVIDIA_GPUS", tmp_path / "absent")
-    assert device_share.visible_gpus() == 0
+def test_visible_gpus_without_the_variable_counts_the_driver_s_gpus(share_env, tmp_path):
+    share_env.setattr(device_share, "_NVIDIA_GPUS", tmp_path / "absent")
+    assert device_share.visible_gpus() == []
     (tmp_path / "gpus" / "0000:01:00.0").mkdir(parents=True)
     (tmp_path / "gpus" / "0000:02:00.0").mkdir()
-    monkeypatch.setattr(device_share, "_NVIDIA_GPUS", tmp_path / "gpus")
-    assert device_share.visible_gpus() == 2
+    share_env.setattr(device_share, "_NVIDIA_GPUS", tmp_path / "gpus")
+    assert device_share.visible_gpus() == ["0", "1"]
 
 
 def test_slots_fill_the_least_held_gpu_first_and_free_on_close(tmp_path):
     """Real file locks: each claim holds its slot (an open file description) until it is
     closed, as a launcher's worker process would for its life."""
-    claims = [device_share.claim_slot(tmp_path, gpus=2, share=2) for _ in range(4)]
-    assert [gpu for gpu, _ in claims] == [0, 1, 0, 1]
+    claims = [device_share.claim_slot(tmp_path, ["2", "3"], share=2) for _ in range(4)]
+    assert [gpu for gpu, _ in claims] == ["2", "3", "2", "3"]
     assert all(handle is not None for _, handle in claims)
-    gpu, handle = device_share.claim_slot(tmp_path, gpus=2, share=2)  # all four held
-    assert handle is None and gpu in (0, 1)
-    claims[1][1].close()  # GPU 1 loses a holder: the next claim goes there
-    assert device_share.claim_slot(tmp_path, gpus=2, share=2)[0] == 1
+    gpu, handle = device_share.claim_slot(tmp_path, ["2", "3"], share=2)  # all four held
+    assert handle is None and gpu in ("2", "3")
+    claims[1][1].close()  # GPU 3 loses a holder: the next claim goes there
+    again = device_share.claim_slot(tmp_path, ["2", "3"], share=2)
+    assert again[0] == "3"
+    # another sweep on the same host that sees other GPUs takes its own slots
+    other = device_share.claim_slot(tmp_path, ["0", "1"], share=2)
+    assert other[0] == "0" and other[1] is not None
+    for _, h in [*claims, again, other]:
+        if h is not None:
+            h.close()
 
 
-def test_share_device_leaves_cpus_and_single_jobs_alone(monkeypatch, tmp_path):
-    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "0,1")
-    for var in ("XLA_PYTHON_CLIENT_MEM_FRACTION", "XLA_PYTHON_CLIENT_PREALLOCATE"):
-        monkeypatch.delenv(var, raising=False)
-    assert device_share.share_device("cpu", 4, tmp_path) == "cpu"
-    assert device_share.share_device("auto", 1, tmp_path) == "auto"
+def test_device_share_leaves_cpus_single_jobs_and_gpu_less_machines_alone(share_env, tmp_path):
+    share_env.setenv("CUDA_VISIBLE_DEVICES", "0,1")
+    assert device_share.apply_device_share("cpu", 4, tmp_path) is None
+    assert device_share.apply_device_share("auto", 1, tmp_path) is None
     assert "XLA_PYTHON_CLIENT_MEM_FRACTION" not in os.environ
-    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "")
-    assert device_share.share_device("auto", 4, tmp_path) == "auto"  # no GPU: as asked
+    share_env.setenv("CUDA_VISIBLE_DEVICES", "")
+    assert device_share.apply_device_share("auto", 4, tmp_path) is None
+    assert os.environ["CUDA_VISIBLE_DEVICES"] == ""
 
 
-def test_share_device_puts_the_job_on_a_slot_and_caps_jax_memory(monkeypatch, tmp_path):
-    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "0,1")
-    monkeypatch.delenv("XLA_PYTHON_CLIENT_MEM_FRACTION", raising=False)
-    monkeypatch.setenv("XLA_PYTHON_CLIENT_PREALLOCATE", "true")  # the user's: kept
-    monkeypatch.setattr(device_share, "_held", {})
-    other = device_share.claim_slot(tmp_path, gpus=2, share=4)  # another worker: GPU 0
-    assert other[0] == 0
-    assert device_share.share_device("auto", 4, tmp_path) == "cuda:1"
-    assert device_share.share_device("cuda", 4, tmp_path) == "cuda:1"  # held for life
-    assert device_share.share_device("cuda:0", 4, tmp_path) == "cuda:0"  # named: kept
+def test_device_share_shows_the_job_one_gpu_and_caps_jax_memory(share_env, tmp_path, caplog):
+    share_env.setenv("CUDA_VISIBLE_DEVICES", "0,1")
+    share_env.setenv("XLA_PYTHON_CLIENT_PREALLOCATE", "true")  # the user's: kept
+    share_env.setattr(device_share, "gpu_backend_started", lambda: False)
+    other = device_share.claim_slot(tmp_path, ["0", "1"], share=4)  # another worker
+    assert other[0] == "0"
+    with caplog.at_level("WARNING", logger="hnnbench"):
+        assert device_share.apply_device_share("auto", 4, tmp_path) == "1"
+        assert os.environ["CUDA_VISIBLE_DEVICES"] == "1"  # device=auto: that GPU, or the CPU
+        assert device_share.apply_device_share("cuda", 4, tmp_path) == "1"  # held for life
     assert os.environ["XLA_PYTHON_CLIENT_MEM_FRACTION"] == "0.2250"
     assert os.environ["XLA_PYTHON_CLIENT_PREALLOCATE"] == "true"
+    assert not caplog.records  # set before any backend started: no warning
+    assert other[1] is not None
+    other[1].close()
+
+
+def test_device_share_with_a_named_gpu_keeps_every_gpu_visible(share_env, tmp_path):
+    share_env.setenv("CUDA_VISIBLE_DEVICES", "0,1")
+    share_env.setattr(device_share, "gpu_backend_started", lambda: False)
+    assert device_share.apply_device_share("cuda:1", 2, tmp_path) is None
+    assert os.environ["CUDA_VISIBLE_DEVICES"] == "0,1"
+    assert os.environ["XLA_PYTHON_CLIENT_MEM_FRACTION"] == "0.4500"
+
+
+def test_device_share_after_a_backend_started_says_so_once(share_env, tmp_path, caplog):
+    share_env.setenv("CUDA_VISIBLE_DEVICES", "0")
+    share_env.setattr(device_share, "gpu_backend_started", lambda: True)
+    with caplog.at_level("WARNING", logger="hnnbench"):
+        device_share.apply_device_share("auto", 2, tmp_path)
+        device_share.apply_device_share("auto", 2, tmp_path)  # the worker's next job
+    warnings = [r.getMessage() for r in caplog.records]
+    assert len(warnings) == 1 and "had started" in warnings[0]
+    assert "\n" not in warnings[0]
+
+
+def test_a_job_keeps_the_gpu_its_worker_was_given(share_env):
+    """isolated() restores the environment after a job, but not what device_share set:
+    the worker's backends read it once and keep it."""
+    from hnnbench._running.isolation import isolated
+
+    with isolated():
+        os.environ["CUDA_VISIBLE_DEVICES"] = "1"
+        os.environ["XLA_PYTHON_CLIENT_MEM_FRACTION"] = "0.4500"
+        os.environ["HNNBENCH_SOME_PLUGIN_VARIABLE"] = "1"
+    assert os.environ["CUDA_VISIBLE_DEVICES"] == "1"
+    assert os.environ["XLA_PYTHON_CLIENT_MEM_FRACTION"] == "0.4500"
+    assert "HNNBENCH_SOME_PLUGIN_VARIABLE" not in os.environ
