@@ -473,3 +473,46 @@ def test_seed_batch_counts_aten_calls_per_step():
     one, batch, one_views, batch_views = (float(c) for c in row.strip("|").split("|")[2:])
     assert 0 < one_views < one < batch and 0 < batch_views < batch, row
     assert "mlp_jax" not in proc.stdout  # counted for torch models only
+
+
+@pytest.mark.slow
+def test_gpu_seed_batch_runs_its_parts_on_the_cpu(tmp_path):
+    """benchmarks/gpu_seed_batch.py, the prepared check for a lent GPU, end to end with
+    --device cpu (the GPU itself is not here): the data part, a pair of two seeds as one
+    batch with two processes sharing the device (``device_share``), the autotuning part,
+    the pack, and the summary against records of the same jobs."""
+    out = tmp_path / "run"
+    argv = [sys.executable, str(REPO / "benchmarks" / "gpu_seed_batch.py")]
+    proc = subprocess.run(
+        [
+            *argv,
+            *("--out", str(out), "--device", "cpu", "--profile", "quick"),
+            *("--systems", "spring", "--models", "mlp_jax", "--seeds", "2", "--parallel", "2"),
+            *("--autotune-pair", "spring:mlp_jax", "--budget-s", "300"),
+            *("--pack", str(tmp_path / "pack.tar.gz")),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=REPO,
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    exits = json.loads((out / "exits.json").read_text())
+    assert set(exits) == {"data-spring", "pair-spring-mlp_jax", "autotune-spring-mlp_jax"}
+    assert set(exits.values()) == {0}
+    records = [json.loads(p.read_text()) for p in (out / "pairs").rglob("result.json")]
+    assert sorted(r["seed"] for r in records) == [0, 1]
+    assert all(r["status"] == "ok" and r["device"] == "cpu" for r in records)
+    assert all(r["config"]["device_share"] == 2 for r in records)
+    assert (tmp_path / "pack.tar.gz").stat().st_size > 0
+    summary = subprocess.run(
+        [*argv, "--summarize", str(out), "--cpu", str(out / "autotune")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=REPO,
+    )
+    assert summary.returncode == 0, summary.stderr[-2000:]
+    (row,) = [r for r in summary.stdout.splitlines() if r.startswith("| spring | mlp_jax")]
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[2] == "2/2" and cells[-1] == "2/2 seeds", row
