@@ -26,6 +26,7 @@ __all__ = [
     "claim_gpu",
     "claim_slot",
     "gpu_backend_started",
+    "jax_started",
     "memory_fraction",
     "visible_gpus",
 ]
@@ -65,15 +66,20 @@ def memory_fraction(share: int) -> float:
     return MEMORY_SHARE / share
 
 
+def jax_started() -> bool:
+    """Whether JAX has started its backends in this process (they keep the settings
+    they started with: XLA's thread pool, the GPUs it sees, its memory limit). Reads
+    JAX's private backend table; ``False`` when that is not there."""
+    bridge = sys.modules.get("jax._src.xla_bridge")
+    return bool(getattr(bridge, "_backends", None))
+
+
 def gpu_backend_started() -> bool:
     """Whether JAX's backends or torch's CUDA have started in this process (then they
     keep the GPUs and memory limit they started with)."""
-    bridge = sys.modules.get("jax._src.xla_bridge")
     torch = sys.modules.get("torch")
     cuda = getattr(torch, "cuda", None)
-    return bool(getattr(bridge, "_backends", None)) or bool(
-        cuda is not None and cuda.is_initialized()
-    )
+    return jax_started() or bool(cuda is not None and cuda.is_initialized())
 
 
 def _lock_name(gpu: str) -> str:

@@ -94,14 +94,13 @@ def _warn_if_xla_started() -> None:
     XLA sized its CPU thread pool from the cores it saw then (later jobs of a serial
     sweep reuse the pool of a pinned first job, so only the first pin matters), and
     this process's JAX results may differ in the last bits from the ``hnnbench``
-    command's, which pins every job before JAX starts (docs/SYSTEMS_PIXEL.md). Reads
-    JAX's private backend table; silent when that is not there."""
+    command's, which pins every job before JAX starts (docs/SYSTEMS_PIXEL.md). Silent
+    when JAX's private backend table is not there (:func:`device_share.jax_started`)."""
     global _pinned_once
     if _pinned_once:
         return
     _pinned_once = True
-    bridge = sys.modules.get("jax._src.xla_bridge")
-    if not getattr(bridge, "_backends", None):
+    if not device_share.jax_started():
         return
     log.warning(
         "JAX was started in this process before the job pinned it to one core: "
