@@ -14,6 +14,11 @@ MODELS ?= all
 # seeds 0-9 of the JAX twins, the oracle and standing_still; 0-2 of the torch twins).
 SEEDS ?= 0
 PYTEST_ARGS ?=
+# `make test`, `test-fast`, `integration` and `e2e` run the tests in PYTEST_WORKERS
+# processes (pytest-xdist; 0: in this process), each test file in one of them, so a
+# module's fixtures (a cluster, a shared sweep) are set up once.
+PYTEST_WORKERS ?= 2
+PARALLEL := -n $(PYTEST_WORKERS) --dist loadfile
 
 .PHONY: setup benchmark benchmark-serial quick test test-fast unit integration e2e \
 	test-distributed fuzz lint typecheck imports clean \
@@ -59,7 +64,7 @@ test: setup
 	$(VENV)/ruff format --check .
 	$(VENV)/mypy
 	$(VENV)/lint-imports
-	$(VENV)/python -m pytest $(PYTEST_ARGS)
+	$(VENV)/python -m pytest $(PARALLEL) $(PYTEST_ARGS)
 
 # Real one-node Slurm and Ray clusters on this machine (scripts/maintainer/cluster/, as root:
 # installs slurm/munge/MariaDB with apt-get, ray + hydra-ray-launcher into .venv/ray-site).
@@ -74,7 +79,7 @@ fuzz: setup
 	  $$(grep -rl "from hypothesis" tests) -q -p no:cacheprovider $(PYTEST_ARGS) || exit 1; done
 
 test-fast: setup
-	$(VENV)/python -m pytest -m "not slow" $(PYTEST_ARGS)
+	$(VENV)/python -m pytest -m "not slow" $(PARALLEL) $(PYTEST_ARGS)
 
 # The tests by kind (CONTRIBUTING.md): tests/unit (no job, no sweep, no subprocess;
 # under a minute: the inner loop), tests/integration (jobs, sweeps, reports and models
@@ -84,10 +89,10 @@ unit: setup
 	$(VENV)/python -m pytest tests/unit -q $(PYTEST_ARGS)
 
 integration: setup
-	$(VENV)/python -m pytest tests/integration $(PYTEST_ARGS)
+	$(VENV)/python -m pytest tests/integration $(PARALLEL) $(PYTEST_ARGS)
 
 e2e: setup
-	$(VENV)/python -m pytest tests/e2e $(PYTEST_ARGS)
+	$(VENV)/python -m pytest tests/e2e $(PARALLEL) $(PYTEST_ARGS)
 
 lint: setup
 	$(VENV)/ruff check .
