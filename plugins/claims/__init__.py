@@ -224,7 +224,9 @@ MODEL_ZOO = ClaimSet(
     name="model_zoo",
     title="The model families' own papers",
     note="Each family's paper made these comparisons on its own tasks and protocols; "
-    "here they are tested on hnnbench's systems under each system's protocol.",
+    "here they are tested on hnnbench's systems under each system's protocol. "
+    "double_pendulum's protocol trains 10000 steps, twice its earlier 5000: a pilot "
+    "found most families still improving at 5000 (docs/SYSTEMS_DOUBLE_PENDULUM.md).",
     claims=(
         Claim(
             id="pendulum.energy_mse.lnn_hnn_10x",

@@ -262,6 +262,11 @@ def comparison_markdown(board: pd.DataFrame) -> str:
         "backend on the means above. Column *published* is the same ratio on the "
         "published numbers, where a source published them.",
         "",
+        *(
+            f"{md_text(claim_set.title)}: {md_text(claim_set.note)}\n"
+            for claim_set in registry.claim_sets()
+            if claim_set.note and not claim_set.published
+        ),
         md_table(claims),
         "",
         ", ".join(f"{n} {k}" for k, n in sorted(counts.items())) + ".",
