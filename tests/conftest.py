@@ -36,6 +36,17 @@ def shared_data_dir() -> Path:
     return SHARED_DATA
 
 
+#: Under `make test`'s workers (pytest-xdist), the folders in this order: an end-to-end
+#: file holds minutes of work, and one taken last keeps a worker busy while the other
+#: idles. A single process keeps the plain order (the unit tests fail fastest).
+_FOLDER_ORDER = {"e2e": 0, "integration": 1, "unit": 2}
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if hasattr(config, "workerinput"):  # a pytest-xdist worker: it sends this order
+        items.sort(key=lambda item: _FOLDER_ORDER.get(item.path.parent.name, 1))
+
+
 @pytest.fixture(scope="session", autouse=True)
 def _isolated_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
     """Generated datasets go to a temp cache unless HNNBENCH_CACHE_DIR is set."""

@@ -5,7 +5,9 @@ the platform, the host, the git commit, and the time.
 from __future__ import annotations
 
 import datetime as _dt
+import json
 import platform
+import re
 import subprocess
 import sys
 from collections.abc import Iterable
@@ -29,14 +31,28 @@ def _version(dist: str) -> str | None:
 
 @lru_cache(maxsize=1)
 def git_commit() -> str | None:
-    """The commit of the hnnbench source tree, if it is a git checkout."""
+    """The commit of the hnnbench source: its git checkout's ``HEAD`` (``-dirty`` with
+    uncommitted changes) when this module is a tracked file of one (a clone, an editable
+    install), else the commit an install from a git URL was built from
+    (:func:`installed_commit`); ``None`` for any other install."""
     here = Path(__file__).resolve().parent
     try:
+        tracked = subprocess.run(
+            ["git", "ls-files", "--error-unmatch", Path(__file__).name],
+            cwd=here,
+            capture_output=True,
+            text=True,
+            timeout=5,
+        )
+        # Not tracked: an installed copy, perhaps inside some other checkout (a venv in
+        # a clone), whose HEAD says nothing of this code.
+        if tracked.returncode != 0:
+            return installed_commit()
         out = subprocess.run(
             ["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=5
         )
         if out.returncode != 0:
-            return None
+            return installed_commit()
         dirty = subprocess.run(
             ["git", "status", "--porcelain", "--untracked-files=no"],
             cwd=here,
@@ -44,9 +60,26 @@ def git_commit() -> str | None:
             text=True,
             timeout=5,
         ).stdout.strip()
-    except (OSError, subprocess.SubprocessError):  # no git, or a slow one: not recorded
-        return None
+    except (OSError, subprocess.SubprocessError):  # no git, or a slow one
+        return installed_commit()
     return out.stdout.strip() + ("-dirty" if dirty else "")
+
+
+def installed_commit(dist: str = "hnnbench") -> str | None:
+    """The git commit an install of ``dist`` was built from, as pip records it for an
+    install from a git URL (``pip install "hnnbench @ git+file:///path@<commit>"``;
+    ``vcs_info.commit_id`` of PEP 610's ``direct_url.json``); ``None`` for an install
+    from a directory, an index or a wheel, which name no commit."""
+    try:
+        text = metadata.distribution(dist).read_text("direct_url.json")
+        info = json.loads(text) if text else None
+    except (metadata.PackageNotFoundError, ValueError):
+        return None
+    vcs = info.get("vcs_info") if isinstance(info, dict) else None
+    if not isinstance(vcs, dict) or vcs.get("vcs") != "git":
+        return None
+    commit = vcs.get("commit_id")
+    return commit if isinstance(commit, str) and re.fullmatch(r"[0-9a-f]{40}", commit) else None
 
 
 def environment(extra: Iterable[str] = ()) -> dict[str, Any]:
