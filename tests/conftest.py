@@ -57,6 +57,18 @@ def _isolated_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
     os.environ.setdefault("HNNBENCH_PROGRESS", "log")
 
 
+def pip_install(target: Path, spec: str, *options: str) -> None:
+    """pip-install ``spec`` (a path, a wheel, ``name @ url``) without its dependencies
+    into the directory ``target``, with pip's ``options``."""
+    subprocess.run(
+        [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", *options]
+        + ["--target", str(target), spec],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+
+
 def install_test_package(
     name: str, tmp_path_factory: pytest.TempPathFactory
 ) -> tuple[Path, dict[str, str]]:
@@ -66,24 +78,7 @@ def install_test_package(
     site = tmp_path_factory.mktemp(f"{name}-site")
     build = tmp_path_factory.mktemp(f"{name}-src")
     subprocess.run(["cp", "-r", str(REPO / "tests" / name), str(build)], check=True)
-    subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "pip",
-            "install",
-            "--quiet",
-            "--no-deps",
-            "--no-build-isolation",
-            "--no-index",
-            "--target",
-            str(site),
-            str(build / name),
-        ],
-        check=True,
-        capture_output=True,
-        text=True,
-    )
+    pip_install(site, str(build / name), "--no-build-isolation", "--no-index")
     path = os.pathsep.join(p for p in (str(site), os.environ.get("PYTHONPATH", "")) if p)
     return site, {"PYTHONPATH": path}
 

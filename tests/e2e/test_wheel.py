@@ -9,9 +9,20 @@ import subprocess
 import sys
 
 import pytest
-from conftest import REPO
+from conftest import REPO, pip_install
 
 pytestmark = pytest.mark.slow
+
+
+def _python_in(site, cwd, code: str) -> subprocess.CompletedProcess[str]:
+    """``python -c code`` in ``cwd`` with only ``site``'s hnnbench installed ahead of the
+    environment's; it must exit 0."""
+    env = {**os.environ, "PYTHONPATH": str(site)}
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=cwd, env=env, capture_output=True, text=True
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return proc
 
 
 def test_wheel_install_finds_config_from_any_directory(tmp_path):
@@ -36,44 +47,24 @@ def test_wheel_install_finds_config_from_any_directory(tmp_path):
         text=True,
     )
     (wheel,) = dist.glob("hnnbench-*.whl")
-    subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "pip",
-            "install",
-            "--quiet",
-            "--no-deps",
-            "--target",
-            str(site),
-            str(wheel),
-        ],
-        check=True,
-        capture_output=True,
-        text=True,
-    )
+    pip_install(site, str(wheel))
     assert (site / "hnnbench_conf" / "config.yaml").exists()
     assert (site / "hnnbench_plugins" / "systems" / "spring.py").exists()
-    env = {**os.environ, "PYTHONPATH": str(site)}
-    code = (
+    proc = _python_in(
+        site,
+        elsewhere,
         "import sys, hnnbench; print(hnnbench.__file__); "
         "from hnnbench._entry.command import run; "
-        "sys.exit(run(['--cfg', 'job', 'system=pendulum', 'model=oracle']))"
+        "sys.exit(run(['--cfg', 'job', 'system=pendulum', 'model=oracle']))",
     )
-    proc = subprocess.run(
-        [sys.executable, "-c", code], cwd=elsewhere, env=env, capture_output=True, text=True
-    )
-    assert proc.returncode == 0, proc.stderr
     assert proc.stdout.splitlines()[0].startswith(str(site))
     assert "name: pendulum" in proc.stdout and "radius_min: 1.3" in proc.stdout
-    code = (
+    _python_in(
+        site,
+        elsewhere,
         "import sys; from hnnbench._entry.command import run; sys.exit(run(["
-        "'system=spring', 'model=oracle', 'profile=quick', 'hydra.run.dir=out']))"
+        "'system=spring', 'model=oracle', 'profile=quick', 'hydra.run.dir=out']))",
     )
-    proc = subprocess.run(
-        [sys.executable, "-c", code], cwd=elsewhere, env=env, capture_output=True, text=True
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
     assert (elsewhere / "out" / "result.json").exists()
     # A wheel names no commit: nothing says which one it was built from.
     record = json.loads((elsewhere / "out" / "result.json").read_text())
@@ -89,32 +80,12 @@ def test_an_install_from_a_git_url_records_its_commit(tmp_path):
     ).stdout.strip()
     site, elsewhere = tmp_path / "site", tmp_path / "elsewhere"
     elsewhere.mkdir()
-    subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "pip",
-            "install",
-            "--quiet",
-            "--no-deps",
-            "--no-build-isolation",
-            "--no-index",
-            "--target",
-            str(site),
-            f"hnnbench @ git+file://{REPO}@{head}",
-        ],
-        check=True,
-        capture_output=True,
-        text=True,
-    )
-    env = {**os.environ, "PYTHONPATH": str(site)}
-    code = (
+    pip_install(site, f"hnnbench @ git+file://{REPO}@{head}", "--no-build-isolation", "--no-index")
+    proc = _python_in(
+        site,
+        elsewhere,
         "import hnnbench; from hnnbench._record.environment import git_commit; "
-        "print(hnnbench.__file__); print(git_commit())"
+        "print(hnnbench.__file__); print(git_commit())",
     )
-    proc = subprocess.run(
-        [sys.executable, "-c", code], cwd=elsewhere, env=env, capture_output=True, text=True
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
     where, commit = proc.stdout.split()
     assert where.startswith(str(site)) and commit == head, proc.stdout
