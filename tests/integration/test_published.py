@@ -234,10 +234,10 @@ def test_html_report_links_every_figure_and_loads_light():
 @pytest.mark.slow
 def test_rerunning_one_pair_lands_inside_the_committed_mean_pm_3_std(board, tmp_path):
     """The spring's HNN where it is published, else the HNN of the first published
-    system (its JAX twin: the torch twins of some systems were trained before a change
+    system; its JAX twin (the torch twins of some systems were trained before a change
     that moved their last bits, results/README.md)."""
     systems = sorted(set(board["system"]))
-    system, model = ("spring", "hnn_torch") if "spring" in systems else (systems[0], "hnn_jax")
+    system, model = ("spring" if "spring" in systems else systems[0]), "hnn_jax"
     row = board[(board["system"] == system) & (board["model"] == model)]
     assert not row.empty, (system, model)
     proc = hnnbench(f"system={system}", f"model={model}", "seed=1", f"hydra.run.dir={tmp_path}")
