@@ -255,13 +255,16 @@ def test_every_tuned_system_has_every_family_on_equal_budgets(committed):
     """docs/TUNING.md's promise, read from the committed records: on each system with
     tuned rows, every ranked family of the protocol track has them, each family's study
     had the same trials of the same steps, selected on validation, and each family's
-    seeds 0 to 4 share the one selected configuration; at least one such system (the
-    earlier tuner's rows of systems whose protocol rows were re-published are
-    withdrawn until issue 50's studies replace them)."""
+    seeds 0 to 4 share the one selected configuration. Skipped, saying so, where no
+    tuned row is published (the earlier tuner's rows of a system go when its protocol
+    rows are re-published, until issue 50's studies replace them); the rule itself is
+    tested on fixtures (tests/integration/test_tune.py)."""
     from hnnbench._record.tracks import track_of
     from hnnbench._results.check.records import budget_findings
 
     tuned = [r for r in committed if track_of(r) == "tuned"]
+    if not tuned:
+        pytest.skip("no tuned row is published (withdrawn until issue 50's studies)")
     assert budget_findings(tuned) == []
     protocol_families: dict[str, set[str]] = {}
     for r in committed:
@@ -282,4 +285,3 @@ def test_every_tuned_system_has_every_family_on_equal_budgets(committed):
                 system,
                 fam,
             )
-    assert pairs, "no tuned rows"
