@@ -184,3 +184,50 @@ def test_the_validation_split_survives_save_and_load(tmp_path):
     back = Dataset.load(tmp_path / "d.npz")
     assert back.valid is not None
     np.testing.assert_array_equal(back.valid.x, data.valid.x)
+
+
+def _selected(step: int, best: float, final: float, late: float, *, family: str = "hnn") -> dict:
+    """A record's fields the selection table reads (schema 3), on the spring."""
+    return {
+        "profile": "paper",
+        "system": "spring",
+        "family": family,
+        "status": "ok",
+        "selection": {
+            "criterion": "field_mse_clean",
+            "points": 60,
+            "step": step,
+            "final_step": 2000,
+            "best_value": best,
+            "final_value": final,
+            "final_se": 0.02,
+            "late_value": late,
+            "late_se": 0.1,
+            "converged": late - final <= 2 * 0.1,
+        },
+    }
+
+
+def test_the_selection_table_summarises_what_selection_resolved():
+    """results/selection.md: per family, the medians of the paired z of the lowest
+    checkpoint over the final one and of the late fall, the seeds scored earlier and
+    converged, and where in training the scored checkpoint lies; records that name no
+    criterion (schema 2) or did not finish ok are left out."""
+    from hnnbench._results.report.selection import selection_frame, selection_markdown
+
+    final_scored = _selected(2000, best=0.5, final=0.5, late=1.0)  # still falling: late_z 5
+    earlier = _selected(1000, best=0.4, final=0.5, late=0.52)  # gap_z 5, converged
+    legacy = {**_selected(500, 0.1, 0.2, 0.3), "selection": {"step": 500}}
+    diverged = {**_selected(500, 0.1, 0.2, 0.3), "status": "diverged"}
+    frame = selection_frame([final_scored, earlier, legacy, diverged])
+    assert len(frame) == 1
+    row = frame.iloc[0]
+    assert (row["family"], row["criterion"], row["runs"]) == ("hnn", "field_mse_clean", 2)
+    assert row["gap_z"] == pytest.approx(2.5)  # median of 0 and 5
+    assert row["late_z"] == pytest.approx(2.6)  # median of 5 and 0.2
+    assert (row["earlier"], row["converged"]) == (1, 1)
+    assert row["at"] == pytest.approx(0.75)  # median of 1 and 0.5
+    assert row["rel_se"] == pytest.approx(0.2)  # late_se / final
+    text = selection_markdown(frame)
+    assert "| 1/2 " in text and "| 0.75 " in text
+    assert "No record names its selection criterion" in selection_markdown(selection_frame([legacy]))

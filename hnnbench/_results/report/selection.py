@@ -39,6 +39,7 @@ COLUMNS = (
     "rel_se",
     "gap_z",
     "earlier",
+    "at",
     "late_z",
     "converged",
 )
@@ -67,6 +68,9 @@ def selection_frame(records: Sequence[dict[str, Any]]) -> pd.DataFrame:
       standard errors the lowest checkpoint beats the final one by (the rule scores it
       above 2);
     - ``earlier``: the seeds whose scored checkpoint is not the final one;
+    - ``at``: the median fraction of the steps at the scored checkpoint (1: the final
+      one; near 1 with ``earlier`` high: the lowest checkpoint is a late one, training
+      still improving through noise; far below 1: the criterion worsened with training);
     - ``late_z``: the median of (late - final) / its paired standard error: how far the
       criterion still fell over the last 20 % of steps;
     - ``converged``: the seeds whose criterion stopped improving (``late_z <= 2``).
@@ -93,6 +97,7 @@ def selection_frame(records: Sequence[dict[str, Any]]) -> pd.DataFrame:
                 "rel_se": _ratio(late_se, abs(final)),
                 "gap_z": _ratio(final - best, final_se) if final != best else 0.0,
                 "earlier": float(sel.get("step") != sel.get("final_step")),
+                "at": _ratio(_num(sel.get("step")), _num(sel.get("final_step"))),
                 "late_z": _ratio(late - final, late_se),
                 "converged": float(sel.get("converged") is True),
             }
@@ -118,6 +123,7 @@ def selection_frame(records: Sequence[dict[str, Any]]) -> pd.DataFrame:
                 "rel_se": median("rel_se"),
                 "gap_z": median("gap_z"),
                 "earlier": int(frame["earlier"].sum()),
+                "at": median("at"),
                 "late_z": median("late_z"),
                 "converged": int(frame["converged"].sum()),
             }
@@ -142,7 +148,8 @@ def selection_markdown(frame: pd.DataFrame) -> str:
         '"Checkpoint selection"). Per system and family, medians over seeds: `rel_se`, '
         "the paired standard error of a checkpoint difference relative to the criterion; "
         "`gap_z`, how many standard errors the lowest checkpoint beats the final one by; "
-        "`earlier`, the seeds scored at an earlier checkpoint; `late_z`, how many "
+        "`earlier`, the seeds scored at an earlier checkpoint; `at`, the fraction of the "
+        "steps at the scored checkpoint (1: the final one); `late_z`, how many "
         "standard errors the criterion still fell over the last 20% of steps; "
         "`converged`, the seeds where it stopped falling (`late_z` <= 2).",
         "",
@@ -155,6 +162,7 @@ def selection_markdown(frame: pd.DataFrame) -> str:
     shown = frame.copy()
     for col in ("rel_se", "gap_z", "late_z"):
         shown[col] = [("—" if not math.isfinite(v) else f"{v:.3g}") for v in shown[col]]
+    shown["at"] = [("—" if not math.isfinite(v) else f"{v:.2f}") for v in shown["at"]]
     shown["points"] = [("—" if not math.isfinite(v) else f"{v:g}") for v in shown["points"]]
     shown["earlier"] = [f"{e}/{n}" for e, n in zip(shown["earlier"], shown["runs"], strict=True)]
     shown["converged"] = [
