@@ -230,4 +230,6 @@ def test_the_selection_table_summarises_what_selection_resolved():
     assert row["rel_se"] == pytest.approx(0.2)  # late_se / final
     text = selection_markdown(frame)
     assert "| 1/2 " in text and "| 0.75 " in text
-    assert "No record names its selection criterion" in selection_markdown(selection_frame([legacy]))
+    assert "No record names its selection criterion" in selection_markdown(
+        selection_frame([legacy])
+    )
