@@ -30,11 +30,11 @@ import publish_results  # noqa: E402
 #: A record of schema 2 (read by its legacy rule), as published before the protocol track's
 #: re-publication replaced it (commit 6f022d3's results/records/spring/hnn_torch/seed0):
 #: kept under tests/data so the legacy rule stays tested once no published record uses it.
-PUBLISHED = REPO / "tests" / "data" / "schema2" / "spring" / "hnn_torch" / "seed0" / "result.json"
+LEGACY = REPO / "tests" / "data" / "schema2" / "spring" / "hnn_torch" / "seed0" / "result.json"
 
 
 def _real() -> dict:
-    return json.loads(PUBLISHED.read_text())
+    return json.loads(LEGACY.read_text())
 
 
 def _write(tmp_path: Path, data: dict | str, name: str = "r") -> Path:
@@ -51,9 +51,9 @@ def _strict_reason(tmp_path: Path, data: dict | str) -> str:
     return bad[0].reason
 
 
-def test_a_published_legacy_record_loads_strictly():
+def test_a_legacy_record_loads_strictly():
     """A schema 2 record is read by its named legacy rule, and passes it."""
-    recs, bad = records.load(PUBLISHED.parent, strict=True)
+    recs, bad = records.load(LEGACY.parent, strict=True)
     assert len(recs) == 1 and not bad
 
 

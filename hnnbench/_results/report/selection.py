@@ -69,8 +69,8 @@ def selection_frame(records: Sequence[dict[str, Any]]) -> pd.DataFrame:
       above 2);
     - ``earlier``: the seeds whose scored checkpoint is not the final one;
     - ``at``: the median fraction of the steps at the scored checkpoint (1: the final
-      one; near 1 with ``earlier`` high: the lowest checkpoint is a late one, training
-      still improving through noise; far below 1: the criterion worsened with training);
+      one, the criterion still falling or flat; far below 1: it rose as training went
+      on);
     - ``late_z``: the median of (late - final) / its paired standard error: how far the
       criterion still fell over the last 20 % of steps;
     - ``converged``: the seeds whose criterion stopped improving (``late_z <= 2``).

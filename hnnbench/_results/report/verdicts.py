@@ -328,7 +328,8 @@ def marks_line(
     if seeds < stats.MIN_SEPARABLE_SEEDS:
         tail = (
             f" Rows rest on as few as {seeds} seed(s): too few seeds to separate "
-            f"(the two-sided sign test needs {stats.MIN_SEPARABLE_SEEDS} shared seeds; "
+            f"(the two-sided sign test needs {stats.MIN_SEPARABLE_SEEDS} shared seeds "
+            f"between two families, {stats.min_separable_seeds(comparisons=5)} among six; "
             f"its smallest p with {seeds} is {min(1.0, 2 * 0.5**seeds):.3g})."
         )
     names = ", ".join(md_code(m) for m in metrics)
@@ -674,8 +675,12 @@ def tracks_markdown(
         "its runner-up with its interval (docs/STATISTICS.md), and `still_mean` the "
         "standing-still reference's mean, the value a model that predicts no motion "
         "scores. A verdict changes between two tracks where their leaders "
-        f"have no family in common. A track of fewer than "
-        f'{stats.MIN_SEPARABLE_SEEDS} seeds never separates its leaders ("too few '
+        "have no family in common (a cell of too few seeds names every family with a "
+        "value, so no "
+        f"verdict can change against it). A track of fewer than "
+        f"{stats.MIN_SEPARABLE_SEEDS} seeds never separates its leaders, and one of fewer than "
+        f"{stats.min_separable_seeds(comparisons=5)} never separates one of six families "
+        f'from the other five ("too few '
         "seeds to separate\": the two-sided sign test with Holm's correction, "
         "docs/STATISTICS.md), and the recipe track ranks only the families that "
         "declare a recipe.",
