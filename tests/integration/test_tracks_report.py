@@ -242,6 +242,11 @@ def test_the_tracks_table_shows_the_tuning_gain_with_its_interval_negative_where
     assert len(studies) == 4 and set(studies["budget"]) == {"4 x 20 x 2"}
     made = cost_figure(studies, tmp_path / "cost.png")
     assert made is not None and made.stat().st_size > 0
+    # the tuned rows withdrawn, the same folder rebuilt: no table of them is left behind
+    again = write_report([protocol], tmp_path / "out", figures=False)
+    for name in ("tracks.csv", "tuning_studies.csv", "tuning_gain.csv"):
+        assert not (tmp_path / "out" / name).exists(), name
+    assert "## Tuning gain" not in again.files["tracks_md"].read_text()
 
 
 def test_the_tracks_table_shows_the_standing_still_reference():

@@ -113,21 +113,25 @@ def write_report(
             ),
         )
     tracks = tracks_frame(verdicts.families)
-    if not tracks.empty:
-        report.files["tracks"] = out / "tracks.csv"
-        records.atomic_write_text(report.files["tracks"], csv_text(tracks))
     studies = studies_frame(recs)
     gain = tuning_gain(verdicts.families)
-    if not studies.empty:
-        report.files["studies"] = out / "tuning_studies.csv"
-        records.atomic_write_text(report.files["studies"], csv_text(studies))
-        if figures:
-            made = cost_figure(studies, out / "figures" / "tuning_cost.png")
-            if made is not None:
-                report.figures.append(Made("tuned track", "tuning_cost", made))
-    if not gain.empty:
-        report.files["tuning_gain"] = out / "tuning_gain.csv"
-        records.atomic_write_text(report.files["tuning_gain"], csv_text(gain))
+    # A table of the tracks beside the protocol's is written only where there is one; a
+    # leftover of an earlier build into the same folder (its tuned rows since withdrawn)
+    # is removed, so no file in ``out`` describes records that are not there.
+    for key, name, frame in (
+        ("tracks", "tracks.csv", tracks),
+        ("studies", "tuning_studies.csv", studies),
+        ("tuning_gain", "tuning_gain.csv", gain),
+    ):
+        if frame.empty:
+            (out / name).unlink(missing_ok=True)
+            continue
+        report.files[key] = out / name
+        records.atomic_write_text(report.files[key], csv_text(frame))
+    if not studies.empty and figures:
+        made = cost_figure(studies, out / "figures" / "tuning_cost.png")
+        if made is not None:
+            report.figures.append(Made("tuned track", "tuning_cost", made))
     report.files["tracks_md"] = out / "tracks.md"
     records.atomic_write_text(
         report.files["tracks_md"],
