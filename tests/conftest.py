@@ -57,6 +57,18 @@ def _isolated_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
     os.environ.setdefault("HNNBENCH_PROGRESS", "log")
 
 
+def load_script(path: Path, name: str):
+    """Import a script of benchmarks/ or scripts/ (not a package) as module ``name``."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
+
+
 def pip_install(target: Path, spec: str, *options: str) -> None:
     """pip-install ``spec`` (a path, a wheel, ``name @ url``) without its dependencies
     into the directory ``target``, with pip's ``options``."""

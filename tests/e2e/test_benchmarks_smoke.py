@@ -10,30 +10,23 @@ on two oracle jobs.
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 from types import ModuleType
 
 import pytest
+from conftest import REPO, load_script
 
-REPO = Path(__file__).resolve().parents[2]
 EVAL_SPEED = REPO / "benchmarks" / "eval_speed.py"
 HEADER = "| system | model | traj | batched ms | scipy-loop ms | speed-up |"
 
 
 def load_eval_speed() -> ModuleType:
     """Import benchmarks/eval_speed.py as a module."""
-    spec = importlib.util.spec_from_file_location("hnnbench_eval_speed", EVAL_SPEED)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
+    return load_script(EVAL_SPEED, "hnnbench_eval_speed")
 
 
 def table_rows(output: str) -> dict[str, list[str]]:

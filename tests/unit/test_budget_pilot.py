@@ -3,25 +3,18 @@ read against how much a change of seeds alone moves the families' order."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 from pathlib import Path
 
-from conftest import REPO
+from conftest import REPO, load_script
 from report_fixtures import make_sweep, write_run
 
 from hnnbench import _record as records
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location(
-        "budget_pilot", REPO / "scripts/analysis/budget_pilot.py"
-    )
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(REPO / "scripts/analysis/budget_pilot.py", "budget_pilot")
 
 
 def _selection(steps: int, value: float) -> dict:

@@ -8,10 +8,10 @@ repository's script (arguments passed, logs parsed and reused, the table printed
 from __future__ import annotations
 
 import csv
-import importlib.util
 from pathlib import Path
 
 import pytest
+from conftest import load_script
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -30,13 +30,7 @@ print("Final test loss {:.4e} +/- {:.4e}".format(scale * (a.seed + 2) * 1e-6, 1e
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location(
-        "run_2019_code", ROOT / "scripts/analysis/run_2019_code.py"
-    )
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(ROOT / "scripts/analysis/run_2019_code.py", "run_2019_code")
 
 
 def test_runs_each_seed_and_model_and_reuses_finished_logs(tmp_path, capsys):
