@@ -111,14 +111,12 @@ def summary(frame: pd.DataFrame) -> pd.DataFrame:
 
 
 def _tau(a: pd.Series, b: pd.Series) -> float:
-    """Kendall's tau of two families -> value series over their shared families (an
-    infinite value ranks last, ties share a rank)."""
+    """Kendall's tau (tau-b: ties allowed) of two families -> value series over their
+    shared families; an infinite value ranks last."""
     shared = a.index.intersection(b.index)
     if len(shared) < 3:
         return math.nan
-    ra = a[shared].rank(method="average")
-    rb = b[shared].rank(method="average")
-    return float(kendalltau(ra.to_numpy(), rb.to_numpy()).statistic)
+    return float(kendalltau(a[shared].to_numpy(), b[shared].to_numpy()).statistic)
 
 
 def _means(frame: pd.DataFrame, seeds: tuple[int, ...], metric: str) -> pd.Series:
@@ -145,10 +143,10 @@ def orders(frame: pd.DataFrame, seeds: tuple[int, ...]) -> list[str]:
             between = _tau(at[low], at[high])
             noise: list[float] = []
             for b in (low, high):
-                have = sorted(sub[sub["steps"] == b]["seed"].unique())
+                one = sub[sub["steps"] == b]
+                have = sorted(one["seed"].unique())
                 pairs = [tuple(have[i : i + 2]) for i in range(0, len(have) - 1, 2)]
                 for p, q in itertools.combinations(pairs, 2):
-                    one = sub[sub["steps"] == b]
                     noise.append(_tau(_means(one, p, metric), _means(one, q, metric)))
             noise = [t for t in noise if math.isfinite(t)]
             order = {b: " < ".join(at[b].sort_values().index) for b in (low, high)}
