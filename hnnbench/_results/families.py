@@ -41,6 +41,7 @@ __all__ = [
     "key_of",
     "mark_best",
     "primary_rows",
+    "references_in_every_track",
     "select",
     "twin_agreement",
 ]
@@ -147,6 +148,28 @@ def _primary_key(row: Any) -> tuple[Any, ...]:
         str(row.get("backend") or ""),
         str(row["model"]),
     )
+
+
+def references_in_every_track(rows: pd.DataFrame) -> pd.DataFrame:
+    """``rows`` (family rows) with each reference row of the protocol track (standing
+    still, the oracle) also in every other track of its (profile, system, variant) that
+    has none of its own. A track changes only the models' settings (the tuned track
+    their search space, the recipe track their Config), never a system's data, so a
+    reference (which has no settings) scores the same on it: its row is the protocol's,
+    with ``track`` set. Nothing is copied where the track ran the reference itself."""
+    if rows.empty or "reference" not in rows:
+        return rows
+    refs = rows["reference"].fillna("").astype(str) != ""
+    base = [k for k in RANKING_KEY if k != "track"]
+    added = []
+    for i, ref in rows[refs & (rows["track"] == DEFAULT_TRACK)].iterrows():
+        same = select(rows, base, key_of(ref, base))
+        for track in sorted(set(same["track"].astype(str)) - {DEFAULT_TRACK}):
+            if not (same[same["track"] == track]["family"] == ref["family"]).any():
+                added.append(rows.loc[[i]].assign(track=track))
+    if not added:
+        return rows
+    return pd.concat([rows, *added], ignore_index=True)
 
 
 def primary_rows(board: pd.DataFrame) -> pd.DataFrame:
@@ -546,7 +569,7 @@ def families(frame: pd.DataFrame, board: Optional[pd.DataFrame] = None) -> Famil
     board, frame = _with_track(board), _with_track(frame)
     if board.empty:
         return Families(board.assign(family=[], seeds_from=[], models=[], backends=[]))
-    primaries = primary_rows(board)
+    primaries = references_in_every_track(primary_rows(board))
     metrics = board_metrics(board)
     frame = frame.assign(family=competitor(frame), variant=_variant(frame))
     twins = twin_agreement(frame, primaries, metrics)

@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pandas as pd
-from report_fixtures import make_sweep, scale_metric
+from report_fixtures import make_sweep, scale_metric, write_run
 
 from hnnbench import _record as records
 from hnnbench._results.report import write_report
@@ -271,3 +271,31 @@ def test_the_tracks_table_shows_the_standing_still_reference():
     row = frame.iloc[0]
     assert row["still_mean"] == "0.25" or row["still_mean"].startswith("2.5")
     assert row["protocol_effect"] == "×10 [×3.2, ×32] vs mlp" and row["tuned_effect"] == ""
+
+
+def test_a_track_without_references_of_its_own_is_read_against_the_protocols(tmp_path):
+    """Standing still has no settings, so a track that changes only the models' settings
+    scores it as the protocol does: the recipe track's cells are marked against the
+    protocol's standing-still row, which its family table shows too."""
+    protocol = make_sweep(tmp_path / "protocol", pairs=PAIRS, seeds=SEEDS)
+    for system, rollout in (("spring", 1e-6), ("pendulum", 5.0)):
+        # on the spring, standing still's rollout is better than every family's
+        for seed in SEEDS:
+            metrics = {"test_loss": 6.0, "energy_mse": 0.0, "rollout_mse": rollout}
+            write_run(protocol, system, "standing_still", seed, "ok", metrics, rollout=False)
+    recipe = make_sweep(tmp_path / "recipe", pairs=PAIRS, seeds=SEEDS)
+    _as_track(recipe, "recipe")
+    report = write_report([protocol, recipe], tmp_path / "out", figures=False)
+    tracks = pd.read_csv(report.files["tracks"], keep_default_na=False)
+    rollout = tracks[tracks["metric"] == "rollout_mse"].set_index("system")
+    assert rollout.loc["spring", "protocol"] == "no family beats standing still"
+    assert rollout.loc["spring", "recipe"] == "no family beats standing still"
+    assert rollout.loc["pendulum", "recipe"].startswith(("best: ", "tied: "))
+    families = pd.read_csv(report.files["families"], keep_default_na=False)
+    refs = families[families["family"] == "standing_still"]
+    assert sorted(zip(refs["system"], refs["track"], strict=True)) == [
+        ("pendulum", "protocol"),
+        ("pendulum", "recipe"),
+        ("spring", "protocol"),
+        ("spring", "recipe"),
+    ]
