@@ -150,26 +150,31 @@ def _primary_key(row: Any) -> tuple[Any, ...]:
     )
 
 
-def references_in_every_track(rows: pd.DataFrame) -> pd.DataFrame:
-    """``rows`` (family rows) with each reference row of the protocol track (standing
-    still, the oracle) also in every other track of its (profile, system, variant) that
-    has none of its own. A track changes only the models' settings (the tuned track
-    their search space, the recipe track their Config), never a system's data, so a
-    reference (which has no settings) scores the same on it: its row is the protocol's,
-    with ``track`` set. Nothing is copied where the track ran the reference itself."""
-    if rows.empty or "reference" not in rows:
-        return rows
-    refs = rows["reference"].fillna("").astype(str) != ""
-    base = [k for k in RANKING_KEY if k != "track"]
+def references_in_every_track(frame: pd.DataFrame) -> pd.DataFrame:
+    """The protocol track's reference runs (standing still, the oracle) that stand in
+    another track of their (profile, system, variant) which did not run that reference:
+    the reference's protocol runs on the seeds the track's models ran, with ``track``
+    set (rows of a :func:`~hnnbench._results.leaderboard.records_frame`; empty if none).
+
+    A track changes only the models' settings (the tuned track their search space, the
+    recipe track their Config), never a system's data, so a reference (which has no
+    settings) scores on a seed of that track what it scores on the protocol's; restricted
+    to the track's seeds, its means are over the same seeds as the track's families."""
+    frame = _with_track(frame)
+    if frame.empty or "reference" not in frame:
+        return frame[:0]
+    is_ref = frame["reference"].fillna("").astype(str) != ""
+    base = [k for k in ("profile", "system", "variant") if k in frame]
     added = []
-    for i, ref in rows[refs & (rows["track"] == DEFAULT_TRACK)].iterrows():
-        same = select(rows, base, key_of(ref, base))
-        for track in sorted(set(same["track"].astype(str)) - {DEFAULT_TRACK}):
-            if not (same[same["track"] == track]["family"] == ref["family"]).any():
-                added.append(rows.loc[[i]].assign(track=track))
-    if not added:
-        return rows
-    return pd.concat([rows, *added], ignore_index=True)
+    for _, group in frame.groupby(base, dropna=False, sort=False):
+        refs = group[is_ref[group.index] & (group["track"] == DEFAULT_TRACK)]
+        for track in sorted(set(group["track"].astype(str)) - {DEFAULT_TRACK}):
+            mine = group[group["track"] == track]
+            seeds = set(mine.loc[~is_ref[mine.index], "seed"])
+            for model in sorted(set(refs["model"].astype(str)) - set(mine["model"].astype(str))):
+                runs = refs[(refs["model"] == model) & refs["seed"].isin(seeds)]
+                added.append(runs.assign(track=track))
+    return pd.concat(added) if added else frame[:0]
 
 
 def primary_rows(board: pd.DataFrame) -> pd.DataFrame:
@@ -569,7 +574,11 @@ def families(frame: pd.DataFrame, board: Optional[pd.DataFrame] = None) -> Famil
     board, frame = _with_track(board), _with_track(frame)
     if board.empty:
         return Families(board.assign(family=[], seeds_from=[], models=[], backends=[]))
-    primaries = references_in_every_track(primary_rows(board))
+    standing_in = references_in_every_track(frame)
+    if not standing_in.empty:
+        board = pd.concat([board, _with_track(leaderboard_frame(standing_in))], ignore_index=True)
+        frame = pd.concat([frame, standing_in], ignore_index=True)
+    primaries = primary_rows(board)
     metrics = board_metrics(board)
     frame = frame.assign(family=competitor(frame), variant=_variant(frame))
     twins = twin_agreement(frame, primaries, metrics)

@@ -1,13 +1,17 @@
-"""Do the families fit the input noise? The training loss at noisy inputs against the
-true field's, and how the clean-input criterion moves meanwhile (issue 46's selection).
+"""Where do the families go on the noisy systems? The training loss at the noisy inputs
+against the true field's, and how the clean-input criterion moves meanwhile (issue 46's
+selection).
 
 On a system with input noise (docs/METRICS.md: ``train_loss`` takes the model's field at
-the *noisy* training inputs, the targets are clean), the true field scores the noise
-floor on ``train_loss``: a model below it has fitted part of the noise of its training
-inputs, which the clean-input criterion (``val_loss``) can only see as an error. Reads
-the protocol records of one backend's twins beside the oracle's (same system and seed)
-under the directories given, and prints per system and family (medians over the seeds
-with an oracle row):
+the *noisy* training inputs, the targets are clean), the true field is not the field
+that minimises ``train_loss``: the clean targets' expectation given the noisy input (the
+field averaged over the noise) scores lower, and so does a network that fits the noise
+of its training inputs. A model below the true field's ``train_loss`` has moved towards
+either, away from the true field at the clean inputs, which the criterion (``val_loss``)
+measures; these records cannot tell the two apart (a held-out split at noisy inputs
+would). Reads the protocol records of one backend's twins beside the oracle's (same
+profile, system, variant and seed) under the directories given, and prints per system
+and family (medians over the seeds with an oracle row):
 
 - ``train/true at scored``: the model's ``train_loss`` at the scored checkpoint over the
   oracle's on the same seed's training inputs (below 1: below the noise floor);
@@ -72,9 +76,15 @@ def table(directories: list[Path], systems: list[str], backend: str) -> list[str
     """The printed lines: a header, then one line per (system, family)."""
     from hnnbench import _record as records
     from hnnbench._record.tracks import track_of
+    from hnnbench._results.leaderboard import variant_labels, variant_overrides
 
     recs = records.load(*directories).records
     recs = [r for r in recs if track_of(r) == "protocol" and r.get("status") == "ok"]
+    profiles = sorted({str(r.get("profile")) for r in recs})
+    if len(profiles) > 1:
+        return [f"records of several profiles ({', '.join(profiles)}): give one profile's"]
+    labels = variant_labels([variant_overrides(r) for r in recs])
+    recs = [r for r, label in zip(recs, labels, strict=True) if not label]  # no variant
     lines = [
         f"{'system':16s} {'model':12s} {'seeds':>5s} {'train/true at scored':>21s} "
         f"{'at final':>9s} {'crit final/best':>16s} {'at':>5s}"
@@ -94,6 +104,9 @@ def table(directories: list[Path], systems: list[str], backend: str) -> list[str
         )
         if not floors:
             lines.append(f"{system:16s} no oracle record: no noise floor to compare with")
+            continue
+        if not all(math.isfinite(v) and v > 0 for v in floors.values()):
+            lines.append(f"{system:16s} the true field scores 0 on train_loss: no input noise")
             continue
         for model in models:
             seeds = [

@@ -276,11 +276,14 @@ def test_the_tracks_table_shows_the_standing_still_reference():
 def test_a_track_without_references_of_its_own_is_read_against_the_protocols(tmp_path):
     """Standing still has no settings, so a track that changes only the models' settings
     scores it as the protocol does: the recipe track's cells are marked against the
-    protocol's standing-still row, which its family table shows too."""
+    protocol's standing-still runs on the recipe's own seeds, which its family table
+    shows too."""
     protocol = make_sweep(tmp_path / "protocol", pairs=PAIRS, seeds=SEEDS)
-    for system, rollout in (("spring", 1e-6), ("pendulum", 5.0)):
-        # on the spring, standing still's rollout is better than every family's
-        for seed in SEEDS:
+    for system in ("spring", "pendulum"):
+        # seeds 0-5: standing still's rollout beats every family's on the spring; the
+        # protocol also ran it on seeds 6 and 7, where it is far worse
+        for seed in (*SEEDS, 6, 7):
+            rollout = 1e-6 if system == "spring" and seed in SEEDS else 1e3
             metrics = {"test_loss": 6.0, "energy_mse": 0.0, "rollout_mse": rollout}
             write_run(protocol, system, "standing_still", seed, "ok", metrics, rollout=False)
     recipe = make_sweep(tmp_path / "recipe", pairs=PAIRS, seeds=SEEDS)
@@ -288,14 +291,18 @@ def test_a_track_without_references_of_its_own_is_read_against_the_protocols(tmp
     report = write_report([protocol, recipe], tmp_path / "out", figures=False)
     tracks = pd.read_csv(report.files["tracks"], keep_default_na=False)
     rollout = tracks[tracks["metric"] == "rollout_mse"].set_index("system")
-    assert rollout.loc["spring", "protocol"] == "no family beats standing still"
+    # over seeds 0-7 the protocol's families beat standing still (mean 250) ...
+    assert rollout.loc["spring", "protocol"].startswith(("best: ", "tied: "))
+    # ... over the recipe's seeds 0-5 none does
     assert rollout.loc["spring", "recipe"] == "no family beats standing still"
     assert rollout.loc["pendulum", "recipe"].startswith(("best: ", "tied: "))
     families = pd.read_csv(report.files["families"], keep_default_na=False)
-    refs = families[families["family"] == "standing_still"]
-    assert sorted(zip(refs["system"], refs["track"], strict=True)) == [
+    still = families[families["family"] == "standing_still"].set_index(["system", "track"])
+    assert sorted(still.index) == [
         ("pendulum", "protocol"),
         ("pendulum", "recipe"),
         ("spring", "protocol"),
         ("spring", "recipe"),
     ]
+    assert still.loc[("spring", "protocol"), "n_seeds"] == 8
+    assert still.loc[("spring", "recipe"), "n_seeds"] == len(SEEDS)

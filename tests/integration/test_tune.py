@@ -379,7 +379,12 @@ def test_the_tracks_table_says_what_each_familys_tuning_cost():
     recs += [_record("hnn_jax", s, "tuned", 0.5, cpu=1234.4) for s in (0, 1)]
     recs += [_record("mlp_jax", s, "tuned", 0.1, cpu=87.6) for s in (0, 1)]
     recs += [_record("hnn_jax", s, "tuned", 0.5, cpu=5.0, system="pendulum") for s in (0, 1)]
-    fams = families(records_frame(recs), leaderboard(recs))
+    # the protocol's standing-still reference stands in the tuned track too; it is not tuned
+    still = [_record("standing_still", s, None, 6.0) for s in (0, 1)]
+    for rec in still:
+        rec.update(backend="numpy", family="standing_still", ranked=False, reference="zero_field")
+    fams = families(records_frame(recs + still), leaderboard(recs + still))
+    assert len(fams.board[fams.board["family"] == "standing_still"]) == 2  # protocol, tuned
     costs = tuning_costs(fams)
     assert costs.to_dict("records") == [
         {"profile": "quick", "system": "spring", "mlp": "88", "hnn": "1,234"},

@@ -46,19 +46,29 @@ def _run(root: Path, model: str, seed: int, train: float, history: list[float] |
 
 
 def test_ratios_to_the_noise_floor(tmp_path, capsys):
-    for seed in (0, 1):
-        _run(tmp_path, "oracle", seed, 0.04, None)
-        # the HNN logs its train_loss: 0.9 of the floor when scored, 0.8 at the end
-        _run(tmp_path, "hnn_jax", seed, 0.036, [0.036, 0.032])
+    # each seed its own floor: the HNN's ratios are 0.9 then 0.8 (seed 0) and 0.7 then
+    # 0.6 (seed 1), paired by seed (a ratio to the other seed's floor would differ)
+    for seed, floor, hnn in ((0, 0.04, (0.9, 0.8)), (1, 0.08, (0.7, 0.6))):
+        _run(tmp_path, "oracle", seed, floor, None)
+        scored, final = hnn[0] * floor, hnn[1] * floor
+        _run(tmp_path, "hnn_jax", seed, scored, [scored, final])
         # so_mlp logs its own objective (2.5 times the metric): no final ratio
-        _run(tmp_path, "so_mlp_jax", seed, 0.04, [0.1, 0.09])
-    assert _script().main([str(tmp_path), "--systems", "spring,pendulum"]) == 0
+        _run(tmp_path, "so_mlp_jax", seed, floor, [2.5 * floor, 2.4 * floor])
+    # two_body: the true field scores 0 (no input noise): no ratio, one line says why
+    _run(tmp_path / "nbody", "oracle", 0, 0.0, None)
+    for path in (tmp_path / "nbody").rglob("result.json"):
+        rec = json.loads(path.read_text())
+        records.write_record(path.parent, {**rec, "system": "two_body"})
+    (tmp_path / "nbody" / "spring").rename(tmp_path / "nbody" / "two_body")
+    argv = [str(tmp_path), "--systems", "spring,pendulum,two_body"]
+    assert _script().main(argv) == 0
     lines = capsys.readouterr().out.splitlines()
     hnn = next(line.split() for line in lines if "hnn_jax" in line)
-    assert hnn[2:] == ["2", "0.9", "0.8", "1.5", "0.2"]
+    assert hnn[2:] == ["2", "0.8", "0.7", "1.5", "0.2"]
     so_mlp = next(line.split() for line in lines if "so_mlp_jax" in line)
     assert so_mlp[2:] == ["2", "1", "-", "1.5", "0.2"]
     assert any(line.startswith("pendulum") and "no oracle record" in line for line in lines)
+    assert any(line.startswith("two_body") and "no input noise" in line for line in lines)
 
 
 def test_a_folder_that_is_not_one_gets_one_line(tmp_path, capsys):

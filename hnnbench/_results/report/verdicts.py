@@ -619,7 +619,8 @@ def tuning_costs(fams: Families) -> pd.DataFrame:
     if board.empty or "track" not in board or "tuning_cpu_s" not in board:
         return pd.DataFrame()
     board = _main_rows_by_track(board)
-    tuned = board[board["track"] == "tuned"]
+    ranked = board["ranked"].fillna(True).astype(bool) if "ranked" in board else True
+    tuned = board[(board["track"] == "tuned") & ranked]  # the references are not tuned
     if tuned.empty:
         return pd.DataFrame()
     order = list(dict.fromkeys(tuned["family"].astype(str)))
