@@ -20,7 +20,7 @@ from hnnbench._contracts.metric import CheckRule
 from hnnbench._contracts.names import STANDING_STILL
 from hnnbench._results import stats
 from hnnbench._results.families import SCOPE_KEY, Families, family_order, key_of, scope_name, select
-from hnnbench._results.leaderboard import metric_declarations
+from hnnbench._results.leaderboard import flag_column, metric_declarations, text_column
 
 __all__ = ["Aggregate", "aggregate", "headline_metrics", "profile_taus"]
 
@@ -152,9 +152,9 @@ class Aggregate:
 
 def _floor(rows: pd.DataFrame, metric: str, rule: CheckRule) -> tuple[float, str]:
     """The floor of one (system, metric) and where it comes from."""
-    refs = rows[~rows["ranked"].fillna(True).astype(bool)] if "ranked" in rows else rows[:0]
+    refs = rows[~flag_column(rows, "ranked", True)]
     if "reference" in refs:  # standing still is a reference to beat, never the floor
-        refs = refs[refs["reference"].fillna("").astype(str) != STANDING_STILL]
+        refs = refs[text_column(refs, "reference") != STANDING_STILL]
     values = pd.to_numeric(refs.get(f"{metric}_mean", pd.Series(dtype=float)), errors="coerce")
     values = values[np.isfinite(values)]
     if len(values):
@@ -174,8 +174,7 @@ def _runs(
     """A family's seeds and per-seed values on a system (skipped runs left out)."""
     sel = select(fams.runs, SCOPE_KEY, scope)
     sel = sel[(sel["system"] == system) & (sel["family"] == family)]
-    if "variant" in sel:
-        sel = sel[sel["variant"].fillna("").astype(str) == ""]
+    sel = sel[text_column(sel, "variant") == ""]
     sel = sel[sel["status"] != "skipped"]
     values = (
         pd.to_numeric(sel[metric], errors="coerce")
@@ -197,8 +196,7 @@ def aggregate(
     board = fams.board
     if board.empty:
         return Aggregate(note="no records")
-    if "variant" in board:
-        board = board[board["variant"].fillna("").astype(str) == ""]
+    board = board[text_column(board, "variant") == ""]
     present = [c[:-5] for c in board.columns if c.endswith("_mean")]
     if metrics is None:
         metrics = [m for m in present if m in declared and declared[m].ranked]
@@ -265,7 +263,7 @@ def aggregate(
                 )
                 if scale is None:
                     continue
-                for family in rows[rows["ranked"].fillna(True).astype(bool)]["family"]:
+                for family in rows[flag_column(rows, "ranked", True)]["family"]:
                     seeds, runs = _runs(fams, scope, system, str(family), metric)
                     if not len(runs):
                         continue
@@ -355,7 +353,7 @@ def _raw_values(
     value}}}``."""
     out: Values = {}
     for system in registry.ordered("system", board["system"].astype(str)):
-        rows = board[(board["system"] == system) & board["ranked"].fillna(True).astype(bool)]
+        rows = board[(board["system"] == system) & flag_column(board, "ranked", True)]
         means = pd.to_numeric(rows[f"{metric}_mean"], errors="coerce")
         if means.isna().all():
             continue
@@ -500,7 +498,7 @@ def _alt_order(
         for system in registry.ordered("system", board["system"].astype(str)):
             rows = board[board["system"] == system]
             means = pd.to_numeric(rows[f"{metric}_mean"], errors="coerce")
-            ranked = rows[rows["ranked"].fillna(True).astype(bool)]
+            ranked = rows[flag_column(rows, "ranked", True)]
             base_rows = rows[rows["family"] == baseline]
             if means.isna().all() or base_rows.empty:
                 continue

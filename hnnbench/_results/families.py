@@ -19,8 +19,10 @@ from hnnbench._contracts.names import DEFAULT_TRACK, FAMILY_KEY, STANDING_STILL
 from hnnbench._results import stats
 from hnnbench._results.leaderboard import (
     board_metrics,
+    flag_column,
     leaderboard_frame,
     metric_declarations,
+    text_column,
     variant_sort_key,
 )
 
@@ -79,9 +81,7 @@ def scope_name(names: Sequence[str]) -> str:
 
 def _with_track(frame: pd.DataFrame) -> pd.DataFrame:
     """``frame`` with a ``track`` column (:data:`DEFAULT_TRACK` where it has none)."""
-    if "track" not in frame:
-        return frame.assign(track=DEFAULT_TRACK)
-    return frame.assign(track=frame["track"].fillna(DEFAULT_TRACK).astype(str))
+    return frame.assign(track=text_column(frame, "track", DEFAULT_TRACK))
 
 
 def key_of(row: Any, keys: Sequence[str]) -> tuple[str, ...]:
@@ -97,8 +97,7 @@ def select(frame: pd.DataFrame, keys: Sequence[str], values: Sequence[str]) -> p
     """The rows of ``frame`` whose ``keys`` hold ``values`` (compared as strings)."""
     mask = pd.Series(True, index=frame.index)
     for k, v in zip(keys, values, strict=True):
-        column = frame[k] if k in frame else pd.Series("", index=frame.index)
-        mask &= column.fillna("").astype(str) == v
+        mask &= text_column(frame, k) == v
     return frame[mask]
 
 
@@ -135,9 +134,7 @@ def competitor(frame: pd.DataFrame) -> pd.Series:
 
 
 def _variant(frame: pd.DataFrame) -> pd.Series:
-    if "variant" not in frame:
-        return pd.Series("", index=frame.index)
-    return frame["variant"].fillna("").astype(str)
+    return text_column(frame, "variant")
 
 
 def _primary_key(row: Any) -> tuple[Any, ...]:
@@ -163,7 +160,7 @@ def references_in_every_track(frame: pd.DataFrame) -> pd.DataFrame:
     frame = _with_track(frame)
     if frame.empty or "reference" not in frame:
         return frame[:0]
-    is_ref = frame["reference"].fillna("").astype(str) != ""
+    is_ref = text_column(frame, "reference") != ""
     base = [k for k in ("profile", "system", "variant") if k in frame]
     added = []
     for _, group in frame.groupby(base, dropna=False, sort=False):
@@ -387,11 +384,7 @@ def mark_best(board: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
         board[f"{m}_effect_vs"] = ""
     if board.empty:
         return board
-    ranked = (
-        board["ranked"].fillna(True).astype(bool)
-        if "ranked" in board
-        else pd.Series(True, index=board.index)
-    )
+    ranked = flag_column(board, "ranked", True)
     full = (
         (board["n_ok"] == board["n_seeds"])
         if {"n_ok", "n_seeds"} <= set(board)
@@ -556,9 +549,7 @@ def _by_key(frame: pd.DataFrame, keys: Sequence[str]) -> dict[tuple[str, ...], p
 def _standing_still(board: pd.DataFrame) -> pd.DataFrame:
     """The rows of ``board`` that are the standing-still reference
     (:data:`~hnnbench._contracts.names.STANDING_STILL`)."""
-    if "reference" not in board:
-        return board[:0]
-    return board[board["reference"].fillna("").astype(str) == STANDING_STILL]
+    return board[text_column(board, "reference") == STANDING_STILL]
 
 
 # --------------------------------------------------------------------------- the view

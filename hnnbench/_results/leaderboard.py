@@ -144,14 +144,31 @@ def variant_labels(overrides: Sequence[Iterable[str] | None]) -> list[str]:
     return [" ".join(sorted(v for k, v in it.items() if k in varying)) for it in items]
 
 
+def text_column(frame: pd.DataFrame, name: str, default: str = "") -> pd.Series:
+    """Column ``name`` of ``frame`` as strings, ``default`` where a value is missing (NaN,
+    None) and in every row when ``frame`` has no such column (e.g. ``variant``,
+    ``reference``, ``track``: records of older schemas, boards without variants)."""
+    if name not in frame:
+        return pd.Series(default, index=frame.index, dtype=object)
+    return frame[name].fillna(default).astype(str)
+
+
+def flag_column(frame: pd.DataFrame, name: str, default: bool) -> pd.Series:
+    """Column ``name`` of ``frame`` as booleans, ``default`` where a value is missing and
+    in every row when ``frame`` has no such column (e.g. ``ranked``: true unless declared)."""
+    if name not in frame:
+        return pd.Series(default, index=frame.index, dtype=bool)
+    return frame[name].fillna(default).astype(bool)
+
+
 def _has_variants(frame: pd.DataFrame) -> bool:
-    return "variant" in frame and bool((frame["variant"].fillna("") != "").any())
+    return bool((text_column(frame, "variant") != "").any())
 
 
 def _has_tracks(frame: pd.DataFrame) -> bool:
     """Whether some run is of another track than the protocol (the leaderboard then
     shows a ``track`` column and the tuning's CPU seconds)."""
-    return "track" in frame and bool((frame["track"].fillna(DEFAULT_TRACK) != DEFAULT_TRACK).any())
+    return bool((text_column(frame, "track", DEFAULT_TRACK) != DEFAULT_TRACK).any())
 
 
 def records_frame(
@@ -422,7 +439,7 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
         seeds = sorted({int(s) for s in group["seed"].dropna()})
         backends = [b for b in group["backend"].dropna().unique()] if "backend" in group else []
         families = [f for f in group["family"].dropna().unique()] if "family" in group else []
-        ranked = bool(group["ranked"].fillna(True).all()) if "ranked" in group else True
+        ranked = bool(flag_column(group, "ranked", True).all())
         roles = (
             [r for r in group["reference"].fillna("").unique() if r] if "reference" in group else []
         )
@@ -570,7 +587,7 @@ def display_frame(
     row has one), every metric that has a value somewhere, and ``cpu_s``."""
     metrics = board_metrics(board)
     linear = linear_metrics()
-    reasons = "reason" in board and board["reason"].fillna("").astype(str).ne("").any()
+    reasons = bool(text_column(board, "reason").ne("").any())
     rows = []
     for _, r in board.iterrows():
         row: dict[str, Any] = {c: r[c] for c in ids}

@@ -4,7 +4,7 @@ The fast test runs ``benchmarks/eval_speed.py`` in-process with the oracle (the 
 vector field, numpy only, no training) at a loose tolerance. The slow ones run the
 scripts as subprocesses: eval_speed.py with briefly trained torch and JAX models (the
 batched rollout and the per-trajectory scipy loop must compute the same energy MSE),
-train_step.py at tiny settings, chain_scaling.py at two tiny chains, and sweep.py --warm
+train_step.py at tiny settings, seed_batch.py's ratios at tiny settings, chain_scaling.py at two tiny chains, and sweep.py --warm
 on two oracle jobs.
 """
 
@@ -466,6 +466,34 @@ def test_seed_batch_counts_aten_calls_per_step():
     one, batch, one_views, batch_views = (float(c) for c in row.strip("|").split("|")[2:])
     assert 0 < one_views < one < batch and 0 < batch_views < batch, row
     assert "mlp_jax" not in proc.stdout  # counted for torch models only
+
+
+@pytest.mark.slow
+def test_seed_batch_prints_a_ratio_per_system_and_family():
+    """benchmarks/seed_batch.py in its default mode (issue 52's CPU check): for two
+    systems and two JAX families, separate fits against one batched fit, one table row
+    each with the ratio, and the best ratio per system."""
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(REPO / "benchmarks" / "seed_batch.py"),
+            *("--seeds", "2", "--steps", "3", "--repeats", "1"),
+            *("--systems", "spring", "pendulum", "--models", "mlp_jax", "hnn_jax"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=REPO,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    rows = [line for line in proc.stdout.splitlines() if line.startswith("| spring |")]
+    rows += [line for line in proc.stdout.splitlines() if line.startswith("| pendulum |")]
+    assert len(rows) == 4, proc.stdout
+    for row in rows:
+        fits, batch, ratio = (c.strip() for c in row.strip("|").split("|")[2:5])
+        assert float(fits) > 0 and float(batch) > 0 and ratio.endswith("x"), row
+    assert "best training ratio per system: spring" in proc.stdout, proc.stdout
 
 
 @pytest.mark.slow

@@ -27,7 +27,7 @@ from hnnbench._results.families import (
     primary_rows,
     select,
 )
-from hnnbench._results.leaderboard import format_interval
+from hnnbench._results.leaderboard import format_interval, text_column
 
 __all__ = ["BESIDE", "REFERENCE", "Rank", "Ranking", "rank_lines", "ranking"]
 
@@ -228,7 +228,7 @@ def _leader_text(board: pd.DataFrame, row: Any, metric: str, others: int) -> str
     column = f"{metric}_mark"
     if cell.empty or column not in cell:
         return "not applied"
-    marks = cell[column].fillna("").astype(str)
+    marks = text_column(cell, column)
     mine = cell[cell["family"].astype(str) == str(row["family"])]
     mark = str(mine[column].iloc[0]) if not mine.empty else ""
     if (marks == TOO_FEW).any():
@@ -258,9 +258,7 @@ def _leader_text(board: pd.DataFrame, row: Any, metric: str, others: int) -> str
 
     if (
         metric_declarations()[metric].beat_reference
-        and not (
-            cell.get("reference", pd.Series(dtype=str)).fillna("").astype(str) == STANDING_STILL
-        ).any()
+        and not (text_column(cell, "reference") == STANDING_STILL).any()
     ):
         return (
             "not applied (marked only where the leader beats the standing-still "

@@ -47,8 +47,10 @@ from hnnbench._contracts.plugin import HISTORY_TRAIN, HISTORY_VALID
 from hnnbench._record.tracks import track_of
 from hnnbench._results.families import family_order
 from hnnbench._results.leaderboard import (
+    flag_column,
     format_value,
     metric_declarations,
+    text_column,
     variant_labels,
     variant_overrides,
 )
@@ -421,9 +423,8 @@ def reference_table(board: pd.DataFrame, metric: str, systems: Sequence[str]) ->
     none; no row for a reference without a value on any of these systems."""
     if "reference" not in board or f"{metric}_mean" not in board:
         return pd.DataFrame(columns=list(systems), dtype=float)
-    rows = board[board["reference"].fillna("").astype(str) != ""]
-    if "variant" in rows:
-        rows = rows[rows["variant"].fillna("").astype(str) == ""]
+    rows = board[text_column(board, "reference") != ""]
+    rows = rows[text_column(rows, "variant") == ""]
     if rows.empty:
         return pd.DataFrame(columns=list(systems), dtype=float)
     key = "family" if "family" in rows else "model"
@@ -443,9 +444,8 @@ def reference_table(board: pd.DataFrame, metric: str, systems: Sequence[str]) ->
 
 
 def _family_rows(board: pd.DataFrame) -> pd.DataFrame:
-    rows = board[board["ranked"].fillna(True).astype(bool)] if "ranked" in board else board
-    if "variant" in rows:
-        rows = rows[rows["variant"].fillna("").astype(str) == ""]
+    rows = board[flag_column(board, "ranked", True)]
+    rows = rows[text_column(rows, "variant") == ""]
     return rows
 
 
@@ -532,7 +532,7 @@ def _marks(board: pd.DataFrame, metric: str) -> dict[tuple[str, str], str]:
     ``unbeaten`` mark of a reference row (no family beats standing still)."""
     if f"{metric}_mark" not in board:
         return {}
-    rows = board[board["variant"].fillna("").astype(str) == ""] if "variant" in board else board
+    rows = board[text_column(board, "variant") == ""]
     return {
         (str(r["family"]), str(r["system"])): str(r[f"{metric}_mark"])
         for _, r in rows.iterrows()

@@ -11,7 +11,8 @@ import pandas as pd
 
 from hnnbench import _registry as registry
 from hnnbench._contracts import claims
-from hnnbench._results.leaderboard import format_value
+from hnnbench._contracts.names import DEFAULT_TRACK
+from hnnbench._results.leaderboard import format_value, text_column
 from hnnbench._results.report.markdown import md_code, md_text
 from hnnbench._results.report.tables import md_table, seed_line
 
@@ -33,11 +34,8 @@ def plain_rows(board: pd.DataFrame) -> pd.DataFrame:
     """The rows without a variant, of the protocol track: comparisons with published
     results use those only (a variant row is a setting the sweep varied away from the
     others; the tuned and recipe tracks are other budgets)."""
-    if "track" in board:
-        board = board[board["track"].fillna("protocol").astype(str) == "protocol"]
-    if "variant" not in board:
-        return board
-    return board[board["variant"].fillna("").astype(str) == ""]
+    board = board[text_column(board, "track", DEFAULT_TRACK) == DEFAULT_TRACK]
+    return board[text_column(board, "variant") == ""]
 
 
 def main_profile(board: pd.DataFrame) -> Optional[str]:

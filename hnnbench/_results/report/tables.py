@@ -17,6 +17,7 @@ from hnnbench._results.leaderboard import (
     display_frame,
     metric_declarations,
     short_reason,
+    text_column,
 )
 from hnnbench._results.report.inputs import provenance_lines
 from hnnbench._results.report.markdown import md_cell, md_code, md_text
@@ -92,7 +93,7 @@ def family_display(fams: Families) -> tuple[pd.DataFrame, dict[tuple[int, str], 
     for metric in [c[: -len("_mark")] for c in board.columns if c.endswith("_mark")]:
         if metric not in shown.columns:
             continue
-        for i, mark in enumerate(board[f"{metric}_mark"].fillna("").astype(str)):
+        for i, mark in enumerate(text_column(board, f"{metric}_mark")):
             if mark in ("best", "tied", "unbeaten"):
                 marks[(i, metric)] = mark
         if f"{metric}_effect" in board and metric in declared:
@@ -100,7 +101,7 @@ def family_display(fams: Families) -> tuple[pd.DataFrame, dict[tuple[int, str], 
                 if not math.isnan(value):
                     marks[(i, f"{metric}:effect")] = effect_text(value, declared[metric].scale)
     if "twins_disagree" in board:
-        for i, flagged in enumerate(board["twins_disagree"].fillna("").astype(str)):
+        for i, flagged in enumerate(text_column(board, "twins_disagree")):
             for metric in flagged.split(";"):
                 if metric in shown.columns:
                     shown.at[i, metric] = f"{shown.at[i, metric]} {TWIN_FLAG}"
@@ -118,7 +119,7 @@ def reason_notes(shown: pd.DataFrame) -> tuple[pd.DataFrame, list[tuple[int, str
         return shown, []
     out = shown.drop(columns="reason").reset_index(drop=True)
     numbers: dict[str, int] = {}
-    for i, reason in enumerate(shown["reason"].fillna("").astype(str)):
+    for i, reason in enumerate(text_column(shown, "reason")):
         if reason.strip() in ("", "—", "nan"):
             continue
         number = numbers.setdefault(reason, len(numbers) + 1)

@@ -17,7 +17,7 @@ from hnnbench._contracts.names import DEFAULT_TRACK
 from hnnbench._record.tracks import track_of
 from hnnbench._results import stats
 from hnnbench._results.families import Families
-from hnnbench._results.leaderboard import metric_declarations
+from hnnbench._results.leaderboard import flag_column, metric_declarations, text_column
 from hnnbench._results.report.tables import effect_text, md_table
 
 __all__ = ["STUDY_COLUMNS", "cost_figure", "gain_markdown", "studies_frame", "tuning_gain"]
@@ -100,11 +100,9 @@ def tuning_gain(fams: Families, metrics: Optional[Sequence[str]] = None) -> pd.D
     columns = ["profile", "system", "family", "metric", "n", "gain", "low", "high", "coverage"]
     if runs.empty or "track" not in runs:
         return pd.DataFrame(columns=[*columns, "scale"])
-    runs = runs.assign(track=runs["track"].fillna(DEFAULT_TRACK).astype(str))
-    if "variant" in runs:
-        runs = runs[runs["variant"].fillna("").astype(str) == ""]
-    if "ranked" in runs:
-        runs = runs[runs["ranked"].fillna(True).astype(bool)]
+    runs = runs.assign(track=text_column(runs, "track", DEFAULT_TRACK))
+    runs = runs[text_column(runs, "variant") == ""]
+    runs = runs[flag_column(runs, "ranked", True)]
     declared = metric_declarations()
     if metrics is None:
         metrics = [m for m in declared if declared[m].ranked and m in runs]

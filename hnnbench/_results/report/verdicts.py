@@ -14,7 +14,12 @@ from hnnbench._contracts.names import DEFAULT_TRACK, STANDING_STILL, TRACKS
 from hnnbench._results import stats
 from hnnbench._results.aggregate import Aggregate, aggregate, headline_metrics
 from hnnbench._results.families import RANKING_KEY, SCOPE_KEY, Families, families, scope_name
-from hnnbench._results.leaderboard import metric_declarations, records_frame
+from hnnbench._results.leaderboard import (
+    flag_column,
+    metric_declarations,
+    records_frame,
+    text_column,
+)
 from hnnbench._results.report.markdown import md_code, md_text
 from hnnbench._results.report.tables import effect_text, md_table
 
@@ -98,8 +103,7 @@ def _scope_values(frame: pd.DataFrame) -> pd.DataFrame:
     column or value is ``""``; a missing track is the protocol)."""
     out = pd.DataFrame(index=frame.index)
     for k in SCOPE_KEY:
-        column = frame[k] if k in frame else pd.Series(None, index=frame.index, dtype=object)
-        out[k] = column.fillna(DEFAULT_TRACK if k == "track" else "").astype(str)
+        out[k] = text_column(frame, k, DEFAULT_TRACK if k == "track" else "")
     if "track" in out:
         out.loc[out["track"] == "", "track"] = DEFAULT_TRACK
     return out
@@ -198,7 +202,7 @@ def rank_left_out_lines(agg: Aggregate, key: Optional[Scope] = None) -> list[str
     ranks = main_scope(agg.ranks, key)
     lines = []
     for metric in [m for m in headline_metrics() if (ranks["metric"] == m).any()]:
-        left = ranks[ranks["metric"] == metric]["left_out"].fillna("").astype(str).iloc[0]
+        left = text_column(ranks[ranks["metric"] == metric], "left_out").iloc[0]
         if left:
             names = ", ".join(md_text(x) for x in left.split(";"))
             lines.append(
@@ -274,7 +278,7 @@ def supported_lines(
         sel = poi[poi["metric"] == metric]
         iqm = iqm_all[iqm_all["metric"] == metric]
         ranked = list(iqm.sort_values("iqm", ascending=False)["family"]) or order
-        if "claimable" in sel and not sel["claimable"].fillna(False).astype(bool).any():
+        if "claimable" in sel and not flag_column(sel, "claimable", False).any():
             fewest = int(pd.to_numeric(sel["min_seeds"], errors="coerce").min())
             lines.append(
                 f"- {md_code(metric)}: too few seeds to separate (as few as "
@@ -283,7 +287,7 @@ def supported_lines(
             )
             continue
         if "claimable" in sel:
-            sel = sel[sel["claimable"].fillna(False).astype(bool)]
+            sel = sel[flag_column(sel, "claimable", False)]
         beats = []
         for family in ranked:
             wins = sel[(sel["family"] == family) & (sel["p_low"] > 0.5)]
@@ -311,14 +315,13 @@ def marks_line(
     board = main_scope(fams.board, key)
     if metrics is None:
         metrics = [m for m in headline_metrics() if f"{m}_mark" in board]
-    if "variant" in board:
-        board = board[board["variant"].fillna("").astype(str) == ""]
+    board = board[text_column(board, "variant") == ""]
     best = tied = unbeaten = 0
     for metric in metrics:
         if f"{metric}_mark" not in board:
             continue
         for _, group in board.groupby([k for k in RANKING_KEY if k != "variant"], sort=False):
-            marks = set(group[f"{metric}_mark"].fillna("").astype(str))
+            marks = set(text_column(group, f"{metric}_mark"))
             best += "best" in marks
             tied += "tied" in marks and "best" not in marks
             unbeaten += "unbeaten" in marks
@@ -350,8 +353,7 @@ def findings_lines(fams: Families, key: Optional[Scope] = None) -> list[str]:
     board = main_scope(fams.board, key)
     if board.empty:
         return []
-    if "variant" in board:
-        board = board[board["variant"].fillna("").astype(str) == ""]
+    board = board[text_column(board, "variant") == ""]
     declared = metric_declarations()
     metrics = [
         m[: -len("_mark")]
@@ -362,7 +364,7 @@ def findings_lines(fams: Families, key: Optional[Scope] = None) -> list[str]:
     for system, group in board.groupby("system", sort=False):
         said: dict[tuple[str, str], list[str]] = {}
         for metric in metrics:
-            best = group[group[f"{metric}_mark"].fillna("").astype(str) == "best"]
+            best = group[text_column(group, f"{metric}_mark") == "best"]
             if best.empty:
                 continue
             r = best.iloc[0]
@@ -488,7 +490,7 @@ def _leaders(rows: pd.DataFrame, metric: str) -> str:
     column = f"{metric}_mark"
     if column not in rows:
         return ""
-    marks = rows[column].fillna("").astype(str)
+    marks = text_column(rows, column)
     if (marks == "unbeaten").any():
         return "no family beats standing still"
     best = rows.loc[marks == "best", "family"].astype(str).tolist()
@@ -500,7 +502,7 @@ def _leaders(rows: pd.DataFrame, metric: str) -> str:
         if not few
         else rows[
             pd.to_numeric(rows.get(f"{metric}_mean"), errors="coerce").notna()
-            & rows["ranked"].fillna(True).astype(bool)
+            & flag_column(rows, "ranked", True)
         ]
     )
     mean = f"{metric}_mean"
@@ -518,9 +520,8 @@ def _leaders(rows: pd.DataFrame, metric: str) -> str:
 def _main_rows_by_track(board: pd.DataFrame) -> pd.DataFrame:
     """A family board's rows of no variant, its ``track`` column filled (a row with none
     is of :data:`DEFAULT_TRACK`) and text."""
-    if "variant" in board:
-        board = board[board["variant"].fillna("").astype(str) == ""]
-    return board.assign(track=board["track"].fillna(DEFAULT_TRACK).astype(str))
+    board = board[text_column(board, "variant") == ""]
+    return board.assign(track=text_column(board, "track", DEFAULT_TRACK))
 
 
 def tracks_frame(fams: Families, metrics: Optional[list[str]] = None) -> pd.DataFrame:
@@ -578,7 +579,7 @@ def _standing_still_text(rows: pd.DataFrame, metric: str) -> str:
     column = f"{metric}_mean"
     if "reference" not in rows or column not in rows:
         return ""
-    still = rows[rows["reference"].fillna("").astype(str) == STANDING_STILL]
+    still = rows[text_column(rows, "reference") == STANDING_STILL]
     values = pd.to_numeric(still[column], errors="coerce").dropna()
     return _fmt(float(values.iloc[0])) if len(values) else ""
 
@@ -619,7 +620,7 @@ def tuning_costs(fams: Families) -> pd.DataFrame:
     if board.empty or "track" not in board or "tuning_cpu_s" not in board:
         return pd.DataFrame()
     board = _main_rows_by_track(board)
-    ranked = board["ranked"].fillna(True).astype(bool) if "ranked" in board else True
+    ranked = flag_column(board, "ranked", True)
     tuned = board[(board["track"] == "tuned") & ranked]  # the references are not tuned
     if tuned.empty:
         return pd.DataFrame()
