@@ -4,8 +4,8 @@ The fast test runs ``benchmarks/eval_speed.py`` in-process with the oracle (the 
 vector field, numpy only, no training) at a loose tolerance. The slow ones run the
 scripts as subprocesses: eval_speed.py with briefly trained torch and JAX models (the
 batched rollout and the per-trajectory scipy loop must compute the same energy MSE),
-train_step.py at tiny settings, seed_batch.py's ratios at tiny settings, chain_scaling.py at two tiny chains, and sweep.py --warm
-on two oracle jobs.
+train_step.py and seed_batch.py's ratios at tiny settings, chain_scaling.py at two tiny
+chains, and sweep.py --warm on two oracle jobs.
 """
 
 from __future__ import annotations
@@ -440,27 +440,23 @@ def test_gpu_benchmark_runs_its_parts_on_the_cpu(tmp_path):
     assert "XLA_FLAGS" in (tmp_path / "environment.txt").read_text()
 
 
-@pytest.mark.slow
-def test_seed_batch_counts_aten_calls_per_step():
-    """benchmarks/seed_batch.py --ops: ATen calls per step of one seed's fit and of the
-    batched fit, views counted apart (docs/SCALING.md, "GPUs", reads these counts)."""
-    proc = subprocess.run(
-        [
-            sys.executable,
-            str(REPO / "benchmarks" / "seed_batch.py"),
-            "--ops",
-            "--systems",
-            "spring",
-            "--models",
-            "mlp_torch",
-            "mlp_jax",
-        ],
+def run_seed_batch(*args: str) -> subprocess.CompletedProcess[str]:
+    """benchmarks/seed_batch.py with ``args``, one thread, its output captured."""
+    return subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "seed_batch.py"), *args],
         capture_output=True,
         text=True,
         timeout=600,
         cwd=REPO,
         env={**os.environ, "OMP_NUM_THREADS": "1"},
     )
+
+
+@pytest.mark.slow
+def test_seed_batch_counts_aten_calls_per_step():
+    """benchmarks/seed_batch.py --ops: ATen calls per step of one seed's fit and of the
+    batched fit, views counted apart (docs/SCALING.md, "GPUs", reads these counts)."""
+    proc = run_seed_batch("--ops", "--systems", "spring", "--models", "mlp_torch", "mlp_jax")
     assert proc.returncode == 0, proc.stderr[-3000:]
     (row,) = [line for line in proc.stdout.splitlines() if line.startswith("| spring |")]
     one, batch, one_views, batch_views = (float(c) for c in row.strip("|").split("|")[2:])
@@ -473,18 +469,9 @@ def test_seed_batch_prints_a_ratio_per_system_and_family():
     """benchmarks/seed_batch.py in its default mode (issue 52's CPU check): for two
     systems and two JAX families, separate fits against one batched fit, one table row
     each with the ratio, and the best ratio per system."""
-    proc = subprocess.run(
-        [
-            sys.executable,
-            str(REPO / "benchmarks" / "seed_batch.py"),
-            *("--seeds", "2", "--steps", "3", "--repeats", "1"),
-            *("--systems", "spring", "pendulum", "--models", "mlp_jax", "hnn_jax"),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        cwd=REPO,
-        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    proc = run_seed_batch(
+        *("--seeds", "2", "--steps", "3", "--repeats", "1"),
+        *("--systems", "spring", "pendulum", "--models", "mlp_jax", "hnn_jax"),
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     rows = [line for line in proc.stdout.splitlines() if line.startswith("| spring |")]
