@@ -153,8 +153,8 @@ class Aggregate:
 def _floor(rows: pd.DataFrame, metric: str, rule: CheckRule) -> tuple[float, str]:
     """The floor of one (system, metric) and where it comes from."""
     refs = rows[~flag_column(rows, "ranked", True)]
-    if "reference" in refs:  # standing still is a reference to beat, never the floor
-        refs = refs[text_column(refs, "reference") != STANDING_STILL]
+    # standing still is a reference to beat, never the floor
+    refs = refs[text_column(refs, "reference") != STANDING_STILL]
     values = pd.to_numeric(refs.get(f"{metric}_mean", pd.Series(dtype=float)), errors="coerce")
     values = values[np.isfinite(values)]
     if len(values):
