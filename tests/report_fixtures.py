@@ -278,3 +278,60 @@ def set_status(root: Path, system: str, model: str, seed: int, status: str) -> N
     profile = (records.read_record(directory / records.RECORD_NAME) or {}).get("profile", "quick")
     shutil.rmtree(directory)
     write_run(root, system, model, seed, status=status, profile=profile)
+
+
+def tuned_rows_problems(
+    tuned: list[dict[str, Any]], protocol: list[dict[str, Any]], least_seeds: int
+) -> list[str]:
+    """What breaks docs/TUNING.md's promise about tuned rows, read from their records
+    (``tuned``) beside the protocol track's (``protocol``): on each system with tuned
+    rows, every family the protocol ran there (skipped ones aside) is tuned; every
+    study states its criterion (the one its runs were selected on), at least 2 seeds
+    per trial and the protocol's settings as trial 0; families on one system had equal
+    budgets (``budget_findings``); each family holds seeds 0..n-1, n at least
+    ``least_seeds``; and the runs of one study (one per fold on a measured system)
+    share its one selected configuration. Empty: nothing breaks it."""
+    from hnnbench._record.tracks import track_problem
+    from hnnbench._results.check.records import budget_findings
+
+    problems = [
+        f"{f.system}/{f.model}: unequal {f.metric}: {f.reference} against {f.current}"
+        for f in budget_findings(tuned)
+    ]
+    ran: dict[str, set[str]] = {}
+    for r in protocol:
+        if r.get("ranked", True) and r["model"] != "oracle" and r.get("status") != "skipped":
+            ran.setdefault(r["system"], set()).add(str(r["family"]))
+    pairs: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in tuned:
+        where = f"{r['system']}/{r['model']}/seed{r['seed']}"
+        tuning = r["tuning"]
+        if track_problem(r) is not None:
+            problems.append(f"{where}: {track_problem(r)}")
+        if tuning.get("criterion") != (r.get("selection") or {}).get("criterion"):
+            problems.append(f"{where}: tuned on {tuning.get('criterion')}, selected on another")
+        if not (tuning.get("seeds_per_trial") or 0) >= 2:
+            problems.append(f"{where}: {tuning.get('seeds_per_trial')} seed(s) per trial")
+        if tuning.get("protocol_trial") != 0:
+            problems.append(f"{where}: the protocol's settings are not trial 0")
+        pairs.setdefault((r["system"], str(r["family"])), []).append(r)
+    for system in sorted({s for s, _ in pairs}):
+        fams = {f for s, f in pairs if s == system}
+        if fams != ran.get(system, set()):
+            problems.append(
+                f"{system}: tuned {sorted(fams)}, protocol {sorted(ran.get(system, []))}"
+            )
+    for (system, family), runs in sorted(pairs.items()):
+        seeds = sorted(r["seed"] for r in runs)
+        if len(seeds) < least_seeds or seeds != list(range(len(seeds))):
+            problems.append(f"{system}/{family}: tuned seeds {seeds}")
+        by_study: dict[str, set[str]] = {}
+        for r in runs:
+            chosen = json.dumps(r["tuning"]["selected"], sort_keys=True)
+            by_study.setdefault(str(r["tuning"].get("study")), set()).add(chosen)
+        problems += [
+            f"{system}/{family}: study {study} selected {len(chosen)} configurations"
+            for study, chosen in sorted(by_study.items())
+            if len(chosen) != 1
+        ]
+    return problems

@@ -15,12 +15,21 @@ or 1/3 of the steps, so the tuning costs less), the per-step cost of the space's
 draw stands for every trial, and CPU seconds are one core's.
 
     python scripts/analysis/tuning_costs.py results/runs/tuned_cost --trials 16 --seeds 10
+
+Without a tiny run, ``--from-job-costs`` bounds the same budget from the published
+protocol jobs' median seconds (``hnnbench/resources/job_costs.csv``, the six JAX twins
+of the profile): a trial of ``--seeds-per-trial`` seeds counted as that many whole jobs,
+once per study (a measured system holds one study per fold of the final seeds), plus
+the final seeds, per system and per stage of ``scripts/maintainer/tune_sweep.sh``:
+
+    python scripts/analysis/tuning_costs.py --from-job-costs --trials 16 --seeds 10
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import re
 import statistics
 import sys
 from collections import defaultdict
@@ -28,6 +37,15 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 RECORDS = REPO / "results" / "records"
+JOB_COSTS = REPO / "hnnbench" / "resources" / "job_costs.csv"
+TUNE_SWEEP = REPO / "scripts" / "maintainer" / "tune_sweep.sh"
+FAMILIES = ("mlp", "hnn", "dhnn", "lnn", "so_mlp", "srnn")
+
+
+def stages() -> dict[int, list[str]]:
+    """The systems of each stage, as ``tune_sweep.sh`` declares them (``N) systems="..."``)."""
+    found = re.findall(r'^\s*(\d+)\) systems="([^"]*)"', TUNE_SWEEP.read_text("utf-8"), re.M)
+    return {int(k): v.split() for k, v in found}
 
 
 def protocol_steps(system: str, model: str, profile: str) -> int:
@@ -60,9 +78,62 @@ def trial_parts(rec: dict) -> tuple[float, float] | None:
     return t["cpu_s"] - train_cpu, train_cpu / steps
 
 
+def studies(system: str, seeds: int, profile: str) -> int:
+    """How many studies one model's tuning holds on ``system``: one, or on a measured
+    system one per fold that the final seeds ``0..seeds-1`` fall in (``System.fold``)."""
+    from hnnbench._running.compose import compose
+    from hnnbench._running.config import prepare_job
+
+    job = prepare_job(
+        compose([f"system={system}", f"model={FAMILIES[0]}_jax", f"profile={profile}"])
+    )
+    fold = getattr(job.system_cls(job.system_cfg), "fold", None)
+    return len({int(fold(s)) for s in range(seeds)}) if callable(fold) else 1
+
+
+def from_job_costs(ns: argparse.Namespace) -> int:
+    """Print the job-costs bound per system and per stage (module docstring)."""
+    import csv
+
+    with JOB_COSTS.open(encoding="utf-8") as f:
+        median = {
+            (row["system"], row["model"]): float(row["seconds"])
+            for row in csv.DictReader(f)
+            if row["profile"] == ns.profile
+        }
+    print("| stage | system | studies per model | trial CPU h | final CPU h | total CPU h |")
+    print("|---|---|---|---|---|---|")
+    for stage, systems in stages().items():
+        stage_total = 0.0
+        for system in systems:
+            per_job = [median.get((system, f"{family}_jax")) for family in FAMILIES]
+            missing = [f for f, v in zip(FAMILIES, per_job, strict=True) if v is None]
+            if missing:
+                print(f"| {stage} | {system} | no job costs for {', '.join(missing)} | | | |")
+                continue
+            # a family that cannot run on the system is recorded skipped in a few ms
+            per_job = [v for v in per_job if v is not None]
+            n = studies(system, ns.seeds, ns.profile)
+            trials = sum(n * ns.trials * ns.seeds_per_trial * v for v in per_job) / 3600
+            finals = sum(ns.seeds * v for v in per_job) / 3600
+            stage_total += trials + finals
+            print(
+                f"| {stage} | {system} | {n} | {trials:.1f} | {finals:.1f} | "
+                f"{trials + finals:.1f} |"
+            )
+        print(f"| {stage} | all | | | | {stage_total:.1f} |")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("dir", type=Path, help="the tiny run's out= directory")
+    p.add_argument("dir", type=Path, nargs="?", help="the tiny run's out= directory")
+    p.add_argument(
+        "--from-job-costs",
+        action="store_true",
+        help="bound the budget from hnnbench/resources/job_costs.csv instead of a tiny run",
+    )
+    p.add_argument("--profile", default="paper", help="job costs' profile (default paper)")
     p.add_argument("--trials", type=int, default=20, help="trials per model (default 20)")
     p.add_argument("--seeds", type=int, default=10, help="final seeds (default 10)")
     p.add_argument(
@@ -78,6 +149,10 @@ def main(argv: list[str] | None = None) -> int:
         help="steps per trial (default: each system's protocol steps)",
     )
     ns = p.parse_args(argv)
+    if ns.from_job_costs:
+        return from_job_costs(ns)
+    if ns.dir is None:
+        p.error("give the tiny run's out= directory, or --from-job-costs")
     parts: dict[tuple[str, str, str], list[tuple[float, float]]] = defaultdict(list)
     for path in sorted((ns.dir / "trials").rglob("result.json")):
         rec = json.loads(path.read_text("utf-8"))

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import REPO
+from report_fixtures import tuned_rows_problems
 
 import hnnbench
 from hnnbench import _registry as registry
@@ -513,6 +514,15 @@ def test_tune_gives_every_model_the_same_budget_and_selects_on_validation(tmp_pa
         final_mean = sum(f["selection"]["validation_loss"] for f in finals) / 2
         assert math.isclose(final_mean, best["value"], rel_tol=1e-4)
 
+    # the rule the published tuned rows are held to (tests/integration/test_published.py)
+    # holds for a real tuner's records
+    finals_all = [json.loads(p.read_text()) for p in sorted((out / "final").rglob("result.json"))]
+    ran = [
+        {"system": "spring", "model": m, "family": m.split("_")[0], "status": "ok"}
+        for m in ("mlp_jax", "hnn_jax")
+    ]
+    assert tuned_rows_problems(finals_all, ran, least_seeds=2) == []
+
     # resuming runs nothing new; another step budget on the same studies is refused
     again = hnnbench.tune(
         "spring",
@@ -691,6 +701,43 @@ def test_a_trials_score_is_the_mean_of_its_seeds_criteria_and_worst_if_one_fails
     assert tuning.trial_score([rec(1.0), rec(3.0, "diverged")], objective)[0] == objective.worst()
     no_selection = {"status": "ok", "metrics": {"val_loss": {"mean": 0.5}}}
     assert tuning.trial_score([no_selection], objective) == (0.5, "val_loss")
+
+
+def _study_record(model: str, seed: int, study: str, lr: float) -> dict:
+    """A final record of ``study`` as the tuner writes its ``tuning`` block."""
+    rec = _record(model, seed, "tuned", selected={"model.lr": lr}, system="real_pendulum")
+    rec["selection"] = {"criterion": "rollout_q_mse_4", "validation_loss": 1.0}
+    rec["tuning"].update(
+        criterion="rollout_q_mse_4", seeds_per_trial=2, protocol_trial=0, study=study
+    )
+    return rec
+
+
+def test_the_published_tuned_rows_rule_reads_studies_per_fold_and_skipped_families():
+    """``report_fixtures.tuned_rows_problems``: a measured system's fold studies may
+    select different settings, one study may not; a family the protocol skipped there
+    needs no tuned row, one it ran does."""
+    ran = [
+        {"system": "real_pendulum", "model": m, "family": m.split("_")[0], "status": s}
+        for m, s in (("hnn_jax", "ok"), ("mlp_jax", "ok"), ("lnn_jax", "skipped"))
+    ]
+    tuned = [
+        _study_record(m, seed, f"{m}-fold{seed % 2}", 0.001 * (1 + seed % 2))
+        for m in ("hnn_jax", "mlp_jax")
+        for seed in range(4)
+    ]
+    assert tuned_rows_problems(tuned, ran, least_seeds=4) == []
+    one_study = [_study_record("hnn_jax", s, "hnn", 0.001 * (1 + s % 2)) for s in range(4)]
+    found = tuned_rows_problems(one_study + tuned[4:], ran, least_seeds=4)
+    assert found == ["real_pendulum/hnn: study hnn selected 2 configurations"], found
+    found = tuned_rows_problems(tuned[:4], ran, least_seeds=4)
+    assert found == ["real_pendulum: tuned ['hnn'], protocol ['hnn', 'mlp']"], found
+    tuned[0]["tuning"]["seeds_per_trial"] = 1
+    tuned[1]["tuning"]["criterion"] = "field_mse"
+    found = tuned_rows_problems(tuned, ran, least_seeds=5)
+    assert any("1 seed(s) per trial" in f for f in found), found
+    assert any("tuned on field_mse, selected on another" in f for f in found), found
+    assert any("tuned seeds [0, 1, 2, 3]" in f for f in found), found
 
 
 def test_unequal_seeds_per_trial_are_unequal_budgets():
