@@ -135,7 +135,7 @@ def test_every_published_system_has_every_model_with_its_seeds(board):
     # Seeds 0..n-1 (scripts/maintainer/paper_sweep.sh): at least 5 of the JAX twins and the
     # reference (the family rows rest on them: a sign test over fewer cannot separate at
     # 5%), at least 3 of the torch twins (the twin-parity check) and of a recipe row; a
-    # tuned row, at least 5 (docs/TUNING.md: the selected settings on seeds 0 to 4).
+    # tuned row, at least 5 (docs/TUNING.md: the selected settings train the final seeds 0-9).
     tracks = (
         board["track"].fillna("protocol")
         if "track" in board
