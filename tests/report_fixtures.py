@@ -306,8 +306,9 @@ def tuned_rows_problems(
     for r in tuned:
         where = f"{r['system']}/{r['model']}/seed{r['seed']}"
         tuning = r["tuning"]
-        if track_problem(r) is not None:
-            problems.append(f"{where}: {track_problem(r)}")
+        problem = track_problem(r)
+        if problem is not None:
+            problems.append(f"{where}: {problem}")
         if tuning.get("criterion") != (r.get("selection") or {}).get("criterion"):
             problems.append(f"{where}: tuned on {tuning.get('criterion')}, selected on another")
         if not (tuning.get("seeds_per_trial") or 0) >= 2:

@@ -79,16 +79,16 @@ def trial_parts(rec: dict) -> tuple[float, float] | None:
 
 
 def studies(system: str, seeds: int, profile: str) -> int:
-    """How many studies one model's tuning holds on ``system``: one, or on a measured
-    system one per fold that the final seeds ``0..seeds-1`` fall in (``System.fold``)."""
-    from hnnbench._running.compose import compose
-    from hnnbench._running.config import prepare_job
+    """How many studies one model's tuning holds on ``system`` for the final seeds
+    ``0..seeds-1``: the tuner's own grouping (one, or one per fold on a measured system)."""
+    from hnnbench._tuning.request import TuneRequest
+    from hnnbench._tuning.tuner import Tuner
 
-    job = prepare_job(
-        compose([f"system={system}", f"model={FAMILIES[0]}_jax", f"profile={profile}"])
+    model = f"{FAMILIES[0]}_jax"
+    request = TuneRequest(
+        system=system, models=[model], trials=1, seeds=list(range(seeds)), profile=profile
     )
-    fold = getattr(job.system_cls(job.system_cfg), "fold", None)
-    return len({int(fold(s)) for s in range(seeds)}) if callable(fold) else 1
+    return len(Tuner(request).groups(model))
 
 
 def from_job_costs(ns: argparse.Namespace) -> int:
