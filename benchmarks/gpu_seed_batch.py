@@ -2,7 +2,8 @@
 the device, against the CPU records of the same jobs (issue 52).
 
     python benchmarks/gpu_seed_batch.py --out DIR            # on the GPU machine
-    python benchmarks/gpu_seed_batch.py --summarize DIR --cpu RECORDS_DIR [--plan]
+    python benchmarks/gpu_seed_batch.py --summarize DIR [DIR ...] [--cpu RECORDS_DIR] [--plan]
+        [--freeze-cpu]
 
 Parts, in order, each started only while ``--budget-s`` is not spent:
 
@@ -16,7 +17,9 @@ Parts, in order, each started only while ``--budget-s`` is not spent:
    share the device at a time (``device_share=parallel``: each process takes a slot of
    the GPU and ``0.9 / parallel`` of its memory), the dearest pairs first;
 2. XLA's kernel autotuning: ``--autotune-pair`` again with the autotuning level XLA
-   defaults to (hnnbench turns it off on GPUs), its ``compile_s`` against part 1's.
+   defaults to (hnnbench turns it off on GPUs), its ``compile_s`` against part 1's. It is
+   queued first among the pairs (a cheap pair), so the budget never skips it; it shares
+   the device with the pairs as they do with each other.
 
 ``--summarize`` (here, with the CPU records, e.g. results/records or a re-publication's
 sweep) prints per pair: the device's wall time, training time of the batch, compilation,
@@ -25,6 +28,9 @@ metrics agree with its CPU record within the tolerance twins are held to (each m
 ``CheckRule``, both directions, as ``hnnbench check --rerun``); and with ``--plan`` an
 extrapolation of the whole protocol plan's device time (every system, the JAX twin of
 every family, seeds 0-9) from the measured ratios: an extrapolation, stated as one.
+``--freeze-cpu`` first writes ``DIR/cpu_records.json`` (what the table reads of each CPU
+record compared with); a folder that has one is compared with it, not with ``--cpu``, so
+a committed table does not move when the leaderboard is re-published.
 
 Output under ``DIR``: ``pairs/<S>-<M>/`` (the sweeps), ``*.log``, ``walls.json``,
 ``exits.json``, ``environment.txt``; ``--pack FILE`` writes every record, log and json
@@ -176,44 +182,26 @@ def measure(args: argparse.Namespace) -> int:
     order = [m for m in DEAREST_FIRST if m in args.models] + [
         m for m in args.models if m not in DEAREST_FIRST
     ]
+
+    def batch(
+        part: str, system: str, model: str, env: dict[str, str]
+    ) -> tuple[str, list[str], dict[str, str]]:
+        """The user's command for one pair, its ten seeds as one batch."""
+        argv = ["-m", f"system={system}", f"model={model}", f"seed={seeds}"]
+        argv += [f"seeds_per_job={args.seeds}", *common]
+        argv += [f"hydra.sweep.dir={out / part / f'{system}-{model}'}"]
+        return f"{part.rstrip('s')}-{system}-{model}", argv, env
+
     pairs = [
-        (
-            f"pair-{system}-{model}",
-            [
-                "-m",
-                f"system={system}",
-                f"model={model}",
-                f"seed={seeds}",
-                f"seeds_per_job={args.seeds}",
-                *common,
-                f"hydra.sweep.dir={out / 'pairs' / f'{system}-{model}'}",
-            ],
-            _env(args.parallel),
-        )
+        batch("pairs", system, model, _env(args.parallel))
         for model in order
         for system in args.systems
     ]
-    run_all(pairs, args.parallel)
     if args.autotune_pair:
         system, model = args.autotune_pair.split(":")
-        run_all(
-            [
-                (
-                    f"autotune-{system}-{model}",
-                    [
-                        "-m",
-                        f"system={system}",
-                        f"model={model}",
-                        f"seed={seeds}",
-                        f"seeds_per_job={args.seeds}",
-                        *common,
-                        f"hydra.sweep.dir={out / 'autotune' / f'{system}-{model}'}",
-                    ],
-                    _env(1, {"XLA_FLAGS": "--xla_gpu_autotune_level=4"}),
-                )
-            ],
-            1,
-        )
+        autotune = _env(args.parallel, {"XLA_FLAGS": "--xla_gpu_autotune_level=4"})
+        pairs.insert(0, batch("autotune", system, model, autotune))
+    run_all(pairs, args.parallel)
     (out / "walls.json").write_text(json.dumps(walls, indent=1) + "\n")
     (out / "exits.json").write_text(json.dumps(exits, indent=1) + "\n")
     print(f"done in {spent():.0f} s", flush=True)
@@ -243,6 +231,46 @@ def _records(directory: Path) -> dict[tuple[str, str, int], dict[str, Any]]:
     return out
 
 
+#: Beside a run folder: the CPU records its table compared with, as they were when it was
+#: summarized (``--freeze-cpu``), so the committed table does not move when the
+#: leaderboard is re-published.
+FROZEN = "cpu_records.json"
+
+
+def _slim(rec: dict[str, Any]) -> dict[str, Any]:
+    """What a comparison reads of a CPU record: status, job time, metric means."""
+    metrics = rec.get("metrics") or {}
+    return {
+        "system": rec["system"],
+        "model": rec["model"],
+        "seed": rec["seed"],
+        "status": rec.get("status"),
+        "timings": {"total_s": (rec.get("timings") or {}).get("total_s")},
+        "metrics": {k: {"mean": (v or {}).get("mean")} for k, v in metrics.items()},
+    }
+
+
+def freeze_cpu(outs: list[Path], cpu_dir: Path) -> list[Path]:
+    """Write ``cpu_records.json`` beside each run folder's records: the CPU record of
+    every job it ran, from ``cpu_dir`` as it is now."""
+    cpu = _records(Path(cpu_dir))
+    written = []
+    for out in outs:
+        keys = sorted(_records(Path(out) / "pairs"))
+        frozen = [_slim(cpu[k]) for k in keys if k in cpu]
+        (Path(out) / FROZEN).write_text(json.dumps(frozen, indent=1) + "\n")
+        written.append(Path(out) / FROZEN)
+    return written
+
+
+def _cpu_records(out: Path, cpu: dict[Any, dict[str, Any]]) -> dict[Any, dict[str, Any]]:
+    """The frozen CPU records beside ``out`` where there are some, else ``cpu``."""
+    frozen = out / FROZEN
+    if not frozen.is_file():
+        return cpu
+    return {(r["system"], r["model"], int(r["seed"])): r for r in json.loads(frozen.read_text())}
+
+
 def _tolerances() -> dict[str, Any]:
     from hnnbench import _registry as registry
 
@@ -270,23 +298,19 @@ def _agree(gpu: dict[str, Any], cpu: dict[str, Any], declared: dict[str, Any]) -
     return bad
 
 
-def summarize(out: Path, cpu_dir: Path, plan: bool) -> str:
-    out = Path(out)
+def _table(
+    out: Path, cpu: dict[Any, dict[str, Any]], declared: dict[str, Any]
+) -> tuple[list[str], dict[str, list[tuple[float, int]]]]:
+    """One run folder's rows, and per model its (CPU / device ratio, pairs sharing)."""
     walls = json.loads((out / "walls.json").read_text()) if (out / "walls.json").is_file() else {}
     gpu = _records(out / "pairs")
-    cpu = _records(Path(cpu_dir))
-    declared = _tolerances()
-    lines = [
-        "| system | model | seeds ok | device wall s | batch fit s | compile s | eval s "
-        "| CPU total s (the same jobs) | CPU / device | metrics within twin tolerance |",
-        "|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    ratios: dict[str, list[float]] = {}
-    pairs = sorted({(s, m) for s, m, _ in gpu})
-    for system, model in pairs:
+    lines = []
+    ratios: dict[str, list[tuple[float, int]]] = {}
+    for system, model in sorted({(s, m) for s, m, _ in gpu}):
         seeds = sorted(k for s, m, k in gpu if (s, m) == (system, model))
         recs = [gpu[(system, model, k)] for k in seeds]
         ok = sum(r.get("status") == "ok" for r in recs)
+        share = int((recs[0].get("config") or {}).get("device_share") or 1)
         wall = walls.get(f"pair-{system}-{model}")
         timings = [r.get("timings") or {} for r in recs]
         fit = max((t.get("batch_fit_s", 0.0) for t in timings), default=0.0)
@@ -301,34 +325,66 @@ def summarize(out: Path, cpu_dir: Path, plan: bool) -> str:
         )
         ratio = cpu_total / wall if wall and cpu_total else math.nan
         if math.isfinite(ratio):
-            ratios.setdefault(model, []).append(ratio)
+            ratios.setdefault(model, []).append((ratio, share))
         lines.append(
-            f"| {system} | {model} | {ok}/{len(recs)} | "
+            f"| {system} | {model} | {ok}/{len(recs)} | {share} | "
             f"{wall or math.nan:.1f} | {fit:.1f} | {compile_s:.1f} | {eval_s:.1f} | "
             f"{cpu_total:.0f} | {ratio:.2f}× | {agree} |"
         )
     auto = _records(out / "autotune")
     if auto:
-        (system, model, _), rec = next(iter(auto.items()))
-        base = gpu.get((system, model, 0))
+        system, model, _ = next(iter(auto))
+
+        def most(recs: dict[Any, dict[str, Any]], key: str) -> float:
+            """The largest ``timings[key]`` over the pair's seeds (as the table's)."""
+            values = [
+                (r.get("timings") or {}).get(key, math.nan)
+                for (s, m, _), r in recs.items()
+                if (s, m) == (system, model)
+            ]
+            return max(values, default=math.nan)
+
         lines += [
             "",
-            f"Autotuning ({system} {model}): compile "
-            f"{(rec.get('timings') or {}).get('compile_s', math.nan):.1f} s at XLA's "
-            f"default level against "
-            f"{((base or {}).get('timings') or {}).get('compile_s', math.nan):.1f} s "
-            "with hnnbench's (off).",
+            f"Autotuning ({system} {model}, {out.name}): compile "
+            f"{most(auto, 'compile_s'):.1f} s and batch fit {most(auto, 'batch_fit_s'):.1f} s "
+            f"at XLA's default level, against {most(gpu, 'compile_s'):.1f} s and "
+            f"{most(gpu, 'batch_fit_s'):.1f} s with hnnbench's (off).",
         ]
+    return lines, ratios
+
+
+def summarize(outs: list[Path], cpu_dir: Path, plan: bool) -> str:
+    """Each run folder's table (in the order given; against its frozen CPU records where
+    it has them, else ``cpu_dir``'s), then with ``plan`` one extrapolation from the
+    ratios of them all."""
+    cpu = _records(Path(cpu_dir))
+    declared = _tolerances()
+    lines = [
+        "| system | model | seeds ok | pairs sharing | device wall s | batch fit s "
+        "| compile s | eval s | CPU total s (the same jobs) | CPU / device "
+        "| metrics within twin tolerance |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    ratios: dict[str, list[tuple[float, int]]] = {}
+    notes: list[str] = []
+    for out in outs:
+        rows, found = _table(Path(out), _cpu_records(Path(out), cpu), declared)
+        lines += [r for r in rows if r.startswith("|")]
+        notes += [r for r in rows if r and not r.startswith("|")]
+        for model, values in found.items():
+            ratios.setdefault(model, []).extend(values)
+    lines += ["", *notes] if notes else []
     if plan and ratios:
         lines += ["", _extrapolation(ratios)]
-    text = "\n".join(lines)
-    return text
+    return "\n".join(lines)
 
 
-def _extrapolation(ratios: dict[str, list[float]]) -> str:
-    """The whole protocol plan's device time, extrapolated from the measured CPU / device
-    ratios per family (their geometric mean over the systems measured) applied to the
-    published CPU job costs (hnnbench/resources/job_costs.csv) of every system."""
+def _extrapolation(ratios: dict[str, list[tuple[float, int]]]) -> str:
+    """The whole protocol plan's device time, extrapolated: per family, its throughput is
+    the CPU job time one device second did (a pair's CPU / device ratio times the pairs
+    that shared the device with it; geometric mean over the pairs measured), applied to
+    the published CPU job costs (hnnbench/resources/job_costs.csv) of every system."""
     import csv
 
     costs = REPO / "hnnbench" / "resources" / "job_costs.csv"
@@ -338,27 +394,30 @@ def _extrapolation(ratios: dict[str, list[float]]) -> str:
             return "No job costs to extrapolate from."
         costs = found[0]
     cpu_s = device_s = 0.0
+    shares = sorted({share for values in ratios.values() for _, share in values})
     for row in csv.DictReader(costs.open()):
         model = row["model"]
         if row["profile"] != "paper" or model not in ratios:
             continue
         seconds = float(row["seconds"]) * PLAN_SEEDS
-        ratio = math.exp(statistics.fmean(math.log(r) for r in ratios[model]))
+        rate = math.exp(statistics.fmean(math.log(r * k) for r, k in ratios[model]))
         cpu_s += seconds
-        device_s += seconds / ratio
+        device_s += seconds / rate
     return (
-        f"Extrapolation (not a measurement): the protocol plan's JAX twins (every "
-        f"system, {PLAN_SEEDS} seeds) cost {cpu_s / 3600:.1f} CPU hours on the 2-core "
-        f"machine's published job times; at the measured per-family ratios (geometric "
-        f"mean over the systems measured) one pair at a time on the device would take "
-        f"{device_s / 3600:.2f} device hours, before several pairs share it."
+        f"Extrapolation (not a measurement): the protocol plan's JAX twins of "
+        f"{', '.join(sorted(ratios))} (every system, {PLAN_SEEDS} seeds) cost "
+        f"{cpu_s / 3600:.1f} job hours on the 2-core machine's published job times. At each "
+        f"family's measured throughput (a pair's CPU / device ratio times the "
+        f"{' or '.join(str(k) for k in shares)} pairs sharing the device with it, geometric "
+        f"mean over the pairs measured), with as many pairs at a time and no idle tail, "
+        f"the device would take {device_s / 3600:.2f} hours ({device_s / 60:.0f} min)."
     )
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--out", type=Path)
-    parser.add_argument("--summarize", type=Path)
+    parser.add_argument("--summarize", type=Path, nargs="+", metavar="DIR")
     parser.add_argument("--cpu", type=Path, default=REPO / "results" / "records")
     parser.add_argument("--plan", action="store_true")
     parser.add_argument("--systems", nargs="+", default=["real_pendulum", "two_body"])
@@ -371,7 +430,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--job-timeout-s", type=float, default=400.0)
     parser.add_argument("--autotune-pair", default="real_pendulum:mlp_jax")
     parser.add_argument("--pack", type=Path)
+    parser.add_argument(
+        "--freeze-cpu",
+        action="store_true",
+        help=f"with --summarize: first write DIR/{FROZEN}, the --cpu records compared with",
+    )
     args = parser.parse_args(argv)
+    if args.summarize and args.freeze_cpu:
+        freeze_cpu(args.summarize, args.cpu)
     if args.summarize:
         print(summarize(args.summarize, args.cpu, args.plan))
         return 0

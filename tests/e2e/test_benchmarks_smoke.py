@@ -382,6 +382,36 @@ def test_gpu_summaries_are_what_their_committed_records_give(run, tmp_path):
     assert all(shape_problems(r) == [] for r in records)
 
 
+SEED_BATCH_RUNS = REPO / "benchmarks" / "results" / "gpu-h200-2026-11-29"
+
+
+def test_gpu_seed_batch_summary_is_what_its_committed_records_give():
+    """benchmarks/README.md's H200 figures: the committed summary.md is what
+    ``gpu_seed_batch.py --summarize`` prints from the records beside it and the CPU
+    records it compared with (frozen in each run's cpu_records.json), all but the
+    extrapolation, which reads the job costs of the day; every record there validates
+    and ran on the GPU."""
+    from hnnbench._record.validation import shape_problems
+
+    runs = [SEED_BATCH_RUNS / "1-pairs", SEED_BATCH_RUNS / "2-cheap-pairs-autotune"]
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "gpu_seed_batch.py"), "--summarize"]
+        + [str(r) for r in runs]
+        + ["--cpu", str(SEED_BATCH_RUNS / "no-such-folder")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=REPO,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    committed = (SEED_BATCH_RUNS / "summary.md").read_text().splitlines()
+    kept = [line for line in committed if not line.startswith("Extrapolation")]
+    assert proc.stdout.strip() == "\n".join(kept).strip()
+    records = [json.loads(p.read_text()) for p in SEED_BATCH_RUNS.rglob("result.json")]
+    assert len(records) == 140 and all(r["device"].startswith("cuda") for r in records)
+    assert all(shape_problems(r) == [] for r in records)
+
+
 @pytest.mark.slow
 def test_gpu_benchmark_runs_its_parts_on_the_cpu(tmp_path):
     """benchmarks/gpu.py end to end with --device cpu (the GPU itself is not here) and the
