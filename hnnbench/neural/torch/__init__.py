@@ -4,6 +4,11 @@ with the batched Dormand-Prince of :mod:`hnnbench.neural.torch._ode`.
 Several seeds train as one batch through :func:`torch.func.vmap` over stacked
 parameters: each seed's loss is its own mean, the total is their sum, so each seed's
 gradient, and its Adam update (element-wise), is its own.
+
+On a CPU, a backend flushes subnormal floats to zero for its whole process
+(``torch.set_flush_denormal``), as XLA does for the JAX twin: the torch SRNN on
+three_body otherwise slows more than tenfold once its products reach subnormal values
+(docs/BENCHMARK_HISTORY.md, "Subnormal floats").
 """
 
 from __future__ import annotations
@@ -419,6 +424,7 @@ class TorchBackend:
     name = "torch"
 
     def __init__(self, cfg: NeuralConfig, device: str) -> None:
+        torch.set_flush_denormal(True)  # False where the CPU cannot (no SSE3): a no-op
         self.cfg = cfg
         self.device = resolve_device(device)
         self.dtype: torch.dtype = getattr(torch, cfg.dtype)
