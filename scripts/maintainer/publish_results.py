@@ -585,21 +585,24 @@ def protocol_lines(recs: list[dict[str, Any]]) -> list[str]:
     from hnnbench._registry.groups import available
     from hnnbench._results.report.markdown import md_code
 
-    made: dict[tuple[int, str], set[str]] = {}
+    # schema -> the systems with records of it, and the hnnbench versions that wrote them
+    made: dict[int, tuple[set[str], set[str]]] = {}
     for rec in recs:
         if track_of(rec) != DEFAULT_TRACK:
             continue
         version = str((rec.get("environment") or {}).get("hnnbench") or "?")
-        made.setdefault((int(rec.get("schema_version") or 0), version), set()).add(rec["system"])
+        systems, versions = made.setdefault(int(rec.get("schema_version") or 0), (set(), set()))
+        systems.add(rec["system"])
+        versions.add(version)
     lines = []
-    newest = max((schema for schema, _ in made), default=0)
-    for (schema, version), systems in sorted(made.items(), reverse=True):
+    newest = max(made, default=0)
+    for schema, (systems, versions) in sorted(made.items(), reverse=True):
         when = "the current protocol" if schema == newest else "an earlier protocol"
         lines.append(
-            f"- Under {when} (record schema {schema}, hnnbench {version}): "
+            f"- Under {when} (record schema {schema}, hnnbench {', '.join(sorted(versions))}): "
             + ", ".join(md_code(s) for s in sorted(systems))
         )
-    published = {s for systems in made.values() for s in systems}
+    published = {s for systems, _ in made.values() for s in systems}
     absent = [s for s in available("system") if s not in published]
     if absent:
         lines.append(

@@ -212,14 +212,32 @@ def test_the_results_page_says_which_protocol_each_system_was_published_under():
             rec("real_pendulum", 3, "0.5.0"),
             rec("real_pendulum", 3, "0.5.0", track="tuned"),
             rec("pendulum", 2, "0.4.0"),
+            rec("three_body", 3, "0.4.0"),
+            rec("three_body", 3, "0.5.0"),
         ]
     )
-    assert (
-        lines[0]
-        == "- Under the current protocol (record schema 3, hnnbench 0.5.0): `real_pendulum`"
+    assert lines[0] == (
+        "- Under the current protocol (record schema 3, hnnbench 0.4.0, 0.5.0): "
+        "`real_pendulum`, `three_body`"
     )
     assert lines[1] == (
         "- Under an earlier protocol (record schema 2, hnnbench 0.4.0): `pendulum`, `spring`"
     )
     assert lines[2].startswith("- Not published: `two_body`") or "`two_body`" in lines[2]
     assert "`spring`" not in lines[2] and "`real_pendulum`" not in lines[2]
+
+
+def test_provenance_names_unknown_beside_known_commits():
+    """Records made by an install that names its commit and records that name none: the
+    provenance line names both, so it never reads as if every record came from the one
+    commit it knows."""
+    from hnnbench._results.report.inputs import provenance, provenance_lines
+
+    def rec(commit: str | None) -> dict:
+        return {"environment": {"git_commit": commit, "hnnbench": "0.5.0"}}
+
+    mixed = provenance([rec("ad7180d"), rec(None), rec("")])
+    assert mixed["commit"] == ["ad7180d", "unknown"]
+    assert provenance_lines(mixed)[1].startswith("- Git commit: `ad7180d`, `unknown`;")
+    assert provenance([rec("ad7180d")])["commit"] == ["ad7180d"]
+    assert provenance([rec(None)])["commit"] == []  # the line says `unknown` (its fallback)

@@ -86,9 +86,12 @@ def provenance(recs: Sequence[dict[str, Any]]) -> dict[str, list[str]]:
         return sorted({str(v) for v in values if v not in (None, "")})
 
     env = [r.get("environment") or {} for r in recs]
+    commits = distinct(e.get("git_commit") for e in env)
+    if commits and any(not e.get("git_commit") for e in env):
+        commits.append("unknown")  # some records name none: not all from the named ones
     return {
         "command": distinct(r.get("command") for r in recs),
-        "commit": distinct(e.get("git_commit") for e in env),
+        "commit": commits,
         "machine": distinct(e.get("host") or e.get("platform") for e in env),
         "device": distinct(r.get("device") for r in recs),
         "hnnbench": distinct(e.get("hnnbench") for e in env),
