@@ -5,17 +5,19 @@ Several seeds train as one batch through :func:`torch.func.vmap` over stacked
 parameters: each seed's loss is its own mean, the total is their sum, so each seed's
 gradient, and its Adam update (element-wise), is its own.
 
-On a CPU, a backend flushes subnormal floats to zero for its whole process
-(``torch.set_flush_denormal``), as XLA does for the JAX twin: the torch SRNN on
-three_body otherwise slows more than tenfold once its products reach subnormal values
-(docs/BENCHMARK_HISTORY.md, "Subnormal floats").
+On a CPU, the backend's training chunks and inference flush subnormal floats to zero
+(``torch.set_flush_denormal``), as XLA does for the JAX twin, and give the caller's
+setting back when they return: the torch SRNN on three_body otherwise slows more than
+tenfold once its products reach subnormal values (docs/BENCHMARK_HISTORY.md,
+"Subnormal floats").
 """
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Mapping, Sequence
 from types import ModuleType
-from typing import Any, Optional
+from typing import Any, Optional, TypeVar
 
 import numpy as np
 import torch
@@ -58,6 +60,31 @@ __all__ = [
 ]
 
 Params = dict[str, torch.Tensor]
+
+
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def _keeps_subnormals() -> bool:
+    """Whether this thread's float arithmetic keeps subnormal results (not flushed)."""
+    return float(torch.tensor(1e-38, dtype=torch.float32) * 0.01) != 0.0
+
+
+def _flushing_subnormals(method: _F) -> _F:
+    """``method`` with subnormal floats flushed to zero while it runs, and the caller's
+    setting restored after (``torch.set_flush_denormal``; a no-op where the CPU cannot)."""
+
+    @functools.wraps(method)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        kept = _keeps_subnormals()
+        torch.set_flush_denormal(True)
+        try:
+            return method(*args, **kwargs)
+        finally:
+            if kept:
+                torch.set_flush_denormal(False)
+
+    return wrapper  # type: ignore[return-value]
 
 
 def resolve_device(requested: str) -> torch.device:
@@ -282,6 +309,7 @@ class TorchTrainer:
             return tuple(a[seed, idx] for a in self.train)
         return tuple(a[idx] for a in self.train)  # shared data, per-seed rows
 
+    @_flushing_subnormals
     def run_chunk(
         self, indices: Optional[np.ndarray], length: int, lrs: Optional[np.ndarray]
     ) -> tuple[np.ndarray, np.ndarray]:
@@ -354,16 +382,19 @@ class TorchInference:
     def _tensor(self, a: np.ndarray, dtype: torch.dtype) -> torch.Tensor:
         return torch.as_tensor(np.ascontiguousarray(a), device=self.backend.device).to(dtype)
 
+    @_flushing_subnormals
     def field(self, z: np.ndarray) -> np.ndarray:
         with torch.no_grad():
             out = self.impl.field(self.nets64, self._tensor(z, torch.float64))
         return out.cpu().numpy()
 
+    @_flushing_subnormals
     def energy(self, z: np.ndarray) -> np.ndarray:
         with torch.no_grad():
             out = self.impl.energy(self.nets64, self._tensor(z, torch.float64))
         return out.cpu().numpy()
 
+    @_flushing_subnormals
     def rollout(
         self, z0: np.ndarray, t: np.ndarray, rtol: float, atol: float, max_steps: int
     ) -> np.ndarray:
@@ -385,6 +416,7 @@ class TorchInference:
             raise RolloutDiverged(f"linear algebra failed: {err}".splitlines()[0]) from None
         return ys.permute(1, 0, 2).cpu().numpy()
 
+    @_flushing_subnormals
     def map_rollout(self, z0: np.ndarray, t: np.ndarray, step: float) -> np.ndarray:
         steps, sizes = map_plan(t, step)
         z = self._tensor(z0, torch.float64)
@@ -396,14 +428,17 @@ class TorchInference:
                 out.append(z)
         return torch.stack(out, dim=1).cpu().numpy()
 
+    @_flushing_subnormals
     def encode(self, x: np.ndarray) -> np.ndarray:
         with torch.no_grad():
             return self.ae.encode(self._tensor(x, self.backend.dtype)).cpu().numpy()
 
+    @_flushing_subnormals
     def decode(self, z: np.ndarray) -> np.ndarray:
         with torch.no_grad():
             return self.ae.decode(self._tensor(z, self.backend.dtype)).cpu().numpy()
 
+    @_flushing_subnormals
     def objective(self, x: np.ndarray, x_next: np.ndarray) -> float:
         dtype = self.backend.dtype
         with torch.no_grad():
@@ -424,7 +459,6 @@ class TorchBackend:
     name = "torch"
 
     def __init__(self, cfg: NeuralConfig, device: str) -> None:
-        torch.set_flush_denormal(True)  # False where the CPU cannot (no SSE3): a no-op
         self.cfg = cfg
         self.device = resolve_device(device)
         self.dtype: torch.dtype = getattr(torch, cfg.dtype)
