@@ -49,7 +49,7 @@ import sys
 import tarfile
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Optional
 
 REPO = Path(__file__).resolve().parents[1]
 JAX_TWINS = ("mlp_jax", "hnn_jax", "dhnn_jax", "lnn_jax", "so_mlp_jax", "srnn_jax")
@@ -136,7 +136,8 @@ def measure(args: argparse.Namespace) -> int:
         return name, proc, time.perf_counter()
 
     def run_all(jobs: list[tuple[str, list[str], dict[str, str]]], parallel: int) -> None:
-        queue, running = list(jobs), []
+        queue = list(jobs)
+        running: list[tuple[str, Any, float]] = []
         while queue or running:
             while queue and len(running) < parallel and spent() < args.budget_s:
                 running.append(launch(*queue.pop(0)))
@@ -298,25 +299,31 @@ def _agree(gpu: dict[str, Any], cpu: dict[str, Any], declared: dict[str, Any]) -
     return bad
 
 
+def _largest(recs: list[dict[str, Any]], key: str, default: float = 0.0) -> float:
+    """The largest ``timings[key]`` over a pair's seed records (its slowest seed)."""
+    return max(((r.get("timings") or {}).get(key, default) for r in recs), default=default)
+
+
 def _table(
     out: Path, cpu: dict[Any, dict[str, Any]], declared: dict[str, Any]
-) -> tuple[list[str], dict[str, list[tuple[float, int]]]]:
-    """One run folder's rows, and per model its (CPU / device ratio, pairs sharing)."""
+) -> tuple[list[str], Optional[str], dict[str, list[tuple[float, int]]]]:
+    """One run folder's table rows, its autotuning line (if it ran that part), and per
+    model its (CPU / device ratio, pairs sharing)."""
     walls = json.loads((out / "walls.json").read_text()) if (out / "walls.json").is_file() else {}
     gpu = _records(out / "pairs")
-    lines = []
+    rows = []
     ratios: dict[str, list[tuple[float, int]]] = {}
+
+    def pair(recs: dict[Any, dict[str, Any]], system: str, model: str) -> list[dict[str, Any]]:
+        return [r for (s, m, _), r in sorted(recs.items()) if (s, m) == (system, model)]
+
     for system, model in sorted({(s, m) for s, m, _ in gpu}):
-        seeds = sorted(k for s, m, k in gpu if (s, m) == (system, model))
-        recs = [gpu[(system, model, k)] for k in seeds]
+        recs = pair(gpu, system, model)
         ok = sum(r.get("status") == "ok" for r in recs)
         share = int((recs[0].get("config") or {}).get("device_share") or 1)
         wall = walls.get(f"pair-{system}-{model}")
-        timings = [r.get("timings") or {} for r in recs]
-        fit = max((t.get("batch_fit_s", 0.0) for t in timings), default=0.0)
-        compile_s = max((t.get("compile_s", 0.0) for t in timings), default=0.0)
-        eval_s = sum(t.get("eval_s", 0.0) for t in timings)
-        twins = [cpu.get((system, model, k)) for k in seeds]
+        eval_s = sum((r.get("timings") or {}).get("eval_s", 0.0) for r in recs)
+        twins = [cpu.get((system, model, int(r["seed"]))) for r in recs]
         cpu_total = sum((c.get("timings") or {}).get("total_s", 0.0) for c in twins if c)
         have = [(g, c) for g, c in zip(recs, twins, strict=True) if c]
         bad = [(g["seed"], d) for g, c in have for d in _agree(g, c, declared)]
@@ -326,40 +333,35 @@ def _table(
         ratio = cpu_total / wall if wall and cpu_total else math.nan
         if math.isfinite(ratio):
             ratios.setdefault(model, []).append((ratio, share))
-        lines.append(
+        rows.append(
             f"| {system} | {model} | {ok}/{len(recs)} | {share} | "
-            f"{wall or math.nan:.1f} | {fit:.1f} | {compile_s:.1f} | {eval_s:.1f} | "
+            f"{wall or math.nan:.1f} | {_largest(recs, 'batch_fit_s'):.1f} | "
+            f"{_largest(recs, 'compile_s'):.1f} | {eval_s:.1f} | "
             f"{cpu_total:.0f} | {ratio:.2f}× | {agree} |"
         )
     auto = _records(out / "autotune")
+    note = None
     if auto:
         system, model, _ = next(iter(auto))
-
-        def most(recs: dict[Any, dict[str, Any]], key: str) -> float:
-            """The largest ``timings[key]`` over the pair's seeds (as the table's)."""
-            values = [
-                (r.get("timings") or {}).get(key, math.nan)
-                for (s, m, _), r in recs.items()
-                if (s, m) == (system, model)
-            ]
-            return max(values, default=math.nan)
-
-        lines += [
-            "",
+        tuned, base = pair(auto, system, model), pair(gpu, system, model)
+        note = (
             f"Autotuning ({system} {model}, {out.name}): compile "
-            f"{most(auto, 'compile_s'):.1f} s and batch fit {most(auto, 'batch_fit_s'):.1f} s "
-            f"at XLA's default level, against {most(gpu, 'compile_s'):.1f} s and "
-            f"{most(gpu, 'batch_fit_s'):.1f} s with hnnbench's (off).",
-        ]
-    return lines, ratios
+            f"{_largest(tuned, 'compile_s', math.nan):.1f} s and batch fit "
+            f"{_largest(tuned, 'batch_fit_s', math.nan):.1f} s "
+            f"at XLA's default level, against {_largest(base, 'compile_s', math.nan):.1f} s and "
+            f"{_largest(base, 'batch_fit_s', math.nan):.1f} s with hnnbench's (off)."
+        )
+    return rows, note, ratios
 
 
 def summarize(outs: list[Path], cpu_dir: Path, plan: bool) -> str:
     """Each run folder's table (in the order given; against its frozen CPU records where
     it has them, else ``cpu_dir``'s), then with ``plan`` one extrapolation from the
     ratios of them all."""
-    cpu = _records(Path(cpu_dir))
     declared = _tolerances()
+    cpu: dict[Any, dict[str, Any]] = {}
+    if any(not (Path(out) / FROZEN).is_file() for out in outs):
+        cpu = _records(Path(cpu_dir))
     lines = [
         "| system | model | seeds ok | pairs sharing | device wall s | batch fit s "
         "| compile s | eval s | CPU total s (the same jobs) | CPU / device "
@@ -369,9 +371,9 @@ def summarize(outs: list[Path], cpu_dir: Path, plan: bool) -> str:
     ratios: dict[str, list[tuple[float, int]]] = {}
     notes: list[str] = []
     for out in outs:
-        rows, found = _table(Path(out), _cpu_records(Path(out), cpu), declared)
-        lines += [r for r in rows if r.startswith("|")]
-        notes += [r for r in rows if r and not r.startswith("|")]
+        rows, note, found = _table(Path(out), _cpu_records(Path(out), cpu), declared)
+        lines += rows
+        notes += [note] if note else []
         for model, values in found.items():
             ratios.setdefault(model, []).extend(values)
     lines += ["", *notes] if notes else []
