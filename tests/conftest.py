@@ -251,6 +251,8 @@ def tree(tmp_path, monkeypatch):
     monkeypatch.setattr(publish_results, "ROOT", root)
     monkeypatch.setattr(publish_results, "RESULTS", root / "results")
     monkeypatch.setattr(publish_results, "RECORDS", root / "results" / "records")
+    monkeypatch.setattr(publish_results, "STAGED", root / "results" / "staged")
+    monkeypatch.setattr(publish_results, "STUDIES", root / "results" / "tuning")
     fake = types.ModuleType("job_costs")
     fake.main = lambda argv: 0  # the real one rewrites the installed job costs
     monkeypatch.setitem(sys.modules, "job_costs", fake)

@@ -4,6 +4,7 @@
         [--figure two_body_energy]
         [--replace SYSTEM[,SYSTEM]] [--withdraw SYSTEM[/TRACK][,...]]
     python scripts/maintainer/publish_results.py --pages-only     # steps 2 and 3 alone
+    python scripts/maintainer/publish_results.py --tuned OUT [OUT ...]
 
 1. Copies every ``result.json`` of the sweeps into ``results/records/<system>/<model>/
    seed<k>/result.json``, and beside the lowest seed of each pair that has a rollout a
@@ -37,6 +38,12 @@
    ``<!-- provenance:end -->`` with the provenance and the list of systems published so
    far. Links in the blocks are relative to results/.
 
+``--tuned OUT`` publishes the tuned track in parts (docs/TUNING.md, "Publishing in
+parts"): each finished study of a tuner's ``out=`` folder is staged (its final records
+and figure rollout in ``results/staged/``, its summary in ``results/tuning/``); a system
+moves into ``results/records`` (steps 1-3) once its staged studies cover every family
+its protocol ran.
+
 Records come from other machines (docs/LEADERBOARD.md, "Threat model"): a record's
 directory is built from its names by ``hnnbench._contracts.paths.safe_join`` (a name that is not a
 name, or a path outside results/records, is refused), every Markdown cell and line is
@@ -56,6 +63,10 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "results"
 RECORDS = RESULTS / "records"
+#: The tuned track's finished studies of systems not yet complete (records/ layout).
+STAGED = RESULTS / "staged"
+#: Every staged or published study's summary: tuning/<system>/<model>[.fold<k>].json.
+STUDIES = RESULTS / "tuning"
 BEGIN, END = "<!-- {name}:begin -->", "<!-- {name}:end -->"
 
 
@@ -355,6 +366,306 @@ def remove_jobs(jobs: set[tuple[str, str, str, int]], root: Path | None = None) 
     return len(jobs)
 
 
+# ----------------------------------------------------------------- the tuned track's parts
+#
+# A tuned system is published once every family the protocol runs there has a finished
+# study (docs/TUNING.md, "Publishing in parts"). A study of one (system, family) fits in a
+# session; a system's six do not. So each finished study is *staged* as it ends: its
+# final records (and figure rollout) into results/staged/ (records/'s layout), its
+# summary into results/tuning/. When a system's staged studies cover every family, they
+# move into results/records in one publication; the summaries stay.
+
+#: The fields of a study summary (``hnnbench._tuning.tuner.Tuner._write_summary``) that
+#: staging reads, with the JSON types each may hold.
+STUDY_FIELDS: dict[str, tuple[type, ...]] = {
+    "system": (str,),
+    "model": (str,),
+    "study": (str,),
+    "profile": (str,),
+    "trials_budget": (int,),
+    "steps": (int,),
+    "seeds_per_trial": (int,),
+    "fold": (int, type(None)),
+    "final_seeds": (list,),
+    "protocol_trial": (int,),
+    "selected": (dict, type(None)),
+    "trials": (list,),
+}
+#: The trial states a study's budget counts (the tuner's ``done()``).
+COUNTED = ("complete", "pruned")
+
+
+def study_problem(summary: dict[str, Any], system: str, model: str) -> str | None:
+    """Why ``summary`` (a study summary read from a tuner's ``out=``) cannot be staged as
+    a study of ``system`` x ``model``, or ``None``: each field of :data:`STUDY_FIELDS` of
+    its type, the paper profile, the names of its path, the protocol's settings as its
+    trial 0, and its seeds non-negative integers."""
+    for key, kinds in STUDY_FIELDS.items():
+        value = summary.get(key)
+        if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
+            return f"{key}: {value!r} is not {' or '.join(k.__name__ for k in kinds)}"
+    if summary["profile"] != "paper":
+        return f"profile {summary['profile']}, not paper"
+    if (summary["system"], summary["model"]) != (system, model):
+        return f"it is a study of {summary['system']}/{summary['model']}, filed as {system}/{model}"
+    seeds = summary["final_seeds"]
+    if not seeds or not all(type(s) is int and s >= 0 for s in seeds):
+        return f"final_seeds: {seeds!r} is not a list of non-negative integers"
+    trials = summary["trials"]
+    if not all(isinstance(t, dict) and type(t.get("number")) is int for t in trials):
+        return "trials: each must be an object with an integer number"
+    first = next((t for t in trials if t["number"] == summary["protocol_trial"]), None)
+    if summary["protocol_trial"] != 0 or first is None or first.get("protocol") is not True:
+        return "its trial 0 is not the protocol's settings"
+    selected = summary["selected"]
+    if selected is not None and not isinstance(selected.get("settings"), dict):
+        return "selected: it holds no settings"
+    return None
+
+
+def study_finished(summary: dict[str, Any]) -> bool:
+    """Whether a (checked) study ran its budget and selected a trial."""
+    counted = sum(t.get("state") in COUNTED for t in summary["trials"])
+    return summary["selected"] is not None and counted >= summary["trials_budget"]
+
+
+def tuned_parts(roots: list[Path]) -> tuple[list[tuple[str, str, list[dict], Path]], list[str]]:
+    """The finished studies under the tuners' ``out=`` roots: one ``(system, model,
+    summaries, final directory)`` per pair whose every study (one per fold on a measured
+    system) ran its budget, and one line per pair left waiting. A summary that cannot be
+    read or checked (:func:`study_problem`) is ``SystemExit`` naming it."""
+    from hnnbench._contracts.names import name_problem
+    from hnnbench._record.store import parse_file
+
+    found: dict[tuple[str, str], list[dict]] = {}
+    for root in roots:
+        if not (root / "tuning").is_dir():
+            raise SystemExit(
+                f"publish: {root} holds no tuning/ folder: give the out= folder of an "
+                "`hnnbench tune`"
+            )
+        for path in sorted((root / "tuning").glob("*/*.json")):
+            system, model = path.parent.name, path.name.split(".")[0]
+            data = parse_file(path)
+            problem = (
+                data
+                if isinstance(data, str)
+                else name_problem("system", system)
+                or name_problem("model", model)
+                or study_problem(data, system, model)
+            )
+            if problem:
+                raise SystemExit(f"publish: {path}: {problem}; nothing was staged")
+            assert isinstance(data, dict)
+            data["path"] = str(path)
+            data["final"] = str(root / "final" / system / model)
+            pair = found.setdefault((system, model), [])
+            if any(d["study"] == data["study"] for d in pair):
+                raise SystemExit(
+                    f"publish: {path}: study {data['study']} is given twice "
+                    f"({pair[0]['path']}); give one out= folder per study"
+                )
+            pair.append(data)
+    parts, waiting = [], []
+    for (system, model), summaries in sorted(found.items()):
+        finals = {Path(s["final"]) for s in summaries}
+        if len(finals) != 1:
+            raise SystemExit(
+                f"publish: {system}/{model}: its studies sit in several out= folders "
+                f"({', '.join(sorted(map(str, finals)))}); give one folder per pair"
+            )
+        unfinished = [s for s in summaries if not study_finished(s)]
+        if unfinished:
+            s = unfinished[0]
+            done = sum(t.get("state") in COUNTED for t in s["trials"])
+            waiting.append(
+                f"{system}/{model}: study {s['study']} has {done} of {s['trials_budget']} "
+                "trials; not staged"
+            )
+            continue
+        parts.append((system, model, summaries, finals.pop()))
+    return parts, waiting
+
+
+def part_records(system: str, model: str, summaries: list[dict], final: Path) -> list[dict]:
+    """The final records of one finished pair (:func:`given_records`: strict, paper,
+    no variant), each a tuned record of one of its studies, with that study's selected
+    settings, on exactly the studies' final seeds; ``SystemExit`` naming what differs."""
+    from hnnbench._record.tracks import track_of
+
+    recs = given_records([final]) if final.is_dir() else []
+    by_study = {s["study"]: s for s in summaries}
+    wanted = {seed for s in summaries for seed in s["final_seeds"]}
+    for rec in recs:
+        study = by_study.get(str((rec.get("tuning") or {}).get("study")))
+        why = (
+            f"it is {rec['system']}/{rec['model']}"
+            if (rec["system"], rec["model"]) != (system, model)
+            else f"its track is {track_of(rec)}, not tuned"
+            if track_of(rec) != "tuned"
+            else "it names no study of the summaries given"
+            if study is None
+            else "its settings are not its study's selection"
+            if rec["tuning"].get("selected") != study["selected"]["settings"]
+            else f"seed {rec['seed']} is not a final seed of its study"
+            if rec["seed"] not in study["final_seeds"]
+            else None
+        )
+        if why:
+            raise SystemExit(f"publish: {rec['path']}: {why}; nothing was staged")
+    missing = sorted(wanted - {r["seed"] for r in recs})
+    if missing:
+        raise SystemExit(
+            f"publish: {system}/{model}: its final runs of seeds {missing} are not in "
+            f"{final}; run its `hnnbench tune` again to finish them; nothing was staged"
+        )
+    return recs
+
+
+def stage_tuned(roots: list[Path]) -> tuple[list[str], list[str]]:
+    """Stage every finished study under ``roots`` (:func:`tuned_parts`): its final
+    records and figure rollout into results/staged (a pair staged again replaces its
+    earlier records), its summaries into results/tuning. Returns the pairs staged
+    (``system/model``) and the lines of the pairs left waiting."""
+    from hnnbench import _record as records
+    from hnnbench._contracts.paths import safe_join
+
+    parts, waiting = tuned_parts(roots)
+    if not parts:
+        return [], waiting
+    recs = [r for system, model, s, final in parts for r in part_records(system, model, s, final)]
+    pairs = {(system, model) for system, model, _, _ in parts}
+    before = given_records([STAGED]) if STAGED.is_dir() else []
+    kept = [r for r in before if (r["system"], r["model"]) not in pairs]
+    given = {job_of(r) for r in recs}
+    superseded = {
+        job_of(r) for r in before if (r["system"], r["model"]) in pairs and job_of(r) not in given
+    }
+    finals = sorted({final for _, _, _, final in parts})
+    stage_and_publish([*finals, STAGED], [*recs, *kept], superseded, target=STAGED)
+    for system, model, summaries, _ in parts:
+        for summary in summaries:
+            fold = "" if summary["fold"] is None else f".fold{summary['fold']}"
+            body = {k: v for k, v in summary.items() if k not in ("path", "final")}
+            path = safe_join(STUDIES, system, f"{model}{fold}.json")
+            path.parent.mkdir(parents=True, exist_ok=True)
+            records.atomic_write_text(path, json.dumps(body, indent=2) + "\n")
+    return sorted(f"{s}/{m}" for s, m in pairs), waiting
+
+
+def protocol_families(recs: list[dict]) -> dict[str, dict[str, set[str]]]:
+    """Per system, each family the protocol track ran there (ranked, not the oracle,
+    not skipped) with its models: what a tuned system must hold."""
+    from hnnbench._record.tracks import track_of
+
+    ran: dict[str, dict[str, set[str]]] = {}
+    for r in recs:
+        if (
+            track_of(r) == "protocol"
+            and r.get("ranked", True)
+            and r["model"] != "oracle"
+            and r.get("status") != "skipped"
+        ):
+            ran.setdefault(r["system"], {}).setdefault(str(r["family"]), set()).add(r["model"])
+    return ran
+
+
+def tuned_families(recs: list[dict]) -> dict[str, set[str]]:
+    """Per system, the families of its tuned records among ``recs``."""
+    from hnnbench._record.tracks import track_of
+
+    out: dict[str, set[str]] = {}
+    for r in recs:
+        if track_of(r) == "tuned":
+            out.setdefault(r["system"], set()).add(str(r["family"]))
+    return out
+
+
+def incomplete_tuned(recs: list[dict]) -> list[str]:
+    """One line per system of ``recs`` whose tuned records lack a family its protocol
+    records ran (:func:`protocol_families`)."""
+    ran = protocol_families(recs)
+    return [
+        f"{system}: tuned {', '.join(sorted(fams))}; its protocol ran "
+        f"{', '.join(sorted(ran.get(system, {})))}"
+        for system, fams in sorted(tuned_families(recs).items())
+        if not set(ran.get(system, {})) <= fams
+    ]
+
+
+def staged_families() -> dict[str, set[str]]:
+    """Per system in results/staged, the families of its staged studies."""
+    from hnnbench import _record as records
+
+    return tuned_families(records.load(STAGED).records if STAGED.is_dir() else [])
+
+
+def publish_complete_systems() -> list[str]:
+    """Move into results/records every staged system whose staged studies, with its
+    published tuned ones, cover every family its protocol ran: its staged records
+    (replacing its published tuned ones of the same models), in one all-or-nothing
+    publication. Returns those systems."""
+    import shutil
+
+    from hnnbench import _record as records
+
+    published = records.load(RECORDS).records if RECORDS.is_dir() else []
+    ran = protocol_families(published)
+    tuned = tuned_families(published)
+    complete = [
+        system
+        for system, families in sorted(staged_families().items())
+        if system in ran and set(ran[system]) <= families | tuned.get(system, set())
+    ]
+    if not complete:
+        return []
+    dirs = [STAGED / system for system in complete]
+    staged = given_records(dirs)
+    jobs = {job_of(r) for r in staged}
+    restaged = {(r["system"], r["model"]) for r in staged}
+    kept = [r for r in given_records([RECORDS]) if job_of(r) not in jobs]
+    old = {job for job in published_jobs() if job[0] == "tuned" and (job[1], job[2]) in restaged}
+    stage_and_publish([*dirs, RECORDS], [*staged, *kept], old - jobs)
+    for directory in dirs:
+        shutil.rmtree(directory)
+    if STAGED.is_dir() and not any(STAGED.iterdir()):
+        STAGED.rmdir()
+    return complete
+
+
+def staged_lines() -> list[str]:
+    """One line per system with staged studies: its families in, and those to come."""
+    from hnnbench import _record as records
+    from hnnbench._results.report.markdown import md_code
+
+    ran = protocol_families(records.load(RECORDS).records if RECORDS.is_dir() else [])
+    lines = []
+    for system, families in sorted(staged_families().items()):
+        wanted = set(ran.get(system, {}))
+        lines.append(
+            f"- Tuned track, staged (not published until every family's study is in): "
+            f"{md_code(system)} has {', '.join(sorted(families))} "
+            f"({len(families & wanted)} of {len(wanted)} families)"
+        )
+    return lines
+
+
+def publish_tuned(roots: list[Path], figure: str) -> int:
+    """``--tuned``: stage the finished studies, publish the complete systems, rebuild
+    the pages (their staged listing) when anything moved; one JSON line of what did."""
+    staged, waiting = stage_tuned(roots)
+    for line in waiting:
+        print(f"publish: {line}", file=sys.stderr)
+    published = publish_complete_systems()
+    summary: dict[str, Any] = {}
+    if staged or published:
+        status, summary = write_pages(figure)
+        if status:
+            return status
+    print(json.dumps({"staged": staged, "published_tuned": published, **summary}))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument(
@@ -392,7 +703,23 @@ def main(argv: list[str] | None = None) -> int:
         "blocks (steps 2 and 3) from results/records as committed, "
         "after a change of the report's code",
     )
+    parser.add_argument(
+        "--tuned",
+        type=Path,
+        action="extend",
+        nargs="+",
+        default=[],
+        metavar="OUT",
+        help="the out= folders of `hnnbench tune` runs (one per study, e.g. "
+        "ROOT/*/* of scripts/maintainer/tune_sweep.sh): stage each "
+        "finished study (results/staged, results/tuning), then publish every system "
+        "whose staged studies cover every family its protocol ran",
+    )
     args = parser.parse_args(argv)
+    if args.tuned:
+        if args.sweeps or args.replace or args.withdraw or args.pages_only:
+            parser.error("--tuned takes no sweeps, no --replace, --withdraw or --pages-only")
+        return publish_tuned(args.tuned, args.figure)
     if args.pages_only:
         if args.sweeps or args.replace or args.withdraw:
             parser.error("--pages-only takes no sweeps, no --replace and no --withdraw")
@@ -450,6 +777,14 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
+    kept = [r for r in recs if job_of(r) not in superseded]
+    for line in incomplete_tuned(kept):
+        print(
+            f"publish: {line}: a tuned system is published with every family the protocol "
+            "ran there; publish its studies with --tuned, which stages them until then",
+            file=sys.stderr,
+        )
+        return 2
     copied, removed_records, rollouts, rollout_bytes = stage_and_publish(
         args.sweeps, recs, superseded
     )
@@ -474,25 +809,29 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def stage_and_publish(
-    sweeps: list[Path], recs: list[dict], superseded: set[tuple[str, str, str, int]]
+    sweeps: list[Path],
+    recs: list[dict],
+    superseded: set[tuple[str, str, str, int]],
+    target: Path | None = None,
 ) -> tuple[int, int, int, int]:
-    """All or nothing: the new results/records is built in a staging directory beside it
-    (a copy of the published records, the given records copied in, the superseded ones
-    removed, the figure rollouts written), loaded back strictly, and only then moved
-    into place; any failure leaves results/records as it was. Returns (records copied,
-    records removed, figure rollouts, their bytes)."""
+    """All or nothing: the new results/records (or ``target``, a tree of its layout) is
+    built in a staging directory beside it (a copy of the published records, the given
+    records copied in, the superseded ones removed, the figure rollouts written), loaded
+    back strictly, and only then moved into place; any failure leaves it as it was.
+    Returns (records copied, records removed, figure rollouts, their bytes)."""
     import os
     import shutil
     import tempfile
 
     from hnnbench import _record as records
 
+    target = RECORDS if target is None else target
     RESULTS.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=".publish-", dir=RESULTS))
     try:
         stage = staging / "records"
-        if RECORDS.is_dir():
-            shutil.copytree(RECORDS, stage, symlinks=True)
+        if target.is_dir():
+            shutil.copytree(target, stage, symlinks=True)
         else:
             stage.mkdir()
         copied = copy_records(sweeps, recs, root=stage)
@@ -505,9 +844,9 @@ def stage_and_publish(
             )
         published_jobs(stage)
         old = staging / "old"
-        if RECORDS.exists():
-            os.replace(RECORDS, old)
-        os.replace(stage, RECORDS)
+        if target.exists():
+            os.replace(target, old)
+        os.replace(stage, target)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return copied, removed, rollouts, rollout_bytes
@@ -565,7 +904,7 @@ def write_pages(figure_name: str) -> tuple[int, dict[str, Any]]:
         text, "tracks", report.files["tracks_md"].read_text().removeprefix("# Tracks").strip()
     )
     listing = f"- Systems published: {', '.join(md_code(s) for s in systems)}"
-    for line in protocol_lines(report.records) + partial_lines(published):
+    for line in protocol_lines(report.records) + partial_lines(published) + staged_lines():
         listing += "\n" + line
     results_readme.write_text(replace_block(text, "provenance", f"{prov}\n{listing}"))
     return 0, {

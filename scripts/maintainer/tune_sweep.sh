@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # The tuned track (issue 50, docs/TUNING.md "Running the tuned track"), staged and
-# resumable: one `hnnbench tune` per system (its own Optuna database, so systems run side
-# by side), the JAX twin of each of the six families, TRIALS trials of the protocol's
-# steps on SEEDS_PER_TRIAL seeds each (trial 0: the protocol's settings), the selection
-# trained on the seed plan 0..SEEDS-1. Re-running the same command resumes every study
-# and skips every finished final run.
+# resumable: one `hnnbench tune` per (system, family), the JAX twin of each of the six
+# families, each study in its own out= folder ROOT/<system>/<model> (so a finished study
+# is published on its own: "Publishing in parts"), TRIALS trials of the protocol's steps
+# on SEEDS_PER_TRIAL seeds each (trial 0: the protocol's settings), the selection trained
+# on the seed plan 0..SEEDS-1. Re-running the same command resumes every study and skips
+# every finished final run.
 #
 #   scripts/maintainer/tune_sweep.sh STAGE|SYSTEM[,SYSTEM...] [ROOT]   ROOT default: results/runs/tuned_paper
 #     stage 1: the five systems tuned before (spring, damped_spring, pendulum,
@@ -15,8 +16,10 @@
 #              HNN run: the other families are recorded skipped, untuned)
 #   JOBS=2 TRIALS=16 SEEDS=10 SEEDS_PER_TRIAL=2 scripts/maintainer/tune_sweep.sh 1
 #
-# Each system's log: ROOT/<system>.log. Report beside the protocol track with
-#   .venv/bin/hnnbench report results/records ROOT/final --out OUT
+# JOBS studies run side by side (one process each), dearest first within a system. Each
+# study's log: ROOT/<system>/<model>.log. Publish what finished (any time; it is staged
+# until its system's every family is in):
+#   .venv/bin/python scripts/maintainer/publish_results.py --tuned ROOT/*/*/
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 what=${1:?usage: scripts/maintainer/tune_sweep.sh STAGE|SYSTEM[,SYSTEM...] [ROOT]}
@@ -27,21 +30,23 @@ seeds=$(seq -s, 0 $(( ${SEEDS:-10} - 1 )))
 per_trial=${SEEDS_PER_TRIAL:-2}
 export HNNBENCH_DATA_DIR="${HNNBENCH_DATA_DIR:-$(cd .. && pwd)/shared/data/schmidt-lipson-2009}"
 export HNNBENCH_PROGRESS=log
-models=mlp_jax,hnn_jax,dhnn_jax,lnn_jax,so_mlp_jax,srnn_jax
+# dearest first (the published job costs), so the last study to end is a cheap one
+models="srnn_jax lnn_jax dhnn_jax hnn_jax mlp_jax so_mlp_jax"
 case "$what" in
   1) systems="spring damped_spring pendulum damped_pendulum real_pendulum" ;;
   2) systems="two_body double_pendulum" ;;
   3) systems="spring_chain pixel_pendulum real_double_pendulum three_body" ;;
   *) systems=${what//,/ } ;;
 esac
-mkdir -p "$root"
 tune_one() {
-  local system=$1
-  echo "tune_sweep: $system: $models, $trials trials x $per_trial seeds, final seeds $seeds" >&2
-  nice -n 15 .venv/bin/hnnbench tune "system=$system" "model=$models" "trials=$trials" \
-    "seeds=$seeds" "seeds_per_trial=$per_trial" profile=paper "out=$root" \
-    >> "$root/$system.log" 2>&1
+  local system=${1%/*} model=${1#*/}
+  mkdir -p "$root/$system"
+  echo "tune_sweep: $system/$model: $trials trials x $per_trial seeds, final seeds $seeds" >&2
+  nice -n 15 .venv/bin/hnnbench tune "system=$system" "model=$model" "trials=$trials" \
+    "seeds=$seeds" "seeds_per_trial=$per_trial" profile=paper "out=$root/$system/$model" \
+    >> "$root/$system/$model.log" 2>&1
 }
 export -f tune_one
-export models trials seeds per_trial root
-printf '%s\n' $systems | xargs -P "$jobs" -I{} bash -c 'tune_one {}'
+export trials seeds per_trial root
+for system in $systems; do for model in $models; do echo "$system/$model"; done; done \
+  | xargs -P "$jobs" -I{} bash -c 'tune_one {}'
