@@ -95,6 +95,10 @@ DERIVED_COLUMNS = {
     "schema 3: the installed model's), empty for a competitor",
     "converged": "selection.converged (whether the criterion stopped improving over the "
     "last 20% of steps; None: not measured)",
+    "criterion_value": "selection.validation_loss: the selection criterion at the scored "
+    "checkpoint (None: no selection)",
+    "tuning_trial_seed": "whether a tuned run's seed is among tuning.trial_seeds (a seed "
+    "its study's trials trained); None for a run of another track",
 }
 #: The columns of a records frame that are not metrics or timings, in order: record
 #: fields, loader fields and :data:`DERIVED_COLUMNS`.
@@ -120,6 +124,8 @@ FRAME_COLUMNS = (
     "converged",
     "created_at",
     "tuning_cpu_s",
+    "criterion_value",
+    "tuning_trial_seed",
 )
 #: Columns of a records frame that are not metrics.
 RESERVED = frozenset(FRAME_COLUMNS)

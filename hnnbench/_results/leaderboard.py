@@ -199,6 +199,12 @@ def records_frame(
             "variant": variant,
             "track": track_of(rec),
             "tuning_cpu_s": tuning.get("cpu_s") if isinstance(tuning, dict) else None,
+            "criterion_value": _selection_field(rec, "validation_loss"),
+            "tuning_trial_seed": (
+                rec.get("seed") in (tuning.get("trial_seeds") or ())
+                if isinstance(tuning, dict)
+                else None
+            ),
             "ranked": _ranked(rec),
             "reference": _reference(rec),
             "converged": _selection_field(rec, "converged"),

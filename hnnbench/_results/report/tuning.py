@@ -20,7 +20,14 @@ from hnnbench._results.families import Families
 from hnnbench._results.leaderboard import flag_column, metric_declarations, text_column
 from hnnbench._results.report.tables import effect_text, md_table
 
-__all__ = ["STUDY_COLUMNS", "cost_figure", "gain_markdown", "studies_frame", "tuning_gain"]
+__all__ = [
+    "STUDY_COLUMNS",
+    "UNSEEN_CRITERION",
+    "cost_figure",
+    "gain_markdown",
+    "studies_frame",
+    "tuning_gain",
+]
 
 #: The columns of :func:`studies_frame`.
 STUDY_COLUMNS = (
@@ -88,14 +95,44 @@ def studies_frame(recs: Sequence[Mapping[str, Any]]) -> pd.DataFrame:
     return pd.DataFrame(list(rows.values()), columns=list(STUDY_COLUMNS))
 
 
+#: The tuning gain's row of the criterion the studies selected on, read at each run's
+#: scored checkpoint on the final seeds no trial of its study trained.
+UNSEEN_CRITERION = "criterion_unseen_seeds"
+
+
+def _paired(
+    mine: pd.DataFrame, theirs: pd.DataFrame, column: str, better: str, scale: str
+) -> Optional[dict[str, Any]]:
+    """``column`` of ``mine`` against ``theirs`` (records-frame rows, one per seed) on
+    the seeds both ran, paired by seed (:func:`hnnbench._results.stats.paired_effect`,
+    ``mine`` as the leader): ``n``, ``gain``, ``low``, ``high``, ``coverage``, ``scale``;
+    ``None`` without a shared seed."""
+    if column not in mine or column not in theirs:
+        return None
+    a = dict(zip(mine["seed"], pd.to_numeric(mine[column], errors="coerce"), strict=True))
+    b = dict(zip(theirs["seed"], pd.to_numeric(theirs[column], errors="coerce"), strict=True))
+    shared = sorted(s for s in set(a) & set(b) if not (pd.isna(a[s]) and pd.isna(b[s])))
+    if not shared:
+        return None
+    gain, low, high, coverage = stats.paired_effect(
+        [a[s] for s in shared], [b[s] for s in shared], better, scale
+    )
+    return {"n": len(shared), "gain": gain, "low": low, "high": high, "coverage": coverage,
+            "scale": scale}  # fmt: skip
+
+
 def tuning_gain(fams: Families, metrics: Optional[Sequence[str]] = None) -> pd.DataFrame:
     """The tuning gain per (profile, system, family, metric of ``metrics``, default
     every ranked one with values): the tuned track against the protocol track on the
-    seeds both ran, paired by seed (:func:`hnnbench._results.stats.paired_effect`, the
-    tuned side as the leader: positive where tuning helped, negative where it hurt),
-    with ``n`` paired seeds, the median ``gain``, its interval ``low``-``high`` and the
-    interval's ``coverage``; ``scale``: ``log`` (a log10 ratio) or ``linear``. Empty
-    without both tracks."""
+    seeds both ran, paired by seed (:func:`_paired`, the tuned side as the leader:
+    positive where tuning helped, negative where it hurt), with ``n`` paired seeds, the
+    median ``gain``, its interval ``low``-``high`` and the interval's ``coverage``;
+    ``scale``: ``log`` (a log10 ratio) or ``linear``. With the default metrics, a row
+    :data:`UNSEEN_CRITERION` too: the selection criterion (``criterion_value``) on the
+    final seeds its study's trials never trained (``tuning_trial_seed`` false): whether
+    the selection's margin over the protocol's settings holds on fresh initialisations,
+    or was its trial seeds' luck (none on a measured system: a fold's study trains its
+    own final seeds). Empty without both tracks."""
     runs = fams.runs
     columns = ["profile", "system", "family", "metric", "n", "gain", "low", "high", "coverage"]
     if runs.empty or "track" not in runs:
@@ -104,6 +141,7 @@ def tuning_gain(fams: Families, metrics: Optional[Sequence[str]] = None) -> pd.D
     runs = runs[text_column(runs, "variant") == ""]
     runs = runs[flag_column(runs, "ranked", True)]
     declared = metric_declarations()
+    criterion = metrics is None
     if metrics is None:
         metrics = [m for m in declared if declared[m].ranked and m in runs]
     order = list(dict.fromkeys(fams.board["family"].astype(str))) if "family" in fams.board else []
@@ -116,38 +154,16 @@ def tuning_gain(fams: Families, metrics: Optional[Sequence[str]] = None) -> pd.D
         for family in [f for f in order if f in set(tuned["family"].astype(str))]:
             a = tuned[tuned["family"].astype(str) == family]
             b = protocol[protocol["family"].astype(str) == family]
+            where = {"profile": profile, "system": system, "family": family}
             for metric in metrics:
                 decl = declared.get(metric)
-                if decl is None or metric not in a or metric not in b:
-                    continue
-                mine = dict(zip(a["seed"], pd.to_numeric(a[metric], errors="coerce"), strict=True))
-                theirs = dict(
-                    zip(b["seed"], pd.to_numeric(b[metric], errors="coerce"), strict=True)
-                )
-                shared = sorted(
-                    s
-                    for s in set(mine) & set(theirs)
-                    if not (pd.isna(mine[s]) and pd.isna(theirs[s]))
-                )
-                if not shared:
-                    continue
-                gain, low, high, coverage = stats.paired_effect(
-                    [mine[s] for s in shared], [theirs[s] for s in shared], decl.better, decl.scale
-                )
-                rows.append(
-                    {
-                        "profile": profile,
-                        "system": system,
-                        "family": family,
-                        "metric": metric,
-                        "n": len(shared),
-                        "gain": gain,
-                        "low": low,
-                        "high": high,
-                        "coverage": coverage,
-                        "scale": decl.scale,
-                    }
-                )
+                pair = None if decl is None else _paired(a, b, metric, decl.better, decl.scale)
+                if pair is not None:
+                    rows.append({**where, "metric": metric, **pair})
+            unseen = a[~flag_column(a, "tuning_trial_seed", True)]
+            pair = _paired(unseen, b, "criterion_value", "lower", "log") if criterion else None
+            if pair is not None:
+                rows.append({**where, "metric": UNSEEN_CRITERION, **pair})
     return pd.DataFrame(rows, columns=[*columns, "scale"])
 
 
@@ -186,7 +202,12 @@ def gain_markdown(gain: pd.DataFrame, studies: pd.DataFrame) -> str:
             "×1 (or −) it made the family worse on the final seeds, although its "
             "selection was never worse than the protocol's settings on the criterion "
             "within its study (the protocol's settings are trial 0 of every study): a "
-            "winner's curse, or a criterion that does not carry to the metric.",
+            "winner's curse, or a criterion that does not carry to the metric. The row "
+            f"`{UNSEEN_CRITERION}` is the criterion the studies selected on, at each run's "
+            "scored checkpoint, on the final seeds no trial of its study trained (seeds 2 "
+            "to 9 of a simulated system; none on a measured one, whose fold studies train "
+            "their fold's own final seeds): near ×1 the selection's margin over the "
+            "protocol's settings was its trial seeds' luck, within seed noise.",
             "",
             md_table(pd.DataFrame(rows)),
             "",
