@@ -98,7 +98,8 @@ DERIVED_COLUMNS = {
     "criterion_value": "selection.validation_loss: the selection criterion at the scored "
     "checkpoint (None: no selection)",
     "tuning_trial_seed": "whether a tuned run's seed is among tuning.trial_seeds (a seed "
-    "its study's trials trained); None for a run of another track",
+    "its study's trials trained); None for a run of another track or a tuned record that "
+    "names no trial seeds",
 }
 #: The columns of a records frame that are not metrics or timings, in order: record
 #: fields, loader fields and :data:`DERIVED_COLUMNS`.

@@ -201,8 +201,8 @@ def records_frame(
             "tuning_cpu_s": tuning.get("cpu_s") if isinstance(tuning, dict) else None,
             "criterion_value": _selection_field(rec, "validation_loss"),
             "tuning_trial_seed": (
-                rec.get("seed") in (tuning.get("trial_seeds") or ())
-                if isinstance(tuning, dict)
+                rec.get("seed") in tuning["trial_seeds"]
+                if isinstance(tuning, dict) and isinstance(tuning.get("trial_seeds"), list)
                 else None
             ),
             "ranked": _ranked(rec),

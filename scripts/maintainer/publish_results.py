@@ -39,10 +39,11 @@
    far. Links in the blocks are relative to results/.
 
 ``--tuned OUT`` publishes the tuned track in parts (docs/TUNING.md, "Publishing in
-parts"): each finished study of a tuner's ``out=`` folder is staged (its final records
-and figure rollout in ``results/staged/``, its summary in ``results/tuning/``); a system
-moves into ``results/records`` (steps 1-3) once its staged studies cover every family
-its protocol ran.
+parts"): each finished study of a tuner's ``out=`` folder is staged (its final records,
+figure rollout and summary in ``results/staged/``); a system moves into
+``results/records`` (steps 1-3), its summaries into ``results/tuning/``, once its staged
+studies cover every family its protocol ran. The sweep door takes no tuned record that
+is not published already.
 
 Records come from other machines (docs/LEADERBOARD.md, "Threat model"): a record's
 directory is built from its names by ``hnnbench._contracts.paths.safe_join`` (a name that is not a
@@ -57,6 +58,7 @@ import argparse
 import itertools
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -173,11 +175,14 @@ def job_of(rec: dict) -> tuple[str, str, str, int]:
     return track_of(rec), str(rec["system"]), str(rec["model"]), int(rec["seed"])
 
 
-def copy_figure_rollouts(sweeps: list[Path], root: Path | None = None) -> tuple[int, int]:
+def copy_figure_rollouts(
+    sweeps: list[Path], root: Path | None = None, recs: list[dict] | None = None
+) -> tuple[int, int]:
     """For each published (system, model), the figure rollout of its lowest seed that has
-    a ``rollout.npz`` in the sweeps, next to its record in results/records (``root``);
-    any other ``rollout.npz`` there is removed. Returns (files, bytes); a rollout that
-    cannot be read safely is ``SystemExit`` (one line) before anything is published."""
+    a ``rollout.npz`` in the sweeps (among ``recs``, the records being published, where
+    given), next to its record in results/records (``root``); any other ``rollout.npz``
+    there is removed. Returns (files, bytes); a rollout that cannot be read safely is
+    ``SystemExit`` (one line) before anything is published."""
     import io
     import zipfile
 
@@ -188,15 +193,16 @@ def copy_figure_rollouts(sweeps: list[Path], root: Path | None = None) -> tuple[
     from hnnbench._results.report.figures import figure_arrays
 
     chosen: dict[tuple[str, str, str], tuple[int, Path]] = {}
-    for sweep in sweeps:
-        for rec in records.load(sweep, strict=True).records:
-            source = Path(rec["path"]) / records.ROLLOUT_NAME
-            if rec.get("status") not in ("ok", "diverged") or not source.is_file():
-                continue
-            track, system, model, seed = job_of(rec)
-            key = (track, system, model)
-            if key not in chosen or seed < chosen[key][0]:
-                chosen[key] = (seed, source)
+    if recs is None:
+        recs = [r for sweep in sweeps for r in records.load(sweep, strict=True).records]
+    for rec in recs:
+        source = Path(rec["path"]) / records.ROLLOUT_NAME
+        if rec.get("status") not in ("ok", "diverged") or not source.is_file():
+            continue
+        track, system, model, seed = job_of(rec)
+        key = (track, system, model)
+        if key not in chosen or seed < chosen[key][0]:
+            chosen[key] = (seed, source)
     written = {}
     for (track, system, model), (seed, source) in sorted(chosen.items()):
         rec = {
@@ -371,9 +377,10 @@ def remove_jobs(jobs: set[tuple[str, str, str, int]], root: Path | None = None) 
 # A tuned system is published once every family the protocol runs there has a finished
 # study (docs/TUNING.md, "Publishing in parts"). A study of one (system, family) fits in a
 # session; a system's six do not. So each finished study is *staged* as it ends: its
-# final records (and figure rollout) into results/staged/ (records/'s layout), its
-# summary into results/tuning/. When a system's staged studies cover every family, they
-# move into results/records in one publication; the summaries stay.
+# final records (and figure rollout) and its summaries into results/staged/ (records/'s
+# layout, the summaries beside the model's records). When a system's staged studies
+# cover every family, its records move into results/records in one publication and its
+# summaries into results/tuning/. Each step can be run again after a crash.
 
 #: The fields of a study summary (``hnnbench._tuning.tuner.Tuner._write_summary``) that
 #: staging reads, with the JSON types each may hold.
@@ -393,6 +400,11 @@ STUDY_FIELDS: dict[str, tuple[type, ...]] = {
 }
 #: The trial states a study's budget counts (the tuner's ``done()``).
 COUNTED = ("complete", "pruned")
+
+
+def summary_name(model: str, fold: int | None) -> str:
+    """A study summary's file name, as the tuner names it: ``<model>[.fold<k>].json``."""
+    return f"{model}{'' if fold is None else f'.fold{fold}'}.json"
 
 
 def study_problem(summary: dict[str, Any], system: str, model: str) -> str | None:
@@ -429,21 +441,19 @@ def study_finished(summary: dict[str, Any]) -> bool:
     return summary["selected"] is not None and counted >= summary["trials_budget"]
 
 
-def tuned_parts(roots: list[Path]) -> tuple[list[tuple[str, str, list[dict], Path]], list[str]]:
-    """The finished studies under the tuners' ``out=`` roots: one ``(system, model,
-    summaries, final directory)`` per pair whose every study (one per fold on a measured
-    system) ran its budget, and one line per pair left waiting. A summary that cannot be
-    read or checked (:func:`study_problem`) is ``SystemExit`` naming it."""
+def _read_summaries(roots: list[Path]) -> tuple[dict[tuple[str, str], list[dict]], list[str]]:
+    """Every study summary under the roots' ``tuning/``, checked, per (system, model);
+    and a line per root with none yet. A summary that cannot be read or checked
+    (:func:`study_problem`), or a study given twice, is ``SystemExit`` naming it."""
     from hnnbench._contracts.names import name_problem
     from hnnbench._record.store import parse_file
 
     found: dict[tuple[str, str], list[dict]] = {}
+    waiting = []
     for root in roots:
         if not (root / "tuning").is_dir():
-            raise SystemExit(
-                f"publish: {root} holds no tuning/ folder: give the out= folder of an "
-                "`hnnbench tune`"
-            )
+            waiting.append(f"{root}: no study summary yet (no tuning/ folder); not staged")
+            continue
         for path in sorted((root / "tuning").glob("*/*.json")):
             system, model = path.parent.name, path.name.split(".")[0]
             data = parse_file(path)
@@ -460,30 +470,64 @@ def tuned_parts(roots: list[Path]) -> tuple[list[tuple[str, str, list[dict], Pat
             data["path"] = str(path)
             data["final"] = str(root / "final" / system / model)
             pair = found.setdefault((system, model), [])
-            if any(d["study"] == data["study"] for d in pair):
+            twin = next((d["path"] for d in pair if d["study"] == data["study"]), None)
+            if twin is not None:
                 raise SystemExit(
-                    f"publish: {path}: study {data['study']} is given twice "
-                    f"({pair[0]['path']}); give one out= folder per study"
+                    f"publish: {path}: study {data['study']} is also in {twin}; give one "
+                    "out= folder per study; nothing was staged"
                 )
             pair.append(data)
-    parts, waiting = [], []
+    return found, waiting
+
+
+def tuned_parts(
+    roots: list[Path], protocol_seeds: dict[tuple[str, str], set[int]]
+) -> tuple[list[tuple[str, str, list[dict], Path]], list[str]]:
+    """The finished pairs under the tuners' ``out=`` roots: one ``(system, model,
+    summaries, final directory)`` per pair whose studies (one per fold on a measured
+    system) all ran their budget, together cover the final seeds of the pair's published
+    protocol records (``protocol_seeds``), and whose final runs are all written; and one
+    line per pair (or root) left waiting, saying why."""
+    found, waiting = _read_summaries(roots)
+    parts = []
     for (system, model), summaries in sorted(found.items()):
+        where = f"{system}/{model}"
         finals = {Path(s["final"]) for s in summaries}
         if len(finals) != 1:
             raise SystemExit(
-                f"publish: {system}/{model}: its studies sit in several out= folders "
+                f"publish: {where}: its studies sit in several out= folders "
                 f"({', '.join(sorted(map(str, finals)))}); give one folder per pair"
             )
+        final = finals.pop()
+        covered = {seed for s in summaries for seed in s["final_seeds"]}
+        wanted = protocol_seeds.get((system, model), set())
         unfinished = [s for s in summaries if not study_finished(s)]
-        if unfinished:
+        written = {s for s in covered if (final / f"seed{s}" / "result.json").is_file()}
+        if any(t.get("status") == "skipped" for s in unfinished for t in s["trials"]):
+            waiting.append(
+                f"{where}: skipped by the tuner (it does not run there); nothing to stage"
+            )
+        elif unfinished:
             s = unfinished[0]
             done = sum(t.get("state") in COUNTED for t in s["trials"])
             waiting.append(
-                f"{system}/{model}: study {s['study']} has {done} of {s['trials_budget']} "
-                "trials; not staged"
+                f"{where}: study {s['study']} has {done} of {s['trials_budget']} trials; not staged"
             )
-            continue
-        parts.append((system, model, summaries, finals.pop()))
+        elif not wanted:
+            waiting.append(f"{where}: no published protocol record to pair it with; not staged")
+        elif not wanted <= covered:
+            waiting.append(
+                f"{where}: its studies cover final seeds {sorted(covered)} of the "
+                f"protocol's {sorted(wanted)} (a measured system's fold studies end one by "
+                "one); not staged"
+            )
+        elif written != covered:
+            waiting.append(
+                f"{where}: the final runs of seeds {sorted(covered - written)} are not "
+                f"written yet (in {final}); not staged"
+            )
+        else:
+            parts.append((system, model, summaries, final))
     return parts, waiting
 
 
@@ -493,9 +537,8 @@ def part_records(system: str, model: str, summaries: list[dict], final: Path) ->
     settings, on exactly the studies' final seeds; ``SystemExit`` naming what differs."""
     from hnnbench._record.tracks import track_of
 
-    recs = given_records([final]) if final.is_dir() else []
+    recs = given_records([final])
     by_study = {s["study"]: s for s in summaries}
-    wanted = {seed for s in summaries for seed in s["final_seeds"]}
     for rec in recs:
         study = by_study.get(str((rec.get("tuning") or {}).get("study")))
         why = (
@@ -513,43 +556,78 @@ def part_records(system: str, model: str, summaries: list[dict], final: Path) ->
         )
         if why:
             raise SystemExit(f"publish: {rec['path']}: {why}; nothing was staged")
-    missing = sorted(wanted - {r["seed"] for r in recs})
-    if missing:
-        raise SystemExit(
-            f"publish: {system}/{model}: its final runs of seeds {missing} are not in "
-            f"{final}; run its `hnnbench tune` again to finish them; nothing was staged"
-        )
     return recs
 
 
+def _published() -> list[dict]:
+    from hnnbench import _record as records
+
+    return records.load(RECORDS).records if RECORDS.is_dir() else []
+
+
+def _refuse_unequal_budgets(recs: list[dict], what: str) -> None:
+    """``SystemExit`` (one line) where ``recs`` (a system's tuned records, staged and
+    published together) hold unequal budgets (``validity.budget_problems``)."""
+    from hnnbench._results import validity
+
+    problems = validity.budget_problems(recs)
+    if problems:
+        raise SystemExit(
+            f"publish: {problems[0].line()}; a system's studies share one budget: tune the "
+            f"pair again with the others' trials, steps and seeds per trial; nothing was {what}"
+        )
+
+
 def stage_tuned(roots: list[Path]) -> tuple[list[str], list[str]]:
-    """Stage every finished study under ``roots`` (:func:`tuned_parts`): its final
-    records and figure rollout into results/staged (a pair staged again replaces its
-    earlier records), its summaries into results/tuning. Returns the pairs staged
-    (``system/model``) and the lines of the pairs left waiting."""
+    """Stage every finished pair under ``roots`` (:func:`tuned_parts`): its final
+    records, figure rollout and summaries into results/staged, in one all-or-nothing
+    step (a pair staged again replaces its staged records and summaries); refused where
+    its budget differs from its system's other staged or published studies. Returns the
+    pairs staged (``system/model``) and the lines of those left waiting."""
     from hnnbench import _record as records
     from hnnbench._contracts.paths import safe_join
+    from hnnbench._record.tracks import track_of
 
-    parts, waiting = tuned_parts(roots)
+    published = _published()
+    seeds: dict[tuple[str, str], set[int]] = {}
+    for r in published:
+        if track_of(r) == "protocol":
+            seeds.setdefault((r["system"], r["model"]), set()).add(r["seed"])
+    parts, waiting = tuned_parts(roots, seeds)
     if not parts:
         return [], waiting
     recs = [r for system, model, s, final in parts for r in part_records(system, model, s, final)]
     pairs = {(system, model) for system, model, _, _ in parts}
     before = given_records([STAGED]) if STAGED.is_dir() else []
     kept = [r for r in before if (r["system"], r["model"]) not in pairs]
+    systems = {system for system, _ in pairs}
+    others = [
+        r
+        for r in published
+        if track_of(r) == "tuned"
+        and r["system"] in systems
+        and (r["system"], r["model"]) not in pairs
+    ]
+    _refuse_unequal_budgets([*recs, *kept, *others], "staged")
     given = {job_of(r) for r in recs}
     superseded = {
         job_of(r) for r in before if (r["system"], r["model"]) in pairs and job_of(r) not in given
     }
+
+    def summaries(stage: Path) -> None:
+        for system, model, studies, _ in parts:
+            folder = safe_join(stage, system, model)
+            for old in folder.glob("*.json"):
+                old.unlink()
+            for study in studies:
+                body = {k: v for k, v in study.items() if k not in ("path", "final")}
+                text = json.dumps(body, indent=2) + "\n"
+                records.atomic_write_text(
+                    safe_join(folder, summary_name(model, study["fold"])), text
+                )
+
     finals = sorted({final for _, _, _, final in parts})
-    stage_and_publish([*finals, STAGED], [*recs, *kept], superseded, target=STAGED)
-    for system, model, summaries, _ in parts:
-        for summary in summaries:
-            fold = "" if summary["fold"] is None else f".fold{summary['fold']}"
-            body = {k: v for k, v in summary.items() if k not in ("path", "final")}
-            path = safe_join(STUDIES, system, f"{model}{fold}.json")
-            path.parent.mkdir(parents=True, exist_ok=True)
-            records.atomic_write_text(path, json.dumps(body, indent=2) + "\n")
+    stage_and_publish([*finals, STAGED], [*recs, *kept], superseded, STAGED, summaries)
     return sorted(f"{s}/{m}" for s, m in pairs), waiting
 
 
@@ -601,15 +679,20 @@ def staged_families() -> dict[str, set[str]]:
 
 
 def publish_complete_systems() -> list[str]:
-    """Move into results/records every staged system whose staged studies, with its
-    published tuned ones, cover every family its protocol ran: its staged records
-    (replacing its published tuned ones of the same models), in one all-or-nothing
-    publication. Returns those systems."""
+    """Publish every staged system whose staged studies, with its published tuned ones,
+    cover every family its protocol ran: its staged records into results/records
+    (replacing its published tuned ones of the same models) in one all-or-nothing
+    publication, then its summaries into results/tuning, then its staged folder
+    removed. Run again after a crash between these steps, it publishes the same records
+    again and finishes. Returns those systems."""
+    import os
     import shutil
+    import tempfile
 
     from hnnbench import _record as records
+    from hnnbench._contracts.paths import safe_join
 
-    published = records.load(RECORDS).records if RECORDS.is_dir() else []
+    published = _published()
     ran = protocol_families(published)
     tuned = tuned_families(published)
     complete = [
@@ -624,10 +707,25 @@ def publish_complete_systems() -> list[str]:
     jobs = {job_of(r) for r in staged}
     restaged = {(r["system"], r["model"]) for r in staged}
     kept = [r for r in given_records([RECORDS]) if job_of(r) not in jobs]
+    for system in complete:
+        _refuse_unequal_budgets([r for r in [*staged, *kept] if r["system"] == system], "published")
     old = {job for job in published_jobs() if job[0] == "tuned" and (job[1], job[2]) in restaged}
     stage_and_publish([*dirs, RECORDS], [*staged, *kept], old - jobs)
-    for directory in dirs:
-        shutil.rmtree(directory)
+    for system, model in sorted(restaged):
+        target = safe_join(STUDIES, system)
+        target.mkdir(parents=True, exist_ok=True)
+        new = sorted(safe_join(STAGED, system, model).glob("*.json"))
+        for stale in [*target.glob(f"{model}.json"), *target.glob(f"{model}.fold*.json")]:
+            if stale.name not in {p.name for p in new}:
+                stale.unlink()
+        for path in new:
+            records.atomic_write_text(safe_join(target, path.name), path.read_text())
+    trash = Path(tempfile.mkdtemp(prefix=".staged-", dir=RESULTS))
+    try:
+        for directory in dirs:
+            os.replace(directory, trash / directory.name)
+    finally:
+        shutil.rmtree(trash, ignore_errors=True)
     if STAGED.is_dir() and not any(STAGED.iterdir()):
         STAGED.rmdir()
     return complete
@@ -635,10 +733,9 @@ def publish_complete_systems() -> list[str]:
 
 def staged_lines() -> list[str]:
     """One line per system with staged studies: its families in, and those to come."""
-    from hnnbench import _record as records
     from hnnbench._results.report.markdown import md_code
 
-    ran = protocol_families(records.load(RECORDS).records if RECORDS.is_dir() else [])
+    ran = protocol_families(_published())
     lines = []
     for system, families in sorted(staged_families().items()):
         wanted = set(ran.get(system, {}))
@@ -777,6 +874,15 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
+    entering = sorted(job for job in given - published_jobs() if job[0] == "tuned")
+    if entering:
+        print(
+            f"publish: {entering[0]} is a tuned run not yet published: tuned rows enter with "
+            "--tuned OUT (the tuner's out= folder), which checks them against their "
+            "studies' summaries and publishes a system once every family's study is in",
+            file=sys.stderr,
+        )
+        return 2
     kept = [r for r in recs if job_of(r) not in superseded]
     for line in incomplete_tuned(kept):
         print(
@@ -813,12 +919,14 @@ def stage_and_publish(
     recs: list[dict],
     superseded: set[tuple[str, str, str, int]],
     target: Path | None = None,
+    extra: Callable[[Path], None] | None = None,
 ) -> tuple[int, int, int, int]:
     """All or nothing: the new results/records (or ``target``, a tree of its layout) is
     built in a staging directory beside it (a copy of the published records, the given
-    records copied in, the superseded ones removed, the figure rollouts written), loaded
-    back strictly, and only then moved into place; any failure leaves it as it was.
-    Returns (records copied, records removed, figure rollouts, their bytes)."""
+    records copied in, the superseded ones removed, the figure rollouts of the records
+    kept written, ``extra`` applied to it), loaded back strictly, and only then moved
+    into place; any failure leaves it as it was. Returns (records copied, records
+    removed, figure rollouts, their bytes)."""
     import os
     import shutil
     import tempfile
@@ -836,7 +944,10 @@ def stage_and_publish(
             stage.mkdir()
         copied = copy_records(sweeps, recs, root=stage)
         removed = remove_jobs(superseded, root=stage)
-        rollouts, rollout_bytes = copy_figure_rollouts(sweeps, root=stage)
+        kept = [r for r in recs if job_of(r) not in superseded]
+        rollouts, rollout_bytes = copy_figure_rollouts(sweeps, root=stage, recs=kept)
+        if extra is not None:
+            extra(stage)
         staged, bad = records.load(stage, strict=True)
         if bad:
             raise SystemExit(

@@ -295,40 +295,50 @@ def test_every_tuned_system_has_every_family_on_equal_budgets(committed):
 
 def test_every_tuned_study_is_committed_whole_and_its_rows_are_its_selection(committed):
     """The tuned track's parts (docs/TUNING.md, "Publishing in parts"): each study's
-    summary in results/tuning is a finished study of its path's pair
+    summary (results/tuning/ for a published system, beside its records in
+    results/staged/ for a staged one) is a finished study of its path's pair
     (``publish_results.study_problem``: the paper profile, the protocol's settings as
-    trial 0), and its final records (staged in results/staged, or published in
-    results/records) are its selection on exactly its final seeds, valid like any
-    published record (``publish_results.given_records``); a staged system is one that
-    still lacks a family, and every tuned row has its study's summary. Skipped, saying
-    so, while no study is committed."""
+    trial 0); its final records are its selection on exactly its final seeds, valid like
+    any published record (``publish_results.given_records``); a pair's studies cover
+    its rows' seeds; every tuned row has its study's summary; a staged system still
+    lacks a family; and staged rows keep every promise of published ones but being
+    whole. Skipped, saying so, while no study is committed."""
     import publish_results as publish
+    from report_fixtures import tuned_rows_problems
 
     from hnnbench._record.tracks import track_of
 
-    studies = sorted((RESULTS / "tuning").glob("*/*.json"))
+    staged_dir = RESULTS / "staged"
+    studies = [
+        *((p, "published") for p in sorted((RESULTS / "tuning").glob("*/*.json"))),
+        *((p, "staged") for p in sorted(staged_dir.glob("*/*/*.json"))),
+    ]
     if not studies:
         pytest.skip("no tuned study is committed yet (issue 50's studies run in parts)")
-    staged = publish.given_records([RESULTS / "staged"]) if (RESULTS / "staged").is_dir() else []
-    rows = [r for r in [*committed, *staged] if track_of(r) == "tuned"]
-    seen: set[tuple[str, str]] = set()
-    for path in studies:
+    staged = publish.given_records([staged_dir]) if staged_dir.is_dir() else []
+    rows = {
+        "published": [r for r in committed if track_of(r) == "tuned"],
+        "staged": [r for r in staged if track_of(r) == "tuned"],
+    }
+    covered: dict[tuple[str, str, str], set[int]] = {}
+    for path, where in studies:
         system, model = path.parent.name, path.name.split(".")[0]
         summary = json.loads(path.read_text())
         assert publish.study_problem(summary, system, model) is None, path
         assert publish.study_finished(summary), path
-        mine = [r for r in rows if r["tuning"].get("study") == summary["study"]]
+        mine = [r for r in rows[where] if r["tuning"].get("study") == summary["study"]]
         assert sorted(r["seed"] for r in mine) == sorted(summary["final_seeds"]), path
         assert all(r["tuning"]["selected"] == summary["selected"]["settings"] for r in mine)
-        seen |= {(system, model)}
-    assert {(r["system"], r["model"]) for r in rows} == seen
+        covered.setdefault((where, system, model), set()).update(summary["final_seeds"])
+    for where, recs in rows.items():
+        for r in recs:
+            assert r["seed"] in covered.get((where, r["system"], r["model"]), set()), r["path"]
     ran = publish.protocol_families(committed)
-    for system, tuned in publish.tuned_families(staged).items():
-        assert not set(ran[system]) <= tuned, f"{system} is complete: publish it"
+    published = publish.tuned_families(rows["published"])
+    for system, tuned in publish.tuned_families(rows["staged"]).items():
+        whole = set(ran.get(system, {})) <= tuned | published.get(system, set())
+        assert not whole, f"{system} is complete: publish_results.py --tuned publishes it"
     assert publish.incomplete_tuned(committed) == []
-    # staged rows keep every promise of a published one but being whole
-    from report_fixtures import tuned_rows_problems
-
     protocol = [r for r in committed if track_of(r) == "protocol"]
-    problems = tuned_rows_problems(rows, protocol, least_seeds=5)
+    problems = tuned_rows_problems([*rows["published"], *rows["staged"]], protocol, 5)
     assert [p for p in problems if ": tuned [" not in p] == []

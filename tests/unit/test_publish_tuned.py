@@ -20,15 +20,18 @@ def write_study(
     system: str,
     model: str,
     seeds: tuple[int, ...] = (0, 1),
-    done: int = TRIALS,
+    done: int | None = None,
     lr: float = 0.003,
+    budget: int = TRIALS,
+    fold: int | None = None,
     **change: Any,
 ) -> Path:
-    """What ``hnnbench tune system=S model=M out=OUT`` leaves of a study of ``done`` of
-    its 16 trials: its summary and, when it is finished, its final records (the
-    selected ``model.lr`` on ``seeds``, seed 0 with a rollout). ``change`` overrides
-    fields of the summary. Returns the summary's path."""
-    study = f"{system}/{model}"
+    """What ``hnnbench tune system=S model=M out=OUT`` leaves of a study of ``done``
+    (default: all) of its ``budget`` trials: its summary and, when it is finished, its
+    final records (the selected ``model.lr`` on ``seeds``, seed 0 with a rollout).
+    ``change`` overrides fields of the summary. Returns the summary's path."""
+    done = budget if done is None else done
+    study = f"{system}/{model}" + ("" if fold is None else f"/fold{fold}")
     selected = {"number": 3, "value": 1e-4, "settings": {"model.lr": lr}}
     trials = [
         {
@@ -42,15 +45,15 @@ def write_study(
     ]
     summary = {
         "system": system, "model": model, "study": study, "profile": "paper",
-        "trials_budget": TRIALS, "steps": 2000, "criterion": "field_mse_clean",
-        "seeds_per_trial": 2, "trial_seeds": [0, 1], "fold": None,
+        "trials_budget": budget, "steps": 2000, "criterion": "field_mse_clean",
+        "seeds_per_trial": 2, "trial_seeds": [0, 1], "fold": fold,
         "final_seeds": list(seeds), "protocol_trial": 0, "protocol_value": 1e-3,
-        "selected": selected if done >= TRIALS else None, "trials": trials, **change,
+        "selected": selected if done >= budget else None, "trials": trials, **change,
     }  # fmt: skip
-    path = out / "tuning" / system / f"{model}.json"
+    path = out / "tuning" / system / publish_results.summary_name(model, fold)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(summary))
-    if done < TRIALS:
+    if done < budget:
         return path
     for seed in seeds:
         job = write_run(out / "final", system, model, seed, profile="paper", rollout=seed == 0)
@@ -61,7 +64,7 @@ def write_study(
         record["tuning"] = {
             "selected_on": "validation", "criterion": "field_mse_clean",
             "seeds_per_trial": 2, "trial_seeds": [0, 1], "protocol_trial": 0,
-            "trials": TRIALS, "steps": 2000, "space": {}, "selected": {"model.lr": lr},
+            "trials": budget, "steps": 2000, "space": {}, "selected": {"model.lr": lr},
             "selected_trial": 3, "study": study, "cpu_s": 100.0,
         }  # fmt: skip
         (job / "result.json").write_text(json.dumps(record))
@@ -95,22 +98,25 @@ def test_a_finished_study_is_staged_and_its_system_published_when_every_family_i
     staged, waiting = publish_results.stage_tuned([hnn, mlp])
     assert staged == ["spring/hnn_jax"]
     assert waiting == ["spring/mlp_jax: study spring/mlp_jax has 9 of 16 trials; not staged"]
+    here = spring / "staged" / "spring" / "hnn_jax"
     assert tuned_jobs(spring / "staged") == {
         ("spring", "hnn_jax", "tuned", "seed0"),
         ("spring", "hnn_jax", "tuned", "seed1"),
     }
-    assert (spring / "staged" / "spring" / "hnn_jax" / "tuned" / "seed0" / "rollout.npz").is_file()
-    assert json.loads((spring / "tuning" / "spring" / "hnn_jax.json").read_text())["selected"]
+    assert (here / "tuned" / "seed0" / "rollout.npz").is_file()
+    assert json.loads((here / "hnn_jax.json").read_text())["selected"]
     # One family of two: nothing is published, and the page says what is staged.
     assert publish_results.publish_complete_systems() == []
-    assert tuned_jobs(spring / "records") == set()
+    assert tuned_jobs(spring / "records") == set() and not (spring / "tuning").exists()
     assert publish_results.staged_lines() == [
         "- Tuned track, staged (not published until every family's study is in): "
         "`spring` has hnn (1 of 2 families)"
     ]
-    # The MLP's study ends (staging the HNN again changes nothing): spring is published.
+    # Staging the HNN again changes nothing; the MLP's study ends: spring is published.
+    before = {p: p.read_bytes() for p in here.rglob("*") if p.is_file()}
     write_study(mlp, "spring", "mlp_jax")
     assert publish_results.stage_tuned([hnn, mlp])[0] == ["spring/hnn_jax", "spring/mlp_jax"]
+    assert {p: p.read_bytes() for p in here.rglob("*") if p.is_file()} == before
     assert publish_results.publish_complete_systems() == ["spring"]
     assert {j[:2] for j in tuned_jobs(spring / "records")} == {
         ("spring", "hnn_jax"),
@@ -123,15 +129,67 @@ def test_a_finished_study_is_staged_and_its_system_published_when_every_family_i
         "hnn_jax.json",
         "mlp_jax.json",
     ]
-    # A family tuned again later (other settings, one seed fewer) replaces its rows.
+    # A family tuned again later (other settings) replaces its rows and its summary.
     shutil.rmtree(hnn)
-    write_study(hnn, "spring", "hnn_jax", seeds=(0,), lr=0.005)
+    write_study(hnn, "spring", "hnn_jax", lr=0.005)
     assert publish_results.stage_tuned([hnn])[0] == ["spring/hnn_jax"]
     assert publish_results.publish_complete_systems() == ["spring"]
-    hnn_rows = [j for j in tuned_jobs(spring / "records") if j[1] == "hnn_jax"]
-    assert hnn_rows == [("spring", "hnn_jax", "tuned", "seed0")]
-    record = spring / "records" / "spring" / "hnn_jax" / "tuned" / "seed0" / "result.json"
-    assert json.loads(record.read_text())["tuning"]["selected"] == {"model.lr": 0.005}
+    tuned = spring / "records" / "spring" / "hnn_jax" / "tuned"
+    assert sorted(p.relative_to(tuned).as_posix() for p in tuned.rglob("*.*")) == [
+        "seed0/result.json",
+        "seed0/rollout.npz",
+        "seed1/result.json",
+    ]
+    record = json.loads((tuned / "seed0" / "result.json").read_text())
+    assert record["tuning"]["selected"] == {"model.lr": 0.005}
+    summary = json.loads((spring / "tuning" / "spring" / "hnn_jax.json").read_text())
+    assert summary["selected"]["settings"] == {"model.lr": 0.005}
+
+
+def test_a_pair_waits_until_its_studies_cover_the_protocols_seeds_and_their_finals_are_written(
+    spring, tmp_path
+):
+    """A measured system's fold studies end one by one, and a study's final runs come
+    after its summary: either way the pair waits, said in one line, and the others stage."""
+    folds, hnn = tmp_path / "folds", tmp_path / "hnn"
+    write_study(folds, "spring", "mlp_jax", seeds=(0,), fold=0)  # fold 1 (seed 1) to come
+    write_study(hnn, "spring", "hnn_jax")
+    staged, waiting = publish_results.stage_tuned([folds, hnn])
+    assert staged == ["spring/hnn_jax"]
+    assert waiting == [
+        "spring/mlp_jax: its studies cover final seeds [0] of the protocol's [0, 1] (a "
+        "measured system's fold studies end one by one); not staged"
+    ]
+    write_study(folds, "spring", "mlp_jax", seeds=(1,), fold=1)
+    shutil.rmtree(folds / "final" / "spring" / "mlp_jax" / "seed1")  # still running
+    staged, waiting = publish_results.stage_tuned([folds])
+    assert staged == [] and waiting[0].startswith(
+        "spring/mlp_jax: the final runs of seeds [1] are not written yet"
+    )
+    assert publish_results.publish_complete_systems() == []
+    write_study(folds, "spring", "mlp_jax", seeds=(1,), fold=1)
+    assert publish_results.stage_tuned([folds])[0] == ["spring/mlp_jax"]
+    assert sorted(p.name for p in (spring / "staged" / "spring" / "mlp_jax").glob("*.json")) == [
+        "mlp_jax.fold0.json",
+        "mlp_jax.fold1.json",
+    ]
+    assert publish_results.publish_complete_systems() == ["spring"]
+    empty = tmp_path / "starting"
+    empty.mkdir()
+    assert publish_results.stage_tuned([empty]) == (
+        [],
+        [f"{empty}: no study summary yet (no tuning/ folder); not staged"],
+    )
+
+
+def test_a_study_of_another_budget_than_its_systems_others_is_refused(spring, tmp_path):
+    hnn, mlp = tmp_path / "hnn", tmp_path / "mlp"
+    write_study(hnn, "spring", "hnn_jax")
+    publish_results.stage_tuned([hnn])
+    write_study(mlp, "spring", "mlp_jax", budget=24)
+    with pytest.raises(SystemExit, match=r"unequal.*a system's studies share one budget"):
+        publish_results.stage_tuned([mlp])
+    assert {j[1] for j in tuned_jobs(spring / "staged")} == {"hnn_jax"}
 
 
 def _bad_final(out: Path, seed: int, **tuning: Any) -> None:
@@ -142,48 +200,28 @@ def _bad_final(out: Path, seed: int, **tuning: Any) -> None:
     path.write_text(json.dumps(record))
 
 
+def _edit(path: Path, **fields: Any) -> None:
+    path.write_text(json.dumps({**json.loads(path.read_text()), **fields}))
+
+
 @pytest.mark.parametrize(
     "spoil, needle",
     [
         (lambda out, p: p.write_text("{"), "not valid JSON"),
+        (lambda out, p: _edit(p, profile="quick"), "profile quick, not paper"),
+        (lambda out, p: _edit(p, model="mlp_jax"), "a study of spring/mlp_jax, filed as"),
         (
-            lambda out, p: p.write_text(
-                json.dumps({**json.loads(p.read_text()), "profile": "quick"})
-            ),
-            "profile quick, not paper",
-        ),
-        (
-            lambda out, p: p.write_text(
-                json.dumps({**json.loads(p.read_text()), "model": "mlp_jax"})
-            ),
-            "a study of spring/mlp_jax, filed as spring/hnn_jax",
-        ),
-        (
-            lambda out, p: p.write_text(
-                json.dumps(
-                    {
-                        **json.loads(p.read_text()),
-                        "trials": [
-                            {**t, "protocol": False} for t in json.loads(p.read_text())["trials"]
-                        ],
-                    }
-                )
+            lambda out, p: _edit(
+                p, trials=[{**t, "protocol": False} for t in json.loads(p.read_text())["trials"]]
             ),
             "its trial 0 is not the protocol's settings",
         ),
-        (
-            lambda out, p: p.write_text(json.dumps({**json.loads(p.read_text()), "steps": "2000"})),
-            "steps: '2000' is not int",
-        ),
+        (lambda out, p: _edit(p, steps="2000"), "steps: '2000' is not int"),
         (
             lambda out, p: _bad_final(out, 1, selected={"model.lr": 0.004}),
             "its settings are not its study's selection",
         ),
         (lambda out, p: _bad_final(out, 1, study="spring/other"), "names no study"),
-        (
-            lambda out, p: shutil.rmtree(out / "final" / "spring" / "hnn_jax" / "seed1"),
-            r"its final runs of seeds \[1\] are not in",
-        ),
     ],
 )
 def test_a_study_that_does_not_hold_together_is_one_line_and_nothing_is_staged(
@@ -199,23 +237,39 @@ def test_a_study_that_does_not_hold_together_is_one_line_and_nothing_is_staged(
 
 def test_the_main_entry_stages_and_says_what_waits(spring, tmp_path, capsys):
     """``--tuned`` with nothing finished stages nothing, publishes nothing and says which
-    study waits, in one line each; a folder that is not a tuner's is one line too."""
+    study waits, in one line each."""
     out = tmp_path / "mlp"
     write_study(out, "spring", "mlp_jax", done=5)
     assert publish_results.main(["--tuned", str(out)]) == 0
     captured = capsys.readouterr()
     assert "spring/mlp_jax has 5 of 16 trials; not staged" in captured.err
     assert json.loads(captured.out) == {"staged": [], "published_tuned": []}
-    with pytest.raises(SystemExit, match="holds no tuning/ folder"):
-        publish_results.main(["--tuned", str(tmp_path)])
     assert not (spring / "staged").exists()
 
 
-def test_a_tuned_system_short_of_a_family_is_not_published_as_a_sweep(spring, tmp_path, capsys):
-    """The sweep door refuses what ``--tuned`` would keep staged: tuned rows of a system
-    without every family its protocol ran."""
-    out = tmp_path / "hnn"
-    write_study(out, "spring", "hnn_jax")
-    assert publish_results.main([str(out / "final"), str(spring / "records")]) == 2
-    assert "spring: tuned hnn; its protocol ran hnn, mlp: a tuned system" in capsys.readouterr().err
+def test_tuned_rows_do_not_enter_through_the_sweep_door(spring, tmp_path, capsys):
+    """Tuned records given as a sweep are refused, whole system or not: they enter with
+    --tuned, checked against their studies' summaries."""
+    hnn, mlp = tmp_path / "hnn", tmp_path / "mlp"
+    write_study(hnn, "spring", "hnn_jax")
+    write_study(mlp, "spring", "mlp_jax")
+    assert publish_results.main([str(hnn / "final"), str(spring / "records")]) == 2
+    assert "tuned rows enter with --tuned OUT" in capsys.readouterr().err
+    both = [str(hnn / "final"), str(mlp / "final"), str(spring / "records")]
+    assert publish_results.main(both) == 2
     assert tuned_jobs(spring / "records") == set()
+
+
+def test_a_published_tuned_system_that_loses_a_family_is_refused(spring, tmp_path, capsys):
+    """Withdrawing one family's protocol rows from a tuned system would leave its tuned
+    rows without that family's pair: refused, naming it."""
+    hnn, mlp = tmp_path / "hnn", tmp_path / "mlp"
+    write_study(hnn, "spring", "hnn_jax")
+    write_study(mlp, "spring", "mlp_jax")
+    publish_results.stage_tuned([hnn, mlp])
+    assert publish_results.publish_complete_systems() == ["spring"]
+    records = spring / "records" / "spring"
+    shutil.rmtree(records / "mlp_jax" / "tuned")
+    kept = [str(records / m) for m in ("hnn_jax", "mlp_jax", "oracle")]
+    assert publish_results.main(kept) == 2
+    assert "spring: tuned hnn; its protocol ran hnn, mlp" in capsys.readouterr().err
