@@ -322,7 +322,9 @@ def test_every_tuned_study_is_committed_whole_and_its_rows_are_its_selection(com
     }
     covered: dict[tuple[str, str, str], set[int]] = {}
     for path, where in studies:
-        system, model = path.parent.name, path.name.split(".")[0]
+        # tuning/<system>/<file>, staged/<system>/<model>/<file>
+        system = path.parent.name if where == "published" else path.parent.parent.name
+        model = path.name.split(".")[0]
         summary = json.loads(path.read_text())
         assert publish.study_problem(summary, system, model) is None, path
         assert publish.study_finished(summary), path
