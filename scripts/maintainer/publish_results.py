@@ -175,14 +175,12 @@ def job_of(rec: dict) -> tuple[str, str, str, int]:
     return track_of(rec), str(rec["system"]), str(rec["model"]), int(rec["seed"])
 
 
-def copy_figure_rollouts(
-    sweeps: list[Path], root: Path | None = None, recs: list[dict] | None = None
-) -> tuple[int, int]:
-    """For each published (system, model), the figure rollout of its lowest seed that has
-    a ``rollout.npz`` in the sweeps (among ``recs``, the records being published, where
-    given), next to its record in results/records (``root``); any other ``rollout.npz``
-    there is removed. Returns (files, bytes); a rollout that cannot be read safely is
-    ``SystemExit`` (one line) before anything is published."""
+def copy_figure_rollouts(recs: list[dict], root: Path | None = None) -> tuple[int, int]:
+    """For each (system, model) of ``recs`` (the records being published), the figure
+    rollout of its lowest seed that has a ``rollout.npz`` beside its record, next to its
+    record in results/records (``root``); any other ``rollout.npz`` there is removed.
+    Returns (files, bytes); a rollout that cannot be read safely is ``SystemExit`` (one
+    line) before anything is published."""
     import io
     import zipfile
 
@@ -193,8 +191,6 @@ def copy_figure_rollouts(
     from hnnbench._results.report.figures import figure_arrays
 
     chosen: dict[tuple[str, str, str], tuple[int, Path]] = {}
-    if recs is None:
-        recs = [r for sweep in sweeps for r in records.load(sweep, strict=True).records]
     for rec in recs:
         source = Path(rec["path"]) / records.ROLLOUT_NAME
         if rec.get("status") not in ("ok", "diverged") or not source.is_file():
@@ -945,7 +941,7 @@ def stage_and_publish(
         copied = copy_records(sweeps, recs, root=stage)
         removed = remove_jobs(superseded, root=stage)
         kept = [r for r in recs if job_of(r) not in superseded]
-        rollouts, rollout_bytes = copy_figure_rollouts(sweeps, root=stage, recs=kept)
+        rollouts, rollout_bytes = copy_figure_rollouts(kept, root=stage)
         if extra is not None:
             extra(stage)
         staged, bad = records.load(stage, strict=True)
