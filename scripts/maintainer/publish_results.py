@@ -971,7 +971,8 @@ def write_pages(figure_name: str) -> tuple[int, dict[str, Any]]:
 
     published = sorted(p.parent.relative_to(RECORDS) for p in RECORDS.rglob("result.json"))
     try:
-        report = write_report([RECORDS], RESULTS)
+        studies = STUDIES if any(STUDIES.glob("*/*.json")) else None
+        report = write_report([RECORDS], RESULTS, tuning=studies)
     except HnnbenchError as err:
         print(f"publish: {err}", file=sys.stderr)
         return 2, {}

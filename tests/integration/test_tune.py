@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from conftest import REPO
 from report_fixtures import tuned_rows_problems
@@ -584,6 +585,21 @@ def test_tune_gives_every_model_the_same_budget_and_selects_on_validation(tmp_pa
     )
     assert table.returncode == 0, table.stderr
     assert "| spring | mlp | " in table.stdout and "the same on every track" in table.stdout
+
+    # the report reads the studies' summaries: how each study's best criterion converged
+    page = tmp_path / "page"
+    proc = hnnbench_cli(
+        "report", str(out / "final"), "--out", str(page), "--tuning", str(out / "tuning")
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    convergence = pd.read_csv(page / "tuning_convergence.csv")
+    assert sorted(convergence["model"]) == ["hnn_jax", "mlp_jax"]
+    assert (convergence["trials"] == 3).all() and (convergence["cpu_s"] > 0).all()
+    assert (page / "figures" / "tuning_convergence.png").exists()
+    assert "## Has the criterion flattened?" in (page / "tracks.md").read_text()
+    proc = hnnbench_cli("report", str(out / "final"), "--out", str(page), "--tuning", str(out))
+    assert proc.returncode != 0 and "holds no study summary" in proc.stderr
+    assert "Traceback" not in proc.stderr
 
 
 @pytest.mark.slow

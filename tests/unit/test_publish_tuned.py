@@ -40,6 +40,7 @@ def write_study(
             "value": 1e-3 / (n + 1),
             "settings": {"model.lr": 0.001 if n == 0 else lr},
             "protocol": n == 0,
+            "cpu_s": 10.0,
         }
         for n in range(done)
     ]
@@ -273,3 +274,25 @@ def test_a_published_tuned_system_that_loses_a_family_is_refused(spring, tmp_pat
     kept = [str(records / m) for m in ("hnn_jax", "mlp_jax", "oracle")]
     assert publish_results.main(kept) == 2
     assert "spring: tuned hnn; its protocol ran hnn, mlp" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_the_pages_of_a_published_tuned_system_show_how_its_studies_converged(
+    spring, tmp_path, capsys
+):
+    """The pages rebuilt after a tuned publication read results/tuning: a row per study
+    in tuning_convergence.csv, its figure, and the section of tracks.md."""
+    hnn, mlp = tmp_path / "hnn", tmp_path / "mlp"
+    write_study(hnn, "spring", "hnn_jax")
+    write_study(mlp, "spring", "mlp_jax")
+    assert publish_results.main(["--tuned", str(hnn), str(mlp)]) == 0
+    assert json.loads(capsys.readouterr().out)["published_tuned"] == ["spring"]
+    table = (spring / "tuning_convergence.csv").read_text().splitlines()
+    assert len(table) == 3 and table[1].startswith("spring,hnn_jax,,16,160.0,")
+    assert (spring / "figures" / "tuning_convergence.png").is_file()
+    assert "## Has the criterion flattened?" in (spring / "tracks.md").read_text()
+    # the trials' values fall to trial 3 (the last complete one): set in the first half
+    assert (
+        "2 of 2 studies had their best criterion by the end of the first half"
+        in (spring / "README.md").read_text()
+    )

@@ -16,6 +16,13 @@ from hnnbench import _record as records
 from hnnbench._contracts.text import csv_text
 from hnnbench._record.loader import Unreadable
 from hnnbench._results.leaderboard import leaderboard
+from hnnbench._results.report.convergence import (
+    convergence_figure,
+    convergence_frame,
+    convergence_markdown,
+    convergence_table,
+    read_study_summaries,
+)
 from hnnbench._results.report.figures import Made, main_profile_figure, make_figures
 from hnnbench._results.report.html import page
 from hnnbench._results.report.inputs import ReportError, load_sweeps, provenance
@@ -56,6 +63,7 @@ def write_report(
     aggregate: bool = True,
     embed_figures: bool = False,
     allow_unverified: bool = False,
+    tuning: Path | str | None = None,
 ) -> Report:
     """Build every table and figure of the sweep directories into ``out`` (default: the
     sweep, when there is one); ``figures=False`` skips the figures, ``aggregate=False``
@@ -64,8 +72,16 @@ def write_report(
     :mod:`hnnbench._results.validity`), and an unreadable or invalid record is an error
     instead of a warning (``allow_unverified``: not a record whose plugins cannot be
     verified); ``embed_figures``:
-    the page holds its figures inline (base64) instead of linking them."""
+    the page holds its figures inline (base64) instead of linking them; ``tuning``: a
+    folder of tuned studies' summaries (``hnnbench tune``'s ``out=/tuning``, or
+    results/tuning) whose convergence the tracks page shows."""
     dirs = [Path(sweep_dir)] if isinstance(sweep_dir, (str, Path)) else [Path(d) for d in sweep_dir]
+    if tuning is not None and not any(Path(tuning).glob("*/*.json")):
+        raise ReportError(
+            f"--tuning {tuning} holds no study summary (<system>/<model>.json); expected "
+            "a study summary written by `hnnbench tune`: give the tuning/ folder of its "
+            "out= root (or results/tuning)"
+        )
     recs, bad = load_sweeps(dirs, strict=strict, allow_unverified=allow_unverified)
     if out is None:
         if len(dirs) != 1:
@@ -115,6 +131,8 @@ def write_report(
     tracks = tracks_frame(verdicts.families)
     studies = studies_frame(recs)
     gain = tuning_gain(verdicts.families)
+    curves = convergence_frame(read_study_summaries(Path(tuning)) if tuning is not None else [])
+    convergence = convergence_table(curves)
     # A table of the tracks beside the protocol's is written only where there is one; a
     # leftover of an earlier build into the same folder (its tuned rows since withdrawn)
     # is removed, so no file in ``out`` describes records that are not there.
@@ -122,6 +140,7 @@ def write_report(
         ("tracks", "tracks.csv", tracks),
         ("studies", "tuning_studies.csv", studies),
         ("tuning_gain", "tuning_gain.csv", gain),
+        ("convergence", "tuning_convergence.csv", convergence),
     ):
         if frame.empty:
             (out / name).unlink(missing_ok=True)
@@ -132,11 +151,16 @@ def write_report(
         made = cost_figure(studies, out / "figures" / "tuning_cost.png")
         if made is not None:
             report.figures.append(Made("tuned track", "tuning_cost", made))
+    if figures:
+        made = convergence_figure(curves, out / "figures" / "tuning_convergence.png")
+        if made is not None:
+            report.figures.append(Made("tuned track", "tuning_convergence", made))
     report.files["tracks_md"] = out / "tracks.md"
     records.atomic_write_text(
         report.files["tracks_md"],
         "# Tracks\n\n"
         + tracks_markdown(tracks, tuning_costs(verdicts.families), gain_markdown(gain, studies))
+        + _convergence_section(convergence)
         + "\n",
     )
     chosen = selection_frame(recs)
@@ -154,6 +178,22 @@ def write_report(
         page(board, report.figures, prov, recs, bad, verdicts, base=out, embed=embed_figures),
     )
     return report
+
+
+def _convergence_section(convergence: pd.DataFrame) -> str:
+    """The tracks page's section on how the studies converged, ``""`` without one."""
+    text = convergence_markdown(convergence)
+    if not text:
+        return ""
+    return (
+        "\n\n## Has the criterion flattened?\n\n"
+        "Each study's best criterion so far, trial by trial, read from its summary "
+        "(figures/tuning_convergence.png draws it against the CPU the study had spent): "
+        "the best after the first half of its trials against its best (up to 20 "
+        "trials, the first half is the protocol's settings and TPE's random start-up "
+        "draws, so the second half's gain is what TPE's guided trials added), and at the "
+        "CPU of its system's cheapest whole study, what equal compute would have given. " + text
+    )
 
 
 def on_sweep_end(sweep_dir: Path | str) -> None:

@@ -44,6 +44,14 @@ def _parser() -> OneLineArgumentParser:
         "unreadable or invalid one is an error (default: left out with a warning)",
     )
     p.add_argument(
+        "--tuning",
+        metavar="DIR",
+        default=None,
+        help="a folder of tuned studies' summaries (the tuning/ folder of an "
+        "`hnnbench tune` out=, or results/tuning): the tracks page shows how each "
+        "study's best criterion converged",
+    )
+    p.add_argument(
         "--allow-unverified",
         action="store_true",
         help="with --strict: records whose plugins cannot be verified here pass (said)",
@@ -60,6 +68,7 @@ def main(args: Sequence[str]) -> int:
         strict=ns.strict,
         embed_figures=ns.embed_figures,
         allow_unverified=ns.allow_unverified,
+        tuning=ns.tuning,
     )
     if ns.strict and ns.allow_unverified:
         print(

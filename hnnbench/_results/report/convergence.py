@@ -1,0 +1,292 @@
+"""How the tuned track's studies converged (docs/TUNING.md, "Has the criterion
+flattened?"): each study's best criterion so far against the CPU seconds it had spent,
+trial by trial, read from the study summaries that ``hnnbench tune`` writes
+(``tuning/<system>/<model>[.fold<k>].json``, :data:`SUMMARY_FIELDS` and
+:data:`TRIAL_FIELDS` checked before use). Two readings per study:
+:func:`convergence_table` says what the second half of its trials added (near ×1 the
+criterion had flattened within the budget), and what the family had reached when it
+had spent the CPU of its system's cheapest whole study (equal compute);
+:func:`convergence_figure` draws the curves."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, Optional
+
+import pandas as pd
+from matplotlib.figure import Figure
+
+from hnnbench._contracts.errors import DataError
+from hnnbench._record.store import parse_file
+from hnnbench._results.leaderboard import metric_declarations
+
+__all__ = [
+    "CONVERGENCE_COLUMNS",
+    "SUMMARY_FIELDS",
+    "TRIAL_FIELDS",
+    "convergence_figure",
+    "convergence_frame",
+    "convergence_markdown",
+    "convergence_table",
+    "read_study_summaries",
+]
+
+_NONE = type(None)
+#: The fields of a study summary this module reads, with the JSON types each may hold.
+SUMMARY_FIELDS: dict[str, tuple[type, ...]] = {
+    "system": (str,),
+    "model": (str,),
+    "fold": (int, _NONE),
+    "trials": (list,),
+}
+#: The fields of each of a summary's ``trials`` this module reads (a trial's ``value``
+#: is its criterion, the mean over its seeds; ``None`` until it completes).
+TRIAL_FIELDS: dict[str, tuple[type, ...]] = {
+    "number": (int,),
+    "state": (str,),
+    "value": (float, int, _NONE),
+    "cpu_s": (float, int),
+}
+
+#: The columns of :func:`convergence_table`.
+CONVERGENCE_COLUMNS = (
+    "system",
+    "model",
+    "fold",
+    "trials",
+    "cpu_s",
+    "best",
+    "best_trial",
+    "best_at_half",
+    "second_half_gain",
+    "equal_cpu_s",
+    "best_at_equal_cpu",
+)
+
+
+def _type_problem(data: Mapping[str, Any], fields: Mapping[str, tuple[type, ...]]) -> str | None:
+    for key, kinds in fields.items():
+        value = data.get(key)
+        if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
+            return f"{key}: {value!r} is not {' or '.join(k.__name__ for k in kinds)}"
+    return None
+
+
+def summary_problem(summary: Any) -> str | None:
+    """Why ``summary`` (a parsed study summary) cannot be read here, or ``None``: an
+    object with each field of :data:`SUMMARY_FIELDS`, each trial of
+    :data:`TRIAL_FIELDS`, trial numbers once each and CPU seconds finite and >= 0."""
+    if not isinstance(summary, Mapping):
+        return "not a JSON object"
+    problem = _type_problem(summary, SUMMARY_FIELDS)
+    if problem:
+        return problem
+    numbers = set()
+    for trial in summary["trials"]:
+        if not isinstance(trial, Mapping):
+            return "trials: each must be an object"
+        problem = _type_problem(trial, TRIAL_FIELDS)
+        if problem:
+            return f"trial {trial.get('number')!r}: {problem}"
+        if not (math.isfinite(trial["cpu_s"]) and trial["cpu_s"] >= 0):
+            return f"trial {trial['number']}: cpu_s {trial['cpu_s']!r} is not a finite number >= 0"
+        if trial["number"] in numbers:
+            return f"trial {trial['number']} is given twice"
+        numbers.add(trial["number"])
+    return None
+
+
+def read_study_summaries(folder: Path) -> list[dict[str, Any]]:
+    """Every study summary in ``folder`` (``<system>/<file>.json``, a ``tuning/``
+    folder of ``hnnbench tune``'s ``out=`` or results/tuning), each checked
+    (:func:`summary_problem`) and filed under its own system; sorted by path. One that
+    is not is :class:`DataError` naming the file and what was wrong."""
+    found = []
+    for path in sorted(folder.glob("*/*.json")):
+        data = parse_file(path)
+        problem = data if isinstance(data, str) else summary_problem(data)
+        if problem is None and isinstance(data, dict) and data["system"] != path.parent.name:
+            problem = f"it is a study of {data['system']}, filed under {path.parent.name}"
+        if problem:
+            raise DataError(
+                f"{path}: {problem}; expected a study summary written by `hnnbench tune` "
+                "(docs/TUNING.md); rerun or remove that study"
+            )
+        assert isinstance(data, dict)
+        found.append(data)
+    return found
+
+
+def _lower_is_better() -> bool:
+    """The direction of the criterion, from the metric declared to select on."""
+    selecting = [m for m in metric_declarations().values() if m.selects]
+    return not selecting or selecting[0].better == "lower"
+
+
+def convergence_frame(summaries: Sequence[Mapping[str, Any]]) -> pd.DataFrame:
+    """One row per trial of each (checked) study summary, in trial order: ``system``,
+    ``model``, ``fold``, ``trial``, ``state``, ``cpu_s`` (the study's CPU seconds
+    through this trial, pruned trials included) and ``best`` (the best criterion of its
+    complete trials so far; NaN before the first completes)."""
+    lower = _lower_is_better()
+    rows = []
+    for summary in summaries:
+        spent, best = 0.0, math.nan
+        for trial in sorted(summary["trials"], key=lambda t: t["number"]):
+            spent += float(trial["cpu_s"])
+            value = trial["value"]
+            if trial["state"] == "complete" and value is not None and math.isfinite(value):
+                if math.isnan(best) or (value < best if lower else value > best):
+                    best = float(value)
+            rows.append(
+                {"system": summary["system"], "model": summary["model"], "fold": summary["fold"],
+                 "trial": trial["number"], "state": trial["state"], "cpu_s": spent, "best": best}
+            )  # fmt: skip
+    return pd.DataFrame(
+        rows, columns=["system", "model", "fold", "trial", "state", "cpu_s", "best"]
+    )
+
+
+def _best_at(curve: pd.DataFrame, cpu_s: float) -> float:
+    """The best criterion so far once ``cpu_s`` CPU seconds were spent (NaN if no trial
+    had completed by then)."""
+    reached = curve[curve["cpu_s"] <= cpu_s * (1 + 1e-9)]
+    return float(reached["best"].iloc[-1]) if len(reached) else math.nan
+
+
+def convergence_table(frame: pd.DataFrame) -> pd.DataFrame:
+    """One row per study of :func:`convergence_frame`: its trials, CPU seconds and best
+    criterion; ``best_trial``, the trial that set it; ``best_at_half``, the best after
+    the first half of its trials (by number); ``second_half_gain``, what the second
+    half added as a factor (best_at_half / best for a lower-is-better criterion; ×1:
+    nothing); ``equal_cpu_s``, the CPU of the cheapest whole study of the same system
+    and fold; ``best_at_equal_cpu``, the best this study had reached at that CPU."""
+    lower = _lower_is_better()
+    if frame.empty:
+        return pd.DataFrame(columns=list(CONVERGENCE_COLUMNS))
+    frame = frame.assign(
+        fold=frame["fold"].map(lambda v: -1 if v is None or pd.isna(v) else int(v))
+    )
+    keys = ["system", "fold", "model"]
+    totals = frame.groupby(keys, sort=False)["cpu_s"].max()
+    rows = []
+    for (system, fold, model), curve in frame.groupby(keys, sort=False):
+        curve = curve.sort_values("trial")
+        best = float(curve["best"].iloc[-1])
+        setter = curve[curve["best"] == best]["trial"]
+        at_half = float(curve["best"].iloc[math.ceil(len(curve) / 2) - 1])
+        cheapest = min(v for (s, f, _), v in totals.items() if s == system and f == fold)
+        rows.append(
+            {
+                "system": system,
+                "model": model,
+                "fold": None if fold == -1 else fold,
+                "trials": len(curve),
+                "cpu_s": float(curve["cpu_s"].iloc[-1]),
+                "best": best,
+                "best_trial": int(setter.iloc[0]) if len(setter) else None,
+                "best_at_half": at_half,
+                "second_half_gain": (at_half / best if lower else best / at_half)
+                if best > 0 and at_half > 0
+                else math.nan,
+                "equal_cpu_s": float(cheapest),
+                "best_at_equal_cpu": _best_at(curve, float(cheapest)),
+            }
+        )
+    return pd.DataFrame(rows, columns=list(CONVERGENCE_COLUMNS))
+
+
+def convergence_figure(frame: pd.DataFrame, path: Path) -> Optional[Path]:
+    """Each study's best criterion so far (a step line; a measured system's fold
+    studies as thin lines of their family's colour) against the CPU seconds it had
+    spent, a panel per system, the CPU of the system's cheapest whole study dotted;
+    written to ``path`` (``None`` without a completed trial)."""
+    frame = frame[frame["best"].notna() & frame["cpu_s"].gt(0)]
+    if frame.empty:
+        return None
+    panels = list(frame.groupby("system", sort=False))
+    cols = min(len(panels), 3)
+    rows = math.ceil(len(panels) / cols)
+    fig = Figure(figsize=(4.2 * cols, 3.4 * rows))
+    axes = fig.subplots(rows, cols, squeeze=False)
+    models = list(dict.fromkeys(frame["model"].astype(str)))
+    colours = {m: f"C{i % 10}" for i, m in enumerate(models)}
+    for ax, (system, group) in zip(axes.flat, panels, strict=False):
+        studies = list(group.groupby(["model", "fold"], sort=False, dropna=False))
+        folded = group["fold"].notna().any()
+        labelled: set[str] = set()
+        for (model, _), curve in studies:
+            name = str(model)
+            ax.step(
+                curve["cpu_s"], curve["best"], where="post", color=colours[name],
+                linewidth=0.8 if folded else 1.4, label=None if name in labelled else name,
+            )  # fmt: skip
+            labelled.add(name)
+        cheapest = min(float(c["cpu_s"].max()) for _, c in studies)
+        ax.axvline(cheapest, color="0.5", linestyle=":", linewidth=1)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(str(system), fontsize=9)
+        ax.set_xlabel("tuning CPU s spent (trials so far)", fontsize=8)
+        ax.set_ylabel("best criterion so far", fontsize=8)
+        ax.legend(fontsize=6)
+    for ax in list(axes.flat)[len(panels) :]:
+        ax.set_visible(False)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def convergence_markdown(table: pd.DataFrame) -> str:
+    """:func:`convergence_table` as a sentence (how many studies set their best in the
+    first half of their trials) and a Markdown table; ``""`` without studies."""
+    from hnnbench._results.report.tables import md_table
+
+    if table.empty:
+        return ""
+    early = int((table["second_half_gain"] <= 1).sum())
+    late = table[table["second_half_gain"] > 1]
+    lines = [
+        f"{early} of {len(table)} studies had their best criterion by the end of the first "
+        "half of their trials; "
+        + (
+            "in "
+            + ", ".join(
+                f"{r['system']}/{r['model']}"
+                + ("" if r["fold"] is None or pd.isna(r["fold"]) else f" fold {int(r['fold'])}")
+                + f" (×{r['second_half_gain']:.2g}, trial {r['best_trial']})"
+                for _, r in late.iterrows()
+            )
+            + " the second half still improved it"
+            if len(late)
+            else "no second half improved on the first"
+        )
+        + ". At the CPU of its system's cheapest whole study (equal compute), a study "
+        "whose first trial had not ended has no value (—).",
+        "",
+    ]
+
+    def num(v: Any, fmt: str) -> str:
+        return "—" if v is None or pd.isna(v) else format(v, fmt)
+
+    shown = pd.DataFrame(
+        {
+            "system": table["system"],
+            "model": table["model"],
+            "fold": table["fold"].map(lambda v: num(v, "d")),
+            "trials": table["trials"],
+            "CPU s": table["cpu_s"].map(lambda v: num(v, ",.0f")),
+            "best": table["best"].map(lambda v: num(v, ".3g")),
+            "best trial": table["best_trial"].map(lambda v: num(v, "d")),
+            "after half": table["best_at_half"].map(lambda v: num(v, ".3g")),
+            "second half ×": table["second_half_gain"].map(lambda v: num(v, ".2f")),
+            "equal CPU s": table["equal_cpu_s"].map(lambda v: num(v, ",.0f")),
+            "best at equal CPU": table["best_at_equal_cpu"].map(lambda v: num(v, ".3g")),
+        }
+    )
+    if shown["fold"].eq("—").all():
+        shown = shown.drop(columns=["fold"])
+    return "\n".join(lines) + md_table(shown)

@@ -1,0 +1,142 @@
+"""How a tuned study converged (``hnnbench._results.report.convergence``): the best
+criterion so far against the CPU spent, what the second half of the trials added, and
+what equal compute would have given; summaries checked before use."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any, Optional
+
+import pandas as pd
+import pytest
+
+from hnnbench._contracts.errors import DataError
+from hnnbench._results.report.convergence import (
+    convergence_figure,
+    convergence_frame,
+    convergence_markdown,
+    convergence_table,
+    read_study_summaries,
+    summary_problem,
+)
+
+
+def _summary(
+    model: str, trials: list[tuple[str, Optional[float], float]], system: str = "spring"
+) -> dict[str, Any]:
+    """A study summary whose trial ``i`` is ``trials[i]``: (state, value, CPU s)."""
+    return {
+        "system": system,
+        "model": model,
+        "fold": None,
+        "trials_budget": len(trials),
+        "trials": [
+            {"number": i, "state": state, "value": value, "cpu_s": cpu}
+            for i, (state, value, cpu) in enumerate(trials)
+        ],
+    }
+
+
+def test_the_best_so_far_follows_complete_trials_and_counts_every_trials_cpu():
+    """A pruned trial's CPU is spent but its value never counts, even when it is lower."""
+    frame = convergence_frame(
+        [
+            _summary(
+                "a",
+                [
+                    ("complete", 4.0, 10),
+                    ("pruned", 0.1, 5),
+                    ("complete", 2.0, 20),
+                    ("complete", 3.0, 10),
+                ],
+            )
+        ]  # fmt: skip
+    )
+    assert list(frame["cpu_s"]) == [10, 15, 35, 45]
+    assert list(frame["best"]) == [4.0, 4.0, 2.0, 2.0]
+
+
+def test_the_table_says_what_the_second_half_added_and_what_equal_cpu_gives():
+    """Study a (cheap) sets its best in its first half; study b improves 4x in its second
+    half, and at a's whole CPU (40 s) b had only its first trial's value."""
+    a = _summary("a", [("complete", 1.0, 10), ("complete", 0.5, 10), ("pruned", None, 10),
+                       ("pruned", None, 10)])  # fmt: skip
+    b = _summary("b", [("complete", 8.0, 30), ("complete", 9.0, 30), ("complete", 2.0, 30),
+                       ("pruned", None, 30)])  # fmt: skip
+    table = convergence_table(convergence_frame([a, b])).set_index("model")
+    assert table.loc["a", "best_trial"] == 1 and table.loc["a", "second_half_gain"] == 1
+    assert table.loc["b", "best_trial"] == 2 and table.loc["b", "second_half_gain"] == 4
+    assert table.loc["a", "equal_cpu_s"] == table.loc["b", "equal_cpu_s"] == 40
+    assert table.loc["b", "best_at_equal_cpu"] == 8.0
+    assert table.loc["a", "best_at_equal_cpu"] == 0.5
+    text = convergence_markdown(table.reset_index())
+    assert text.startswith("1 of 2 studies had their best criterion by the end of the first")
+    assert "spring/b (×4, trial 2) the second half still improved it" in text
+
+
+def test_equal_cpu_before_a_studys_first_trial_ends_has_no_value(tmp_path: Path):
+    cheap = _summary("cheap", [("complete", 1.0, 5), ("complete", 1.0, 5)])
+    dear = _summary("dear", [("complete", 1.0, 100), ("complete", 0.5, 100)])
+    frame = convergence_frame([cheap, dear])
+    table = convergence_table(frame).set_index("model")
+    assert math.isnan(table.loc["dear", "best_at_equal_cpu"])
+    assert "| —" in convergence_markdown(table.reset_index())
+    made = convergence_figure(frame, tmp_path / "c.png")
+    assert made is not None and made.stat().st_size > 0
+
+
+def test_fold_studies_are_compared_within_their_fold():
+    one = _summary("a", [("complete", 1.0, 10)])
+    two = _summary("b", [("complete", 1.0, 30)])
+    three = {**_summary("b", [("complete", 1.0, 5)]), "fold": 1}
+    one["fold"], two["fold"] = 0, 0
+    table = convergence_table(convergence_frame([one, two, three]))
+    assert sorted(zip(table["fold"], table["equal_cpu_s"], strict=True)) == [
+        (0, 10),
+        (0, 10),
+        (1, 5),
+    ]
+
+
+@pytest.mark.parametrize(
+    ("change", "said"),
+    [
+        (lambda s: s.update(trials="all"), "trials: 'all' is not list"),
+        (lambda s: s["trials"][0].update(cpu_s=-1.0), "cpu_s -1.0 is not a finite number >= 0"),
+        (
+            lambda s: s["trials"][0].update(value="low"),
+            "value: 'low' is not float or int or NoneType",
+        ),
+        (lambda s: s["trials"].append(dict(s["trials"][0])), "trial 0 is given twice"),
+        (lambda s: s.update(fold=True), "fold: True is not int or NoneType"),
+    ],
+)
+def test_a_summary_that_does_not_hold_together_is_refused_in_one_line(tmp_path, change, said):
+    summary = _summary("hnn_jax", [("complete", 1.0, 10)])
+    assert summary_problem(summary) is None
+    change(summary)
+    assert said in str(summary_problem(summary))
+    folder = tmp_path / "tuning" / "spring"
+    folder.mkdir(parents=True)
+    (folder / "hnn_jax.json").write_text(json.dumps(summary))
+    with pytest.raises(DataError) as err:
+        read_study_summaries(tmp_path / "tuning")
+    assert said in str(err.value) and "hnn_jax.json" in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_a_summary_filed_under_another_system_is_refused(tmp_path: Path):
+    folder = tmp_path / "pendulum"
+    folder.mkdir()
+    (folder / "hnn_jax.json").write_text(json.dumps(_summary("hnn_jax", [("complete", 1.0, 1)])))
+    with pytest.raises(DataError, match="it is a study of spring, filed under pendulum"):
+        read_study_summaries(tmp_path)
+
+
+def test_no_study_no_table():
+    frame = convergence_frame([])
+    assert frame.empty and convergence_table(frame).empty
+    assert convergence_markdown(convergence_table(frame)) == ""
+    assert isinstance(frame, pd.DataFrame)
