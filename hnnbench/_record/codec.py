@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-__all__ = ["MAX_DEPTH", "decode", "encode"]
+__all__ = ["MAX_DEPTH", "decode", "decode_number", "encode"]
 
 
 #: The deepest nesting of objects and arrays in a record (a record nests 4 to 6 levels;
@@ -33,7 +33,9 @@ def encode(value: Any) -> Any:
     return str(value)
 
 
-def _number(value: Any) -> Any:
+def decode_number(value: Any) -> Any:
+    """A number as :func:`encode` wrote it: ``None`` as NaN, ``"inf"`` (and the other
+    spellings of a non-finite float) as the float; anything else as it is."""
     if value is None:
         return math.nan
     if value in ("inf", "-inf", "Infinity", "-Infinity", "NaN", "nan"):
@@ -48,12 +50,12 @@ def decode(record: dict[str, Any]) -> dict[str, Any]:
         if isinstance(metric, dict):
             for key in ("mean", "sem"):
                 if key in metric:
-                    metric[key] = _number(metric[key])
+                    metric[key] = decode_number(metric[key])
     history = record.get("history")
     if isinstance(history, dict):
         for key, values in history.items():
             if isinstance(values, list):
-                history[key] = [_number(v) for v in values]
+                history[key] = [decode_number(v) for v in values]
     return record
 
 

@@ -13,6 +13,7 @@ __all__ = [
     "SELECTED_ON",
     "STEPS_SETTING",
     "TRACK_KEYS",
+    "study_summary_name",
     "track_of",
     "track_problem",
     "tuned_settings",
@@ -23,6 +24,12 @@ __all__ = [
 SELECTED_ON = "validation"
 #: Config keys that say a run's track (never a variant of its row).
 TRACK_KEYS = ("track", "tuning")
+
+
+def study_summary_name(model: str, fold: int | None) -> str:
+    """A tuned study's summary file name (``<out>/tuning/<system>/<name>``):
+    ``<model>[.fold<k>].json``, ``k`` the fold of a measured system's study."""
+    return f"{model}{'' if fold is None else f'.fold{fold}'}.json"
 
 
 def track_of(record: Mapping[str, Any]) -> str:

@@ -35,7 +35,7 @@ from hnnbench._contracts.space import (
     describe,
     space_json,
 )
-from hnnbench._record.tracks import SELECTED_ON, STEPS_SETTING
+from hnnbench._record.tracks import SELECTED_ON, STEPS_SETTING, study_summary_name
 from hnnbench._running import launch_context, progress
 from hnnbench._running.compose import compose, profile_of
 from hnnbench._running.config import prepare_job
@@ -667,8 +667,7 @@ class Tuner:
         return result
 
     def _summary_path(self, model: str, group: FoldGroup) -> Path:
-        fold = "" if group.fold is None else f".fold{group.fold}"
-        return self.root / "tuning" / self.system / f"{model}{fold}.json"
+        return self.root / "tuning" / self.system / study_summary_name(model, group.fold)
 
     def _write_summary(self, study: Study, name: str) -> None:
         path = self._summary_path(study.model, study.group)

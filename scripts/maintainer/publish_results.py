@@ -399,8 +399,11 @@ COUNTED = ("complete", "pruned")
 
 
 def summary_name(model: str, fold: int | None) -> str:
-    """A study summary's file name, as the tuner names it: ``<model>[.fold<k>].json``."""
-    return f"{model}{'' if fold is None else f'.fold{fold}'}.json"
+    """A study summary's file name, as the tuner names it: ``<model>[.fold<k>].json``
+    (:func:`hnnbench._record.tracks.study_summary_name`)."""
+    from hnnbench._record.tracks import study_summary_name
+
+    return study_summary_name(model, fold)
 
 
 def study_problem(summary: dict[str, Any], system: str, model: str) -> str | None:
@@ -443,6 +446,7 @@ def _read_summaries(roots: list[Path]) -> tuple[dict[tuple[str, str], list[dict]
     (:func:`study_problem`), or a study given twice, is ``SystemExit`` naming it."""
     from hnnbench._contracts.names import name_problem
     from hnnbench._record.store import parse_file
+    from hnnbench._results.report.convergence import summary_problem
 
     found: dict[tuple[str, str], list[dict]] = {}
     waiting = []
@@ -459,6 +463,7 @@ def _read_summaries(roots: list[Path]) -> tuple[dict[tuple[str, str], list[dict]
                 else name_problem("system", system)
                 or name_problem("model", model)
                 or study_problem(data, system, model)
+                or summary_problem(data)  # what the pages read of it
             )
             if problem:
                 raise SystemExit(f"publish: {path}: {problem}; nothing was staged")

@@ -107,10 +107,11 @@ def test_fold_studies_are_compared_within_their_fold():
         (lambda s: s["trials"][0].update(cpu_s=-1.0), "cpu_s -1.0 is not a finite number >= 0"),
         (
             lambda s: s["trials"][0].update(value="low"),
-            "value: 'low' is not float or int or NoneType",
+            "value: 'low' is not a number",
         ),
         (lambda s: s["trials"].append(dict(s["trials"][0])), "trial 0 is given twice"),
         (lambda s: s.update(fold=True), "fold: True is not int or NoneType"),
+        (lambda s: s.update(fold=-1), "fold: -1 is not a fold number"),
     ],
 )
 def test_a_summary_that_does_not_hold_together_is_refused_in_one_line(tmp_path, change, said):
@@ -120,10 +121,11 @@ def test_a_summary_that_does_not_hold_together_is_refused_in_one_line(tmp_path, 
     assert said in str(summary_problem(summary))
     folder = tmp_path / "tuning" / "spring"
     folder.mkdir(parents=True)
-    (folder / "hnn_jax.json").write_text(json.dumps(summary))
+    name = "hnn_jax.json" if summary.get("fold") != -1 else "hnn_jax.fold-1.json"
+    (folder / name).write_text(json.dumps(summary))
     with pytest.raises(DataError) as err:
         read_study_summaries(tmp_path / "tuning")
-    assert said in str(err.value) and "hnn_jax.json" in str(err.value)
+    assert said in str(err.value) and name in str(err.value)
     assert "\n" not in str(err.value)
 
 
@@ -140,3 +142,42 @@ def test_no_study_no_table():
     assert frame.empty and convergence_table(frame).empty
     assert convergence_markdown(convergence_table(frame)) == ""
     assert isinstance(frame, pd.DataFrame)
+
+
+def test_a_diverged_trial_is_read_as_the_codec_wrote_it_and_never_the_best():
+    """A trial whose seed diverged scores the worst value, written as "inf"."""
+    summary = _summary("a", [("complete", 2.0, 1), ("complete", 1.0, 1)])
+    summary["trials"][1]["value"] = "inf"
+    assert summary_problem(summary) is None
+    assert list(convergence_frame([summary])["best"]) == [2.0, 2.0]
+
+
+def test_simulated_and_measured_systems_and_a_skipped_study_share_one_table():
+    """Folds beside no fold, and a study with no completed trial (a model the system
+    skips: one failed trial in a fraction of a second): the skipped study sets no
+    equal-CPU point and is named, not counted, in the sentence."""
+    sim = _summary(
+        "a",
+        [("complete", 1.0, 10), ("complete", 0.5, 10), ("pruned", None, 10), ("pruned", None, 10)],
+    )
+    skipped = _summary("b", [("fail", None, 0.1)])
+    measured = {**_summary("a", [("complete", 1.0, 5)], system="real"), "fold": 3}
+    table = convergence_table(convergence_frame([sim, skipped, measured]))
+    rows = table.set_index(["system", "model"])
+    assert rows.loc[("spring", "a"), "equal_cpu_s"] == 40
+    assert rows.loc[("spring", "a"), "best_at_equal_cpu"] == 0.5
+    assert pd.isna(rows.loc[("spring", "b"), "best_trial"])
+    assert rows.loc[("real", "a"), "fold"] == 3
+    text = convergence_markdown(table)
+    assert text.startswith("2 of 2 studies had their best criterion")
+    assert "No completed trial (or no finite criterion): spring/b." in text
+    assert [line.split("|")[3].strip() for line in text.splitlines()[3:]] == ["—", "—", "3"]
+
+
+def test_a_misnamed_or_repeated_summary_is_refused(tmp_path: Path):
+    folder = tmp_path / "spring"
+    folder.mkdir()
+    summary = _summary("hnn_jax", [("complete", 1.0, 1)])
+    (folder / "hnn_jax.old.json").write_text(json.dumps(summary))
+    with pytest.raises(DataError, match="it is the study hnn_jax.json, filed as hnn_jax.old.json"):
+        read_study_summaries(tmp_path)

@@ -82,6 +82,9 @@ def write_report(
             "a study summary written by `hnnbench tune`: give the tuning/ folder of its "
             "out= root (or results/tuning)"
         )
+    # Read (and checked) before anything is written: a summary that does not hold
+    # together leaves the output as it was.
+    curves = convergence_frame(read_study_summaries(Path(tuning)) if tuning is not None else [])
     recs, bad = load_sweeps(dirs, strict=strict, allow_unverified=allow_unverified)
     if out is None:
         if len(dirs) != 1:
@@ -131,7 +134,6 @@ def write_report(
     tracks = tracks_frame(verdicts.families)
     studies = studies_frame(recs)
     gain = tuning_gain(verdicts.families)
-    curves = convergence_frame(read_study_summaries(Path(tuning)) if tuning is not None else [])
     convergence = convergence_table(curves)
     # A table of the tracks beside the protocol's is written only where there is one; a
     # leftover of an earlier build into the same folder (its tuned rows since withdrawn)

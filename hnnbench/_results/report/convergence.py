@@ -19,7 +19,9 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from hnnbench._contracts.errors import DataError
+from hnnbench._record.codec import decode_number
 from hnnbench._record.store import parse_file
+from hnnbench._record.tracks import study_summary_name
 from hnnbench._results.leaderboard import metric_declarations
 
 __all__ = [
@@ -31,6 +33,7 @@ __all__ = [
     "convergence_markdown",
     "convergence_table",
     "read_study_summaries",
+    "summary_problem",
 ]
 
 _NONE = type(None)
@@ -42,11 +45,12 @@ SUMMARY_FIELDS: dict[str, tuple[type, ...]] = {
     "trials": (list,),
 }
 #: The fields of each of a summary's ``trials`` this module reads (a trial's ``value``
-#: is its criterion, the mean over its seeds; ``None`` until it completes).
+#: is its criterion, the mean over its seeds; ``None`` until it completes, ``"inf"``
+#: where a seed diverged: the codec's spelling of a non-finite float).
 TRIAL_FIELDS: dict[str, tuple[type, ...]] = {
     "number": (int,),
     "state": (str,),
-    "value": (float, int, _NONE),
+    "value": (float, int, str, _NONE),
     "cpu_s": (float, int),
 }
 
@@ -76,13 +80,16 @@ def _type_problem(data: Mapping[str, Any], fields: Mapping[str, tuple[type, ...]
 
 def summary_problem(summary: Any) -> str | None:
     """Why ``summary`` (a parsed study summary) cannot be read here, or ``None``: an
-    object with each field of :data:`SUMMARY_FIELDS`, each trial of
-    :data:`TRIAL_FIELDS`, trial numbers once each and CPU seconds finite and >= 0."""
+    object with each field of :data:`SUMMARY_FIELDS`, its fold ``None`` or >= 0, each
+    trial of :data:`TRIAL_FIELDS` (a value in words only as the codec spells a
+    non-finite float), trial numbers once each and CPU seconds finite and >= 0."""
     if not isinstance(summary, Mapping):
         return "not a JSON object"
     problem = _type_problem(summary, SUMMARY_FIELDS)
     if problem:
         return problem
+    if summary["fold"] is not None and summary["fold"] < 0:
+        return f"fold: {summary['fold']} is not a fold number (0 or more)"
     numbers = set()
     for trial in summary["trials"]:
         if not isinstance(trial, Mapping):
@@ -90,6 +97,8 @@ def summary_problem(summary: Any) -> str | None:
         problem = _type_problem(trial, TRIAL_FIELDS)
         if problem:
             return f"trial {trial.get('number')!r}: {problem}"
+        if isinstance(decode_number(trial["value"]), str):
+            return f"trial {trial['number']}: value: {trial['value']!r} is not a number"
         if not (math.isfinite(trial["cpu_s"]) and trial["cpu_s"] >= 0):
             return f"trial {trial['number']}: cpu_s {trial['cpu_s']!r} is not a finite number >= 0"
         if trial["number"] in numbers:
@@ -99,16 +108,26 @@ def summary_problem(summary: Any) -> str | None:
 
 
 def read_study_summaries(folder: Path) -> list[dict[str, Any]]:
-    """Every study summary in ``folder`` (``<system>/<file>.json``, a ``tuning/``
-    folder of ``hnnbench tune``'s ``out=`` or results/tuning), each checked
-    (:func:`summary_problem`) and filed under its own system; sorted by path. One that
-    is not is :class:`DataError` naming the file and what was wrong."""
+    """Every study summary in ``folder`` (``<system>/<model>[.fold<k>].json``, a
+    ``tuning/`` folder of ``hnnbench tune``'s ``out=`` or results/tuning), each checked
+    (:func:`summary_problem`), filed under its own system and named for its model and
+    fold, each study once; sorted by path. One that is not is :class:`DataError`
+    naming the file and what was wrong."""
     found = []
+    seen: dict[tuple[str, str, Optional[int]], Path] = {}
     for path in sorted(folder.glob("*/*.json")):
         data = parse_file(path)
         problem = data if isinstance(data, str) else summary_problem(data)
-        if problem is None and isinstance(data, dict) and data["system"] != path.parent.name:
-            problem = f"it is a study of {data['system']}, filed under {path.parent.name}"
+        if problem is None and isinstance(data, dict):
+            key = (data["system"], data["model"], data["fold"])
+            name = study_summary_name(data["model"], data["fold"])
+            if data["system"] != path.parent.name:
+                problem = f"it is a study of {data['system']}, filed under {path.parent.name}"
+            elif path.name != name:
+                problem = f"it is the study {name}, filed as {path.name}"
+            elif key in seen:
+                problem = f"the same study as {seen[key]}"
+            seen[key] = path
         if problem:
             raise DataError(
                 f"{path}: {problem}; expected a study summary written by `hnnbench tune` "
@@ -136,8 +155,8 @@ def convergence_frame(summaries: Sequence[Mapping[str, Any]]) -> pd.DataFrame:
         spent, best = 0.0, math.nan
         for trial in sorted(summary["trials"], key=lambda t: t["number"]):
             spent += float(trial["cpu_s"])
-            value = trial["value"]
-            if trial["state"] == "complete" and value is not None and math.isfinite(value):
+            value = float(decode_number(trial["value"]))
+            if trial["state"] == "complete" and math.isfinite(value):
                 if math.isnan(best) or (value < best if lower else value > best):
                     best = float(value)
             rows.append(
@@ -162,7 +181,9 @@ def convergence_table(frame: pd.DataFrame) -> pd.DataFrame:
     the first half of its trials (by number); ``second_half_gain``, what the second
     half added as a factor (best_at_half / best for a lower-is-better criterion; ×1:
     nothing); ``equal_cpu_s``, the CPU of the cheapest whole study of the same system
-    and fold; ``best_at_equal_cpu``, the best this study had reached at that CPU."""
+    and fold among those with a completed trial (a study whose every trial failed, a
+    model the system skips, sets none); ``best_at_equal_cpu``, the best this study had
+    reached at that CPU. A study with no completed trial has NaN and no best trial."""
     lower = _lower_is_better()
     if frame.empty:
         return pd.DataFrame(columns=list(CONVERGENCE_COLUMNS))
@@ -170,14 +191,18 @@ def convergence_table(frame: pd.DataFrame) -> pd.DataFrame:
         fold=frame["fold"].map(lambda v: -1 if v is None or pd.isna(v) else int(v))
     )
     keys = ["system", "fold", "model"]
-    totals = frame.groupby(keys, sort=False)["cpu_s"].max()
+    finished = frame.groupby(keys, sort=False)["best"].last().notna()
+    totals = frame.groupby(keys, sort=False)["cpu_s"].max()[finished]
     rows = []
     for (system, fold, model), curve in frame.groupby(keys, sort=False):
         curve = curve.sort_values("trial")
         best = float(curve["best"].iloc[-1])
         setter = curve[curve["best"] == best]["trial"]
         at_half = float(curve["best"].iloc[math.ceil(len(curve) / 2) - 1])
-        cheapest = min(v for (s, f, _), v in totals.items() if s == system and f == fold)
+        cheapest = min(
+            (v for (s, f, _), v in totals.items() if s == system and f == fold),
+            default=math.nan,
+        )
         rows.append(
             {
                 "system": system,
@@ -189,19 +214,21 @@ def convergence_table(frame: pd.DataFrame) -> pd.DataFrame:
                 "best_trial": int(setter.iloc[0]) if len(setter) else None,
                 "best_at_half": at_half,
                 "second_half_gain": (at_half / best if lower else best / at_half)
-                if best > 0 and at_half > 0
+                if best > 0 and at_half > 0  # NaN compares False: no completed trial
                 else math.nan,
                 "equal_cpu_s": float(cheapest),
                 "best_at_equal_cpu": _best_at(curve, float(cheapest)),
             }
         )
-    return pd.DataFrame(rows, columns=list(CONVERGENCE_COLUMNS))
+    table = pd.DataFrame(rows, columns=list(CONVERGENCE_COLUMNS))
+    return table.astype({"fold": "Int64", "best_trial": "Int64"})
 
 
 def convergence_figure(frame: pd.DataFrame, path: Path) -> Optional[Path]:
     """Each study's best criterion so far (a step line; a measured system's fold
     studies as thin lines of their family's colour) against the CPU seconds it had
-    spent, a panel per system, the CPU of the system's cheapest whole study dotted;
+    spent, a panel per system, the CPU of its cheapest whole study with a completed
+    trial dotted (one line per fold on a measured system);
     written to ``path`` (``None`` without a completed trial)."""
     frame = frame[frame["best"].notna() & frame["cpu_s"].gt(0)]
     if frame.empty:
@@ -224,8 +251,9 @@ def convergence_figure(frame: pd.DataFrame, path: Path) -> Optional[Path]:
                 linewidth=0.8 if folded else 1.4, label=None if name in labelled else name,
             )  # fmt: skip
             labelled.add(name)
-        cheapest = min(float(c["cpu_s"].max()) for _, c in studies)
-        ax.axvline(cheapest, color="0.5", linestyle=":", linewidth=1)
+        for _, fold in group.groupby(group["fold"].fillna(-1), sort=False):
+            cheapest = fold.groupby("model")["cpu_s"].max().min()  # each fold's own
+            ax.axvline(cheapest, color="0.5", linestyle=":", linewidth=1)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_title(str(system), fontsize=9)
@@ -247,30 +275,47 @@ def convergence_markdown(table: pd.DataFrame) -> str:
 
     if table.empty:
         return ""
-    early = int((table["second_half_gain"] <= 1).sum())
-    late = table[table["second_half_gain"] > 1]
-    lines = [
-        f"{early} of {len(table)} studies had their best criterion by the end of the first "
+
+    def study(r: Mapping[str, Any]) -> str:
+        fold = "" if pd.isna(r["fold"]) else f" fold {int(r['fold'])}"
+        return f"{r['system']}/{r['model']}{fold}"
+
+    gains = table["second_half_gain"]
+    read = table[gains.notna()]
+    late = read[read["second_half_gain"] > 1]
+    early = len(read) - len(late)
+    sentence = (
+        f"{early} of {len(read)} studies had their best criterion by the end of the first "
         "half of their trials; "
         + (
             "in "
             + ", ".join(
-                f"{r['system']}/{r['model']}"
-                + ("" if r["fold"] is None or pd.isna(r["fold"]) else f" fold {int(r['fold'])}")
-                + f" (×{r['second_half_gain']:.2g}, trial {r['best_trial']})"
+                f"{study(r)} (×{r['second_half_gain']:.2g}, trial {int(r['best_trial'])})"
                 for _, r in late.iterrows()
             )
             + " the second half still improved it"
             if len(late)
             else "no second half improved on the first"
         )
-        + ". At the CPU of its system's cheapest whole study (equal compute), a study "
-        "whose first trial had not ended has no value (—).",
+        + "."
+    )
+    unread = table[gains.isna()]
+    if len(unread):
+        sentence += (
+            " No completed trial (or no finite criterion): "
+            + ", ".join(study(r) for _, r in unread.iterrows())
+            + "."
+        )
+    lines = [
+        sentence + " At the CPU of its system's cheapest whole study (equal compute), a "
+        "study whose first trial had not ended has no value (—).",
         "",
     ]
 
     def num(v: Any, fmt: str) -> str:
-        return "—" if v is None or pd.isna(v) else format(v, fmt)
+        if v is None or pd.isna(v):
+            return "—"
+        return format(int(v) if fmt == "d" else float(v), fmt)
 
     shown = pd.DataFrame(
         {
