@@ -16,13 +16,13 @@ from pathlib import Path
 from typing import Any, Optional
 
 import pandas as pd
-from matplotlib.figure import Figure
 
 from hnnbench._contracts.errors import DataError
 from hnnbench._record.codec import decode_number
 from hnnbench._record.store import parse_file
 from hnnbench._record.tracks import study_summary_name
 from hnnbench._results.leaderboard import metric_declarations
+from hnnbench._results.report.style import panel_grid, save_panels
 
 __all__ = [
     "CONVERGENCE_COLUMNS",
@@ -234,13 +234,10 @@ def convergence_figure(frame: pd.DataFrame, path: Path) -> Optional[Path]:
     if frame.empty:
         return None
     panels = list(frame.groupby("system", sort=False))
-    cols = min(len(panels), 3)
-    rows = math.ceil(len(panels) / cols)
-    fig = Figure(figsize=(4.2 * cols, 3.4 * rows))
-    axes = fig.subplots(rows, cols, squeeze=False)
+    fig, axes = panel_grid(len(panels))
     models = list(dict.fromkeys(frame["model"].astype(str)))
     colours = {m: f"C{i % 10}" for i, m in enumerate(models)}
-    for ax, (system, group) in zip(axes.flat, panels, strict=False):
+    for ax, (system, group) in zip(axes, panels, strict=False):
         studies = list(group.groupby(["model", "fold"], sort=False, dropna=False))
         folded = group["fold"].notna().any()
         labelled: set[str] = set()
@@ -260,12 +257,7 @@ def convergence_figure(frame: pd.DataFrame, path: Path) -> Optional[Path]:
         ax.set_xlabel("tuning CPU s spent (trials so far)", fontsize=8)
         ax.set_ylabel("best criterion so far", fontsize=8)
         ax.legend(fontsize=6)
-    for ax in list(axes.flat)[len(panels) :]:
-        ax.set_visible(False)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    return path
+    return save_panels(fig, axes, len(panels), path)
 
 
 def convergence_markdown(table: pd.DataFrame) -> str:

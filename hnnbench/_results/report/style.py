@@ -11,8 +11,12 @@ colour from a hash of its name, so it too keeps it. Nothing here names a model."
 from __future__ import annotations
 
 import hashlib
+import math
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
+
+from matplotlib.figure import Figure
 
 from hnnbench import _registry as registry
 
@@ -23,6 +27,8 @@ __all__ = [
     "family_color",
     "line",
     "model_keys",
+    "panel_grid",
+    "save_panels",
     "twin_rank",
 ]
 
@@ -138,3 +144,24 @@ def line(
     if rank == 0:
         return {**style, "lw": 2.4, "alpha": 0.85, "zorder": 2}
     return {**style, "lw": 1.3, "zorder": 3}
+
+
+def panel_grid(n: int) -> tuple[Figure, list[Any]]:
+    """A figure of ``n`` panels of 4.2 x 3.4 inches, at most 3 per row: the figure and
+    its axes, row by row (the cells after the ``n``-th are hidden by
+    :func:`save_panels`)."""
+    cols = min(n, 3)
+    fig = Figure(figsize=(4.2 * cols, 3.4 * math.ceil(n / cols)))
+    axes = fig.subplots(math.ceil(n / cols), cols, squeeze=False)
+    return fig, list(axes.flat)
+
+
+def save_panels(fig: Figure, axes: Sequence[Any], n: int, path: Path) -> Path:
+    """Hide the axes after the ``n``-th, lay the figure out and write it to ``path``
+    (its folder made), at 110 dpi."""
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    return path

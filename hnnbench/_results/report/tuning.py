@@ -11,13 +11,13 @@ from pathlib import Path
 from typing import Any, Optional
 
 import pandas as pd
-from matplotlib.figure import Figure
 
 from hnnbench._contracts.names import DEFAULT_TRACK
 from hnnbench._record.tracks import track_of
 from hnnbench._results import stats
 from hnnbench._results.families import Families
 from hnnbench._results.leaderboard import flag_column, metric_declarations, text_column
+from hnnbench._results.report.style import panel_grid, save_panels
 from hnnbench._results.report.tables import effect_text, md_table
 
 __all__ = [
@@ -255,13 +255,10 @@ def cost_figure(studies: pd.DataFrame, path: Path) -> Optional[Path]:
         .reset_index()
     )
     panels = list(per.groupby(["profile", "system"], sort=False))
-    cols = min(len(panels), 3)
-    rows = math.ceil(len(panels) / cols)
-    fig = Figure(figsize=(4.2 * cols, 3.4 * rows))
-    axes = fig.subplots(rows, cols, squeeze=False)
+    fig, axes = panel_grid(len(panels))
     families = list(dict.fromkeys(per["family"].astype(str)))
     colours = {f: f"C{i % 10}" for i, f in enumerate(families)}
-    for ax, ((profile, system), group) in zip(axes.flat, panels, strict=False):
+    for ax, ((profile, system), group) in zip(axes, panels, strict=False):
         for _, r in group.iterrows():
             colour = colours[str(r["family"])]
             ax.scatter([r["cpu_s"]], [r["best"]], color=colour, label=str(r["family"]))
@@ -273,9 +270,4 @@ def cost_figure(studies: pd.DataFrame, path: Path) -> Optional[Path]:
         ax.set_xlabel("tuning CPU s (all trials)", fontsize=8)
         ax.set_ylabel("criterion: selected (filled), protocol (open)", fontsize=7)
         ax.legend(fontsize=6)
-    for ax in list(axes.flat)[len(panels) :]:
-        ax.set_visible(False)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    return path
+    return save_panels(fig, axes, len(panels), path)
