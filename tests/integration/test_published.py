@@ -103,12 +103,23 @@ def test_the_family_table_and_the_aggregate_are_those_of_the_committed_records(r
 
 
 def test_the_results_page_sets_the_tracks_of_the_committed_records_side_by_side(rebuilt, committed):
+    from hnnbench._results.report.convergence import (
+        convergence_frame,
+        convergence_markdown,
+        convergence_table,
+        read_study_summaries,
+    )
     from hnnbench._results.report.tuning import gain_markdown, studies_frame, tuning_gain
     from hnnbench._results.report.verdicts import tracks_frame, tracks_markdown, tuning_costs
 
     fams = families(records_frame(committed), rebuilt)
     gain = gain_markdown(tuning_gain(fams), studies_frame(committed))
     expected = tracks_markdown(tracks_frame(fams), tuning_costs(fams), gain).strip()
+    if any((RESULTS / "tuning").glob("*/*.json")):  # the studies' convergence
+        studies = read_study_summaries(RESULTS / "tuning")
+        table = convergence_table(convergence_frame(studies))
+        expected += "\n\n" + convergence_markdown(table)
+        assert len(table) == len(studies) == len(studies_frame(committed))
     assert _block(PAGE.read_text(), "tracks").strip() == expected
     assert (RESULTS / "tracks.md").read_text().strip() == f"# Tracks\n\n{expected}"
 

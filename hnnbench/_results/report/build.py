@@ -162,7 +162,7 @@ def write_report(
         report.files["tracks_md"],
         "# Tracks\n\n"
         + tracks_markdown(tracks, tuning_costs(verdicts.families), gain_markdown(gain, studies))
-        + _convergence_section(convergence)
+        + (f"\n\n{text}" if (text := convergence_markdown(convergence)) else "")
         + "\n",
     )
     chosen = selection_frame(recs)
@@ -180,22 +180,6 @@ def write_report(
         page(board, report.figures, prov, recs, bad, verdicts, base=out, embed=embed_figures),
     )
     return report
-
-
-def _convergence_section(convergence: pd.DataFrame) -> str:
-    """The tracks page's section on how the studies converged, ``""`` without one."""
-    text = convergence_markdown(convergence)
-    if not text:
-        return ""
-    return (
-        "\n\n## Has the criterion flattened?\n\n"
-        "Each study's best criterion so far, trial by trial, read from its summary "
-        "(figures/tuning_convergence.png draws it against the CPU the study had spent): "
-        "the best after the first half of its trials against its best (up to 20 "
-        "trials, the first half is the protocol's settings and TPE's random start-up "
-        "draws, so the second half's gain is what TPE's guided trials added), and at the "
-        "CPU of its system's cheapest whole study, what equal compute would have given. " + text
-    )
 
 
 def on_sweep_end(sweep_dir: Path | str) -> None:

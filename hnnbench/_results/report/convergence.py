@@ -261,7 +261,8 @@ def convergence_figure(frame: pd.DataFrame, path: Path) -> Optional[Path]:
 
 
 def convergence_markdown(table: pd.DataFrame) -> str:
-    """:func:`convergence_table` as a sentence (how many studies set their best in the
+    """:func:`convergence_table` as the tracks page's section "Has the criterion
+    flattened?": what it reads, a sentence (how many studies set their best in the
     first half of their trials) and a Markdown table; ``""`` without studies."""
     from hnnbench._results.report.tables import md_table
 
@@ -299,7 +300,15 @@ def convergence_markdown(table: pd.DataFrame) -> str:
             + "."
         )
     lines = [
-        sentence + " At the CPU of its system's cheapest whole study (equal compute), a "
+        "## Has the criterion flattened?",
+        "",
+        "Each study's best criterion so far, trial by trial, read from its summary "
+        "(figures/tuning_convergence.png draws it against the CPU the study had spent): "
+        "the best after the first half of its trials against its best (up to 20 "
+        "trials, the first half is the protocol's settings and TPE's random start-up "
+        "draws, so the second half's gain is what TPE's guided trials added), and at the "
+        f"CPU of its system's cheapest whole study, what equal compute would have given. "
+        f"{sentence} At the CPU of its system's cheapest whole study (equal compute), a "
         "study whose first trial had not ended has no value (—).",
         "",
     ]
