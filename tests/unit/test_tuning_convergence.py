@@ -182,3 +182,19 @@ def test_a_misnamed_or_repeated_summary_is_refused(tmp_path: Path):
     (folder / "hnn_jax.old.json").write_text(json.dumps(summary))
     with pytest.raises(DataError, match="it is the study hnn_jax.json, filed as hnn_jax.old.json"):
         read_study_summaries(tmp_path)
+
+
+def test_summaries_are_read_from_several_folders_each_study_once(tmp_path: Path):
+    """One folder per study (scripts/maintainer/tune_sweep.sh's layout): read together,
+    in the folders' order; the same study in two folders is refused, naming both."""
+    for name, model in (("one", "hnn_jax"), ("two", "mlp_jax")):
+        folder = tmp_path / name / "tuning" / "spring"
+        folder.mkdir(parents=True)
+        (folder / f"{model}.json").write_text(json.dumps(_summary(model, [("complete", 1.0, 1)])))
+    folders = [tmp_path / "two" / "tuning", tmp_path / "one" / "tuning"]
+    assert [s["model"] for s in read_study_summaries(folders)] == ["mlp_jax", "hnn_jax"]
+    again = tmp_path / "three" / "tuning" / "spring"
+    again.mkdir(parents=True)
+    (again / "mlp_jax.json").write_text(json.dumps(_summary("mlp_jax", [("complete", 2.0, 1)])))
+    with pytest.raises(DataError, match="the same study as .*two/tuning/spring/mlp_jax.json"):
+        read_study_summaries([*folders, again.parent])

@@ -63,7 +63,7 @@ def write_report(
     aggregate: bool = True,
     embed_figures: bool = False,
     allow_unverified: bool = False,
-    tuning: Path | str | None = None,
+    tuning: Path | str | Sequence[Path | str] | None = None,
 ) -> Report:
     """Build every table and figure of the sweep directories into ``out`` (default: the
     sweep, when there is one); ``figures=False`` skips the figures, ``aggregate=False``
@@ -72,19 +72,27 @@ def write_report(
     :mod:`hnnbench._results.validity`), and an unreadable or invalid record is an error
     instead of a warning (``allow_unverified``: not a record whose plugins cannot be
     verified); ``embed_figures``:
-    the page holds its figures inline (base64) instead of linking them; ``tuning``: a
-    folder of tuned studies' summaries (``hnnbench tune``'s ``out=/tuning``, or
+    the page holds its figures inline (base64) instead of linking them; ``tuning``:
+    folders of tuned studies' summaries (``hnnbench tune``'s ``out=/tuning``, or
     results/tuning) whose convergence the tracks page shows."""
     dirs = [Path(sweep_dir)] if isinstance(sweep_dir, (str, Path)) else [Path(d) for d in sweep_dir]
-    if tuning is not None and not any(Path(tuning).glob("*/*.json")):
-        raise ReportError(
-            f"--tuning {tuning} holds no study summary (<system>/<model>.json); expected "
-            "a study summary written by `hnnbench tune`: give the tuning/ folder of its "
-            "out= root (or results/tuning)"
-        )
+    folders = (
+        []
+        if tuning is None
+        else [Path(tuning)]
+        if isinstance(tuning, (str, Path))
+        else [Path(t) for t in tuning]
+    )
+    for folder in folders:
+        if not any(folder.glob("*/*.json")):
+            raise ReportError(
+                f"--tuning {folder} holds no study summary (<system>/<model>.json); "
+                "expected a study summary written by `hnnbench tune`: give the tuning/ "
+                "folder of its out= root (or results/tuning)"
+            )
     # Read (and checked) before anything is written: a summary that does not hold
     # together leaves the output as it was.
-    curves = convergence_frame(read_study_summaries(Path(tuning)) if tuning is not None else [])
+    curves = convergence_frame(read_study_summaries(folders))
     recs, bad = load_sweeps(dirs, strict=strict, allow_unverified=allow_unverified)
     if out is None:
         if len(dirs) != 1:

@@ -46,10 +46,11 @@ def _parser() -> OneLineArgumentParser:
     p.add_argument(
         "--tuning",
         metavar="DIR",
+        nargs="+",
         default=None,
-        help="a folder of tuned studies' summaries (the tuning/ folder of an "
+        help="folders of tuned studies' summaries (the tuning/ folder of each "
         "`hnnbench tune` out=, or results/tuning): the tracks page shows how each "
-        "study's best criterion converged",
+        "study's best criterion converged (put it last: it takes every DIR after it)",
     )
     p.add_argument(
         "--allow-unverified",

@@ -107,15 +107,18 @@ def summary_problem(summary: Any) -> str | None:
     return None
 
 
-def read_study_summaries(folder: Path) -> list[dict[str, Any]]:
-    """Every study summary in ``folder`` (``<system>/<model>[.fold<k>].json``, a
-    ``tuning/`` folder of ``hnnbench tune``'s ``out=`` or results/tuning), each checked
+def read_study_summaries(folders: Path | Sequence[Path]) -> list[dict[str, Any]]:
+    """Every study summary in ``folders`` (``<system>/<model>[.fold<k>].json``: the
+    ``tuning/`` folder of ``hnnbench tune``'s ``out=``, one per study of
+    scripts/maintainer/tune_sweep.sh, or results/tuning), each checked
     (:func:`summary_problem`), filed under its own system and named for its model and
-    fold, each study once; sorted by path. One that is not is :class:`DataError`
-    naming the file and what was wrong."""
+    fold, each study once across the folders; in the folders' order, sorted by path
+    within each. One that is not is :class:`DataError` naming the file and what was
+    wrong."""
     found = []
     seen: dict[tuple[str, str, Optional[int]], Path] = {}
-    for path in sorted(folder.glob("*/*.json")):
+    given = [folders] if isinstance(folders, Path) else list(folders)
+    for path in (p for folder in given for p in sorted(folder.glob("*/*.json"))):
         data = parse_file(path)
         problem = data if isinstance(data, str) else summary_problem(data)
         if problem is None and isinstance(data, dict):
