@@ -411,10 +411,11 @@ def study_problem(summary: dict[str, Any], system: str, model: str) -> str | Non
     a study of ``system`` x ``model``, or ``None``: each field of :data:`STUDY_FIELDS` of
     its type, the paper profile, the names of its path, the protocol's settings as its
     trial 0, and its seeds non-negative integers."""
-    for key, kinds in STUDY_FIELDS.items():
-        value = summary.get(key)
-        if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
-            return f"{key}: {value!r} is not {' or '.join(k.__name__ for k in kinds)}"
+    from hnnbench._results.report.convergence import field_problem
+
+    problem = field_problem(summary, STUDY_FIELDS)
+    if problem:
+        return problem
     if summary["profile"] != "paper":
         return f"profile {summary['profile']}, not paper"
     if (summary["system"], summary["model"]) != (system, model):

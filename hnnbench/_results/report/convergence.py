@@ -23,6 +23,7 @@ from hnnbench._record.store import parse_file
 from hnnbench._record.tracks import study_summary_name
 from hnnbench._results.leaderboard import metric_declarations
 from hnnbench._results.report.style import panel_grid, save_panels
+from hnnbench._results.report.tables import md_table
 
 __all__ = [
     "CONVERGENCE_COLUMNS",
@@ -32,6 +33,7 @@ __all__ = [
     "convergence_frame",
     "convergence_markdown",
     "convergence_table",
+    "field_problem",
     "read_study_summaries",
     "summary_problem",
 ]
@@ -70,7 +72,9 @@ CONVERGENCE_COLUMNS = (
 )
 
 
-def _type_problem(data: Mapping[str, Any], fields: Mapping[str, tuple[type, ...]]) -> str | None:
+def field_problem(data: Mapping[str, Any], fields: Mapping[str, tuple[type, ...]]) -> str | None:
+    """The first field of ``fields`` that ``data`` lacks or holds with another JSON
+    type (a bool is not an int unless declared), in one line; ``None`` if none."""
     for key, kinds in fields.items():
         value = data.get(key)
         if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
@@ -85,7 +89,7 @@ def summary_problem(summary: Any) -> str | None:
     non-finite float), trial numbers once each and CPU seconds finite and >= 0."""
     if not isinstance(summary, Mapping):
         return "not a JSON object"
-    problem = _type_problem(summary, SUMMARY_FIELDS)
+    problem = field_problem(summary, SUMMARY_FIELDS)
     if problem:
         return problem
     if summary["fold"] is not None and summary["fold"] < 0:
@@ -94,7 +98,7 @@ def summary_problem(summary: Any) -> str | None:
     for trial in summary["trials"]:
         if not isinstance(trial, Mapping):
             return "trials: each must be an object"
-        problem = _type_problem(trial, TRIAL_FIELDS)
+        problem = field_problem(trial, TRIAL_FIELDS)
         if problem:
             return f"trial {trial.get('number')!r}: {problem}"
         if isinstance(decode_number(trial["value"]), str):
@@ -267,8 +271,6 @@ def convergence_markdown(table: pd.DataFrame) -> str:
     """:func:`convergence_table` as the tracks page's section "Has the criterion
     flattened?": what it reads, a sentence (how many studies set their best in the
     first half of their trials) and a Markdown table; ``""`` without studies."""
-    from hnnbench._results.report.tables import md_table
-
     if table.empty:
         return ""
 
