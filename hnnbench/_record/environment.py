@@ -16,7 +16,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-__all__ = ["environment", "git_commit", "now_iso"]
+__all__ = ["blas_kernel", "environment", "git_commit", "now_iso", "numpy_simd"]
 
 
 @cache
@@ -82,6 +82,41 @@ def installed_commit(dist: str = "hnnbench") -> str | None:
     return commit if isinstance(commit, str) and re.fullmatch(r"[0-9a-f]{40}", commit) else None
 
 
+@cache
+def blas_kernel() -> str | None:
+    """The OpenBLAS kernel numpy's and scipy's BLAS chose for this CPU (e.g.
+    ``"Haswell"``, ``"SkylakeX"``; several joined by ``","``), ``None`` without OpenBLAS.
+
+    Data generation integrates with BLAS, and the kernel sets the last bits of float64
+    results: the same config and seed give byte-different data files (and so other
+    ``data.*_sha256``) on CPUs that pick another kernel. ``OPENBLAS_CORETYPE=<kernel>``
+    forces one (:mod:`hnnbench._running.data_hashes`, for ``hnnbench check --rerun``)."""
+    import numpy  # noqa: F401  (their BLAS libraries are loaded by importing them)
+    import scipy.linalg  # noqa: F401
+    import threadpoolctl
+
+    kernels = {
+        str(lib["architecture"])
+        for lib in threadpoolctl.threadpool_info()
+        if lib.get("internal_api") == "openblas" and lib.get("architecture")
+    }
+    return ",".join(sorted(kernels)) or None
+
+
+@cache
+def numpy_simd() -> str | None:
+    """The SIMD targets numpy dispatches to on this CPU beyond its baseline, e.g.
+    ``"X86_V3,X86_V4,AVX512_ICL,AVX512_SPR"`` (``""``: the baseline only; ``None``:
+    this numpy does not say). Its vectorised ``sin``, ``exp``, ... differ in their last
+    bits between targets, as BLAS kernels do; ``NPY_DISABLE_CPU_FEATURES`` turns targets
+    off."""
+    try:
+        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+    except ImportError:
+        return None
+    return ",".join(t for t in __cpu_dispatch__ if __cpu_features__.get(t))
+
+
 def environment(extra: Iterable[str] = ()) -> dict[str, Any]:
     """Versions and platform, for reproducing a record."""
     env: dict[str, Any] = {
@@ -91,6 +126,8 @@ def environment(extra: Iterable[str] = ()) -> dict[str, Any]:
         "machine": platform.machine(),
         "host": platform.node(),
         "git_commit": git_commit(),
+        "blas_kernel": blas_kernel(),
+        "numpy_simd": numpy_simd(),
     }
     for dist in (
         "numpy",

@@ -253,9 +253,15 @@ FIELDS: tuple[Field, ...] = (
         {
             "type": "object",
             "required": ["hnnbench", "python", "platform", "git_commit"],
-            "properties": {"hnnbench": _STRING_OR_NULL, "git_commit": _STRING_OR_NULL},
+            "properties": {
+                "hnnbench": _STRING_OR_NULL,
+                "git_commit": _STRING_OR_NULL,
+                "blas_kernel": _STRING_OR_NULL,
+                "numpy_simd": _STRING_OR_NULL,
+            },
         },
-        "versions, platform, machine, host, git commit",
+        "versions, platform, machine, host, git commit, the OpenBLAS kernel and numpy's "
+        "SIMD targets",
         REQUIRED,
     ),
     Field("created_at", {"type": "string", "format": "date-time"}, "UTC timestamp", REQUIRED),

@@ -23,8 +23,10 @@ from hnnbench._contracts.plugin import Dataset
 from hnnbench._results import check
 from hnnbench._running.compose import compose
 from hnnbench._running.config import prepare_job
+from hnnbench._running.data_hashes import KNOWN_CPUS, CpuDispatch, generate_hashes
 from hnnbench._running.dataset_cache import cached
 from hnnbench._running.job import run_job
+from tests.conftest import hnnbench as hnnbench_cli
 
 JOB = ["system=spring", "model=oracle", "profile=quick"]
 
@@ -223,6 +225,69 @@ def test_rerun_ignores_a_cache_of_altered_data_and_writes_nothing_the_record_nam
         altered
         != json.loads(next(honest.rglob(records.RECORD_NAME)).read_text())["data"]["dataset_sha256"]
     )
+
+    # A record that names no BLAS kernel (made before the field) is tried under the known
+    # ones too; altered data come back under none of them, and the line names each.
+    _edit(sweep, _unnamed_dispatch)
+    capsys.readouterr()
+    assert (
+        check.main([str(sweep), "--reference", str(reference), "--rerun", "spring/oracle/0"]) == 1
+    )
+    out = capsys.readouterr().out
+    (line,) = [ln for ln in _lines(out, "data.dataset_sha256") if ln.startswith("rerun")]
+    tried = [cpu.describe() for cpu in KNOWN_CPUS if cpu != CpuDispatch.here()]
+    assert "made as other CPUs make them" in line and all(cpu in line for cpu in tried)
+    assert listing(evil, data_dir, sweep) == {**before, **listing(sweep)}
+
+
+def _unnamed_dispatch(record: dict) -> None:
+    """As a record made before ``environment`` named its CPU dispatch."""
+    del record["environment"]["blas_kernel"], record["environment"]["numpy_simd"]
+
+
+def test_rerun_reproduces_a_record_made_on_another_class_of_cpu(tmp_path, capsys):
+    """A record made on a CPU whose OpenBLAS kernel and numpy SIMD targets differ (an
+    SSE4.2 one, forced here in a child process) holds data files whose bytes this CPU
+    does not make (float64's last bits differ). ``--rerun`` makes them again as the CPU
+    the record names would, or as each known class of CPU would for a record that names
+    none, and passes with a row saying which dispatch reproduced them."""
+    here = CpuDispatch.here()
+    target = next(cpu for cpu in reversed(KNOWN_CPUS) if cpu != here)
+    forcing = target.forcing(here)
+    if isinstance(forcing, str):
+        pytest.skip(forcing)  # no OpenBLAS or numpy dispatch to force on this machine
+    sweep = tmp_path / "sweep"
+    directory = sweep / "spring" / "oracle" / "seed0"
+    child = hnnbench_cli(
+        *JOB,
+        "seed=0",
+        f"hydra.run.dir={directory}",
+        env={**forcing, "HNNBENCH_CACHE_DIR": str(tmp_path / "c")},
+        timeout=300,
+    )
+    assert child.returncode == 0, child.stderr[-2000:]
+    record = json.loads((directory / records.RECORD_NAME).read_text())
+    assert CpuDispatch.of_record(record["environment"]) == target
+    # this CPU's kernel makes other bytes of the same config and seed
+    canonical = generate_hashes(compose([*JOB, "seed=0"]), tmp_path / "fresh")
+    assert canonical["dataset_sha256"] != record["data"]["dataset_sha256"]
+    reference = _reference(sweep, tmp_path)
+    for named in (target, None):  # the dispatch the record names; none (an older record)
+        if named is None:
+            _edit(sweep, _unnamed_dispatch)
+        capsys.readouterr()
+        assert (
+            check.main([str(sweep), "--reference", str(reference), "--rerun", "spring/oracle/0"])
+            == 0
+        )
+        out = capsys.readouterr().out
+        (row,) = [ln for ln in out.splitlines() if ln.split()[:1] == ["cpu_dispatch"]]
+        assert f"{target.describe()} (forced)" in row and canonical["dataset_sha256"][:12] in row
+        assert row.split()[1:3] == (["OpenBLAS", "Nehalem,"] if named else ["not", "recorded"])
+        assert row.rstrip().endswith("ok")
+        for name in ("data.dataset_sha256", "data.evaluation_sha256"):
+            (line,) = [ln for ln in out.splitlines() if ln.split()[:1] == [name]]
+            assert record["data"][name.split(".")[1]][:12] in line and line.rstrip().endswith("ok")
 
 
 def test_rerun_config_takes_no_run_only_setting_from_the_record(honest, tmp_path):

@@ -18,12 +18,10 @@ from hnnbench._results.check.compare import format_number
 from hnnbench._results.check.findings import CheckError, Finding
 from hnnbench._results.check.records import record_file
 from hnnbench._running.config import RUN_ONLY_KEYS
+from hnnbench._running.data_hashes import DATA_HASHES, KNOWN_CPUS, CpuDispatch, hashes_on
 
 __all__ = ["DATA_HASHES", "RERUN_HEADERS", "Rerun", "addressed", "rerun", "rerun_config"]
 
-
-#: The record's ``data`` hashes a re-run must reproduce.
-DATA_HASHES = ("dataset_sha256", "evaluation_sha256")
 RERUN_HEADERS = ["metric", "record", "re-run", "apart", "allowed", ""]
 
 
@@ -113,6 +111,36 @@ def _short(value: Any) -> str:
     return str(value)[:12] if value else "none"
 
 
+def _dispatches_to_try(rec: dict[str, Any], here: CpuDispatch) -> list[CpuDispatch]:
+    """The CPU dispatches under which to make the record's data again when this CPU's
+    give other bytes: the one the record names, else
+    :data:`~hnnbench._running.data_hashes.KNOWN_CPUS`; never this CPU's own."""
+    named = CpuDispatch.of_record(rec.get("environment"))
+    return [d for d in ([named] if named else KNOWN_CPUS) if d != here]
+
+
+def _data_as_its_cpu_made_them(
+    rec: dict[str, Any], config: dict[str, Any], canonical: dict[str, Any]
+) -> tuple[dict[str, str] | None, list[str]]:
+    """Where this CPU's data differ from the record's by hash: the record's data made
+    again as the CPUs of :func:`_dispatches_to_try` make them, until one gives exactly
+    the record's hashes. Returns that answer (the hashes and the dispatch that made
+    them) or ``None``, and a line per dispatch tried in vain."""
+    mine = rec.get("data") or {}
+    if rec.get("status") == "skipped" or all(mine.get(k) == canonical.get(k) for k in DATA_HASHES):
+        return None, []
+    tried: list[str] = []
+    for target in _dispatches_to_try(rec, CpuDispatch.here()):
+        answer = hashes_on(config, target)
+        if isinstance(answer, str):
+            tried.append(answer)
+        elif all(answer[k] == mine.get(k) for k in DATA_HASHES):
+            return answer, tried
+        else:
+            tried.append(f"{target.describe()}: {_short(answer['dataset_sha256'])}")
+    return None, tried
+
+
 def rerun(
     recs: Sequence[dict[str, Any]], spec: str, rules: tuple[CheckRule, dict[str, CheckRule]]
 ) -> Rerun:
@@ -131,9 +159,13 @@ def rerun(
     system, model = str(rec.get("system")), str(rec.get("model"))
     result = Rerun(spec)
     with tempfile.TemporaryDirectory(prefix="hnnbench-rerun-") as tmp:
-        cfg = OmegaConf.create(rerun_config(rec, Path(tmp) / "cache"))
-        (outcome, *_) = run_job(cfg, Path(tmp) / "job", overrides=rec.get("overrides"))
+        config = rerun_config(rec, Path(tmp) / "cache")
+        (outcome, *_) = run_job(
+            OmegaConf.create(config), Path(tmp) / "job", overrides=rec.get("overrides")
+        )
         again = outcome.record
+    here = again.get("data") or {}
+    forced, tried = _data_as_its_cpu_made_them(rec, config, here)
     default, by_metric = rules
     where = record_file(rec)
 
@@ -154,7 +186,7 @@ def rerun(
         result.rows.append(["error", "", str(again["error"]), "", "", ""])
     for key in DATA_HASHES:
         mine = (rec.get("data") or {}).get(key)
-        canonical = (again.get("data") or {}).get(key)
+        canonical = (forced or here).get(key)
         if mine is None and canonical is None and rec.get("status") == "skipped":
             continue
         add(
@@ -166,9 +198,23 @@ def rerun(
             bool(canonical) and mine == canonical,
         )
         if canonical and mine != canonical:
+            also = f"; made as other CPUs make them: {'; '.join(tried)}" if tried else ""
             result.findings[
                 -1
-            ].current = f"canonical {_short(canonical)} ({where} names other data)"
+            ].current = f"canonical {_short(canonical)} ({where} names other data{also})"
+    if forced is not None:
+        named = CpuDispatch.of_record(rec.get("environment"))
+        result.rows.append(
+            [
+                "cpu_dispatch",
+                named.describe() if named else "not recorded",
+                f"{forced['dispatch']} (forced)",
+                "",
+                f"this CPU's ({CpuDispatch.here().describe()}) makes "
+                f"{_short(here.get('dataset_sha256'))}: other last bits",
+                "ok",
+            ]
+        )
     mine_all, theirs_all = rec.get("metrics") or {}, again.get("metrics") or {}
     # Every metric either side has: one the re-run produces and the record lacks fails.
     for name in dict.fromkeys([*mine_all, *theirs_all]):
