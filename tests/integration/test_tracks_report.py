@@ -182,8 +182,8 @@ def test_a_track_that_cannot_separate_its_leaders_changes_no_verdict(tmp_path):
     text = report.files["tracks_md"].read_text()
     assert "never separates its leaders" in text and "No verdict changes" in text
     assert (
-        "- `pendulum`, `energy_mse`: protocol best: hnn; recipe too few seeds to "
-        "separate: mlp, hnn." in text.split("Where only the best mean moves")[1]
+        "- `pendulum`, `energy_mse`: protocol hnn (best); recipe mlp (too few seeds to "
+        "separate)." in text.split("Where only the best mean moves")[1]
     )
 
 

@@ -41,6 +41,7 @@ def write_study(
             "settings": {"model.lr": 0.001 if n == 0 else lr},
             "protocol": n == 0,
             "cpu_s": 10.0,
+            "last_step": 2000 if n < 4 else 230,
         }
         for n in range(done)
     ]

@@ -26,16 +26,25 @@ from hnnbench._results.report.convergence import (
 def _summary(
     model: str, trials: list[tuple[str, Optional[float], float]], system: str = "spring"
 ) -> dict[str, Any]:
-    """A study summary whose trial ``i`` is ``trials[i]``: (state, value, CPU s)."""
+    """A study summary whose trial ``i`` is ``trials[i]``: (state, value, CPU s), of 100
+    steps on 2 seeds each (a pruned trial stopped at step 10)."""
     return {
         "system": system,
         "model": model,
         "fold": None,
+        "steps": 100,
+        "seeds_per_trial": 2,
         "trials_budget": len(trials),
         "trials": [
-            {"number": i, "state": state, "value": value, "cpu_s": cpu}
+            {
+                "number": i,
+                "state": state,
+                "value": value,
+                "cpu_s": cpu,
+                "last_step": 10 if state == "pruned" else 100,
+            }
             for i, (state, value, cpu) in enumerate(trials)
-        ],
+        ],  # fmt: skip
     }
 
 
@@ -56,6 +65,11 @@ def test_the_best_so_far_follows_complete_trials_and_counts_every_trials_cpu():
     )
     assert list(frame["cpu_s"]) == [10, 15, 35, 45]
     assert list(frame["best"]) == [4.0, 4.0, 2.0, 2.0]
+    # steps trained over both seeds: a pruned trial's to where it stopped; the cap 200 each
+    assert list(frame["steps"]) == [200, 220, 420, 620]
+    assert list(frame["cap"]) == [200, 400, 600, 800]
+    table = convergence_table(frame)
+    assert (table.loc[0, "steps_spent"], table.loc[0, "cap_used"]) == (620, 620 / 800)
 
 
 def test_the_table_says_what_the_second_half_added_and_what_equal_cpu_gives():
@@ -113,6 +127,10 @@ def test_fold_studies_are_compared_within_their_fold():
         (lambda s: s["trials"].append(dict(s["trials"][0])), "trial 0 is given twice"),
         (lambda s: s.update(fold=True), "fold: True is not int or NoneType"),
         (lambda s: s.update(fold=-1), "fold: -1 is not a fold number"),
+        (lambda s: s.update(steps=0), "steps: 0 is not a count"),
+        (lambda s: s.pop("seeds_per_trial"), "seeds_per_trial: None is not int"),
+        (lambda s: s["trials"][0].update(last_step=101), "last_step 101 is not within 0-100"),
+        (lambda s: s["trials"][0].update(last_step=1.5), "last_step: 1.5 is not int or NoneType"),
     ],
 )
 def test_a_summary_that_does_not_hold_together_is_refused_in_one_line(tmp_path, change, said):

@@ -44,16 +44,21 @@ SUMMARY_FIELDS: dict[str, tuple[type, ...]] = {
     "system": (str,),
     "model": (str,),
     "fold": (int, _NONE),
+    "steps": (int,),
+    "seeds_per_trial": (int,),
     "trials": (list,),
 }
 #: The fields of each of a summary's ``trials`` this module reads (a trial's ``value``
 #: is its criterion, the mean over its seeds; ``None`` until it completes, ``"inf"``
-#: where a seed diverged: the codec's spelling of a non-finite float).
+#: where a seed diverged: the codec's spelling of a non-finite float; ``last_step``,
+#: the step of its last criterion reported, where a pruned trial stopped; ``None``
+#: before its first report).
 TRIAL_FIELDS: dict[str, tuple[type, ...]] = {
     "number": (int,),
     "state": (str,),
     "value": (float, int, str, _NONE),
     "cpu_s": (float, int),
+    "last_step": (int, _NONE),
 }
 
 #: The columns of :func:`convergence_table`.
@@ -63,6 +68,8 @@ CONVERGENCE_COLUMNS = (
     "fold",
     "trials",
     "cpu_s",
+    "steps_spent",
+    "cap_used",
     "best",
     "best_trial",
     "best_at_half",
@@ -94,6 +101,9 @@ def summary_problem(summary: Any) -> str | None:
         return problem
     if summary["fold"] is not None and summary["fold"] < 0:
         return f"fold: {summary['fold']} is not a fold number (0 or more)"
+    for key in ("steps", "seeds_per_trial"):
+        if summary[key] < 1:
+            return f"{key}: {summary[key]} is not a count (1 or more)"
     numbers = set()
     for trial in summary["trials"]:
         if not isinstance(trial, Mapping):
@@ -105,6 +115,9 @@ def summary_problem(summary: Any) -> str | None:
             return f"trial {trial['number']}: value: {trial['value']!r} is not a number"
         if not (math.isfinite(trial["cpu_s"]) and trial["cpu_s"] >= 0):
             return f"trial {trial['number']}: cpu_s {trial['cpu_s']!r} is not a finite number >= 0"
+        if trial["last_step"] is not None and not 0 <= trial["last_step"] <= summary["steps"]:
+            step, steps = trial["last_step"], summary["steps"]
+            return f"trial {trial['number']}: last_step {step} is not within 0-{steps}"
         if trial["number"] in numbers:
             return f"trial {trial['number']} is given twice"
         numbers.add(trial["number"])
@@ -155,23 +168,31 @@ def convergence_frame(summaries: Sequence[Mapping[str, Any]]) -> pd.DataFrame:
     """One row per trial of each (checked) study summary, in trial order: ``system``,
     ``model``, ``fold``, ``trial``, ``state``, ``cpu_s`` (the study's CPU seconds
     through this trial, pruned trials included) and ``best`` (the best criterion of its
-    complete trials so far; NaN before the first completes)."""
+    complete trials so far; NaN before the first completes), ``steps`` (the optimiser
+    steps its trials had trained through this one, over all their seeds: each trial's
+    last reported step times the seeds per trial) and ``cap`` (the budget's steps so
+    far: the protocol's steps times the seeds per trial, per trial)."""
     lower = _lower_is_better()
     rows = []
     for summary in summaries:
-        spent, best = 0.0, math.nan
+        spent, best, steps, cap = 0.0, math.nan, 0, 0
+        per_trial = int(summary["steps"]) * int(summary["seeds_per_trial"])
         for trial in sorted(summary["trials"], key=lambda t: t["number"]):
             spent += float(trial["cpu_s"])
+            steps += int(trial["last_step"] or 0) * int(summary["seeds_per_trial"])
+            cap += per_trial
             value = float(decode_number(trial["value"]))
             if trial["state"] == "complete" and math.isfinite(value):
                 if math.isnan(best) or (value < best if lower else value > best):
                     best = float(value)
             rows.append(
                 {"system": summary["system"], "model": summary["model"], "fold": summary["fold"],
-                 "trial": trial["number"], "state": trial["state"], "cpu_s": spent, "best": best}
+                 "trial": trial["number"], "state": trial["state"], "cpu_s": spent, "best": best,
+                 "steps": steps, "cap": cap}
             )  # fmt: skip
     return pd.DataFrame(
-        rows, columns=["system", "model", "fold", "trial", "state", "cpu_s", "best"]
+        rows,
+        columns=["system", "model", "fold", "trial", "state", "cpu_s", "best", "steps", "cap"],
     )
 
 
@@ -184,7 +205,10 @@ def _best_at(curve: pd.DataFrame, cpu_s: float) -> float:
 
 def convergence_table(frame: pd.DataFrame) -> pd.DataFrame:
     """One row per study of :func:`convergence_frame`: its trials, CPU seconds and best
-    criterion; ``best_trial``, the trial that set it; ``best_at_half``, the best after
+    criterion; ``steps_spent``, the optimiser steps its trials trained (over their
+    seeds), and ``cap_used``, their fraction of the budget's trials x steps x seeds
+    (pruning stops trials early: the budget is a cap); ``best_trial``, the number
+    (Optuna's) of the trial that set it; ``best_at_half``, the best after
     the first half of its trials (by number); ``second_half_gain``, what the second
     half added as a factor (best_at_half / best for a lower-is-better criterion; ×1:
     nothing); ``equal_cpu_s``, the CPU of the cheapest whole study of the same system
@@ -217,6 +241,8 @@ def convergence_table(frame: pd.DataFrame) -> pd.DataFrame:
                 "fold": None if fold == -1 else fold,
                 "trials": len(curve),
                 "cpu_s": float(curve["cpu_s"].iloc[-1]),
+                "steps_spent": int(curve["steps"].iloc[-1]),
+                "cap_used": float(curve["steps"].iloc[-1] / curve["cap"].iloc[-1]),
                 "best": best,
                 "best_trial": int(setter.iloc[0]) if len(setter) else None,
                 "best_at_half": at_half,
@@ -314,14 +340,19 @@ def convergence_markdown(table: pd.DataFrame) -> str:
         "draws, so the second half's gain is what TPE's guided trials added), and at the "
         f"CPU of its system's cheapest whole study, what equal compute would have given. "
         f"{sentence} At the CPU of its system's cheapest whole study (equal compute), a "
-        "study whose first trial had not ended has no value (—).",
+        "study whose first trial had not ended has no value (—). `steps spent` counts "
+        "the optimiser steps its trials trained over their seeds (a pruned trial's to "
+        "where it stopped), `of cap` their fraction of the budget's trials x steps x "
+        "seeds: the budget is a cap, which pruning leaves partly unspent. `best trial "
+        "no.` is Optuna's trial number (an interrupted trial keeps its number and is "
+        "not counted, so numbers can run past the count of trials).",
         "",
     ]
 
     def num(v: Any, fmt: str) -> str:
         if v is None or pd.isna(v):
             return "—"
-        return format(int(v) if fmt == "d" else float(v), fmt)
+        return format(int(v) if fmt.endswith("d") else float(v), fmt)
 
     shown = pd.DataFrame(
         {
@@ -330,8 +361,10 @@ def convergence_markdown(table: pd.DataFrame) -> str:
             "fold": table["fold"].map(lambda v: num(v, "d")),
             "trials": table["trials"],
             "CPU s": table["cpu_s"].map(lambda v: num(v, ",.0f")),
+            "steps spent": table["steps_spent"].map(lambda v: num(v, ",d")),
+            "of cap": table["cap_used"].map(lambda v: num(v, ".0%")),
             "best": table["best"].map(lambda v: num(v, ".3g")),
-            "best trial": table["best_trial"].map(lambda v: num(v, "d")),
+            "best trial no.": table["best_trial"].map(lambda v: num(v, "d")),
             "after half": table["best_at_half"].map(lambda v: num(v, ".3g")),
             "second half ×": table["second_half_gain"].map(lambda v: num(v, ".2f")),
             "equal CPU s": table["equal_cpu_s"].map(lambda v: num(v, ",.0f")),

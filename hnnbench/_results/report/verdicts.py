@@ -581,7 +581,7 @@ def _standing_still_text(rows: pd.DataFrame, metric: str) -> str:
         return ""
     still = rows[text_column(rows, "reference") == STANDING_STILL]
     values = pd.to_numeric(still[column], errors="coerce").dropna()
-    return _fmt(float(values.iloc[0])) if len(values) else ""
+    return f"{float(values.iloc[0]):.2g}" if len(values) else ""  # 1.9e-23 is not 0.00
 
 
 def _effect(rows: pd.DataFrame, metric: str) -> str:
@@ -674,9 +674,14 @@ def tracks_markdown(
     lines += [
         "Each cell names the best family, or the families tied for the lead with the "
         "best mean first; `<track>_effect` is that track's leader's paired effect over "
-        "its runner-up with its interval (docs/STATISTICS.md), and `still_mean` the "
+        "its runner-up by mean (the family after it, whether or not the verdict "
+        "separates them) with its own interval, not adjusted for the verdict's other "
+        "comparisons (docs/STATISTICS.md), and `still_mean` the "
         "standing-still reference's mean, the value a model that predicts no motion "
-        "scores. A verdict changes between two tracks where their leaders "
+        "scores. On `energy_mse` only the families whose rollout beats standing still "
+        "(`rollout_skill` above 0) are contested, since standing still conserves a "
+        "conservative system's energy exactly: its leaders there score above "
+        "`still_mean`. A verdict changes between two tracks where their leaders "
         "have no family in common (a cell of too few seeds names every family with a "
         "value, so no "
         f"verdict can change against it). A track of fewer than "
@@ -692,6 +697,13 @@ def tracks_markdown(
     def said(r: pd.Series) -> str:
         return "; ".join(f"{t} {md_text(str(r[t]))}" for t in tracks if r[t])
 
+    def best_means(r: pd.Series) -> str:
+        named = [(t, str(r[t]).partition(": ")) for t in tracks if ": " in str(r[t])]
+        return "; ".join(
+            f"{t} {md_text(rest.split(',')[0].strip())} ({md_text(kind)})"
+            for t, (kind, _, rest) in named
+        )
+
     changed = frame[frame["changes"]]
     if changed.empty:
         lines += ["No verdict changes between tracks on any system and headline metric shown.", ""]
@@ -706,11 +718,12 @@ def tracks_markdown(
     if not means.empty:
         lines += [
             "Where only the best mean moves to another family (not separated; a "
-            "difference of means over the seeds, not a verdict):",
+            "difference of means over the seeds, not a verdict), each track's family "
+            "with the best mean, and its cell's verdict:",
             "",
         ]
         lines += [
-            f"- {md_code(str(r['system']))}, {md_code(str(r['metric']))}: {said(r)}."
+            f"- {md_code(str(r['system']))}, {md_code(str(r['metric']))}: {best_means(r)}."
             for _, r in means.iterrows()
         ]
         lines.append("")
