@@ -16,7 +16,6 @@ process a forced dispatch needs (both variables are read when the libraries load
 
 from __future__ import annotations
 
-import functools
 import json
 import os
 import re
@@ -31,7 +30,6 @@ from typing import Any, Optional
 from omegaconf import DictConfig, OmegaConf
 
 from hnnbench._contracts import paths
-from hnnbench._contracts.plugin import Dataset, Trajectories
 from hnnbench._record.environment import blas_kernel, numpy_simd
 from hnnbench._running import dataset_cache
 from hnnbench._running.config import prepare_job
@@ -107,17 +105,8 @@ def generate_hashes(cfg: DictConfig, cache_dir: Path) -> dict[str, str]:
     return their SHA-256 by :data:`DATA_HASHES` field."""
     job = prepare_job(cfg)
     system = job.system_cls(job.system_cfg)
-    seed = int(cfg.seed)
-    _, data_path, _ = dataset_cache.cached(
-        system, seed, "dataset", functools.partial(system.dataset, seed), Dataset.load, cache_dir
-    )
-    _, traj_path, _ = dataset_cache.cached(
-        system,
-        seed,
-        "evaluation",
-        functools.partial(system.evaluation, seed),
-        Trajectories.load,
-        cache_dir,
+    (_, data_path, _), (_, traj_path, _) = dataset_cache.system_data(
+        system, int(cfg.seed), cache_dir
     )
     return {
         "dataset_sha256": paths.sha256_file(data_path),

@@ -11,6 +11,7 @@ written without one) is rebuilt, never used.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import logging
@@ -28,7 +29,7 @@ log = logging.getLogger("hnnbench")
 
 T = TypeVar("T", Dataset, Trajectories)
 
-__all__ = ["cache_root", "cached", "entry_key", "file_sha256"]
+__all__ = ["cache_root", "cached", "entry_key", "file_sha256", "system_data"]
 
 #: The layout of cached entries; part of every key, so a change of what a dataset holds
 #: (2: systems that add input noise keep the clean inputs, ``Split.extras["x_clean"]``)
@@ -113,3 +114,23 @@ def cached(
     # Return what a cache hit would load (same dtypes and memory layout), so a job's
     # metrics never depend on whether it or another worker built the entry.
     return loader(path), path, False
+
+
+def system_data(
+    system: System, seed: int, root: Optional[Path] = None
+) -> tuple[tuple[Dataset, Path, bool], tuple[Trajectories, Path, bool]]:
+    """The system's dataset and evaluation trajectories of ``seed`` (:func:`cached`
+    each: read from the cache under ``root``, or built and stored there), as
+    ``((data, path, hit), (trajectories, path, hit))``."""
+    data = cached(
+        system, seed, "dataset", functools.partial(system.dataset, seed), Dataset.load, root
+    )
+    traj = cached(
+        system,
+        seed,
+        "evaluation",
+        functools.partial(system.evaluation, seed),
+        Trajectories.load,
+        root,
+    )
+    return data, traj

@@ -13,7 +13,6 @@ from __future__ import annotations
 import contextlib
 import copy
 import dataclasses
-import functools
 import logging
 import os
 import shlex
@@ -545,16 +544,7 @@ def _execute(
     datas, trajs = {}, {}
     for seed in seeds:
         t0 = time.perf_counter()
-        data, data_path, data_hit = dataset_cache.cached(
-            system, seed, "dataset", functools.partial(system.dataset, seed), Dataset.load
-        )
-        traj, traj_path, _ = dataset_cache.cached(
-            system,
-            seed,
-            "evaluation",
-            functools.partial(system.evaluation, seed),
-            Trajectories.load,
-        )
+        (data, data_path, data_hit), (traj, traj_path, _) = dataset_cache.system_data(system, seed)
         if data.valid is None:
             rule = datasets.validation_rule(data)
             data = datasets.with_validation(data, seed)  # carved from train, not test
