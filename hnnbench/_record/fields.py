@@ -63,6 +63,9 @@ _NONE = object()  # no initial value: the job supplies it
 #: record on write and in strict loading stays a few milliseconds.
 VALUE: Mapping[str, Any] = {"type": ["number", "null", "string"], "pattern": "^-?inf$"}
 _STRING_OR_NULL: Mapping[str, Any] = {"type": ["string", "null"]}
+#: Names joined by commas (a CPU's OpenBLAS kernel, numpy's SIMD targets): they go
+#: into a child process's environment in ``check --rerun``.
+_NAMES = "^[A-Za-z0-9_]{1,32}(,[A-Za-z0-9_]{1,32}){0,31}$"
 _INT_OR_NULL: Mapping[str, Any] = {"type": ["integer", "null"], "minimum": 0}
 #: Where a plugin came from (``plugins.system``, ``plugins.model``).
 _PLUGIN: Mapping[str, Any] = {
@@ -256,8 +259,8 @@ FIELDS: tuple[Field, ...] = (
             "properties": {
                 "hnnbench": _STRING_OR_NULL,
                 "git_commit": _STRING_OR_NULL,
-                "blas_kernel": _STRING_OR_NULL,
-                "numpy_simd": _STRING_OR_NULL,
+                "blas_kernel": {"type": ["string", "null"], "pattern": _NAMES},
+                "numpy_simd": {"type": ["string", "null"], "pattern": f"^$|{_NAMES}"},
             },
         },
         "versions, platform, machine, host, git commit, the OpenBLAS kernel and numpy's "

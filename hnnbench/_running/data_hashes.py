@@ -34,12 +34,16 @@ from hnnbench._record.environment import blas_kernel, numpy_simd
 from hnnbench._running import dataset_cache
 from hnnbench._running.config import prepare_job
 
-__all__ = ["DATA_HASHES", "KNOWN_CPUS", "CpuDispatch", "generate_hashes", "hashes_on"]
+__all__ = ["DATA_HASHES", "KNOWN_CPUS", "X86_64", "CpuDispatch", "generate_hashes", "hashes_on"]
 
 #: The record's ``data`` fields that name its data files, by SHA-256 of their bytes.
 DATA_HASHES = ("dataset_sha256", "evaluation_sha256")
 
 _HEX64 = re.compile(r"[0-9a-f]{64}")
+#: A kernel's or a SIMD target's name (the record schema holds them to lists of these).
+_NAME = re.compile(r"[A-Za-z0-9_]{1,32}")
+#: The machines whose CPU classes :data:`KNOWN_CPUS` names.
+X86_64 = ("x86_64", "AMD64")
 
 
 @dataclass(frozen=True)
@@ -57,16 +61,20 @@ class CpuDispatch:
 
     @classmethod
     def of_record(cls, environment: Any) -> Optional[CpuDispatch]:
-        """The dispatch a record's ``environment`` names, ``None`` where it names none
-        (records made before these fields)."""
+        """The dispatch a record's ``environment`` names (``null`` fields kept: no
+        OpenBLAS, targets not known), ``None`` where it lacks the fields (records made
+        before them)."""
         env = environment if isinstance(environment, Mapping) else {}
-        kernel, simd = env.get("blas_kernel"), env.get("numpy_simd")
-        if not isinstance(kernel, str) or not isinstance(simd, str):
+        if "blas_kernel" not in env or "numpy_simd" not in env:
             return None
-        return cls(kernel, simd)
+        kernel, simd = env["blas_kernel"], env["numpy_simd"]
+        return cls(
+            kernel if isinstance(kernel, str) else None, simd if isinstance(simd, str) else None
+        )
 
     def describe(self) -> str:
-        return f"OpenBLAS {self.blas_kernel or 'none'}, numpy {self.numpy_simd or 'baseline'}"
+        simd = "targets unknown" if self.numpy_simd is None else self.numpy_simd or "baseline"
+        return f"OpenBLAS {self.blas_kernel or 'none'}, numpy {simd}"
 
     def forcing(self, here: CpuDispatch) -> dict[str, str] | str:
         """The environment variables that make a process on this CPU (``here``) choose
@@ -81,6 +89,8 @@ class CpuDispatch:
         missing = [t for t in want if t not in have]
         if missing:
             return f"{self.describe()}: this CPU lacks {', '.join(missing)}"
+        if not all(map(_NAME.fullmatch, [*self.blas_kernel.split(","), *want])):
+            return f"{self.describe()}: not the names of a kernel and of SIMD targets"
         return {
             "OPENBLAS_CORETYPE": self.blas_kernel.split(",")[0],
             "NPY_DISABLE_CPU_FEATURES": ",".join(t for t in have if t not in want),
@@ -131,17 +141,23 @@ def hashes_on(
     with tempfile.TemporaryDirectory(prefix="hnnbench-dispatch-") as tmp:
         config_file = Path(tmp) / "config.json"
         config_file.write_text(json.dumps(dict(config)), encoding="utf-8")
-        command = [sys.executable, "-m", __name__, str(config_file), str(Path(tmp) / "cache")]
+        # -P and cwd: the child imports the installed hnnbench and its dependencies,
+        # never a module of the same name in the directory the check was started from.
+        command = [sys.executable, "-P", "-m", __name__, str(config_file), "cache"]
+        env = {k: v for k, v in os.environ.items() if k != "NPY_ENABLE_CPU_FEATURES"}
         try:
             child = subprocess.run(
                 command,
-                env={**os.environ, **forcing},
+                cwd=tmp,
+                env={**env, **forcing},
                 capture_output=True,
                 text=True,
                 timeout=timeout_s,
             )
         except subprocess.TimeoutExpired:
             return f"{target.describe()}: no data within {timeout_s:g} s"
+        except (OSError, ValueError) as err:  # an environment the OS refuses
+            return f"{target.describe()}: the child could not start ({err})"
         lines = child.stdout.strip().splitlines()
         if child.returncode != 0 or not lines:
             why = (child.stderr.strip().splitlines() or [f"exit status {child.returncode}"])[-1]

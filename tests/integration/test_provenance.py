@@ -14,6 +14,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+from omegaconf import OmegaConf
 
 from hnnbench import _record as records
 from hnnbench import _registry as registry
@@ -23,7 +24,13 @@ from hnnbench._contracts.plugin import Dataset
 from hnnbench._results import check
 from hnnbench._running.compose import compose
 from hnnbench._running.config import prepare_job
-from hnnbench._running.data_hashes import KNOWN_CPUS, CpuDispatch, generate_hashes
+from hnnbench._running.data_hashes import (
+    DATA_HASHES,
+    KNOWN_CPUS,
+    CpuDispatch,
+    generate_hashes,
+    hashes_on,
+)
 from hnnbench._running.dataset_cache import cached
 from hnnbench._running.job import run_job
 from tests.conftest import hnnbench as hnnbench_cli
@@ -381,3 +388,22 @@ def test_a_key_named_like_a_table_column_is_refused(honest, tmp_path, change, ke
     message = str(err.value)
     assert message.startswith(f"{path}: {key}") and "refused" in message
     assert "\n" not in message and not os.path.exists(tmp_path / "ref.csv")
+
+
+def test_the_remade_data_come_from_the_installed_code_not_the_working_directory(
+    tmp_path, monkeypatch
+):
+    """``check --rerun`` runs in a submission's folder: modules there named like those
+    the child process imports (hnnbench itself, omegaconf, numpy) are never imported by
+    it, so they cannot answer with the record's hashes."""
+    here = CpuDispatch.here()
+    if isinstance(here.forcing(here), str):
+        pytest.skip(here.forcing(here))
+    (tmp_path / "hnnbench").mkdir()
+    for name in ("omegaconf.py", "numpy.py", "hnnbench/__init__.py"):
+        (tmp_path / name).write_text("raise SystemExit('a module of the working directory')\n")
+    monkeypatch.chdir(tmp_path)
+    cfg = compose([*JOB, "seed=0"])
+    answer = hashes_on(OmegaConf.to_container(cfg, resolve=True), here)
+    assert isinstance(answer, dict), answer
+    assert {k: answer[k] for k in DATA_HASHES} == generate_hashes(cfg, tmp_path / "fresh")

@@ -3,7 +3,13 @@ environment variables that make this CPU choose another one (``check --rerun``).
 
 from __future__ import annotations
 
-from hnnbench._record.environment import blas_kernel, environment, numpy_simd
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
 from hnnbench._running.data_hashes import KNOWN_CPUS, CpuDispatch
 
 HERE = CpuDispatch("SkylakeX", "X86_V3,X86_V4,AVX512_ICL,AVX512_SPR")
@@ -35,13 +41,40 @@ def test_a_record_names_its_dispatch_or_none():
     assert CpuDispatch.of_record({"blas_kernel": "Haswell", "numpy_simd": ""}) == CpuDispatch(
         "Haswell", ""
     )
-    for env in ({}, {"blas_kernel": "Haswell"}, {"blas_kernel": None, "numpy_simd": ""}, None):
+    for env in ({}, {"blas_kernel": "Haswell"}, None):  # made before the fields
         assert CpuDispatch.of_record(env) is None
+    # named, as null: no OpenBLAS there, its targets unknown; nothing to force
+    none = CpuDispatch.of_record({"blas_kernel": None, "numpy_simd": None})
+    assert none == CpuDispatch(None, None)
+    assert none.describe() == "OpenBLAS none, numpy targets unknown"
+    assert "no OpenBLAS kernel to force" in none.forcing(HERE)
     assert CpuDispatch("Haswell", "").describe() == "OpenBLAS Haswell, numpy baseline"
 
 
-def test_this_process_names_its_dispatch_in_every_new_record():
-    env = environment()
-    assert (env["blas_kernel"], env["numpy_simd"]) == (blas_kernel(), numpy_simd())
-    assert CpuDispatch.here() == CpuDispatch(blas_kernel(), numpy_simd())
+def test_a_process_forced_to_another_dispatch_names_that_one_in_its_records():
+    """What ``environment()`` records is what the libraries chose, not what the CPU
+    offers: forced to an SSE4.2 machine's choices, a process says so."""
+    target = CpuDispatch("Nehalem", "")
+    forcing = target.forcing(CpuDispatch.here())
+    if isinstance(forcing, str):
+        pytest.skip(forcing)  # no OpenBLAS, or numpy does not say its targets, here
+    code = (
+        "import json; from hnnbench._record.environment import environment; "
+        "e = environment(); print(json.dumps([e['blas_kernel'], e['numpy_simd']]))"
+    )
+    child = subprocess.run(
+        [sys.executable, "-P", "-c", code],
+        env={**os.environ, **forcing},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert child.returncode == 0, child.stderr[-2000:]
+    assert json.loads(child.stdout) == ["Nehalem", ""]
+    assert CpuDispatch.of_record({"blas_kernel": "Nehalem", "numpy_simd": ""}) == target
+
+
+def test_names_that_are_not_a_kernel_and_targets_are_never_forced():
+    for odd in (CpuDispatch("Has well", "X86_V3"), CpuDispatch("Haswell", "X86_V3,=1")):
+        assert "not the names" in odd.forcing(CpuDispatch("Haswell", "X86_V3,X86_V4,=1"))
     assert len(set(KNOWN_CPUS)) == len(KNOWN_CPUS)

@@ -5,6 +5,8 @@ cache and compared with its record, metric by metric, both ways.
 from __future__ import annotations
 
 import math
+import platform
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,7 +20,7 @@ from hnnbench._results.check.compare import format_number
 from hnnbench._results.check.findings import CheckError, Finding
 from hnnbench._results.check.records import record_file
 from hnnbench._running.config import RUN_ONLY_KEYS
-from hnnbench._running.data_hashes import DATA_HASHES, KNOWN_CPUS, CpuDispatch, hashes_on
+from hnnbench._running.data_hashes import DATA_HASHES, KNOWN_CPUS, X86_64, CpuDispatch, hashes_on
 
 __all__ = ["DATA_HASHES", "RERUN_HEADERS", "Rerun", "addressed", "rerun", "rerun_config"]
 
@@ -113,10 +115,20 @@ def _short(value: Any) -> str:
 
 def _dispatches_to_try(rec: dict[str, Any], here: CpuDispatch) -> list[CpuDispatch]:
     """The CPU dispatches under which to make the record's data again when this CPU's
-    give other bytes: the one the record names, else
-    :data:`~hnnbench._running.data_hashes.KNOWN_CPUS`; never this CPU's own."""
+    give other bytes: the one the record names, else (a record made before the fields)
+    :data:`~hnnbench._running.data_hashes.KNOWN_CPUS` on an x86-64 machine; never this
+    CPU's own."""
     named = CpuDispatch.of_record(rec.get("environment"))
-    return [d for d in ([named] if named else KNOWN_CPUS) if d != here]
+    if named is not None:
+        candidates: Sequence[CpuDispatch] = [named]
+    else:
+        candidates = KNOWN_CPUS if platform.machine() in X86_64 else []
+    return [d for d in candidates if d != here]
+
+
+#: The most seconds of wall time the re-made data of one ``--rerun`` may take, all
+#: dispatches together.
+REMAKE_BUDGET_S = 1800.0
 
 
 def _data_as_its_cpu_made_them(
@@ -130,8 +142,13 @@ def _data_as_its_cpu_made_them(
     if rec.get("status") == "skipped" or all(mine.get(k) == canonical.get(k) for k in DATA_HASHES):
         return None, []
     tried: list[str] = []
+    deadline = time.monotonic() + REMAKE_BUDGET_S
     for target in _dispatches_to_try(rec, CpuDispatch.here()):
-        answer = hashes_on(config, target)
+        left = deadline - time.monotonic()
+        if left <= 0:
+            tried.append(f"{target.describe()}: not tried ({REMAKE_BUDGET_S:g} s spent)")
+            continue
+        answer = hashes_on(config, target, timeout_s=left)
         if isinstance(answer, str):
             tried.append(answer)
         elif all(answer[k] == mine.get(k) for k in DATA_HASHES):
@@ -210,8 +227,12 @@ def rerun(
                 named.describe() if named else "not recorded",
                 f"{forced['dispatch']} (forced)",
                 "",
-                f"this CPU's ({CpuDispatch.here().describe()}) makes "
-                f"{_short(here.get('dataset_sha256'))}: other last bits",
+                (
+                    f"this CPU's ({CpuDispatch.here().describe()}) makes "
+                    f"{_short(here.get('dataset_sha256'))}: other last bits"
+                    if here.get("dataset_sha256")
+                    else "the re-run here made no data"
+                ),
                 "ok",
             ]
         )

@@ -80,10 +80,13 @@ CONVERGENCE_COLUMNS = (
 
 
 def field_problem(data: Mapping[str, Any], fields: Mapping[str, tuple[type, ...]]) -> str | None:
-    """The first field of ``fields`` that ``data`` lacks or holds with another JSON
-    type (a bool is not an int unless declared), in one line; ``None`` if none."""
+    """The first field of ``fields`` that ``data`` lacks (a field that may be ``null``
+    must still be there) or holds with another JSON type (a bool is not an int unless
+    declared), in one line; ``None`` if none."""
     for key, kinds in fields.items():
-        value = data.get(key)
+        if key not in data:
+            return f"{key}: missing ({' or '.join(k.__name__ for k in kinds)} expected)"
+        value = data[key]
         if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
             return f"{key}: {value!r} is not {' or '.join(k.__name__ for k in kinds)}"
     return None
