@@ -107,7 +107,9 @@ def test_the_results_page_sets_the_tracks_of_the_committed_records_side_by_side(
         convergence_frame,
         convergence_markdown,
         convergence_table,
+        protocol_reruns,
         read_study_summaries,
+        trial0_frame,
     )
     from hnnbench._results.report.tuning import gain_markdown, studies_frame, tuning_gain
     from hnnbench._results.report.verdicts import tracks_frame, tracks_markdown, tuning_costs
@@ -117,7 +119,8 @@ def test_the_results_page_sets_the_tracks_of_the_committed_records_side_by_side(
     expected = tracks_markdown(tracks_frame(fams), tuning_costs(fams), gain).strip()
     if any((RESULTS / "tuning").glob("*/*.json")):  # the studies' convergence
         studies = read_study_summaries(RESULTS / "tuning")
-        table = convergence_table(convergence_frame(studies))
+        reruns = protocol_reruns(trial0_frame(studies), fams.runs)
+        table = convergence_table(convergence_frame(studies), reruns)
         expected += "\n\n" + convergence_markdown(table)
         assert len(table) == len(studies) == len(studies_frame(committed))
     assert _block(PAGE.read_text(), "tracks").strip() == expected

@@ -42,6 +42,7 @@ def write_study(
             "protocol": n == 0,
             "cpu_s": 10.0,
             "last_step": 2000 if n < 4 else 230,
+            "seed_values": [1e-3 / (n + 1)] * 2,
         }
         for n in range(done)
     ]

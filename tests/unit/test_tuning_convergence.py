@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 
 from hnnbench._contracts.errors import DataError
+from hnnbench._results.report import convergence
 from hnnbench._results.report.convergence import (
     convergence_figure,
     convergence_frame,
@@ -29,11 +30,13 @@ def _summary(
     """A study summary whose trial ``i`` is ``trials[i]``: (state, value, CPU s), of 100
     steps on 2 seeds each (a pruned trial stopped at step 10)."""
     return {
+        "profile": "paper",
         "system": system,
         "model": model,
         "fold": None,
         "steps": 100,
         "seeds_per_trial": 2,
+        "trial_seeds": [0, 1],
         "trials_budget": len(trials),
         "trials": [
             {
@@ -42,9 +45,11 @@ def _summary(
                 "value": value,
                 "cpu_s": cpu,
                 "last_step": 10 if state == "pruned" else 100,
+                "protocol": i == 0,
+                "seed_values": None if value is None else [value, value],
             }
             for i, (state, value, cpu) in enumerate(trials)
-        ],  # fmt: skip
+        ],
     }
 
 
@@ -130,6 +135,11 @@ def test_fold_studies_are_compared_within_their_fold():
         (lambda s: s.update(steps=0), "steps: 0 is not a count"),
         (lambda s: s.pop("seeds_per_trial"), "seeds_per_trial: missing (int expected)"),
         (lambda s: s["trials"][0].pop("last_step"), "last_step: missing (int or NoneType"),
+        (lambda s: s.update(trial_seeds=[0, -1]), "trial_seeds: [0, -1] is not a list of seeds"),
+        (
+            lambda s: s["trials"][0].update(seed_values=[1.0]),
+            "seed_values [1.0] are not a number per seed",
+        ),
         (lambda s: s["trials"][0].update(last_step=101), "last_step 101 is not within 0-100"),
         (lambda s: s["trials"][0].update(last_step=1.5), "last_step: 1.5 is not int or NoneType"),
     ],
@@ -217,3 +227,35 @@ def test_summaries_are_read_from_several_folders_each_study_once(tmp_path: Path)
     (again / "mlp_jax.json").write_text(json.dumps(_summary("mlp_jax", [("complete", 2.0, 1)])))
     with pytest.raises(DataError, match="the same study as .*two/tuning/spring/mlp_jax.json"):
         read_study_summaries([*folders, again.parent])
+
+
+def test_trial_0_is_read_against_the_protocol_records_of_its_seeds():
+    """Trial 0 re-runs the protocol's settings on the trial seeds: a study whose trial 0
+    gave the protocol record's values is ×1 apart, one off by ×1.5 on a seed is ×1.5
+    apart; a study whose seeds have no protocol record (a measured system's folds), or
+    a tuned or variant record of the seed, pairs with nothing."""
+    same = _summary("a", [("complete", 2.0, 10), ("complete", 1.0, 10)])
+    off = _summary("b", [("complete", 3.0, 10)])
+    folded = {**_summary("c", [("complete", 1.0, 10)]), "fold": 2, "trial_seeds": [10, 11]}
+    runs = pd.DataFrame(
+        [
+            {"profile": "paper", "system": "spring", "model": m, "seed": seed, "track": track,
+             "variant": variant, "criterion_value": value}
+            for m, seed, track, variant, value in [
+                ("a", 0, "protocol", "", 2.0), ("a", 1, "protocol", "", 2.0),
+                ("a", 0, "tuned", "", 9.0), ("a", 1, "protocol", "lr=0.1", 9.0),
+                ("b", 0, "protocol", "", 3.0), ("b", 1, "protocol", "", 2.0),
+                ("c", 10, "tuned", "", 5.0),
+            ]
+        ]
+    )  # fmt: skip
+    summaries = [same, off, folded]
+    reruns = convergence.protocol_reruns(convergence.trial0_frame(summaries), runs)
+    got = reruns.set_index("model")
+    assert got.loc["a", "protocol_seeds"] == 2 and got.loc["a", "protocol_apart"] == 1.0
+    assert got.loc["b", "protocol_seeds"] == 2 and got.loc["b", "protocol_apart"] == 1.5
+    assert got.loc["c", "protocol_seeds"] == 0 and math.isnan(got.loc["c", "protocol_apart"])
+    table = convergence_table(convergence_frame(summaries), reruns)
+    assert list(table["protocol_apart"].fillna(-1)) == [1.0, 1.5, -1]
+    text = convergence_markdown(table)
+    assert "1 of 2 studies agree within ×1.0001 on every seed; spring/b ×1.5 differ" in text

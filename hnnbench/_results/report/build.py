@@ -21,7 +21,9 @@ from hnnbench._results.report.convergence import (
     convergence_frame,
     convergence_markdown,
     convergence_table,
+    protocol_reruns,
     read_study_summaries,
+    trial0_frame,
 )
 from hnnbench._results.report.figures import Made, main_profile_figure, make_figures
 from hnnbench._results.report.html import page
@@ -92,7 +94,8 @@ def write_report(
             )
     # Read (and checked) before anything is written: a summary that does not hold
     # together leaves the output as it was.
-    curves = convergence_frame(read_study_summaries(folders))
+    summaries = read_study_summaries(folders)
+    curves, trial0 = convergence_frame(summaries), trial0_frame(summaries)
     recs, bad = load_sweeps(dirs, strict=strict, allow_unverified=allow_unverified)
     if out is None:
         if len(dirs) != 1:
@@ -142,7 +145,7 @@ def write_report(
     tracks = tracks_frame(verdicts.families)
     studies = studies_frame(recs)
     gain = tuning_gain(verdicts.families)
-    convergence = convergence_table(curves)
+    convergence = convergence_table(curves, protocol_reruns(trial0, verdicts.families.runs))
     # A table of the tracks beside the protocol's is written only where there is one; a
     # leftover of an earlier build into the same folder (its tuned rows since withdrawn)
     # is removed, so no file in ``out`` describes records that are not there.

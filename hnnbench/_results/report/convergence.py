@@ -18,10 +18,11 @@ from typing import Any, Optional
 import pandas as pd
 
 from hnnbench._contracts.errors import DataError
+from hnnbench._contracts.names import DEFAULT_TRACK
 from hnnbench._record.codec import decode_number
 from hnnbench._record.store import parse_file
 from hnnbench._record.tracks import study_summary_name
-from hnnbench._results.leaderboard import metric_declarations
+from hnnbench._results.leaderboard import metric_declarations, text_column
 from hnnbench._results.report.style import panel_grid, save_panels
 from hnnbench._results.report.tables import md_table
 
@@ -34,18 +35,22 @@ __all__ = [
     "convergence_markdown",
     "convergence_table",
     "field_problem",
+    "protocol_reruns",
     "read_study_summaries",
     "summary_problem",
+    "trial0_frame",
 ]
 
 _NONE = type(None)
 #: The fields of a study summary this module reads, with the JSON types each may hold.
 SUMMARY_FIELDS: dict[str, tuple[type, ...]] = {
+    "profile": (str,),
     "system": (str,),
     "model": (str,),
     "fold": (int, _NONE),
     "steps": (int,),
     "seeds_per_trial": (int,),
+    "trial_seeds": (list,),
     "trials": (list,),
 }
 #: The fields of each of a summary's ``trials`` this module reads (a trial's ``value``
@@ -59,6 +64,8 @@ TRIAL_FIELDS: dict[str, tuple[type, ...]] = {
     "value": (float, int, str, _NONE),
     "cpu_s": (float, int),
     "last_step": (int, _NONE),
+    "protocol": (bool,),
+    "seed_values": (list, _NONE),
 }
 
 #: The columns of :func:`convergence_table`.
@@ -76,7 +83,13 @@ CONVERGENCE_COLUMNS = (
     "second_half_gain",
     "equal_cpu_s",
     "best_at_equal_cpu",
+    "protocol_seeds",
+    "protocol_apart",
 )
+
+#: Trial 0 and a protocol record of the same settings and seed agree within this factor
+#: where nothing but the process differs (the same code on the same class of CPU).
+SAME_RUN = 1.0001
 
 
 def field_problem(data: Mapping[str, Any], fields: Mapping[str, tuple[type, ...]]) -> str | None:
@@ -102,6 +115,9 @@ def summary_problem(summary: Any) -> str | None:
     problem = field_problem(summary, SUMMARY_FIELDS)
     if problem:
         return problem
+    seeds = summary["trial_seeds"]
+    if not all(type(s) is int and s >= 0 for s in seeds):
+        return f"trial_seeds: {seeds!r} is not a list of seeds (integers >= 0)"
     if summary["fold"] is not None and summary["fold"] < 0:
         return f"fold: {summary['fold']} is not a fold number (0 or more)"
     for key in ("steps", "seeds_per_trial"):
@@ -121,6 +137,12 @@ def summary_problem(summary: Any) -> str | None:
         if trial["last_step"] is not None and not 0 <= trial["last_step"] <= summary["steps"]:
             step, steps = trial["last_step"], summary["steps"]
             return f"trial {trial['number']}: last_step {step} is not within 0-{steps}"
+        values = trial["seed_values"]
+        if values is not None and (
+            len(values) != len(seeds)
+            or not all(isinstance(decode_number(v), (int, float)) for v in values)
+        ):
+            return f"trial {trial['number']}: seed_values {values!r} are not a number per seed"
         if trial["number"] in numbers:
             return f"trial {trial['number']} is given twice"
         numbers.add(trial["number"])
@@ -206,7 +228,56 @@ def _best_at(curve: pd.DataFrame, cpu_s: float) -> float:
     return float(reached["best"].iloc[-1]) if len(reached) else math.nan
 
 
-def convergence_table(frame: pd.DataFrame) -> pd.DataFrame:
+def trial0_frame(summaries: Sequence[Mapping[str, Any]]) -> pd.DataFrame:
+    """The protocol trial (trial 0: the protocol's settings) of each (checked) study
+    summary, a row per trial seed: ``profile``, ``system``, ``model``, ``fold``,
+    ``seed`` and ``value``, its criterion on that seed (none where the trial has no
+    per-seed values)."""
+    rows = [
+        {"profile": summary["profile"], "system": summary["system"], "model": summary["model"],
+         "fold": summary["fold"], "seed": seed, "value": float(decode_number(value))}
+        for summary in summaries
+        for trial in summary["trials"]
+        if trial["protocol"] and trial["seed_values"] is not None
+        for seed, value in zip(summary["trial_seeds"], trial["seed_values"], strict=True)
+    ]  # fmt: skip
+    return pd.DataFrame(rows, columns=["profile", "system", "model", "fold", "seed", "value"])
+
+
+def protocol_reruns(trial0: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
+    """Trial 0 of each study against the protocol track's records of its model on the
+    same seeds (``runs``: the families' records frame, its ``criterion_value`` the
+    criterion at the scored checkpoint): one row per study with ``protocol_seeds``, the
+    seeds both have, and ``protocol_apart``, the largest factor between the two values
+    on one of them (1: the same; NaN without a shared seed, as on a measured system,
+    whose trial seeds have no protocol record). Trial 0 re-runs the protocol's
+    settings, so beyond :data:`SAME_RUN` the two runs' processes differed (code, class
+    of CPU, seeds trained in one batch)."""
+    keys = ["profile", "system", "model", "seed"]
+    columns = ["system", "model", "fold", "protocol_seeds", "protocol_apart"]
+    if trial0.empty or runs.empty or "criterion_value" not in runs:
+        return pd.DataFrame(columns=columns)
+    protocol = runs.assign(track=text_column(runs, "track", DEFAULT_TRACK))
+    protocol = protocol[
+        (protocol["track"] == DEFAULT_TRACK) & (text_column(protocol, "variant") == "")
+    ]
+    theirs = protocol[keys].assign(
+        protocol=pd.to_numeric(protocol["criterion_value"], errors="coerce")
+    )
+    both = trial0.merge(theirs.drop_duplicates(keys), on=keys, how="left")
+    both = both.assign(fold=both["fold"].map(lambda v: -1 if v is None or pd.isna(v) else int(v)))
+    rows = []
+    for (system, model, fold), group in both.groupby(["system", "model", "fold"], sort=False):
+        pairs = group[(group["value"] > 0) & (group["protocol"] > 0)]
+        apart = (pairs["value"] / pairs["protocol"]).map(lambda r: max(r, 1 / r))
+        rows.append(
+            {"system": system, "model": model, "fold": fold, "protocol_seeds": len(pairs),
+             "protocol_apart": float(apart.max()) if len(pairs) else math.nan}
+        )  # fmt: skip
+    return pd.DataFrame(rows, columns=columns)
+
+
+def convergence_table(frame: pd.DataFrame, reruns: Optional[pd.DataFrame] = None) -> pd.DataFrame:
     """One row per study of :func:`convergence_frame`: its trials, CPU seconds and best
     criterion; ``steps_spent``, the optimiser steps its trials trained (over their
     seeds), and ``cap_used``, their fraction of the budget's trials x steps x seeds
@@ -217,7 +288,9 @@ def convergence_table(frame: pd.DataFrame) -> pd.DataFrame:
     nothing); ``equal_cpu_s``, the CPU of the cheapest whole study of the same system
     and fold among those with a completed trial (a study whose every trial failed, a
     model the system skips, sets none); ``best_at_equal_cpu``, the best this study had
-    reached at that CPU. A study with no completed trial has NaN and no best trial."""
+    reached at that CPU; ``protocol_seeds`` and ``protocol_apart``, its trial 0 against
+    the protocol records of its seeds (:func:`protocol_reruns`; 0 and NaN without
+    ``reruns``). A study with no completed trial has NaN and no best trial."""
     lower = _lower_is_better()
     if frame.empty:
         return pd.DataFrame(columns=list(CONVERGENCE_COLUMNS))
@@ -225,6 +298,13 @@ def convergence_table(frame: pd.DataFrame) -> pd.DataFrame:
         fold=frame["fold"].map(lambda v: -1 if v is None or pd.isna(v) else int(v))
     )
     keys = ["system", "fold", "model"]
+    rerun = {
+        (r["system"], r["model"], int(r["fold"])): {
+            "protocol_seeds": int(r["protocol_seeds"]),
+            "protocol_apart": float(r["protocol_apart"]),
+        }
+        for _, r in (reruns if reruns is not None else pd.DataFrame()).iterrows()
+    }
     finished = frame.groupby(keys, sort=False)["best"].last().notna()
     totals = frame.groupby(keys, sort=False)["cpu_s"].max()[finished]
     rows = []
@@ -254,6 +334,9 @@ def convergence_table(frame: pd.DataFrame) -> pd.DataFrame:
                 else math.nan,
                 "equal_cpu_s": float(cheapest),
                 "best_at_equal_cpu": _best_at(curve, float(cheapest)),
+                **rerun.get(
+                    (system, model, fold), {"protocol_seeds": 0, "protocol_apart": math.nan}
+                ),
             }
         )
     table = pd.DataFrame(rows, columns=list(CONVERGENCE_COLUMNS))
@@ -326,6 +409,23 @@ def convergence_markdown(table: pd.DataFrame) -> str:
         )
         + "."
     )
+    paired = table[table["protocol_seeds"].gt(0) & table["protocol_apart"].notna()]
+    if len(paired):
+        apart = paired[paired["protocol_apart"] > SAME_RUN]
+        sentence += (
+            f" Trial 0 trains the protocol's settings on the trial seeds: against the "
+            f"protocol records of those seeds, {len(paired) - len(apart)} of {len(paired)} "
+            f"studies agree within ×{SAME_RUN:g} on every seed"
+            + (
+                "; "
+                + ", ".join(f"{study(r)} ×{r['protocol_apart']:.4g}" for _, r in apart.iterrows())
+                + " differ (the two runs' processes differed: code, class of CPU or seeds "
+                "trained in one batch, as their records say)"
+                if len(apart)
+                else ""
+            )
+            + "."
+        )
     unread = table[gains.isna()]
     if len(unread):
         sentence += (
@@ -372,6 +472,7 @@ def convergence_markdown(table: pd.DataFrame) -> str:
             "second half ×": table["second_half_gain"].map(lambda v: num(v, ".2f")),
             "equal CPU s": table["equal_cpu_s"].map(lambda v: num(v, ",.0f")),
             "best at equal CPU": table["best_at_equal_cpu"].map(lambda v: num(v, ".3g")),
+            "trial 0 / protocol ×": table["protocol_apart"].map(lambda v: num(v, ".4g")),
         }
     )
     if shown["fold"].eq("—").all():
