@@ -418,7 +418,7 @@ def convergence_markdown(table: pd.DataFrame) -> str:
             f"studies agree within ×{SAME_RUN:g} on every seed"
             + (
                 "; "
-                + ", ".join(f"{study(r)} ×{r['protocol_apart']:.4g}" for _, r in apart.iterrows())
+                + ", ".join(f"{study(r)} ×{r['protocol_apart']:.5g}" for _, r in apart.iterrows())
                 + " differ (the two runs' processes differed: code, class of CPU or seeds "
                 "trained in one batch, as their records say)"
                 if len(apart)
