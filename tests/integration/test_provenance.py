@@ -21,7 +21,9 @@ from hnnbench import _registry as registry
 from hnnbench._contracts.errors import HnnbenchError
 from hnnbench._contracts.paths import sha256_file
 from hnnbench._contracts.plugin import Dataset
+from hnnbench._record.codec import encode
 from hnnbench._results import check
+from hnnbench._results.check.rerun import rerun_config
 from hnnbench._running.compose import compose
 from hnnbench._running.config import prepare_job
 from hnnbench._running.data_hashes import (
@@ -32,6 +34,7 @@ from hnnbench._running.data_hashes import (
     hashes_on,
 )
 from hnnbench._running.dataset_cache import cached
+from hnnbench._running.fresh_job import run_fresh
 from hnnbench._running.job import run_job
 from tests.conftest import hnnbench as hnnbench_cli
 
@@ -407,3 +410,25 @@ def test_the_remade_data_come_from_the_installed_code_not_the_working_directory(
     answer = hashes_on(OmegaConf.to_container(cfg, resolve=True), here)
     assert isinstance(answer, dict), answer
     assert {k: answer[k] for k in DATA_HASHES} == generate_hashes(cfg, tmp_path / "fresh")
+
+
+def test_a_rerun_in_a_fresh_pinned_process_gives_a_jax_records_numbers_exactly(tmp_path):
+    """The command pins each job to one core before JAX starts, which sizes XLA's thread
+    pool; ``check --rerun`` runs its job the same way, in a fresh process
+    (``_running/fresh_job.py``), so a JAX record re-run on this machine gives its numbers
+    to the last bit, not within tolerance."""
+    directory = tmp_path / "sweep" / "spring" / "mlp_jax" / "seed0"
+    overrides = ["system=spring", "model=mlp_jax", "profile=quick", "seed=0"]
+    child = hnnbench_cli(
+        *overrides, f"hydra.run.dir={directory}", env={"HNNBENCH_CACHE_DIR": str(tmp_path / "c")}
+    )
+    assert child.returncode == 0, child.stderr[-2000:]
+    record = json.loads((directory / records.RECORD_NAME).read_text())
+    assert record["status"] == "ok" and record["cpu_pin"] is not None
+    config = {**rerun_config(record, tmp_path / "fresh-cache"), "pin_cpu": True}
+    again = run_fresh(config, tmp_path / "again", overrides=record["overrides"])
+    assert isinstance(again, dict), again
+    assert again["cpu_pin"] is not None and again["status"] == "ok"
+    # the file's JSON, as a record writes it (NaN as null)
+    assert encode(again["metrics"]) == record["metrics"]
+    assert encode(again["selection"]) == record["selection"]

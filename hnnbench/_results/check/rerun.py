@@ -162,25 +162,28 @@ def rerun(
     recs: Sequence[dict[str, Any]], spec: str, rules: tuple[CheckRule, dict[str, CheckRule]]
 ) -> Rerun:
     """Run the job ``spec`` names (:func:`addressed`: exactly one record) again
-    (:func:`rerun_config`, in a temporary directory with a fresh dataset cache) and
+    (:func:`rerun_config`, in a fresh process pinned to one core where the record's job
+    was, in a temporary directory with a fresh dataset cache) and
     compare: its status, its data hashes (the re-run's, generated now by the installed
     system, are the canonical ones), and each metric either side has with the record's
     by ``rules``, in both directions."""
     import tempfile
 
-    from omegaconf import OmegaConf
-
-    from hnnbench._running.job import run_job
+    from hnnbench._running.fresh_job import run_fresh
 
     rec = addressed(recs, spec)
     system, model = str(rec.get("system")), str(rec.get("model"))
     result = Rerun(spec)
     with tempfile.TemporaryDirectory(prefix="hnnbench-rerun-") as tmp:
         config = rerun_config(rec, Path(tmp) / "cache")
-        (outcome, *_) = run_job(
-            OmegaConf.create(config), Path(tmp) / "job", overrides=rec.get("overrides")
+        # pinned to one core before JAX starts where the record was (the command's
+        # jobs are), in a fresh process: XLA's thread pool, and so the last bits, as
+        # the record's (_running/fresh_job.py)
+        config["pin_cpu"] = rec.get("cpu_pin") is not None
+        made = run_fresh(config, Path(tmp) / "job", overrides=rec.get("overrides"))
+        again: dict[str, Any] = (
+            made if isinstance(made, dict) else {"status": "failed", "error": made}
         )
-        again = outcome.record
     here = again.get("data") or {}
     forced, tried = _data_as_its_cpu_made_them(rec, config, here)
     default, by_metric = rules
