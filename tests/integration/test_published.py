@@ -104,12 +104,9 @@ def test_the_family_table_and_the_aggregate_are_those_of_the_committed_records(r
 
 def test_the_results_page_sets_the_tracks_of_the_committed_records_side_by_side(rebuilt, committed):
     from hnnbench._results.report.convergence import (
-        convergence_frame,
         convergence_markdown,
-        convergence_table,
-        protocol_reruns,
         read_study_summaries,
-        trial0_frame,
+        studies_convergence,
     )
     from hnnbench._results.report.tuning import gain_markdown, studies_frame, tuning_gain
     from hnnbench._results.report.verdicts import tracks_frame, tracks_markdown, tuning_costs
@@ -119,8 +116,7 @@ def test_the_results_page_sets_the_tracks_of_the_committed_records_side_by_side(
     expected = tracks_markdown(tracks_frame(fams), tuning_costs(fams), gain).strip()
     if any((RESULTS / "tuning").glob("*/*.json")):  # the studies' convergence
         studies = read_study_summaries(RESULTS / "tuning")
-        reruns = protocol_reruns(trial0_frame(studies), fams.runs)
-        table = convergence_table(convergence_frame(studies), reruns)
+        table = studies_convergence(studies, fams.runs)
         expected += "\n\n" + convergence_markdown(table)
         assert len(table) == len(studies) == len(studies_frame(committed))
     assert _block(PAGE.read_text(), "tracks").strip() == expected

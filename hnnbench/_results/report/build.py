@@ -20,10 +20,8 @@ from hnnbench._results.report.convergence import (
     convergence_figure,
     convergence_frame,
     convergence_markdown,
-    convergence_table,
-    protocol_reruns,
     read_study_summaries,
-    trial0_frame,
+    studies_convergence,
 )
 from hnnbench._results.report.figures import Made, main_profile_figure, make_figures
 from hnnbench._results.report.html import page
@@ -95,7 +93,7 @@ def write_report(
     # Read (and checked) before anything is written: a summary that does not hold
     # together leaves the output as it was.
     summaries = read_study_summaries(folders)
-    curves, trial0 = convergence_frame(summaries), trial0_frame(summaries)
+    curves = convergence_frame(summaries)
     recs, bad = load_sweeps(dirs, strict=strict, allow_unverified=allow_unverified)
     if out is None:
         if len(dirs) != 1:
@@ -145,7 +143,7 @@ def write_report(
     tracks = tracks_frame(verdicts.families)
     studies = studies_frame(recs)
     gain = tuning_gain(verdicts.families)
-    convergence = convergence_table(curves, protocol_reruns(trial0, verdicts.families.runs))
+    convergence = studies_convergence(summaries, verdicts.families.runs)
     # A table of the tracks beside the protocol's is written only where there is one; a
     # leftover of an earlier build into the same folder (its tuned rows since withdrawn)
     # is removed, so no file in ``out`` describes records that are not there.

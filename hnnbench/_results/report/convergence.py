@@ -37,6 +37,7 @@ __all__ = [
     "field_problem",
     "protocol_reruns",
     "read_study_summaries",
+    "studies_convergence",
     "summary_problem",
     "trial0_frame",
 ]
@@ -341,6 +342,14 @@ def convergence_table(frame: pd.DataFrame, reruns: Optional[pd.DataFrame] = None
         )
     table = pd.DataFrame(rows, columns=list(CONVERGENCE_COLUMNS))
     return table.astype({"fold": "Int64", "best_trial": "Int64"})
+
+
+def studies_convergence(summaries: Sequence[Mapping[str, Any]], runs: pd.DataFrame) -> pd.DataFrame:
+    """The section's table of (checked) study summaries: :func:`convergence_table` of
+    their curves, with each study's trial 0 read against the protocol track's ``runs``
+    (the families' records frame; :func:`protocol_reruns`)."""
+    reruns = protocol_reruns(trial0_frame(summaries), runs)
+    return convergence_table(convergence_frame(summaries), reruns)
 
 
 def convergence_figure(frame: pd.DataFrame, path: Path) -> Optional[Path]:
