@@ -88,6 +88,8 @@ DERIVED_COLUMNS = {
     "variant": "the settings this run differs in from the others (from overrides)",
     "track": "the record's track (protocol where the record has none)",
     "tuning_cpu_s": "tuning.cpu_s: the CPU seconds of the tuning that chose a tuned run's settings",
+    "tuning_study": "tuning.study: the study that chose a tuned run's settings (one per fold "
+    "on a measured system)",
     "git_commit": "environment.git_commit",
     "machine": "environment.host, else environment.platform",
     "trained": "selection.trained (false: the run did not train; None: no selection)",
@@ -125,6 +127,7 @@ FRAME_COLUMNS = (
     "converged",
     "created_at",
     "tuning_cpu_s",
+    "tuning_study",
     "criterion_value",
     "tuning_trial_seed",
 )

@@ -199,6 +199,7 @@ def records_frame(
             "variant": variant,
             "track": track_of(rec),
             "tuning_cpu_s": tuning.get("cpu_s") if isinstance(tuning, dict) else None,
+            "tuning_study": tuning.get("study") if isinstance(tuning, dict) else None,
             "criterion_value": _selection_field(rec, "validation_loss"),
             "tuning_trial_seed": (
                 rec.get("seed") in tuning["trial_seeds"]
@@ -322,6 +323,18 @@ def seed_values(values: pd.Series) -> np.ndarray:
     """The values of a metric over seeds, as floats, NaN (not applicable) left out."""
     arr = pd.to_numeric(values, errors="coerce").to_numpy(dtype=float)
     return arr[~np.isnan(arr)]
+
+
+def tuning_cpu(group: pd.DataFrame) -> float:
+    """The CPU seconds of the studies that chose a pair's tuned settings: each study's
+    (every record of a study states it) summed over the pair's studies (one per fold on
+    a measured system; records that name no study count as one). NaN without any."""
+    if "tuning_cpu_s" not in group:
+        return math.nan
+    cpu = pd.to_numeric(group["tuning_cpu_s"], errors="coerce")
+    if not cpu.notna().any():
+        return math.nan
+    return float(cpu.groupby(text_column(group, "tuning_study")).max().sum())
 
 
 def _agg(values: pd.Series) -> tuple[float, float]:
@@ -483,13 +496,8 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
         for t in TIMINGS:
             vals = pd.to_numeric(timed[t], errors="coerce") if t in timed else pd.Series([])
             row[f"{t}_mean"] = float(vals.mean()) if vals.notna().any() else math.nan
-        if tracks:  # the tuning's CPU seconds: one study per pair, in each of its records
-            cpu = (
-                pd.to_numeric(group["tuning_cpu_s"], errors="coerce")
-                if "tuning_cpu_s" in group
-                else pd.Series([], dtype=float)
-            )
-            row["tuning_cpu_s"] = float(cpu.max()) if cpu.notna().any() else math.nan
+        if tracks:
+            row["tuning_cpu_s"] = tuning_cpu(group)
         row["git_commits"] = _distinct(group.get("git_commit"))
         row["machines"] = _distinct(group.get("machine"))
         row["dates"] = _distinct(

@@ -327,13 +327,18 @@ class Tuner:
         """The studies of ``model``: one over every final seed on a simulated system;
         on a measured one (a system whose seeds choose folds, ``System.fold``), one per
         fold of the final seeds, whose trials train seeds of that fold only, so no
-        study's selection ever read the test block its final seeds are scored on."""
+        study's selection ever read the test block its final seeds are scored on. A
+        measured system's trial seeds are the first of the fold from ``trial_seed`` on
+        that are not final seeds (the defaults: ``s + 10`` and ``s + 15`` for the final
+        seeds ``s`` and ``s + 5`` of a five-fold system): the same data, other
+        initialisations, so every final seed is one no trial trained."""
         first, count = self.request.trial_seed, self.request.seeds_per_trial
         job = self._prepared(model)
         fold = getattr(job.system_cls(job.system_cfg), "fold", None)
         if not callable(fold):
             trial_seeds = tuple(range(first, first + count))
             return [FoldGroup(None, trial_seeds, tuple(self.request.seeds))]
+        finals_all = set(self.request.seeds)
         by_fold: dict[int, list[int]] = {}
         for seed in self.request.seeds:
             by_fold.setdefault(int(fold(seed)), []).append(seed)
@@ -342,7 +347,7 @@ class Tuner:
             seeds: list[int] = []
             candidate = first
             while len(seeds) < count:
-                if int(fold(candidate)) == k:
+                if int(fold(candidate)) == k and candidate not in finals_all:
                     seeds.append(candidate)
                 candidate += 1
             out.append(FoldGroup(k, tuple(seeds), tuple(finals)))

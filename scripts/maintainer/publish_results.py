@@ -429,16 +429,84 @@ def study_problem(summary: dict[str, Any], system: str, model: str) -> str | Non
     first = next((t for t in trials if t["number"] == summary["protocol_trial"]), None)
     if summary["protocol_trial"] != 0 or first is None or first.get("protocol") is not True:
         return "its trial 0 is not the protocol's settings"
+    if (
+        first.get("state") == "complete"
+        and "protocol_value" in summary
+        and not _same_value(summary["protocol_value"], first.get("value"))
+    ):
+        return (
+            f"protocol_value {summary['protocol_value']!r} is not its trial 0's value "
+            f"{first.get('value')!r}"
+        )
+    counted = sum(t.get("state") in COUNTED for t in trials)
+    if counted > summary["trials_budget"]:
+        return f"it counts {counted} trials, more than its budget of {summary['trials_budget']}"
     selected = summary["selected"]
-    if selected is not None and not isinstance(selected.get("settings"), dict):
+    if selected is None:
+        return None
+    if not isinstance(selected.get("settings"), dict):
         return "selected: it holds no settings"
+    return _selection_problem(selected, trials)
+
+
+def _same_value(a: Any, b: Any) -> bool:
+    """Two criterion values as a summary writes them (a number, or the codec's ``"inf"``)."""
+    from hnnbench._record.codec import decode_number
+
+    try:
+        return bool(float(decode_number(a)) == float(decode_number(b)))
+    except (TypeError, ValueError):
+        return False
+
+
+def _selection_problem(selected: dict[str, Any], trials: list[dict[str, Any]]) -> str | None:
+    """Why ``selected`` is not the best completed trial of ``trials`` (its number, value
+    and settings), or ``None``."""
+    done = [t for t in trials if t.get("state") == "complete"]
+    chosen = next((t for t in done if t["number"] == selected.get("number")), None)
+    if chosen is None:
+        return f"selected: trial {selected.get('number')!r} is not a completed trial"
+    if chosen.get("settings") != selected["settings"] or not _same_value(
+        chosen.get("value"), selected.get("value")
+    ):
+        return f"selected: its settings or value are not those of its trial {chosen['number']}"
+    from hnnbench._record.codec import decode_number
+
+    best = min(float(decode_number(t.get("value"))) for t in done)
+    if float(decode_number(chosen.get("value"))) > best:
+        return (
+            f"selected: trial {chosen['number']} ({chosen.get('value')!r}) is not the best "
+            f"completed trial ({best!r})"
+        )
+    return None
+
+
+def protocol_settings_problem(summary: dict[str, Any], configs: list[dict[str, Any]]) -> str | None:
+    """Why a (checked) study's trial 0 is not the settings of the published protocol
+    records ``configs`` (their ``config``; each setting ``model.X`` read from the model's
+    config, else the system's, as ``TrainSettings.resolve`` reads it), or ``None``."""
+    first = next(t for t in summary["trials"] if t["number"] == summary["protocol_trial"])
+    settings = first.get("settings")
+    if not isinstance(settings, dict):
+        return "its trial 0 holds no settings"
+    for config in configs:
+        model, system = config.get("model") or {}, config.get("system") or {}
+        for key, value in settings.items():
+            name = key.split(".", 1)[-1]
+            have = model.get(name) if model.get(name) is not None else system.get(name)
+            if have != value:
+                return (
+                    f"its trial 0 sets {key}={value!r}, the published protocol records "
+                    f"{have!r}: trial 0 must be the protocol's settings (tune with the "
+                    "protocol's config)"
+                )
     return None
 
 
 def study_finished(summary: dict[str, Any]) -> bool:
     """Whether a (checked) study ran its budget and selected a trial."""
     counted = sum(t.get("state") in COUNTED for t in summary["trials"])
-    return summary["selected"] is not None and counted >= summary["trials_budget"]
+    return summary["selected"] is not None and counted == summary["trials_budget"]
 
 
 def _read_summaries(roots: list[Path]) -> tuple[dict[tuple[str, str], list[dict]], list[str]]:
@@ -483,17 +551,27 @@ def _read_summaries(roots: list[Path]) -> tuple[dict[tuple[str, str], list[dict]
 
 
 def tuned_parts(
-    roots: list[Path], protocol_seeds: dict[tuple[str, str], set[int]]
+    roots: list[Path],
+    protocol_seeds: dict[tuple[str, str], set[int]],
+    protocol_configs: dict[tuple[str, str], list[dict[str, Any]]] | None = None,
 ) -> tuple[list[tuple[str, str, list[dict], Path]], list[str]]:
     """The finished pairs under the tuners' ``out=`` roots: one ``(system, model,
     summaries, final directory)`` per pair whose studies (one per fold on a measured
     system) all ran their budget, together cover the final seeds of the pair's published
     protocol records (``protocol_seeds``), and whose final runs are all written; and one
-    line per pair (or root) left waiting, saying why."""
+    line per pair (or root) left waiting, saying why. A study whose trial 0 is not the
+    settings of the pair's published protocol records (``protocol_configs``, where
+    given) is ``SystemExit``."""
     found, waiting = _read_summaries(roots)
     parts = []
     for (system, model), summaries in sorted(found.items()):
         where = f"{system}/{model}"
+        for summary in summaries:
+            problem = protocol_settings_problem(
+                summary, (protocol_configs or {}).get((system, model), [])
+            )
+            if problem:
+                raise SystemExit(f"publish: {summary['path']}: {problem}; nothing was staged")
         finals = {Path(s["final"]) for s in summaries}
         if len(finals) != 1:
             raise SystemExit(
@@ -592,10 +670,12 @@ def stage_tuned(roots: list[Path]) -> tuple[list[str], list[str]]:
 
     published = _published()
     seeds: dict[tuple[str, str], set[int]] = {}
+    configs: dict[tuple[str, str], list[dict[str, Any]]] = {}
     for r in published:
         if track_of(r) == "protocol":
             seeds.setdefault((r["system"], r["model"]), set()).add(r["seed"])
-    parts, waiting = tuned_parts(roots, seeds)
+            configs.setdefault((r["system"], r["model"]), []).append(r.get("config") or {})
+    parts, waiting = tuned_parts(roots, seeds, configs)
     if not parts:
         return [], waiting
     recs = [r for system, model, s, final in parts for r in part_records(system, model, s, final)]

@@ -615,6 +615,29 @@ def test_colours_are_the_familys_shaded_per_twin_and_stable():
     torch, jax = (style.line(m, "", families, [m]) for m in ("hnn_torch", "hnn_jax"))
     assert torch["ls"] != jax["ls"] and torch["lw"] > jax["lw"]
     assert "RdYlGn" not in figures.RANK_CMAP and "viridis" in figures.RANK_CMAP
+    # a figure that names models only (study summaries) colours them by their family
+    assert style.model_color("hnn_jax") == style.color("hnn_jax", families)
+    assert style.model_color("a_model_not_installed") == style.family_color("a_model_not_installed")
+
+
+def test_log_axes_label_a_narrow_range_with_plain_numbers_and_no_minor_labels():
+    """An axis spanning about one decade (a system's tuning CPU, 164 to 2249 s) is
+    labelled at 1, 2 and 5 per decade in plain numbers, its minor ticks unlabelled (the
+    overlapping ``2×10^2 3×10^2 4×10^2`` labels before); a wide one at decades only."""
+    from matplotlib.figure import Figure
+
+    from hnnbench._results.report.style import log_axes
+
+    fig = Figure()
+    ax = fig.subplots()
+    ax.scatter([164, 2249], [1e-6, 1e-2])
+    log_axes(ax)
+    fig.canvas.draw()
+    xs = [t.get_text() for t in ax.get_xticklabels() if t.get_text()]
+    assert {"200", "500", "1000", "2000"} <= set(xs) and not any("times" in x for x in xs)
+    assert not [t.get_text() for t in ax.xaxis.get_minorticklabels() if t.get_text()]
+    ys = {t.get_text() for t in ax.get_yticklabels() if t.get_text()}
+    assert "0.0001" in ys and "0.0002" not in ys
 
 
 def test_a_long_figure_title_is_wrapped_to_the_figure_width():

@@ -372,6 +372,23 @@ def test_tracks_are_separate_rows_never_ranked_together():
     assert "track" not in leaderboard(recs[:4]) and "tuning_cpu_s" not in leaderboard(recs[:4])
 
 
+def test_a_pairs_tuning_cpu_is_the_sum_of_its_studies_one_per_fold():
+    """A measured system's tuned row holds one study per fold, each stated in its
+    records: the row's ``tuning_cpu_s`` sums the studies (each counted once), as the
+    studies table and the cost figure do; records naming no study count as one."""
+    from hnnbench._results.leaderboard import tuning_cpu
+
+    recs = [_record("hnn_jax", s, "tuned") for s in range(4)]
+    for seed, rec in enumerate(recs):
+        rec["tuning"].update(study=f"real_pendulum/hnn_jax/fold{seed % 2}", cpu_s=10.0 + seed % 2)
+    board = leaderboard(recs)
+    assert board["tuning_cpu_s"].tolist() == [21.0]
+    assert tuning_cpu(records_frame(recs)) == 21.0
+    for rec in recs:
+        del rec["tuning"]["study"]
+    assert tuning_cpu(records_frame(recs)) == 11.0
+
+
 def test_the_tracks_table_says_what_each_familys_tuning_cost():
     from hnnbench._results.families import families
     from hnnbench._results.leaderboard import records_frame
@@ -684,8 +701,10 @@ def test_the_protocol_trial_is_trial_0_and_never_pruned(tmp_path):
 
 def test_a_measured_system_gets_one_study_per_fold_whose_trials_never_see_its_test_block():
     """On a measured system each fold of the final seeds has its own study, whose trials
-    train seeds of that fold only: the selection for a final seed never read its test
-    block (docs/TUNING.md); a simulated system has one study on seeds 0 and 1."""
+    train seeds of that fold only and none of the final seeds (seeds s + 10 and s + 15:
+    the fold's data, other initialisations): the selection for a final seed never read
+    its test block, and no final run repeats a trial (docs/TUNING.md); a simulated
+    system has one study on seeds 0 and 1."""
     from hnnbench._tuning import tuner as tuning
     from hnnbench._tuning.request import DEFAULT_SEEDS, TuneRequest
 
@@ -694,9 +713,13 @@ def test_a_measured_system_gets_one_study_per_fold_whose_trials_never_see_its_te
     groups = tuning.Tuner(request).groups("hnn_jax")
     assert [g.fold for g in groups] == [4, 3, 2, 1, 0]
     for g in groups:
-        assert len(g.trial_seeds) == 2 and set(g.trial_seeds) == set(g.final_seeds)
+        assert g.trial_seeds == tuple(s + 10 for s in g.final_seeds)
         assert all((4 - s) % 5 == g.fold for s in (*g.trial_seeds, *g.final_seeds))
     assert sorted(s for g in groups for s in g.final_seeds) == list(range(10))
+    late = TuneRequest(
+        system="real_pendulum", models=["hnn_jax"], trials=2, seeds=[0, 1], trial_seed=1
+    )
+    assert [g.trial_seeds for g in tuning.Tuner(late).groups("hnn_jax")] == [(5, 10), (6, 11)]
     simulated = TuneRequest(system="spring", models=["hnn_jax"], trials=2, seeds_per_trial=3)
     (one,) = tuning.Tuner(simulated).groups("hnn_jax")
     assert one.trial_seeds == (0, 1, 2) and one.final_seeds == tuple(range(10))

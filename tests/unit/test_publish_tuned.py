@@ -32,7 +32,7 @@ def write_study(
     ``change`` overrides fields of the summary. Returns the summary's path."""
     done = budget if done is None else done
     study = f"{system}/{model}" + ("" if fold is None else f"/fold{fold}")
-    selected = {"number": 3, "value": 1e-4, "settings": {"model.lr": lr}}
+    selected = {"number": 3, "value": 1e-3 / 4, "settings": {"model.lr": lr}}
     trials = [
         {
             "number": n,
@@ -220,6 +220,30 @@ def _edit(path: Path, **fields: Any) -> None:
             "its trial 0 is not the protocol's settings",
         ),
         (lambda out, p: _edit(p, steps="2000"), "steps: '2000' is not int"),
+        (lambda out, p: _edit(p, protocol_value=1e-4), "is not its trial 0's value"),
+        (lambda out, p: _edit(p, trials_budget=3), "more than its budget of 3"),
+        (
+            lambda out, p: _edit(
+                p, selected={"number": 2, "value": 1e-3 / 3, "settings": {"model.lr": 0.003}}
+            ),
+            "is not the best completed trial",
+        ),
+        (
+            lambda out, p: _edit(
+                p, selected={"number": 5, "value": 1e-5, "settings": {"model.lr": 0.003}}
+            ),
+            "trial 5 is not a completed trial",
+        ),
+        (
+            lambda out, p: _edit(
+                p,
+                trials=[
+                    {**t, "settings": {"model.lr": 0.002}} if t["number"] == 0 else t
+                    for t in json.loads(p.read_text())["trials"]
+                ],
+            ),
+            "its trial 0 sets model.lr=0.002, the published protocol records",
+        ),
         (
             lambda out, p: _bad_final(out, 1, selected={"model.lr": 0.004}),
             "its settings are not its study's selection",

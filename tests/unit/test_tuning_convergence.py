@@ -201,7 +201,7 @@ def test_simulated_and_measured_systems_and_a_skipped_study_share_one_table():
     text = convergence_markdown(table)
     assert "2 of 2 studies had their best criterion" in text
     assert "No completed trial (or no finite criterion): spring/b." in text
-    assert [line.split("|")[3].strip() for line in text.splitlines()[5:]] == ["—", "—", "3"]
+    assert [line.split("|")[3].strip() for line in text.splitlines()[6:]] == ["—", "—", "3"]
 
 
 def test_a_misnamed_or_repeated_summary_is_refused(tmp_path: Path):

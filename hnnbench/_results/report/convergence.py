@@ -23,7 +23,7 @@ from hnnbench._record.codec import decode_number
 from hnnbench._record.store import parse_file
 from hnnbench._record.tracks import study_summary_name
 from hnnbench._results.leaderboard import metric_declarations, text_column
-from hnnbench._results.report.style import panel_grid, save_panels
+from hnnbench._results.report.style import log_axes, model_color, panel_grid, save_panels
 from hnnbench._results.report.tables import md_table
 
 __all__ = [
@@ -363,8 +363,7 @@ def convergence_figure(frame: pd.DataFrame, path: Path) -> Optional[Path]:
         return None
     panels = list(frame.groupby("system", sort=False))
     fig, axes = panel_grid(len(panels))
-    models = list(dict.fromkeys(frame["model"].astype(str)))
-    colours = {m: f"C{i % 10}" for i, m in enumerate(models)}
+    colours = {m: model_color(m) for m in dict.fromkeys(frame["model"].astype(str))}
     for ax, (system, group) in zip(axes, panels, strict=False):
         studies = list(group.groupby(["model", "fold"], sort=False, dropna=False))
         folded = group["fold"].notna().any()
@@ -379,8 +378,7 @@ def convergence_figure(frame: pd.DataFrame, path: Path) -> Optional[Path]:
         for _, fold in group.groupby(group["fold"].fillna(-1), sort=False):
             cheapest = fold.groupby("model")["cpu_s"].max().min()  # each fold's own
             ax.axvline(cheapest, color="0.5", linestyle=":", linewidth=1)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+        log_axes(ax)
         ax.set_title(str(system), fontsize=9)
         ax.set_xlabel("tuning CPU s spent (trials so far)", fontsize=8)
         ax.set_ylabel("best criterion so far", fontsize=8)
@@ -481,9 +479,9 @@ def convergence_markdown(table: pd.DataFrame) -> str:
             "second half ×": table["second_half_gain"].map(lambda v: num(v, ".2f")),
             "equal CPU s": table["equal_cpu_s"].map(lambda v: num(v, ",.0f")),
             "best at equal CPU": table["best_at_equal_cpu"].map(lambda v: num(v, ".3g")),
-            "trial 0 / protocol ×": table["protocol_apart"].map(lambda v: num(v, ".4g")),
+            "trial 0 / protocol ×": table["protocol_apart"].map(lambda v: num(v, ".5g")),
         }
     )
     if shown["fold"].eq("—").all():
         shown = shown.drop(columns=["fold"])
-    return "\n".join(lines) + md_table(shown)
+    return "\n".join([*lines, ""]) + md_table(shown)

@@ -26,6 +26,8 @@ __all__ = [
     "color",
     "family_color",
     "line",
+    "log_axes",
+    "model_color",
     "model_keys",
     "panel_grid",
     "save_panels",
@@ -127,6 +129,31 @@ def color(model: str, families: dict[str, str], models: Sequence[str] = ()) -> s
     family = families.get(model)
     rank = twin_rank(model, family)
     return _darker(family_color(_key(model, family)), SHADES[rank % len(SHADES)])
+
+
+def model_color(model: str) -> str:
+    """The colour of ``model`` by the family its installed plugin declares (:func:`color`),
+    for a figure whose rows name models only (a study summary); a model not installed
+    here: its name's."""
+    _, twins = _layout()
+    family = next((key for key, names in twins.items() if model in names), None)
+    return color(model, {model: family} if family else {})
+
+
+def log_axes(ax: Any) -> None:
+    """Both axes of ``ax`` on log scales, labelled with plain numbers (``200``, ``0.001``)
+    at the decades and at 2 and 5 between them, so that the labels of an axis spanning
+    about one decade do not run into one another."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    for axis, (low, high) in ((ax.xaxis, ax.get_xlim()), (ax.yaxis, ax.get_ylim())):
+        narrow = 0 < low < high and math.log10(high / low) < 2
+        axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0) if narrow else (1.0,)))
+        axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        axis.set_minor_locator(LogLocator(base=10, subs=tuple(range(2, 10))))
+        axis.set_minor_formatter(NullFormatter())
 
 
 def line(

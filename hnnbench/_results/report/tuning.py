@@ -17,12 +17,12 @@ from hnnbench._record.tracks import track_of
 from hnnbench._results import stats
 from hnnbench._results.families import Families
 from hnnbench._results.leaderboard import flag_column, metric_declarations, text_column
-from hnnbench._results.report.style import panel_grid, save_panels
+from hnnbench._results.report.style import family_color, log_axes, panel_grid, save_panels
 from hnnbench._results.report.tables import effect_text, md_table
 
 __all__ = [
     "STUDY_COLUMNS",
-    "UNSEEN_CRITERION",
+    "CRITERION_ROW",
     "cost_figure",
     "gain_markdown",
     "studies_frame",
@@ -39,6 +39,7 @@ STUDY_COLUMNS = (
     "criterion",
     "seeds_per_trial",
     "trials",
+    "completed",
     "steps",
     "budget",
     "cpu_s",
@@ -58,9 +59,10 @@ def _number(value: Any) -> float:
 def studies_frame(recs: Sequence[Mapping[str, Any]]) -> pd.DataFrame:
     """One row per study of the tuned records (a model's study on a system, one per
     fold on a measured system): its criterion, seeds per trial, trials, steps, the
-    declared budget (trials x steps x seeds per trial), its CPU seconds (in all and per
-    trial), the selected trial's criterion (``best``) and the protocol trial's
-    (``protocol``). Empty without tuned records."""
+    declared budget (trials x steps x seeds per trial), how many trials ran to the end
+    (``completed``: the candidates its selection chose from; the rest were pruned), its
+    CPU seconds (in all and per trial), the selected trial's criterion (``best``) and
+    the protocol trial's (``protocol``). Empty without tuned records."""
     rows: dict[tuple[Any, ...], dict[str, Any]] = {}
     for rec in recs:
         tuning = rec.get("tuning")
@@ -85,6 +87,7 @@ def studies_frame(recs: Sequence[Mapping[str, Any]]) -> pd.DataFrame:
             "criterion": tuning.get("criterion") or tuning.get("objective"),
             "seeds_per_trial": seeds,
             "trials": trials,
+            "completed": tuning.get("completed"),
             "steps": steps,
             "budget": f"{trials} x {steps} x {seeds}",
             "cpu_s": _number(tuning.get("cpu_s")),
@@ -96,8 +99,8 @@ def studies_frame(recs: Sequence[Mapping[str, Any]]) -> pd.DataFrame:
 
 
 #: The tuning gain's row of the criterion the studies selected on, read at each run's
-#: scored checkpoint on the final seeds no trial of its study trained.
-UNSEEN_CRITERION = "criterion_unseen_seeds"
+#: scored checkpoint (``selection.validation_loss``).
+CRITERION_ROW = "criterion"
 
 
 def _paired(
@@ -123,16 +126,17 @@ def _paired(
 
 def tuning_gain(fams: Families, metrics: Optional[Sequence[str]] = None) -> pd.DataFrame:
     """The tuning gain per (profile, system, family, metric of ``metrics``, default
-    every ranked one with values): the tuned track against the protocol track on the
-    seeds both ran, paired by seed (:func:`_paired`, the tuned side as the leader:
-    positive where tuning helped, negative where it hurt), with ``n`` paired seeds, the
-    median ``gain``, its interval ``low``-``high`` and the interval's ``coverage``;
-    ``scale``: ``log`` (a log10 ratio) or ``linear``. With the default metrics, a row
-    :data:`UNSEEN_CRITERION` too: the selection criterion (``criterion_value``) on the
-    final seeds its study's trials never trained (``tuning_trial_seed`` false): whether
-    the selection's margin over the protocol's settings holds on fresh initialisations,
-    or was its trial seeds' luck (none on a measured system: a fold's study trains its
-    own final seeds). Empty without both tracks."""
+    every ranked one with values): the tuned track against the protocol track, paired
+    by seed (:func:`_paired`, the tuned side as the leader: positive where tuning
+    helped, negative where it hurt), on the final seeds no trial of the family's study
+    trained (``tuning_trial_seed`` false; a trial seed's final run is the selected
+    trial again, whose score chose it, so its gain carries the selection's luck), with
+    ``n`` paired seeds, the median ``gain``, its interval ``low``-``high`` and the
+    interval's ``coverage``; ``scale``: ``log`` (a log10 ratio) or ``linear``. With the
+    default metrics, a row :data:`CRITERION_ROW` too: the selection criterion
+    (``criterion_value``), whether the selection's margin over the protocol's settings
+    holds on fresh initialisations or was its trial seeds' luck. A family none of whose
+    final seeds is unseen has no row. Empty without both tracks."""
     runs = fams.runs
     columns = ["profile", "system", "family", "metric", "n", "gain", "low", "high", "coverage"]
     if runs.empty or "track" not in runs:
@@ -151,19 +155,20 @@ def tuning_gain(fams: Families, metrics: Optional[Sequence[str]] = None) -> pd.D
         tuned, protocol = group[group["track"] == "tuned"], group[group["track"] == DEFAULT_TRACK]
         if tuned.empty or protocol.empty:
             continue
+        tuned = tuned[~flag_column(tuned, "tuning_trial_seed", True)]
         for family in [f for f in order if f in set(tuned["family"].astype(str))]:
             a = tuned[tuned["family"].astype(str) == family]
             b = protocol[protocol["family"].astype(str) == family]
             where = {"profile": profile, "system": system, "family": family}
+            wanted = [(CRITERION_ROW, "criterion_value", "lower", "log")] if criterion else []
             for metric in metrics:
                 decl = declared.get(metric)
-                pair = None if decl is None else _paired(a, b, metric, decl.better, decl.scale)
+                if decl is not None:
+                    wanted.append((metric, metric, decl.better, decl.scale))
+            for name, column, better, scale in wanted:
+                pair = _paired(a, b, column, better, scale)
                 if pair is not None:
-                    rows.append({**where, "metric": metric, **pair})
-            unseen = a[~flag_column(a, "tuning_trial_seed", True)]
-            pair = _paired(unseen, b, "criterion_value", "lower", "log") if criterion else None
-            if pair is not None:
-                rows.append({**where, "metric": UNSEEN_CRITERION, **pair})
+                    rows.append({**where, "metric": name, **pair})
     return pd.DataFrame(rows, columns=[*columns, "scale"])
 
 
@@ -193,21 +198,21 @@ def gain_markdown(gain: pd.DataFrame, studies: pd.DataFrame) -> str:
         lines += [
             "## Tuning gain",
             "",
-            "The tuned track against the protocol track, family by family, on the seeds "
-            "both ran, paired by seed: the median over seeds of protocol / tuned (a "
-            "lower-is-better metric; tuned / protocol for a higher-is-better one; a "
-            "difference on a linear scale), with its order-statistic interval "
+            "The tuned track against the protocol track, family by family, paired by "
+            "seed, on the final seeds no trial of the family's study trained (their number "
+            "in brackets: seeds 2 to 9 where the trials trained seeds 0 and 1; a trial "
+            "seed's final run is the selected trial again, whose own score chose it): the "
+            "median over seeds of protocol / tuned (a lower-is-better metric; tuned / "
+            "protocol for a higher-is-better one; a difference on a linear scale), with its "
+            "order-statistic interval "
             f"(coverage at least {stats.CONFIDENCE:.0%} from 6 seeds; the whole range "
-            "below) and the number of paired seeds. Above ×1 (or +) tuning helped; below "
-            "×1 (or −) it made the family worse on the final seeds, although its "
-            "selection was never worse than the protocol's settings on the criterion "
-            "within its study (the protocol's settings are trial 0 of every study): a "
-            "winner's curse, or a criterion that does not carry to the metric. The row "
-            f"`{UNSEEN_CRITERION}` is the criterion the studies selected on, at each run's "
-            "scored checkpoint, on the final seeds no trial of its study trained (seeds 2 "
-            "to 9 of a simulated system; none on a measured one, whose fold studies train "
-            "their fold's own final seeds): near ×1 the selection's margin over the "
-            "protocol's settings was its trial seeds' luck, within seed noise.",
+            "below). Above ×1 (or +) tuning helped; below ×1 (or −) it made the family "
+            "worse, although its selection was never worse than the protocol's settings on "
+            "the criterion within its study (the protocol's settings are trial 0 of every "
+            "study): a winner's curse, or a criterion that does not carry to the metric. "
+            f"The row `{CRITERION_ROW}` is the criterion the studies selected on, at each "
+            "run's scored checkpoint: near ×1 the selection's margin over the protocol's "
+            "settings was its trial seeds' luck, within seed noise.",
             "",
             md_table(pd.DataFrame(rows)),
             "",
@@ -215,6 +220,9 @@ def gain_markdown(gain: pd.DataFrame, studies: pd.DataFrame) -> str:
     if not studies.empty:
         shown = studies.assign(
             fold=studies["fold"].map(lambda v: "—" if v is None or pd.isna(v) else str(int(v))),
+            completed=studies["completed"].map(
+                lambda v: "—" if v is None or pd.isna(v) else str(int(v))
+            ),
             criterion=studies["criterion"].astype(str),
             cpu_s=studies["cpu_s"].map(lambda v: f"{v:,.0f}"),
             cpu_s_per_trial=studies["cpu_s_per_trial"].map(lambda v: f"{v:,.1f}"),
@@ -226,7 +234,9 @@ def gain_markdown(gain: pd.DataFrame, studies: pd.DataFrame) -> str:
             "",
             "Each study's criterion (the system's selection criterion, read on "
             "validation), its budget (trials x steps x seeds per trial: the same for "
-            "every family of a system), its CPU seconds (every trial, pruned ones "
+            "every family of a system), how many of its trials ran to the end "
+            "(`completed`, the protocol's trial among them: the candidates the selection "
+            "chose from; the pruner stopped the rest), its CPU seconds (every trial, pruned ones "
             "included; the final seeds not counted) in all and per trial, the selected "
             "trial's criterion and the protocol trial's (the mean over the trial's "
             "seeds). Equal budgets are not equal CPU: figures/tuning_cost.png plots each "
@@ -256,16 +266,13 @@ def cost_figure(studies: pd.DataFrame, path: Path) -> Optional[Path]:
     )
     panels = list(per.groupby(["profile", "system"], sort=False))
     fig, axes = panel_grid(len(panels))
-    families = list(dict.fromkeys(per["family"].astype(str)))
-    colours = {f: f"C{i % 10}" for i, f in enumerate(families)}
     for ax, ((profile, system), group) in zip(axes, panels, strict=False):
         for _, r in group.iterrows():
-            colour = colours[str(r["family"])]
+            colour = family_color(str(r["family"]))
             ax.scatter([r["cpu_s"]], [r["best"]], color=colour, label=str(r["family"]))
             if float(r["protocol"]) > 0 and math.isfinite(float(r["protocol"])):
                 ax.scatter([r["cpu_s"]], [r["protocol"]], facecolors="none", edgecolors=colour)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+        log_axes(ax)
         ax.set_title(f"{system} ({profile})", fontsize=9)
         ax.set_xlabel("tuning CPU s (all trials)", fontsize=8)
         ax.set_ylabel("criterion: selected (filled), protocol (open)", fontsize=7)
