@@ -203,7 +203,7 @@ def records_frame(
             "criterion_value": _selection_field(rec, "validation_loss"),
             "tuning_trial_seed": (
                 rec.get("seed") in tuning["trial_seeds"]
-                if isinstance(tuning, dict) and isinstance(tuning.get("trial_seeds"), list)
+                if isinstance(tuning, dict) and isinstance(tuning.get("trial_seeds"), (list, tuple))
                 else None
             ),
             "ranked": _ranked(rec),
@@ -328,13 +328,13 @@ def seed_values(values: pd.Series) -> np.ndarray:
 def tuning_cpu(group: pd.DataFrame) -> float:
     """The CPU seconds of the studies that chose a pair's tuned settings: each study's
     (every record of a study states it) summed over the pair's studies (one per fold on
-    a measured system; records that name no study count as one). NaN without any."""
+    a measured system; records that name no study count as one). NaN where a study
+    states none (a sum without it would undercount)."""
     if "tuning_cpu_s" not in group:
         return math.nan
     cpu = pd.to_numeric(group["tuning_cpu_s"], errors="coerce")
-    if not cpu.notna().any():
-        return math.nan
-    return float(cpu.groupby(text_column(group, "tuning_study")).max().sum())
+    per_study = cpu.groupby(text_column(group, "tuning_study")).max()
+    return float(per_study.sum()) if per_study.notna().all() and len(per_study) else math.nan
 
 
 def _agg(values: pd.Series) -> tuple[float, float]:

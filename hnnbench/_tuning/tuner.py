@@ -343,13 +343,20 @@ class Tuner:
         for seed in self.request.seeds:
             by_fold.setdefault(int(fold(seed)), []).append(seed)
         out = []
+        # a bounded search: a fold rule that gives fold k too few seeds in this range
+        # (a periodic rule gives it hundreds) is refused rather than searched forever
+        last = max(first, *finals_all) + (len(by_fold) + 1) * count * 100
         for k, finals in by_fold.items():
-            seeds: list[int] = []
-            candidate = first
-            while len(seeds) < count:
-                if int(fold(candidate)) == k and candidate not in finals_all:
-                    seeds.append(candidate)
-                candidate += 1
+            seeds = [c for c in range(first, last) if int(fold(c)) == k and c not in finals_all][
+                :count
+            ]
+            if len(seeds) < count:
+                raise ConfigError(
+                    f"{self.system}: fold {k} has {len(seeds)} seed(s) from trial_seed={first} "
+                    f"to {last - 1} that are not final seeds, and a trial needs "
+                    f"seeds_per_trial={count}. Use fewer seeds per trial, or check the "
+                    "system's fold rule (System.fold)."
+                )
             out.append(FoldGroup(k, tuple(seeds), tuple(finals)))
         return out
 

@@ -449,20 +449,30 @@ def study_problem(summary: dict[str, Any], system: str, model: str) -> str | Non
     return _selection_problem(selected, trials)
 
 
-def _same_value(a: Any, b: Any) -> bool:
-    """Two criterion values as a summary writes them (a number, or the codec's ``"inf"``)."""
+def _value(value: Any) -> float | None:
+    """A criterion value as a summary writes it (a number, or the codec's ``"inf"``) as
+    a float; ``None`` where it is neither."""
     from hnnbench._record.codec import decode_number
 
-    try:
-        return bool(float(decode_number(a)) == float(decode_number(b)))
-    except (TypeError, ValueError):
-        return False
+    value = decode_number(value)
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+
+
+def _same_value(a: Any, b: Any) -> bool:
+    """Whether two criterion values as a summary writes them are the same number."""
+    x, y = _value(a), _value(b)
+    return x is not None and x == y
 
 
 def _selection_problem(selected: dict[str, Any], trials: list[dict[str, Any]]) -> str | None:
-    """Why ``selected`` is not the best completed trial of ``trials`` (its number, value
-    and settings), or ``None``."""
+    """Why ``selected`` is not the best completed trial of ``trials`` by the tuner's
+    objective (its number, value and settings), or ``None``."""
+    from hnnbench._tuning.tuner import objective_metric
+
     done = [t for t in trials if t.get("state") == "complete"]
+    bad = next((t for t in done if _value(t.get("value")) is None), None)
+    if bad is not None:
+        return f"trial {bad['number']}: value {bad.get('value')!r} is not a number"
     chosen = next((t for t in done if t["number"] == selected.get("number")), None)
     if chosen is None:
         return f"selected: trial {selected.get('number')!r} is not a completed trial"
@@ -470,36 +480,54 @@ def _selection_problem(selected: dict[str, Any], trials: list[dict[str, Any]]) -
         chosen.get("value"), selected.get("value")
     ):
         return f"selected: its settings or value are not those of its trial {chosen['number']}"
-    from hnnbench._record.codec import decode_number
-
-    best = min(float(decode_number(t.get("value"))) for t in done)
-    if float(decode_number(chosen.get("value"))) > best:
+    sign = 1.0 if objective_metric().better == "lower" else -1.0
+    best = min(done, key=lambda t: sign * (_value(t["value"]) or 0.0))
+    if sign * (_value(chosen["value"]) or 0.0) > sign * (_value(best["value"]) or 0.0):
         return (
-            f"selected: trial {chosen['number']} ({chosen.get('value')!r}) is not the best "
-            f"completed trial ({best!r})"
+            f"selected: trial {chosen['number']} ({chosen['value']!r}) is not the best "
+            f"completed trial (trial {best['number']}: {best['value']!r})"
         )
     return None
 
 
 def protocol_settings_problem(summary: dict[str, Any], configs: list[dict[str, Any]]) -> str | None:
     """Why a (checked) study's trial 0 is not the settings of the published protocol
-    records ``configs`` (their ``config``; each setting ``model.X`` read from the model's
-    config, else the system's, as ``TrainSettings.resolve`` reads it), or ``None``."""
+    records ``configs`` (their ``config``), or ``None``. A setting ``model.X`` is read
+    from each config as the protocol job resolved it: the model's value, else, for a
+    training field (``TrainSettings``), the system's. The configs must agree with one
+    another on every setting first."""
+    from hnnbench._contracts.plugin import SystemConfig
+
     first = next(t for t in summary["trials"] if t["number"] == summary["protocol_trial"])
     settings = first.get("settings")
     if not isinstance(settings, dict):
         return "its trial 0 holds no settings"
-    for config in configs:
+
+    def resolved(config: dict[str, Any], name: str) -> Any:
         model, system = config.get("model") or {}, config.get("system") or {}
-        for key, value in settings.items():
-            name = key.split(".", 1)[-1]
-            have = model.get(name) if model.get(name) is not None else system.get(name)
-            if have != value:
-                return (
-                    f"its trial 0 sets {key}={value!r}, the published protocol records "
-                    f"{have!r}: trial 0 must be the protocol's settings (tune with the "
-                    "protocol's config)"
-                )
+        if model.get(name) is None and name in SystemConfig.TRAINING_FIELDS:
+            return system.get(name)
+        return model.get(name)
+
+    for key, value in settings.items():
+        name = key.split(".", 1)[-1]
+        seen = {repr(resolved(c, name)) for c in configs}
+        if len(seen) > 1:
+            return (
+                f"the published protocol records disagree on {key} ({', '.join(sorted(seen))}), "
+                "so trial 0 cannot be checked against them; re-publish the protocol rows"
+            )
+        have = resolved(configs[0], name) if configs else value
+        if have is None:
+            return (
+                f"the published protocol records do not state {key}, so trial 0 cannot be "
+                "checked against them"
+            )
+        if have != value:
+            return (
+                f"its trial 0 sets {key}={value!r}, the published protocol records {have!r}: "
+                "trial 0 must be the protocol's settings (tune with the protocol's config)"
+            )
     return None
 
 

@@ -411,7 +411,7 @@ def test_the_tracks_table_says_what_each_familys_tuning_cost():
     ]
     text = tracks_markdown(tracks_frame(fams), costs)
     assert "| quick     | spring   | 88    | 1,234 |" in text
-    assert "the CPU seconds of its study" in text
+    assert "the CPU seconds of its studies" in text
     # no tuned row: no cost table, and the plain text is unchanged
     protocol = recs[:2] + [_record("mlp_jax", s, "recipe", 0.1) for s in (0, 1)]
     fams = families(records_frame(protocol), leaderboard(protocol))
@@ -699,7 +699,9 @@ def test_the_protocol_trial_is_trial_0_and_never_pruned(tmp_path):
     assert first.intermediate_values  # reported to the pruner, never pruned
 
 
-def test_a_measured_system_gets_one_study_per_fold_whose_trials_never_see_its_test_block():
+def test_a_measured_system_gets_one_study_per_fold_whose_trials_never_see_its_test_block(
+    monkeypatch,
+):
     """On a measured system each fold of the final seeds has its own study, whose trials
     train seeds of that fold only and none of the final seeds (seeds s + 10 and s + 15:
     the fold's data, other initialisations): the selection for a final seed never read
@@ -723,6 +725,13 @@ def test_a_measured_system_gets_one_study_per_fold_whose_trials_never_see_its_te
     simulated = TuneRequest(system="spring", models=["hnn_jax"], trials=2, seeds_per_trial=3)
     (one,) = tuning.Tuner(simulated).groups("hnn_jax")
     assert one.trial_seeds == (0, 1, 2) and one.final_seeds == tuple(range(10))
+    # a fold rule that gives a fold no seed outside the final ones: one line, not a hang
+    stuck = tuning.Tuner(request)
+    monkeypatch.setattr(
+        stuck._prepared("hnn_jax").system_cls, "fold", lambda self, seed: min(int(seed), 4)
+    )
+    with pytest.raises(ConfigError, match="fold 0 has 0 seed"):
+        stuck.groups("hnn_jax")
 
 
 def test_a_trials_score_is_the_mean_of_its_seeds_criteria_and_worst_if_one_fails():

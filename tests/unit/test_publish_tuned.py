@@ -245,6 +245,16 @@ def _edit(path: Path, **fields: Any) -> None:
             "its trial 0 sets model.lr=0.002, the published protocol records",
         ),
         (
+            lambda out, p: _edit(
+                p,
+                trials=[
+                    {**t, "value": "n/a"} if t["number"] == 1 else t
+                    for t in json.loads(p.read_text())["trials"]
+                ],
+            ),
+            "trial 1: value 'n/a' is not a number",
+        ),
+        (
             lambda out, p: _bad_final(out, 1, selected={"model.lr": 0.004}),
             "its settings are not its study's selection",
         ),

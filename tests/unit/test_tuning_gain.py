@@ -10,7 +10,14 @@ import pandas as pd
 
 from hnnbench._results.families import Families
 from hnnbench._results.leaderboard import records_frame
-from hnnbench._results.report.tuning import CRITERION_ROW, tuning_gain
+from hnnbench._results.report.tuning import (
+    CRITERION_ROW,
+    TRIAL,
+    UNSEEN,
+    gain_markdown,
+    studies_frame,
+    tuning_gain,
+)
 
 
 def _rec(
@@ -47,12 +54,19 @@ def test_every_gain_row_reads_only_the_seeds_no_trial_trained():
         _rec(s, "tuned", 0.01 if s < 2 else 0.5, 0.01 if s < 2 else 0.5, trial_seeds=(0, 1))
         for s in range(10)
     ]
-    gain = _gain([*protocol, *tuned]).set_index("metric")
+    every = _gain([*protocol, *tuned])
+    gain = every[every["seeds"] == UNSEEN].set_index("metric")
     assert list(gain.index) == [CRITERION_ROW, "test_loss"]
     for metric in (CRITERION_ROW, "test_loss"):
         row = gain.loc[metric]
         assert row["n"] == 8 and row["scale"] == "log"
         assert math.isclose(row["gain"], math.log10(2)) and math.isclose(row["low"], row["high"])
+    # the trial seeds' rows are kept apart, and the page says how much larger they are
+    luck = every[every["seeds"] == TRIAL].set_index("metric")
+    assert luck.loc[CRITERION_ROW, "n"] == 2 and math.isclose(luck.loc[CRITERION_ROW, "gain"], 2)
+    text = gain_markdown(every, studies_frame([]))
+    assert "×2 [×2, ×2] (8)" in text and "] (2)" not in text  # no trial-seed cell
+    assert "larger than on the unseen seeds in: `criterion` 1 of 1, `test_loss` 1 of 1" in text
 
 
 def test_a_measured_systems_fold_studies_on_other_seeds_leave_every_final_seed_unseen():
@@ -63,4 +77,12 @@ def test_a_measured_systems_fold_studies_on_other_seeds_leave_every_final_seed_u
     apart = [_rec(s, "tuned", 0.5, trial_seeds=(s % 5 + 10, s % 5 + 15)) for s in range(10)]
     assert set(_gain([*protocol, *apart])["n"]) == {10}
     own = [_rec(s, "tuned", 0.5, trial_seeds=(s % 5, s % 5 + 5)) for s in range(10)]
-    assert _gain([*protocol, *own]).empty
+    assert set(_gain([*protocol, *own])["seeds"]) == {TRIAL}
+    # records that name no trial seeds are neither; the page names the family left out
+    unknown = [_rec(s, "tuned", 0.5) for s in range(10)]
+    for rec in unknown:
+        del rec["tuning"]["trial_seeds"]
+        rec["tuning"].update(selected={"model.lr": 0.01}, study="spring/hnn_jax")
+    assert _gain([*protocol, *unknown]).empty
+    text = gain_markdown(_gain([*protocol, *unknown]), studies_frame(unknown))
+    assert "No tuning gain for spring/hnn: none of their final seeds is known" in text

@@ -425,7 +425,7 @@ def convergence_markdown(table: pd.DataFrame) -> str:
             f"studies agree within ×{SAME_RUN:g} on every seed"
             + (
                 "; "
-                + ", ".join(f"{study(r)} ×{r['protocol_apart']:.5g}" for _, r in apart.iterrows())
+                + ", ".join(f"{study(r)} ×{r['protocol_apart']:.6g}" for _, r in apart.iterrows())
                 + " differ (the two runs' processes differed: code, class of CPU or seeds "
                 "trained in one batch, as their records say)"
                 if len(apart)
@@ -479,7 +479,7 @@ def convergence_markdown(table: pd.DataFrame) -> str:
             "second half ×": table["second_half_gain"].map(lambda v: num(v, ".2f")),
             "equal CPU s": table["equal_cpu_s"].map(lambda v: num(v, ",.0f")),
             "best at equal CPU": table["best_at_equal_cpu"].map(lambda v: num(v, ".3g")),
-            "trial 0 / protocol ×": table["protocol_apart"].map(lambda v: num(v, ".5g")),
+            "trial 0 / protocol ×": table["protocol_apart"].map(lambda v: num(v, ".6g")),
         }
     )
     if shown["fold"].eq("—").all():

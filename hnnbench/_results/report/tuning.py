@@ -21,8 +21,10 @@ from hnnbench._results.report.style import family_color, log_axes, panel_grid, s
 from hnnbench._results.report.tables import effect_text, md_table
 
 __all__ = [
-    "STUDY_COLUMNS",
     "CRITERION_ROW",
+    "STUDY_COLUMNS",
+    "TRIAL",
+    "UNSEEN",
     "cost_figure",
     "gain_markdown",
     "studies_frame",
@@ -124,30 +126,44 @@ def _paired(
             "scale": scale}  # fmt: skip
 
 
+#: The seeds a tuning gain row reads (its ``seeds`` column): the final seeds no trial of
+#: the family's study trained (the table's), or its trial seeds (their final runs are
+#: the selected trial again, chosen for its score on them: kept to show that luck).
+UNSEEN, TRIAL = "unseen", "trial"
+#: What a tuned run's seed is, from ``tuning_trial_seed`` (``None``: its record names no
+#: trial seeds, so it is neither).
+_SEEDS_OF = {False: UNSEEN, True: TRIAL}
+
+
 def tuning_gain(fams: Families, metrics: Optional[Sequence[str]] = None) -> pd.DataFrame:
     """The tuning gain per (profile, system, family, metric of ``metrics``, default
-    every ranked one with values): the tuned track against the protocol track, paired
-    by seed (:func:`_paired`, the tuned side as the leader: positive where tuning
-    helped, negative where it hurt), on the final seeds no trial of the family's study
-    trained (``tuning_trial_seed`` false; a trial seed's final run is the selected
-    trial again, whose score chose it, so its gain carries the selection's luck), with
-    ``n`` paired seeds, the median ``gain``, its interval ``low``-``high`` and the
-    interval's ``coverage``; ``scale``: ``log`` (a log10 ratio) or ``linear``. With the
-    default metrics, a row :data:`CRITERION_ROW` too: the selection criterion
-    (``criterion_value``), whether the selection's margin over the protocol's settings
-    holds on fresh initialisations or was its trial seeds' luck. A family none of whose
-    final seeds is unseen has no row. Empty without both tracks."""
+    every ranked one with values, ``seeds``): the tuned track against the protocol
+    track, paired by seed (:func:`_paired`, the tuned side as the leader: positive where
+    tuning helped, negative where it hurt), with ``n`` paired seeds, the median
+    ``gain``, its interval ``low``-``high`` and the interval's ``coverage``; ``scale``:
+    ``log`` (a log10 ratio) or ``linear``. ``seeds`` says which seeds a row reads:
+    :data:`UNSEEN`, the final seeds no trial of the family's study trained (the gain),
+    or :data:`TRIAL`, its trial seeds (a trial seed's final run is the selected trial
+    again, whose score on that seed chose it, so its gain carries the selection's luck).
+    A tuned run whose record names no trial seeds is in neither. With the default
+    metrics, a row :data:`CRITERION_ROW` first: the selection criterion
+    (``criterion_value``). Empty without both tracks."""
     runs = fams.runs
-    columns = ["profile", "system", "family", "metric", "n", "gain", "low", "high", "coverage"]
+    columns = ["profile", "system", "family", "metric", "seeds", "n", "gain", "low", "high",
+               "coverage", "scale"]  # fmt: skip
     if runs.empty or "track" not in runs:
-        return pd.DataFrame(columns=[*columns, "scale"])
+        return pd.DataFrame(columns=columns)
     runs = runs.assign(track=text_column(runs, "track", DEFAULT_TRACK))
     runs = runs[text_column(runs, "variant") == ""]
     runs = runs[flag_column(runs, "ranked", True)]
     declared = metric_declarations()
-    criterion = metrics is None
-    if metrics is None:
-        metrics = [m for m in declared if declared[m].ranked and m in runs]
+    wanted = [(CRITERION_ROW, "criterion_value", "lower", "log")] if metrics is None else []
+    for metric in (
+        [m for m in declared if declared[m].ranked and m in runs] if metrics is None else metrics
+    ):
+        decl = declared.get(metric)
+        if decl is not None:
+            wanted.append((metric, metric, decl.better, decl.scale))
     order = list(dict.fromkeys(fams.board["family"].astype(str))) if "family" in fams.board else []
     order += [f for f in dict.fromkeys(runs["family"].astype(str)) if f not in order]
     rows = []
@@ -155,21 +171,37 @@ def tuning_gain(fams: Families, metrics: Optional[Sequence[str]] = None) -> pd.D
         tuned, protocol = group[group["track"] == "tuned"], group[group["track"] == DEFAULT_TRACK]
         if tuned.empty or protocol.empty:
             continue
-        tuned = tuned[~flag_column(tuned, "tuning_trial_seed", True)]
-        for family in [f for f in order if f in set(tuned["family"].astype(str))]:
-            a = tuned[tuned["family"].astype(str) == family]
-            b = protocol[protocol["family"].astype(str) == family]
-            where = {"profile": profile, "system": system, "family": family}
-            wanted = [(CRITERION_ROW, "criterion_value", "lower", "log")] if criterion else []
-            for metric in metrics:
-                decl = declared.get(metric)
-                if decl is not None:
-                    wanted.append((metric, metric, decl.better, decl.scale))
-            for name, column, better, scale in wanted:
-                pair = _paired(a, b, column, better, scale)
-                if pair is not None:
-                    rows.append({**where, "metric": name, **pair})
-    return pd.DataFrame(rows, columns=[*columns, "scale"])
+        which = tuned["tuning_trial_seed"].map(_SEEDS_OF) if "tuning_trial_seed" in tuned else None
+        for seeds in (UNSEEN, TRIAL):
+            part = tuned[which == seeds] if which is not None else tuned.iloc[:0]
+            for family in [f for f in order if f in set(part["family"].astype(str))]:
+                a = part[part["family"].astype(str) == family]
+                b = protocol[protocol["family"].astype(str) == family]
+                where = {"profile": profile, "system": system, "family": family}
+                for name, column, better, scale in wanted:
+                    pair = _paired(a, b, column, better, scale)
+                    if pair is not None:
+                        rows.append({**where, "metric": name, "seeds": seeds, **pair})
+    return pd.DataFrame(rows, columns=columns)
+
+
+def _trial_seeds_sentence(gain: pd.DataFrame) -> str:
+    """How the gain on the trial seeds compares with the unseen seeds', per metric: in
+    how many of the studies with both it was larger; ``""`` without any."""
+    keys = ["profile", "system", "family", "metric"]
+    both = gain[gain["seeds"] == TRIAL].merge(
+        gain[gain["seeds"] == UNSEEN], on=keys, suffixes=("_trial", "_unseen")
+    )
+    if both.empty:
+        return ""
+    larger = (both["gain_trial"] > both["gain_unseen"]).groupby(both["metric"], sort=False)
+    counts = ", ".join(f"`{m}` {int(v.sum())} of {len(v)}" for m, v in larger)
+    return (
+        " On the trial seeds themselves (not shown; `seeds` = `trial` in tuning_gain.csv) "
+        f"the gain was larger than on the unseen seeds in: {counts} studies. A selection's "
+        "own seeds are no fair test of it whichever way they fell (the protocol's run on "
+        "a seed varies too), so the table leaves them out."
+    )
 
 
 def _gain_text(row: Mapping[str, Any]) -> str:
@@ -185,8 +217,12 @@ def gain_markdown(gain: pd.DataFrame, studies: pd.DataFrame) -> str:
     """The tuning gain as a table (a row per system and metric, a column per family:
     ``×factor [low, high] (seeds)``; above 1 tuning helped, below 1 it hurt), then what
     each study was: its criterion, budget, CPU, and best criterion against the
-    protocol trial's. ``""`` when both are empty."""
+    protocol trial's. ``gain`` is :func:`tuning_gain`'s frame: the table shows its
+    unseen seeds' rows and says how the trial seeds' compare. ``""`` when both are
+    empty."""
     lines: list[str] = []
+    every = gain
+    gain = gain[gain["seeds"] == UNSEEN] if "seeds" in gain else gain
     if not gain.empty:
         families = list(dict.fromkeys(gain["family"].astype(str)))
         rows = []
@@ -212,9 +248,21 @@ def gain_markdown(gain: pd.DataFrame, studies: pd.DataFrame) -> str:
             "study): a winner's curse, or a criterion that does not carry to the metric. "
             f"The row `{CRITERION_ROW}` is the criterion the studies selected on, at each "
             "run's scored checkpoint: near ×1 the selection's margin over the protocol's "
-            "settings was its trial seeds' luck, within seed noise.",
+            "settings was its trial seeds' luck, within seed noise." + _trial_seeds_sentence(every),
             "",
             md_table(pd.DataFrame(rows)),
+            "",
+        ]
+    gained = {f"{sy}/{fa}" for sy, fa in zip(gain["system"], gain["family"], strict=True)}
+    missing = sorted(
+        {f"{sy}/{fa}" for sy, fa in zip(studies["system"], studies["family"], strict=True)} - gained
+    )
+    if missing:
+        lines += [] if lines else ["## Tuning gain", ""]
+        lines += [
+            "No tuning gain for " + ", ".join(missing) + ": none of their final seeds is "
+            "known to be unseen (every one trained a trial, or their records name no trial "
+            "seeds).",
             "",
         ]
     if not studies.empty:

@@ -613,8 +613,9 @@ def _leader_set(verdict: str) -> set[str]:
 def tuning_costs(fams: Families) -> pd.DataFrame:
     """What each family's tuned settings cost: one row per (profile, system) with tuned
     family rows, a column per family (in the board's order) holding the CPU seconds of
-    the study of its primary twin, the one its family row shows (``tuning_cpu_s``: every
-    trial, pruned ones included, not the final seeds), formatted; ``—`` where the family
+    the studies of its primary twin, the one its family row shows (``tuning_cpu_s``:
+    every trial, pruned ones included, not the final seeds; summed over a measured
+    system's fold studies), formatted; ``—`` where the family
     has no tuned row there. Empty when no row is of the tuned track."""
     board = fams.board
     if board.empty or "track" not in board or "tuning_cpu_s" not in board:
@@ -729,8 +730,9 @@ def tracks_markdown(
         lines.append("")
     if costs is not None and not costs.empty:
         lines += [
-            "What each family's tuned settings cost: the CPU seconds of its study "
-            "(every trial, pruned ones included; the final seeds not counted), the "
+            "What each family's tuned settings cost: the CPU seconds of its studies "
+            "(one per fold on a measured system; every trial, pruned ones included, the "
+            "final seeds not counted), the "
             "leaderboard's `tuning_cpu_s`. `hnnbench tune` gives every family of a "
             "system the same trials of the same steps, and `hnnbench check` flags a "
             "system whose tuned records state unequal budgets (docs/TUNING.md).",
