@@ -332,3 +332,20 @@ def test_the_pages_of_a_published_tuned_system_show_how_its_studies_converged(
         "2 of 2 studies had their best criterion by the end of the first half"
         in (spring / "README.md").read_text()
     )
+
+
+def test_protocol_records_that_disagree_on_a_setting_cannot_vouch_for_trial_0(
+    spring, tmp_path
+):
+    """Trial 0 is checked against the published protocol records; where those records
+    themselves hold two values of a setting, the check cannot be made: one line saying
+    so, and nothing is staged."""
+    path = spring / "records" / "spring" / "hnn_jax" / "seed1" / "result.json"
+    record = json.loads(path.read_text())
+    record["config"]["model"]["lr"] = 0.005
+    path.write_text(json.dumps(record))
+    out = tmp_path / "hnn"
+    write_study(out, "spring", "hnn_jax")
+    with pytest.raises(SystemExit, match="the published protocol records disagree on model.lr"):
+        publish_results.main(["--tuned", str(out)])
+    assert not (spring / "staged").exists()

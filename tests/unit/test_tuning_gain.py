@@ -76,6 +76,11 @@ def test_a_measured_systems_fold_studies_on_other_seeds_leave_every_final_seed_u
     protocol = [_rec(s, "protocol", 1.0) for s in range(10)]
     apart = [_rec(s, "tuned", 0.5, trial_seeds=(s % 5 + 10, s % 5 + 15)) for s in range(10)]
     assert set(_gain([*protocol, *apart])["n"]) == {10}
+    for rec in apart:  # as the tuner writes them: one study per fold
+        fold = (4 - rec["seed"]) % 5
+        rec["tuning"].update(selected={"model.lr": 0.01}, fold=fold, study=f"s/hnn_jax/fold{fold}")
+    text = gain_markdown(_gain([*protocol, *apart]), studies_frame(apart))
+    assert "On `spring` (a measured system: one study per fold) the seeds of one fold" in text
     own = [_rec(s, "tuned", 0.5, trial_seeds=(s % 5, s % 5 + 5)) for s in range(10)]
     assert set(_gain([*protocol, *own])["seeds"]) == {TRIAL}
     # records that name no trial seeds are neither; the page names the family left out

@@ -253,6 +253,17 @@ def gain_markdown(gain: pd.DataFrame, studies: pd.DataFrame) -> str:
             md_table(pd.DataFrame(rows)),
             "",
         ]
+    folded = sorted(
+        {str(sy) for sy, f in zip(studies["system"], studies["fold"], strict=True) if pd.notna(f)}
+    )
+    if folded and lines:
+        lines += [
+            "On " + ", ".join(f"`{sy}`" for sy in folded) + " (a measured system: one study "
+            "per fold) the seeds of one fold share its data and its study's selected "
+            "settings, so its paired seeds are fewer independent draws than their number "
+            '(docs/TUNING.md, "Tuning gain").',
+            "",
+        ]
     gained = {f"{sy}/{fa}" for sy, fa in zip(gain["system"], gain["family"], strict=True)}
     missing = sorted(
         {f"{sy}/{fa}" for sy, fa in zip(studies["system"], studies["family"], strict=True)} - gained
