@@ -334,9 +334,7 @@ def test_the_pages_of_a_published_tuned_system_show_how_its_studies_converged(
     )
 
 
-def test_protocol_records_that_disagree_on_a_setting_cannot_vouch_for_trial_0(
-    spring, tmp_path
-):
+def test_protocol_records_that_disagree_on_a_setting_cannot_vouch_for_trial_0(spring, tmp_path):
     """Trial 0 is checked against the published protocol records; where those records
     themselves hold two values of a setting, the check cannot be made: one line saying
     so, and nothing is staged."""
