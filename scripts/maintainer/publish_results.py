@@ -426,8 +426,8 @@ def study_problem(summary: dict[str, Any], system: str, model: str) -> str | Non
     trials = summary["trials"]
     if not all(isinstance(t, dict) and type(t.get("number")) is int for t in trials):
         return "trials: each must be an object with an integer number"
-    first = next((t for t in trials if t["number"] == summary["protocol_trial"]), None)
-    if summary["protocol_trial"] != 0 or first is None or first.get("protocol") is not True:
+    first = _protocol_trial(summary)
+    if summary["protocol_trial"] != 0 or first is None:
         return "its trial 0 is not the protocol's settings"
     if (
         first.get("state") == "complete"
@@ -447,6 +447,17 @@ def study_problem(summary: dict[str, Any], system: str, model: str) -> str | Non
     if not isinstance(selected.get("settings"), dict):
         return "selected: it holds no settings"
     return _selection_problem(selected, trials)
+
+
+def _protocol_trial(summary: dict[str, Any]) -> dict[str, Any] | None:
+    """The study's protocol trial: the one trial flagged ``protocol``, and its first
+    (the lowest number: trial 0, or the run that replayed an interrupted trial 0, which
+    the summary leaves out); ``None`` where there is no such trial."""
+    trials = summary["trials"]
+    flagged = [t for t in trials if t.get("protocol") is True]
+    if len(flagged) != 1 or flagged[0]["number"] != min(t["number"] for t in trials):
+        return None
+    return flagged[0]
 
 
 def _value(value: Any) -> float | None:
@@ -498,8 +509,8 @@ def protocol_settings_problem(summary: dict[str, Any], configs: list[dict[str, A
     another on every setting first."""
     from hnnbench._contracts.plugin import SystemConfig
 
-    first = next(t for t in summary["trials"] if t["number"] == summary["protocol_trial"])
-    settings = first.get("settings")
+    first = _protocol_trial(summary)
+    settings = None if first is None else first.get("settings")
     if not isinstance(settings, dict):
         return "its trial 0 holds no settings"
 

@@ -347,3 +347,21 @@ def test_protocol_records_that_disagree_on_a_setting_cannot_vouch_for_trial_0(sp
     with pytest.raises(SystemExit, match="the published protocol records disagree on model.lr"):
         publish_results.main(["--tuned", str(out)])
     assert not (spring / "staged").exists()
+
+
+def test_a_study_whose_trial_0_was_interrupted_and_replayed_is_staged(spring, tmp_path):
+    """An interruption during trial 0 leaves it out of the summary (an interrupted trial
+    is not counted) and the tuner runs its settings again as trial 1, flagged the
+    protocol's: that study is staged; two trials flagged the protocol's are not."""
+    out = tmp_path / "hnn"
+    path = write_study(out, "spring", "hnn_jax")
+    summary = json.loads(path.read_text())
+    for trial in summary["trials"]:
+        trial["number"] += 1
+    summary["selected"]["number"] += 1
+    path.write_text(json.dumps(summary))
+    assert publish_results.stage_tuned([out])[0] == ["spring/hnn_jax"]
+    summary["trials"][1]["protocol"] = True
+    path.write_text(json.dumps(summary))
+    with pytest.raises(SystemExit, match="its trial 0 is not the protocol's settings"):
+        publish_results.stage_tuned([out])
