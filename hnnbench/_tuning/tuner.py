@@ -344,12 +344,15 @@ class Tuner:
             by_fold.setdefault(int(fold(seed)), []).append(seed)
         out = []
         # a bounded search: a fold rule that gives fold k too few seeds in this range
-        # (a periodic rule gives it hundreds) is refused rather than searched forever
-        last = max(first, *finals_all) + (len(by_fold) + 1) * count * 100
+        # (a periodic rule gives it thousands) is refused rather than searched forever
+        last = max([first, *finals_all]) + 10_000 * count
         for k, finals in by_fold.items():
-            seeds = [c for c in range(first, last) if int(fold(c)) == k and c not in finals_all][
-                :count
-            ]
+            seeds: list[int] = []
+            for candidate in range(first, last):
+                if len(seeds) == count:
+                    break
+                if candidate not in finals_all and int(fold(candidate)) == k:
+                    seeds.append(candidate)
             if len(seeds) < count:
                 raise ConfigError(
                     f"{self.system}: fold {k} has {len(seeds)} seed(s) from trial_seed={first} "

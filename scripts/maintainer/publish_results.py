@@ -510,34 +510,45 @@ def protocol_settings_problem(summary: dict[str, Any], configs: list[dict[str, A
     from hnnbench._contracts.plugin import SystemConfig
 
     first = _protocol_trial(summary)
-    settings = None if first is None else first.get("settings")
+    if first is None:
+        return "its trial 0 is not the protocol's settings"
+    settings = first.get("settings")
     if not isinstance(settings, dict):
         return "its trial 0 holds no settings"
+
+    missing = object()
 
     def resolved(config: dict[str, Any], name: str) -> Any:
         model, system = config.get("model") or {}, config.get("system") or {}
         if model.get(name) is None and name in SystemConfig.TRAINING_FIELDS:
-            return system.get(name)
-        return model.get(name)
+            return system.get(name, missing)
+        return model.get(name, missing)
+
+    def same(a: Any, b: Any) -> bool:
+        numbers = (int, float)
+        if isinstance(a, numbers) and isinstance(b, numbers) and not isinstance(a, bool):
+            return float(a) == float(b)
+        return bool(a == b)
 
     for key, value in settings.items():
         name = key.split(".", 1)[-1]
-        seen = {repr(resolved(c, name)) for c in configs}
-        if len(seen) > 1:
-            return (
-                f"the published protocol records disagree on {key} ({', '.join(sorted(seen))}), "
-                "so trial 0 cannot be checked against them; re-publish the protocol rows"
-            )
-        have = resolved(configs[0], name) if configs else value
-        if have is None:
+        values = [resolved(c, name) for c in configs]
+        if any(v is missing for v in values):
             return (
                 f"the published protocol records do not state {key}, so trial 0 cannot be "
                 "checked against them"
             )
-        if have != value:
+        if any(not same(v, values[0]) for v in values):
+            shown = ", ".join(sorted({repr(v) for v in values}))
             return (
-                f"its trial 0 sets {key}={value!r}, the published protocol records {have!r}: "
-                "trial 0 must be the protocol's settings (tune with the protocol's config)"
+                f"the published protocol records disagree on {key} ({shown}), so trial 0 "
+                "cannot be checked against them; re-publish the protocol rows"
+            )
+        if values and not same(values[0], value):
+            return (
+                f"its trial 0 sets {key}={value!r}, the published protocol records "
+                f"{values[0]!r}: trial 0 must be the protocol's settings (tune with the "
+                "protocol's config)"
             )
     return None
 

@@ -384,7 +384,12 @@ def test_a_pairs_tuning_cpu_is_the_sum_of_its_studies_one_per_fold():
     board = leaderboard(recs)
     assert board["tuning_cpu_s"].tolist() == [21.0]
     assert tuning_cpu(records_frame(recs)) == 21.0
+    recs[0]["tuning"]["cpu_s"] = None  # fold 0's other record still states it
+    assert tuning_cpu(records_frame(recs)) == 21.0
+    recs[2]["tuning"]["cpu_s"] = None  # no record of fold 0 states it: unknown, not less
+    assert math.isnan(tuning_cpu(records_frame(recs)))
     for rec in recs:
+        rec["tuning"].update(cpu_s=11.0)
         del rec["tuning"]["study"]
     assert tuning_cpu(records_frame(recs)) == 11.0
 

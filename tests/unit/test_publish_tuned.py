@@ -365,3 +365,25 @@ def test_a_study_whose_trial_0_was_interrupted_and_replayed_is_staged(spring, tm
     path.write_text(json.dumps(summary))
     with pytest.raises(SystemExit, match="its trial 0 is not the protocol's settings"):
         publish_results.stage_tuned([out])
+
+
+def test_trial_0_is_read_against_the_protocol_configs_as_the_protocol_job_resolves_them():
+    """A training field the model leaves None is the system's; a setting that is None on
+    purpose matches None; 0 and 0.0 are one value; a setting the records do not hold
+    cannot be checked, and a protocol trial that is not the study's first is none."""
+    check = publish_results.protocol_settings_problem
+    trial = {"number": 0, "protocol": True, "state": "complete", "value": 1.0}
+
+    def summary(**settings: Any) -> dict[str, Any]:
+        return {"protocol_trial": 0, "trials": [{**trial, "settings": settings}]}
+
+    config = {"model": {"lr": None, "weight_decay": 0, "window": None}, "system": {"lr": 0.001}}
+    assert check(summary(**{"model.lr": 0.001}), [config, config]) is None
+    assert check(summary(**{"model.weight_decay": 0.0}), [config]) is None
+    assert check(summary(**{"model.window": None}), [config]) is None  # None on purpose
+    assert "do not state model.hidden" in (check(summary(**{"model.hidden": 64}), [config]) or "")
+    other = {**config, "model": {**config["model"], "weight_decay": 0.0}}
+    assert check(summary(**{"model.weight_decay": 0.0}), [config, other]) is None
+    late = {"protocol_trial": 0, "trials": [{**trial, "number": 2, "settings": {}},
+                                            {**trial, "number": 1, "protocol": False}]}  # fmt: skip
+    assert check(late, [config]) == "its trial 0 is not the protocol's settings"

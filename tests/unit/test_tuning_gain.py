@@ -66,7 +66,9 @@ def test_every_gain_row_reads_only_the_seeds_no_trial_trained():
     assert luck.loc[CRITERION_ROW, "n"] == 2 and math.isclose(luck.loc[CRITERION_ROW, "gain"], 2)
     text = gain_markdown(every, studies_frame([]))
     assert "×2 [×2, ×2] (8)" in text and "] (2)" not in text  # no trial-seed cell
-    assert "larger than on the unseen seeds in: `criterion` 1 of 1, `test_loss` 1 of 1" in text
+    assert (
+        "`criterion` 1 larger and 0 smaller of 1, `test_loss` 1 larger and 0 smaller of 1" in text
+    )
 
 
 def test_a_measured_systems_fold_studies_on_other_seeds_leave_every_final_seed_unseen():
@@ -90,4 +92,4 @@ def test_a_measured_systems_fold_studies_on_other_seeds_leave_every_final_seed_u
         rec["tuning"].update(selected={"model.lr": 0.01}, study="spring/hnn_jax")
     assert _gain([*protocol, *unknown]).empty
     text = gain_markdown(_gain([*protocol, *unknown]), studies_frame(unknown))
-    assert "No tuning gain for spring/hnn: none of their final seeds is known" in text
+    assert "No tuning gain for spring/hnn: none of their final seeds is both known" in text

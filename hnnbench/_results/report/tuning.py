@@ -130,9 +130,17 @@ def _paired(
 #: the family's study trained (the table's), or its trial seeds (their final runs are
 #: the selected trial again, chosen for its score on them: kept to show that luck).
 UNSEEN, TRIAL = "unseen", "trial"
-#: What a tuned run's seed is, from ``tuning_trial_seed`` (``None``: its record names no
-#: trial seeds, so it is neither).
-_SEEDS_OF = {False: UNSEEN, True: TRIAL}
+#: Gains closer than this (log10 units, ×1.00023; or the metric's own units on a
+#: linear scale) are the same when the trial seeds' and the unseen seeds' are compared.
+SAME_GAIN = 1e-4
+
+
+def _seeds_of(value: Any) -> Optional[str]:
+    """What a tuned run's seed is, from ``tuning_trial_seed``: :data:`TRIAL`,
+    :data:`UNSEEN`, or ``None`` where its record names no trial seeds (neither)."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return None
+    return TRIAL if bool(value) else UNSEEN
 
 
 def tuning_gain(fams: Families, metrics: Optional[Sequence[str]] = None) -> pd.DataFrame:
@@ -171,7 +179,7 @@ def tuning_gain(fams: Families, metrics: Optional[Sequence[str]] = None) -> pd.D
         tuned, protocol = group[group["track"] == "tuned"], group[group["track"] == DEFAULT_TRACK]
         if tuned.empty or protocol.empty:
             continue
-        which = tuned["tuning_trial_seed"].map(_SEEDS_OF) if "tuning_trial_seed" in tuned else None
+        which = tuned["tuning_trial_seed"].map(_seeds_of) if "tuning_trial_seed" in tuned else None
         for seeds in (UNSEEN, TRIAL):
             part = tuned[which == seeds] if which is not None else tuned.iloc[:0]
             for family in [f for f in order if f in set(part["family"].astype(str))]:
@@ -187,20 +195,30 @@ def tuning_gain(fams: Families, metrics: Optional[Sequence[str]] = None) -> pd.D
 
 def _trial_seeds_sentence(gain: pd.DataFrame) -> str:
     """How the gain on the trial seeds compares with the unseen seeds', per metric: in
-    how many of the studies with both it was larger; ``""`` without any."""
+    how many of the studies with both (finite) it was larger, and smaller, by more than
+    :data:`SAME_GAIN`; ``""`` without any."""
+    if "seeds" not in gain:
+        return ""
     keys = ["profile", "system", "family", "metric"]
     both = gain[gain["seeds"] == TRIAL].merge(
         gain[gain["seeds"] == UNSEEN], on=keys, suffixes=("_trial", "_unseen")
     )
+    diff = pd.to_numeric(both["gain_trial"], errors="coerce") - pd.to_numeric(
+        both["gain_unseen"], errors="coerce"
+    )
+    both = both[diff.notna() & diff.map(math.isfinite)]
     if both.empty:
         return ""
-    larger = (both["gain_trial"] > both["gain_unseen"]).groupby(both["metric"], sort=False)
-    counts = ", ".join(f"`{m}` {int(v.sum())} of {len(v)}" for m, v in larger)
+    counts = ", ".join(
+        f"`{m}` {int((d > SAME_GAIN).sum())} larger and {int((d < -SAME_GAIN).sum())} "
+        f"smaller of {len(d)}"
+        for m, d in diff.loc[both.index].groupby(both["metric"], sort=False)
+    )
     return (
         " On the trial seeds themselves (not shown; `seeds` = `trial` in tuning_gain.csv) "
-        f"the gain was larger than on the unseen seeds in: {counts} studies. A selection's "
-        "own seeds are no fair test of it whichever way they fell (the protocol's run on "
-        "a seed varies too), so the table leaves them out."
+        f"the gain was, against the unseen seeds': {counts} studies (the rest the same). "
+        "A selection's own seeds are no fair test of it whichever way they fell (the "
+        "protocol's run on a seed varies too), so the table leaves them out."
     )
 
 
@@ -255,6 +273,7 @@ def gain_markdown(gain: pd.DataFrame, studies: pd.DataFrame) -> str:
         ]
     folded = sorted(
         {str(sy) for sy, f in zip(studies["system"], studies["fold"], strict=True) if pd.notna(f)}
+        & set(gain["system"].astype(str))
     )
     if folded and lines:
         lines += [
@@ -272,8 +291,9 @@ def gain_markdown(gain: pd.DataFrame, studies: pd.DataFrame) -> str:
         lines += [] if lines else ["## Tuning gain", ""]
         lines += [
             "No tuning gain for " + ", ".join(missing) + ": none of their final seeds is "
-            "known to be unseen (every one trained a trial, or their records name no trial "
-            "seeds).",
+            "both known to be unseen by their study (its record names the trial seeds, "
+            "and the seed is not one of them) and paired with a ranked protocol run of the "
+            "family.",
             "",
         ]
     if not studies.empty:
