@@ -284,8 +284,10 @@ def given_records(sweeps: list[Path]) -> list[dict]:
                 raise SystemExit(f"publish: {rec['path']}: {why}")
             job = job_of(rec)
             if job in seen:
+                track, system, model, seed = job
                 raise SystemExit(
-                    f"publish: {job} is in both {seen[job]} and {rec['path']}: "
+                    f"publish: the {track} run {system}/{model} seed {seed} is in both "
+                    f"{seen[job]} and {rec['path']}: "
                     "the report would count it twice; move the superseded "
                     "run out of its sweep"
                 )
@@ -622,17 +624,19 @@ def tuned_parts(
             )
             if problem:
                 raise SystemExit(f"publish: {summary['path']}: {problem}; nothing was staged")
-        finals = {Path(s["final"]) for s in summaries}
-        if len(finals) != 1:
-            raise SystemExit(
-                f"publish: {where}: its studies sit in several out= folders "
-                f"({', '.join(sorted(map(str, finals)))}); give one folder per pair"
-            )
-        final = finals.pop()
+        # A measured system's fold studies may run side by side, each in an out= folder
+        # of its own (a folder takes one tuner at a time): each study's final runs are
+        # read from its own folder.
+        finals = sorted({Path(s["final"]) for s in summaries})
         covered = {seed for s in summaries for seed in s["final_seeds"]}
         wanted = protocol_seeds.get((system, model), set())
         unfinished = [s for s in summaries if not study_finished(s)]
-        written = {s for s in covered if (final / f"seed{s}" / "result.json").is_file()}
+        written = {
+            seed
+            for s in summaries
+            for seed in s["final_seeds"]
+            if (Path(s["final"]) / f"seed{seed}" / "result.json").is_file()
+        }
         if any(t.get("status") == "skipped" for s in unfinished for t in s["trials"]):
             waiting.append(
                 f"{where}: skipped by the tuner (it does not run there); nothing to stage"
@@ -654,20 +658,21 @@ def tuned_parts(
         elif written != covered:
             waiting.append(
                 f"{where}: the final runs of seeds {sorted(covered - written)} are not "
-                f"written yet (in {final}); not staged"
+                f"written yet (in {', '.join(map(str, finals))}); not staged"
             )
         else:
-            parts.append((system, model, summaries, final))
+            parts.append((system, model, summaries, finals))
     return parts, waiting
 
 
-def part_records(system: str, model: str, summaries: list[dict], final: Path) -> list[dict]:
+def part_records(system: str, model: str, summaries: list[dict], finals: list[Path]) -> list[dict]:
     """The final records of one finished pair (:func:`given_records`: strict, paper,
-    no variant), each a tuned record of one of its studies, with that study's selected
-    settings, on exactly the studies' final seeds; ``SystemExit`` naming what differs."""
+    no variant, in its studies' ``finals`` folders; a job in two of them is refused), each
+    a tuned record of one of its studies, with that study's selected settings, on exactly
+    the studies' final seeds; ``SystemExit`` naming what differs."""
     from hnnbench._record.tracks import track_of
 
-    recs = given_records([final])
+    recs = given_records(finals)
     by_study = {s["study"]: s for s in summaries}
     for rec in recs:
         study = by_study.get(str((rec.get("tuning") or {}).get("study")))
@@ -728,7 +733,7 @@ def stage_tuned(roots: list[Path]) -> tuple[list[str], list[str]]:
     parts, waiting = tuned_parts(roots, seeds, configs)
     if not parts:
         return [], waiting
-    recs = [r for system, model, s, final in parts for r in part_records(system, model, s, final)]
+    recs = [r for system, model, s, dirs in parts for r in part_records(system, model, s, dirs)]
     pairs = {(system, model) for system, model, _, _ in parts}
     before = given_records([STAGED]) if STAGED.is_dir() else []
     kept = [r for r in before if (r["system"], r["model"]) not in pairs]
@@ -758,7 +763,7 @@ def stage_tuned(roots: list[Path]) -> tuple[list[str], list[str]]:
                     safe_join(folder, summary_name(model, study["fold"])), text
                 )
 
-    finals = sorted({final for _, _, _, final in parts})
+    finals = sorted({final for _, _, _, dirs in parts for final in dirs})
     stage_and_publish([*finals, STAGED], [*recs, *kept], superseded, STAGED, summaries)
     return sorted(f"{s}/{m}" for s, m in pairs), waiting
 

@@ -15,10 +15,13 @@
 #              real_double_pendulum, three_body; on pixel_pendulum only the MLP and the
 #              HNN run: the other families are recorded skipped, untuned)
 #   JOBS=2 TRIALS=16 SEEDS=10 SEEDS_PER_TRIAL=2 scripts/maintainer/tune_sweep.sh 1
+#   DRY_RUN=1 ... prints each study's command instead of running it
 #
 # JOBS studies run side by side (one process each), dearest first within a system. Each
-# study's log: ROOT/<system>/<model>.log. Publish what finished (any time; it is staged
-# until its system's every family is in):
+# study's log: ROOT/<system>/<model>.log. A measured system's five fold studies run as
+# five processes, fold k's in ROOT/<system>_fold<k>/<model> (its log
+# ROOT/<system>/<model>.fold<k>.log), so they too use every core. Publish what finished
+# (any time; it is staged until its system's every family is in):
 #   .venv/bin/python scripts/maintainer/publish_results.py --tuned ROOT/*/*/
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -38,15 +41,37 @@ case "$what" in
   3) systems="spring_chain pixel_pendulum real_double_pendulum three_body" ;;
   *) systems=${what//,/ } ;;
 esac
-tune_one() {
-  local system=${1%/*} model=${1#*/}
+# The measured systems: a seed s tests on fold (4 - s) mod 5 of the series (docs/DATA.md,
+# "Folds of a measured series"), and each fold has a study of its own.
+measured=" real_pendulum real_double_pendulum "
+tune_one() {  # system/model[/fold k/its final seeds]
+  local system model fold="" final=$seeds out log
+  IFS=/ read -r system model fold final <<< "$1"
+  final=${final:-$seeds}
+  out=$root/$system/$model log=$root/$system/$model.log
+  if [ -n "$fold" ]; then
+    out=$root/${system}_fold$fold/$model log=$root/$system/$model.fold$fold.log
+  fi
+  echo "tune_sweep: $system/$model${fold:+ fold $fold}: $trials trials x $per_trial seeds," \
+    "final seeds $final" >&2
+  local cmd=(.venv/bin/hnnbench tune "system=$system" "model=$model" "trials=$trials"
+    "seeds=$final" "seeds_per_trial=$per_trial" profile=paper "out=$out")
+  if [ -n "$dry_run" ]; then echo "${cmd[*]}"; return; fi
   mkdir -p "$root/$system"
-  echo "tune_sweep: $system/$model: $trials trials x $per_trial seeds, final seeds $seeds" >&2
-  nice -n 15 .venv/bin/hnnbench tune "system=$system" "model=$model" "trials=$trials" \
-    "seeds=$seeds" "seeds_per_trial=$per_trial" profile=paper "out=$root/$system/$model" \
-    >> "$root/$system/$model.log" 2>&1
+  nice -n 15 "${cmd[@]}" >> "$log" 2>&1
 }
 export -f tune_one
-export trials seeds per_trial root
-for system in $systems; do for model in $models; do echo "$system/$model"; done; done \
-  | xargs -P "$jobs" -I{} bash -c 'tune_one {}'
+dry_run=${DRY_RUN:-}
+export trials seeds per_trial root dry_run
+for system in $systems; do
+  for model in $models; do
+    if [[ $measured == *" $system "* ]]; then
+      for s in 0 1 2 3 4; do
+        fold_seeds=$(seq -s, "$s" 5 $(( ${SEEDS:-10} - 1 )))
+        [ -n "$fold_seeds" ] && echo "$system/$model/$(( (4 - s) % 5 ))/$fold_seeds"
+      done
+    else
+      echo "$system/$model"
+    fi
+  done
+done | xargs -P "$jobs" -I{} bash -c 'tune_one {}'

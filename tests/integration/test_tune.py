@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -737,6 +738,39 @@ def test_a_measured_system_gets_one_study_per_fold_whose_trials_never_see_its_te
     )
     with pytest.raises(ConfigError, match="fold 0 has 0 seed"):
         stuck.groups("hnn_jax")
+
+
+def test_the_sweep_scripts_fold_processes_hold_the_same_studies_as_one_process(tmp_path):
+    """scripts/maintainer/tune_sweep.sh runs a measured system's fold studies as processes
+    of their own (one out= folder each): each process holds exactly one study, the one a
+    single process over all ten seeds would hold for that fold (its name, fold, trial
+    seeds and final seeds), in a folder named after that fold; a simulated system is one
+    process over every seed."""
+    from hnnbench._tuning import tuner as tuning
+    from hnnbench._tuning.request import TuneRequest
+
+    script = Path(__file__).resolve().parents[2] / "scripts" / "maintainer" / "tune_sweep.sh"
+    env = {**os.environ, "DRY_RUN": "1", "JOBS": "1"}
+    run = subprocess.run(
+        ["bash", str(script), "real_pendulum,spring", str(tmp_path)],
+        env=env, capture_output=True, text=True, check=True, timeout=60,
+    )  # fmt: skip
+    assert not any(tmp_path.iterdir())  # a dry run makes nothing
+    lines = [dict(a.split("=", 1) for a in line.split()[2:]) for line in run.stdout.splitlines()]
+    whole = TuneRequest(system="real_pendulum", models=["hnn_jax"], trials=2)
+    by_fold = {g.fold: g for g in tuning.Tuner(whole).groups("hnn_jax")}
+    folds = [a for a in lines if a["system"] == "real_pendulum" and a["model"] == "hnn_jax"]
+    assert len(folds) == 5
+    for args in folds:
+        seeds = [int(s) for s in args["seeds"].split(",")]
+        part = TuneRequest(system="real_pendulum", models=["hnn_jax"], trials=2, seeds=seeds)
+        (group,) = tuning.Tuner(part).groups("hnn_jax")
+        assert group == by_fold[group.fold]
+        assert args["out"] == f"{tmp_path}/real_pendulum_fold{group.fold}/hnn_jax"
+    assert sorted(s for a in folds for s in map(int, a["seeds"].split(","))) == list(range(10))
+    spring = [a for a in lines if a["system"] == "spring"]
+    assert len(spring) == 6 and {a["seeds"] for a in spring} == {"0,1,2,3,4,5,6,7,8,9"}
+    assert len(lines) == 6 * 5 + 6
 
 
 def test_a_trials_score_is_the_mean_of_its_seeds_criteria_and_worst_if_one_fails():

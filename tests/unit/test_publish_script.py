@@ -17,7 +17,10 @@ def test_a_job_in_two_sweeps_is_refused_not_counted_twice(tmp_path, monkeypatch)
         write_run(sweep, "spring", "hnn_torch", 0, profile="paper", rollout=False)
     write_run(old, "spring", "hnn_torch", 1, profile="paper", rollout=False)
     assert publish_results.copy_records([old]) == 2
-    with pytest.raises(SystemExit, match=r"'hnn_torch', 0\) is in both .*move the superseded"):
+    with pytest.raises(
+        SystemExit,
+        match=r"the protocol run spring/hnn_torch seed 0 is in both .*move the superseded",
+    ):
         publish_results.copy_records([old, new])
     (old / "spring" / "hnn_torch" / "seed0" / "result.json").unlink()
     assert publish_results.copy_records([old, new]) == 2
@@ -78,7 +81,7 @@ def test_a_row_of_another_track_is_published_beside_the_protocols(tmp_path, monk
         ("protocol", "spring", "hnn_torch", 0),
         ("recipe", "spring", "hnn_torch", 0),
     }
-    with pytest.raises(SystemExit, match=r"\('recipe', 'spring', 'hnn_torch', 0\) is in both"):
+    with pytest.raises(SystemExit, match=r"the recipe run spring/hnn_torch seed 0 is in both"):
         publish_results.copy_records([recipe, recipe])
 
 

@@ -185,6 +185,30 @@ def test_a_pair_waits_until_its_studies_cover_the_protocols_seeds_and_their_fina
     )
 
 
+def test_fold_studies_run_side_by_side_in_folders_of_their_own_stage_together(spring, tmp_path):
+    """A folder takes one tuner at a time, so a measured system's fold studies run side by
+    side each in an out= folder of its own; each study's final runs are read from its own
+    folder, and a job found in two folders is refused."""
+    f0, f1, hnn = tmp_path / "fold0", tmp_path / "fold1", tmp_path / "hnn"
+    write_study(f0, "spring", "mlp_jax", seeds=(0,), fold=0)
+    write_study(f1, "spring", "mlp_jax", seeds=(1,), fold=1)
+    write_study(hnn, "spring", "hnn_jax")
+    shutil.copytree(
+        f1 / "final" / "spring" / "mlp_jax" / "seed1", f0 / "final" / "spring" / "mlp_jax" / "seed1"
+    )
+    with pytest.raises(
+        SystemExit, match=r"the tuned run spring/mlp_jax seed 1 is in both .*fold0.* and .*fold1"
+    ):
+        publish_results.stage_tuned([f0, f1, hnn])
+    assert not (spring / "staged").exists()
+    shutil.rmtree(f0 / "final" / "spring" / "mlp_jax" / "seed1")
+    assert publish_results.stage_tuned([f0, f1, hnn]) == (["spring/hnn_jax", "spring/mlp_jax"], [])
+    assert {j[1:] for j in tuned_jobs(spring / "staged")} == {
+        (m, "tuned", f"seed{k}") for m in ("mlp_jax", "hnn_jax") for k in (0, 1)
+    }
+    assert publish_results.publish_complete_systems() == ["spring"]
+
+
 def test_a_study_of_another_budget_than_its_systems_others_is_refused(spring, tmp_path):
     hnn, mlp = tmp_path / "hnn", tmp_path / "mlp"
     write_study(hnn, "spring", "hnn_jax")
