@@ -176,7 +176,9 @@ def tune(
     trials=...``: every model gets ``trials`` trials of ``steps`` steps over its
     declared search space, selected on validation, and the selected settings train on
     each of ``seeds``; return the leaderboard of those final runs (``track`` tuned,
-    with the tuning's CPU seconds). Re-running with the same ``out`` resumes.
+    with the tuning's CPU seconds), which reads the seeds no trial trained: a final run
+    on a trial seed is the selected trial again (``seeds`` within the trial seeds leave
+    it empty). Re-running with the same ``out`` resumes.
 
     Args:
         system: one registered system.

@@ -20,6 +20,7 @@ from hnnbench._results import stats
 from hnnbench._results.leaderboard import (
     board_metrics,
     flag_column,
+    in_sample,
     leaderboard_frame,
     metric_declarations,
     text_column,
@@ -116,11 +117,15 @@ class Families:
         twins: :func:`twin_agreement`, one row per (family row, other twin).
         runs: the records-frame rows of every family's primary model (one per seed),
             with ``family`` set: the per-seed values the marks and the aggregate use.
+        in_sample: the rows, as ``runs``, of tuned runs on their study's trial seeds
+            (:func:`hnnbench._results.leaderboard.in_sample`): in no row, mark or
+            aggregate; the tuning gain shows them apart.
     """
 
     board: pd.DataFrame
     twins: pd.DataFrame = field(default_factory=pd.DataFrame)
     runs: pd.DataFrame = field(default_factory=pd.DataFrame)
+    in_sample: pd.DataFrame = field(default_factory=pd.DataFrame)
 
     def metrics(self) -> list[str]:
         return board_metrics(self.board)
@@ -563,6 +568,8 @@ def families(frame: pd.DataFrame, board: Optional[pd.DataFrame] = None) -> Famil
     if board is None:
         board = leaderboard_frame(frame)
     board, frame = _with_track(board), _with_track(frame)
+    held_out = in_sample(frame)
+    sample, frame = frame[held_out], frame[~held_out]
     if board.empty:
         return Families(board.assign(family=[], seeds_from=[], models=[], backends=[]))
     standing_in = references_in_every_track(frame)
@@ -581,6 +588,10 @@ def families(frame: pd.DataFrame, board: Optional[pd.DataFrame] = None) -> Famil
     primaries["twins"], primaries["twins_disagree"] = words, disagree
     keep = {(*key_of(r, RANKING_KEY), str(r["seeds_from"])) for _, r in primaries.iterrows()}
     runs = frame[[(*key_of(r, RANKING_KEY), str(r["model"])) in keep for _, r in frame.iterrows()]]
+    sample = sample.assign(family=competitor(sample), variant=_variant(sample))
+    sample = sample[
+        [(*key_of(r, RANKING_KEY), str(r["model"])) in keep for _, r in sample.iterrows()]
+    ]
     board_out = mark_best(primaries, runs)
     order = family_order(board_out)
     systems = registry.ordered("system", board_out["system"].astype(str))
@@ -600,4 +611,6 @@ def families(frame: pd.DataFrame, board: Optional[pd.DataFrame] = None) -> Famil
     if not _variant(board_out).ne("").any():
         head.remove("variant")
         rest = [c for c in rest if c != "variant"]
-    return Families(board_out[head + rest], twins, runs.reset_index(drop=True))
+    return Families(
+        board_out[head + rest], twins, runs.reset_index(drop=True), sample.reset_index(drop=True)
+    )

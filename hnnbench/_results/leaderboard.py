@@ -44,6 +44,7 @@ __all__ = [
     "summary_metrics",
     "format_interval",
     "format_value",
+    "in_sample",
     "leaderboard",
     "leaderboard_frame",
     "records_frame",
@@ -159,6 +160,15 @@ def flag_column(frame: pd.DataFrame, name: str, default: bool) -> pd.Series:
     if name not in frame:
         return pd.Series(default, index=frame.index, dtype=bool)
     return frame[name].fillna(default).astype(bool)
+
+
+def in_sample(frame: pd.DataFrame) -> pd.Series:
+    """Whether each run of a records frame is a tuned run on one of its study's trial
+    seeds (``tuning_trial_seed``): the selected trial run again, chosen for its score on
+    that very seed. The tuned track's rows, and so its tests and verdicts, leave these
+    runs out and read the final seeds no trial trained; the tuning gain shows them
+    apart (docs/TUNING.md, "Which seeds a tuned row reads")."""
+    return flag_column(frame, "tuning_trial_seed", False)
 
 
 def _has_variants(frame: pd.DataFrame) -> bool:
@@ -421,7 +431,8 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
     (``reason``: :func:`reason_text`), ``<metric>_mean``, ``<metric>_std`` and the
     interval ``<metric>_ci_low``, ``<metric>_ci_high`` (over seeds:
     :func:`hnnbench._results.stats.mean_intervals`, NaN for one seed or an infinite value) for
-    every metric, ``<timing>_mean`` for :data:`TIMINGS`. Metrics are aggregated over the
+    every metric, ``<timing>_mean`` for :data:`TIMINGS`. A tuned run on one of its
+    study's trial seeds is left out (:func:`in_sample`). Metrics are aggregated over the
     ``ok`` runs; a pair with no ``ok`` run is aggregated over its ``diverged`` runs, so
     it shows ``inf`` where its rollouts diverged (and its finite losses). Failed or
     skipped runs only: NaN, status and reason say why.
@@ -444,7 +455,7 @@ def leaderboard_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None)
     columns += list(PROVENANCE_COLUMNS)
     if frame.empty:
         return pd.DataFrame(columns=columns)
-    frame = frame.copy()
+    frame = frame[~in_sample(frame)].copy()
     frame["profile"] = frame["profile"].fillna("?")
     frame["variant"] = frame["variant"].fillna("") if "variant" in frame else ""
     frame["track"] = frame["track"].fillna(DEFAULT_TRACK) if "track" in frame else DEFAULT_TRACK

@@ -93,3 +93,29 @@ def test_a_measured_systems_fold_studies_on_other_seeds_leave_every_final_seed_u
     assert _gain([*protocol, *unknown]).empty
     text = gain_markdown(_gain([*protocol, *unknown]), studies_frame(unknown))
     assert "No tuning gain for spring/hnn: none of their final seeds is both known" in text
+
+
+def test_no_tuned_row_reads_a_trial_seed_and_the_gain_still_shows_them_apart():
+    """A tuned run on a trial seed is the selected trial again: the leaderboard's tuned
+    row, the family view's runs (what marks and the aggregate read) leave it out
+    (``in_sample``); the tuning gain still reads it, as its ``trial`` rows."""
+    from hnnbench._results.families import families
+    from hnnbench._results.leaderboard import in_sample, leaderboard_frame
+
+    recs = [_rec(s, "protocol", 1.0) for s in range(10)]
+    # seeds 0 and 1 look 500x better tuned: the selection's own seeds
+    recs += [_rec(s, "tuned", 0.5, 0.001 if s < 2 else 0.5, trial_seeds=(0, 1)) for s in range(10)]
+    frame = records_frame(recs)
+    assert list(frame.loc[in_sample(frame), "seed"]) == [0, 1]
+    board = leaderboard_frame(frame).set_index("track")
+    assert board.loc["tuned", "seeds"] == "2;3;4;5;6;7;8;9"
+    assert board.loc["tuned", "n_ok"] == 8 and board.loc["tuned", "test_loss_mean"] == 0.5
+    assert board.loc["protocol", "n_ok"] == 10
+    fams = families(frame)
+    tuned_runs = fams.runs[fams.runs["track"] == "tuned"]
+    assert sorted(tuned_runs["seed"]) == list(range(2, 10))
+    assert sorted(fams.in_sample["seed"]) == [0, 1] and set(fams.in_sample["family"]) == {"hnn"}
+    gain = tuning_gain(fams).set_index(["metric", "seeds"])
+    assert gain.loc[("test_loss", UNSEEN), "n"] == 8
+    assert gain.loc[("test_loss", TRIAL), "n"] == 2
+    assert math.isclose(gain.loc[("test_loss", TRIAL), "gain"], 3.0)  # log10(1 / 0.001)

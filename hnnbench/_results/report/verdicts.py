@@ -648,24 +648,10 @@ def tuning_costs(fams: Families) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def tracks_markdown(
-    frame: pd.DataFrame, costs: Optional[pd.DataFrame] = None, tuning: str = ""
-) -> str:
-    """The tracks side by side (:func:`tracks_frame`) and one line per (system, metric)
-    whose verdict changes between tracks; a line saying so when no other track ran; then,
-    where ``costs`` (:func:`tuning_costs`) has rows, what each family's tuning cost; then
-    ``tuning`` (the tuning gain and the studies,
-    :func:`hnnbench._results.report.tuning.gain_markdown`)."""
-    if frame.empty and (costs is None or costs.empty) and not tuning:
-        return (
-            "Only the protocol track has published rows: no tuned or recipe rows yet "
-            "(docs/TUNING.md)."
-        )
-    lines = (
-        []
-        if frame.empty
-        else [md_table(frame.drop(columns=["changes", "mean_changes"]).replace("", "—")), ""]
-    )
+def _verdict_lines(frame: pd.DataFrame) -> list[str]:
+    """The tracks table (a non-empty :func:`tracks_frame`), its legend, and the lines
+    naming where a verdict, or only the best mean, changes between tracks."""
+    lines = [md_table(frame.drop(columns=["changes", "mean_changes"]).replace("", "—")), ""]
     tracks = [
         c
         for c in frame.columns
@@ -691,7 +677,10 @@ def tracks_markdown(
         f'from the other five ("too few '
         "seeds to separate\": the two-sided sign test with Holm's correction, "
         "docs/STATISTICS.md), and the recipe track ranks only the families that "
-        "declare a recipe.",
+        "declare a recipe. The tuned track reads the final seeds no trial of the "
+        "family's study trained (seeds 2 to 9 where the trials trained seeds 0 and 1): "
+        "a trial seed's final run is the selected trial again, chosen for its score on "
+        "that seed (docs/TUNING.md).",
         "",
     ]
 
@@ -728,6 +717,23 @@ def tracks_markdown(
             for _, r in means.iterrows()
         ]
         lines.append("")
+    return lines
+
+
+def tracks_markdown(
+    frame: pd.DataFrame, costs: Optional[pd.DataFrame] = None, tuning: str = ""
+) -> str:
+    """The tracks side by side (:func:`tracks_frame`) and one line per (system, metric)
+    whose verdict changes between tracks; a line saying so when no other track ran; then,
+    where ``costs`` (:func:`tuning_costs`) has rows, what each family's tuning cost; then
+    ``tuning`` (the tuning gain and the studies,
+    :func:`hnnbench._results.report.tuning.gain_markdown`)."""
+    if frame.empty and (costs is None or costs.empty) and not tuning:
+        return (
+            "Only the protocol track has published rows: no tuned or recipe rows yet "
+            "(docs/TUNING.md)."
+        )
+    lines = [] if frame.empty else _verdict_lines(frame)
     if costs is not None and not costs.empty:
         lines += [
             "What each family's tuned settings cost: the CPU seconds of its studies "
