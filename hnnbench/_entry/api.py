@@ -260,7 +260,8 @@ def load(
 def leaderboard(frame: Union[pd.DataFrame, Iterable[dict[str, Any]]]) -> pd.DataFrame:
     """The leaderboard of a frame of records (:func:`load`) or of records themselves:
     one row per (profile, system, model, variant), status counts, ``<metric>_mean`` and
-    ``<metric>_std`` over seeds, mean timings, provenance."""
+    ``<metric>_std`` over seeds, mean timings, provenance. A tuned run on one of its
+    study's trial seeds is in no row (docs/TUNING.md, "Which seeds a tuned row reads")."""
     import pandas as pd
 
     from hnnbench._results.leaderboard import leaderboard as from_records

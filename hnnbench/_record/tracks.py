@@ -13,6 +13,7 @@ __all__ = [
     "SELECTED_ON",
     "STEPS_SETTING",
     "TRACK_KEYS",
+    "on_trial_seed",
     "study_summary_name",
     "track_of",
     "track_problem",
@@ -37,6 +38,18 @@ def track_of(record: Mapping[str, Any]) -> str:
     where it has none (or a value that is not a string, which the schema refuses)."""
     value = record.get("track")
     return value if isinstance(value, str) and value else DEFAULT_TRACK
+
+
+def on_trial_seed(record: Mapping[str, Any]) -> Optional[bool]:
+    """Whether a tuned record's seed is one of its study's trial seeds
+    (``tuning.trial_seeds``): then the run is the selected trial again, chosen for its
+    score on that very seed, and no row reads it (docs/TUNING.md, "Which seeds a tuned
+    row reads"). ``None`` for a record with no ``tuning`` block or no list of trial seeds."""
+    tuning = record.get("tuning")
+    seeds = tuning.get("trial_seeds") if isinstance(tuning, Mapping) else None
+    if not isinstance(seeds, (list, tuple)):
+        return None
+    return record.get("seed") in seeds
 
 
 #: The setting that holds a tuned run's step budget (``tuning.steps``).

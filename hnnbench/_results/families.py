@@ -119,7 +119,8 @@ class Families:
             with ``family`` set: the per-seed values the marks and the aggregate use.
         in_sample: the rows, as ``runs``, of tuned runs on their study's trial seeds
             (:func:`hnnbench._results.leaderboard.in_sample`): in no row, mark or
-            aggregate; the tuning gain shows them apart.
+            aggregate; the tuning gain shows them apart (a family with no other tuned
+            seed has no tuned row, so none are kept for it).
     """
 
     board: pd.DataFrame

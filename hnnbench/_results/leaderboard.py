@@ -31,7 +31,7 @@ from hnnbench._contracts.names import (
     TIMINGS,
     TRACKS,
 )
-from hnnbench._record.tracks import TRACK_KEYS, track_of, tuned_settings
+from hnnbench._record.tracks import TRACK_KEYS, on_trial_seed, track_of, tuned_settings
 from hnnbench._results import stats
 from hnnbench._results.provenance import reserved_key_problem
 from hnnbench._running.config import RUN_ONLY_KEYS
@@ -159,7 +159,8 @@ def flag_column(frame: pd.DataFrame, name: str, default: bool) -> pd.Series:
     in every row when ``frame`` has no such column (e.g. ``ranked``: true unless declared)."""
     if name not in frame:
         return pd.Series(default, index=frame.index, dtype=bool)
-    return frame[name].fillna(default).astype(bool)
+    column = frame[name].astype(object)
+    return column.where(column.notna(), default).astype(bool)
 
 
 def in_sample(frame: pd.DataFrame) -> pd.Series:
@@ -167,8 +168,11 @@ def in_sample(frame: pd.DataFrame) -> pd.Series:
     seeds (``tuning_trial_seed``): the selected trial run again, chosen for its score on
     that very seed. The tuned track's rows, and so its tests and verdicts, leave these
     runs out and read the final seeds no trial trained; the tuning gain shows them
-    apart (docs/TUNING.md, "Which seeds a tuned row reads")."""
-    return flag_column(frame, "tuning_trial_seed", False)
+    apart (docs/TUNING.md, "Which seeds a tuned row reads"). A failed, timed-out or
+    skipped run on a trial seed is not left out: it carries no value, and its row
+    still counts it."""
+    valued = text_column(frame, "status").isin(("ok", "diverged"))
+    return flag_column(frame, "tuning_trial_seed", False) & valued
 
 
 def _has_variants(frame: pd.DataFrame) -> bool:
@@ -211,11 +215,7 @@ def records_frame(
             "tuning_cpu_s": tuning.get("cpu_s") if isinstance(tuning, dict) else None,
             "tuning_study": tuning.get("study") if isinstance(tuning, dict) else None,
             "criterion_value": _selection_field(rec, "validation_loss"),
-            "tuning_trial_seed": (
-                rec.get("seed") in tuning["trial_seeds"]
-                if isinstance(tuning, dict) and isinstance(tuning.get("trial_seeds"), (list, tuple))
-                else None
-            ),
+            "tuning_trial_seed": on_trial_seed(rec),
             "ranked": _ranked(rec),
             "reference": _reference(rec),
             "converged": _selection_field(rec, "converged"),

@@ -177,7 +177,8 @@ def job_of(rec: dict) -> tuple[str, str, str, int]:
 
 def copy_figure_rollouts(recs: list[dict], root: Path | None = None) -> tuple[int, int]:
     """For each (system, model) of ``recs`` (the records being published), the figure
-    rollout of its lowest seed that has a ``rollout.npz`` beside its record, next to its
+    rollout of its lowest seed that has a ``rollout.npz`` beside its record (of a tuned
+    pair, the lowest seed that is not a trial seed, where one has it), next to its
     record in results/records (``root``); any other ``rollout.npz`` there is removed.
     Returns (files, bytes); a rollout that cannot be read safely is ``SystemExit`` (one
     line) before anything is published."""
@@ -188,6 +189,7 @@ def copy_figure_rollouts(recs: list[dict], root: Path | None = None) -> tuple[in
 
     from hnnbench import _record as records
     from hnnbench._contracts.paths import safe_join
+    from hnnbench._record.tracks import on_trial_seed
     from hnnbench._results.report.figures import figure_arrays
 
     chosen: dict[tuple[str, str, str], tuple[int, Path]] = {}
@@ -197,10 +199,12 @@ def copy_figure_rollouts(recs: list[dict], root: Path | None = None) -> tuple[in
             continue
         track, system, model, seed = job_of(rec)
         key = (track, system, model)
-        if key not in chosen or seed < chosen[key][0]:
-            chosen[key] = (seed, source)
+        # a tuned run on a trial seed (no row reads it) only where no other seed has one
+        rank = (bool(on_trial_seed(rec)), seed)
+        if key not in chosen or rank < chosen[key][0]:
+            chosen[key] = (rank, source)
     written = {}
-    for (track, system, model), (seed, source) in sorted(chosen.items()):
+    for (track, system, model), ((_, seed), source) in sorted(chosen.items()):
         rec = {
             "system": system,
             "model": model,
@@ -606,9 +610,10 @@ def tuned_parts(
     roots: list[Path],
     protocol_seeds: dict[tuple[str, str], set[int]],
     protocol_configs: dict[tuple[str, str], list[dict[str, Any]]] | None = None,
-) -> tuple[list[tuple[str, str, list[dict], Path]], list[str]]:
+) -> tuple[list[tuple[str, str, list[dict], list[Path]]], list[str]]:
     """The finished pairs under the tuners' ``out=`` roots: one ``(system, model,
-    summaries, final directory)`` per pair whose studies (one per fold on a measured
+    summaries, final directories)`` per pair (a directory per ``out=`` root its studies
+    sit in) whose studies (one per fold on a measured
     system) all ran their budget, together cover the final seeds of the pair's published
     protocol records (``protocol_seeds``), and whose final runs are all written; and one
     line per pair (or root) left waiting, saying why. A study whose trial 0 is not the

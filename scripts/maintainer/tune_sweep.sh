@@ -20,7 +20,9 @@
 # JOBS studies run side by side (one process each), dearest first within a system. Each
 # study's log: ROOT/<system>/<model>.log. A measured system's five fold studies run as
 # five processes, fold k's in ROOT/<system>_fold<k>/<model> (its log
-# ROOT/<system>/<model>.fold<k>.log), so they too use every core. Publish what finished
+# ROOT/<system>/<model>.fold<k>.log), so they too use every core (a measured study begun
+# in ROOT/<system>/<model> before this layout is resumed only from there: run its
+# `hnnbench tune` by hand with that out=). Publish what finished
 # (any time; it is staged until its system's every family is in):
 #   .venv/bin/python scripts/maintainer/publish_results.py --tuned ROOT/*/*/
 set -euo pipefail
@@ -68,7 +70,7 @@ for system in $systems; do
     if [[ $measured == *" $system "* ]]; then
       for s in 0 1 2 3 4; do
         fold_seeds=$(seq -s, "$s" 5 $(( ${SEEDS:-10} - 1 )))
-        [ -n "$fold_seeds" ] && echo "$system/$model/$(( (4 - s) % 5 ))/$fold_seeds"
+        if [ -n "$fold_seeds" ]; then echo "$system/$model/$(( (4 - s) % 5 ))/$fold_seeds"; fi
       done
     else
       echo "$system/$model"

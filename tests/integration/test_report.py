@@ -234,6 +234,15 @@ def test_no_learned_energy_figure_without_a_model_that_has_one(tmp_path):
     names = {p.name for p in (sweep / "figures").glob("*.png")}
     assert names == {"spring_phase.png", "spring_energy.png", "spring_loss.png"}
     assert report.runs_for_figures(report.load_sweep(sweep))[0] == 1  # the lowest seed
+    # tuned runs whose study's trials trained seed 1: no row reads them, no figure draws
+    # them while another seed has a rollout
+    recs = report.load_sweep(sweep)
+    for rec in recs:
+        rec.update(track="tuned", tuning={"trial_seeds": [1]})
+    assert report.runs_for_figures(recs)[0] == 3
+    for rec in recs:
+        rec["tuning"]["trial_seeds"] = [1, 3]
+    assert report.runs_for_figures(recs)[0] == 1  # none other: the lowest
 
 
 def test_diverged_pair_is_shown_as_diverged_with_inf_never_dropped(tmp_path):

@@ -756,6 +756,7 @@ def test_the_sweep_scripts_fold_processes_hold_the_same_studies_as_one_process(t
     run = subprocess.run(
         ["bash", str(script), "real_pendulum,spring", str(tmp_path)],
         env=env, capture_output=True, text=True, check=True, timeout=60,
+        start_new_session=True,
     )  # fmt: skip
     assert not any(tmp_path.iterdir())  # a dry run makes nothing
     lines = [dict(a.split("=", 1) for a in line.split()[2:]) for line in run.stdout.splitlines()]
@@ -773,6 +774,18 @@ def test_the_sweep_scripts_fold_processes_hold_the_same_studies_as_one_process(t
     spring = [a for a in lines if a["system"] == "spring"]
     assert len(spring) == 6 and {a["seeds"] for a in spring} == {"0,1,2,3,4,5,6,7,8,9"}
     assert len(lines) == 6 * 5 + 6
+    # fewer final seeds than folds: a fold with none has no process, and the script ends 0
+    few = subprocess.run(
+        ["bash", str(script), "real_pendulum", str(tmp_path)],
+        env={**env, "SEEDS": "3"}, capture_output=True, text=True, timeout=60,
+        start_new_session=True,
+    )  # fmt: skip
+    assert few.returncode == 0, few.stderr
+    assert sorted({line.split()[5] for line in few.stdout.splitlines()}) == [
+        "seeds=0",
+        "seeds=1",
+        "seeds=2",
+    ]
 
 
 def test_a_trials_score_is_the_mean_of_its_seeds_criteria_and_worst_if_one_fails():

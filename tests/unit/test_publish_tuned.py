@@ -24,11 +24,13 @@ def write_study(
     lr: float = 0.003,
     budget: int = TRIALS,
     fold: int | None = None,
+    rollouts: tuple[int, ...] = (0,),
     **change: Any,
 ) -> Path:
     """What ``hnnbench tune system=S model=M out=OUT`` leaves of a study of ``done``
     (default: all) of its ``budget`` trials: its summary and, when it is finished, its
-    final records (the selected ``model.lr`` on ``seeds``, seed 0 with a rollout).
+    final records (the selected ``model.lr`` on ``seeds``, those of ``rollouts`` with a
+    rollout; its trials trained seeds 0 and 1).
     ``change`` overrides fields of the summary. Returns the summary's path."""
     done = budget if done is None else done
     study = f"{system}/{model}" + ("" if fold is None else f"/fold{fold}")
@@ -59,7 +61,9 @@ def write_study(
     if done < budget:
         return path
     for seed in seeds:
-        job = write_run(out / "final", system, model, seed, profile="paper", rollout=seed == 0)
+        job = write_run(
+            out / "final", system, model, seed, profile="paper", rollout=seed in rollouts
+        )
         record = json.loads((job / "result.json").read_text())
         record["track"] = record["config"]["track"] = "tuned"
         record["config"]["model"]["lr"] = lr
@@ -207,6 +211,23 @@ def test_fold_studies_run_side_by_side_in_folders_of_their_own_stage_together(sp
         (m, "tuned", f"seed{k}") for m in ("mlp_jax", "hnn_jax") for k in (0, 1)
     }
     assert publish_results.publish_complete_systems() == ["spring"]
+
+
+def test_a_tuned_pairs_figure_rollout_is_of_its_lowest_seed_no_trial_trained(spring, tmp_path):
+    """The figures draw what the rows read: of a tuned pair whose finals have rollouts on
+    seeds 0 to 2, the one kept is seed 2's (seeds 0 and 1 are its trials' own)."""
+    hnn, mlp = tmp_path / "hnn", tmp_path / "mlp"
+    write_study(hnn, "spring", "hnn_jax", seeds=(0, 1, 2), rollouts=(0, 1, 2))
+    write_study(mlp, "spring", "mlp_jax", seeds=(0, 1, 2), rollouts=(0, 1))  # none unseen
+    publish_results.stage_tuned([hnn, mlp])
+    kept = sorted(
+        p.parent.relative_to(spring / "staged").parts
+        for p in (spring / "staged").rglob("rollout.npz")
+    )
+    assert kept == [
+        ("spring", "hnn_jax", "tuned", "seed2"),
+        ("spring", "mlp_jax", "tuned", "seed0"),
+    ]
 
 
 def test_a_study_of_another_budget_than_its_systems_others_is_refused(spring, tmp_path):

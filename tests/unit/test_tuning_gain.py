@@ -119,3 +119,7 @@ def test_no_tuned_row_reads_a_trial_seed_and_the_gain_still_shows_them_apart():
     assert gain.loc[("test_loss", UNSEEN), "n"] == 8
     assert gain.loc[("test_loss", TRIAL), "n"] == 2
     assert math.isclose(gain.loc[("test_loss", TRIAL), "gain"], 3.0)  # log10(1 / 0.001)
+    # a trial seed's run that failed carries no value: its row still counts it
+    recs[11] = {**recs[11], "status": "failed", "metrics": {}, "selection": None}
+    board = leaderboard_frame(records_frame(recs)).set_index("track")
+    assert board.loc["tuned", "n_failed"] == 1 and board.loc["tuned", "n_ok"] == 8

@@ -44,7 +44,7 @@ from hnnbench._contracts.errors import UnsafePathError
 from hnnbench._contracts.names import DEFAULT_TRACK, REFERENCES, TRACKS, name_problem
 from hnnbench._contracts.paths import safe_join
 from hnnbench._contracts.plugin import HISTORY_TRAIN, HISTORY_VALID
-from hnnbench._record.tracks import track_of
+from hnnbench._record.tracks import on_trial_seed, track_of
 from hnnbench._results.families import family_order
 from hnnbench._results.leaderboard import (
     flag_column,
@@ -207,16 +207,18 @@ def runs_for_figures(recs: list[dict[str, Any]]) -> tuple[Optional[int], list[Ru
     """The lowest seed with a rollout file, and each model's run of that seed that has
     one, in registry order (a record without one, e.g. a published record whose figure
     rollout was not kept, is left out without a warning; the figures name such models:
-    :attr:`SystemRuns.missing`)."""
-    seeds = sorted(
-        {
-            int(r["seed"])
-            for r in recs
-            if r.get("seed") is not None
-            and r.get("path")
-            and (Path(r["path"]) / records.ROLLOUT_NAME).exists()
-        }
-    )
+    :attr:`SystemRuns.missing`). A tuned run on one of its study's trial seeds
+    (:func:`hnnbench._record.tracks.on_trial_seed`) is drawn only where no other seed
+    has a rollout, as no row reads it."""
+    with_rollout = [
+        r
+        for r in recs
+        if r.get("seed") is not None
+        and r.get("path")
+        and (Path(r["path"]) / records.ROLLOUT_NAME).exists()
+    ]
+    unseen = [r for r in with_rollout if not on_trial_seed(r)]
+    seeds = sorted({int(r["seed"]) for r in unseen or with_rollout})
     if not seeds:
         return None, []
     seed = seeds[0]

@@ -156,7 +156,11 @@ def tuning_gain(fams: Families, metrics: Optional[Sequence[str]] = None) -> pd.D
     A tuned run whose record names no trial seeds is in neither. With the default
     metrics, a row :data:`CRITERION_ROW` first: the selection criterion
     (``criterion_value``). Empty without both tracks."""
-    runs = pd.concat([fams.runs, fams.in_sample]) if not fams.in_sample.empty else fams.runs
+    runs = (
+        pd.concat([fams.runs, fams.in_sample], ignore_index=True)
+        if not fams.in_sample.empty
+        else fams.runs
+    )
     columns = ["profile", "system", "family", "metric", "seeds", "n", "gain", "low", "high",
                "coverage", "scale"]  # fmt: skip
     if runs.empty or "track" not in runs:
