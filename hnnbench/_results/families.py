@@ -588,11 +588,14 @@ def families(frame: pd.DataFrame, board: Optional[pd.DataFrame] = None) -> Famil
         disagree.append(d)
     primaries["twins"], primaries["twins_disagree"] = words, disagree
     keep = {(*key_of(r, RANKING_KEY), str(r["seeds_from"])) for _, r in primaries.iterrows()}
-    runs = frame[[(*key_of(r, RANKING_KEY), str(r["model"])) in keep for _, r in frame.iterrows()]]
-    sample = sample.assign(family=competitor(sample), variant=_variant(sample))
-    sample = sample[
-        [(*key_of(r, RANKING_KEY), str(r["model"])) in keep for _, r in sample.iterrows()]
-    ]
+
+    def primary(rows: pd.DataFrame) -> pd.DataFrame:
+        return rows[
+            [(*key_of(r, RANKING_KEY), str(r["model"])) in keep for _, r in rows.iterrows()]
+        ]
+
+    runs = primary(frame)
+    sample = primary(sample.assign(family=competitor(sample), variant=_variant(sample)))
     board_out = mark_best(primaries, runs)
     order = family_order(board_out)
     systems = registry.ordered("system", board_out["system"].astype(str))

@@ -192,7 +192,7 @@ def copy_figure_rollouts(recs: list[dict], root: Path | None = None) -> tuple[in
     from hnnbench._record.tracks import on_trial_seed
     from hnnbench._results.report.figures import figure_arrays
 
-    chosen: dict[tuple[str, str, str], tuple[int, Path]] = {}
+    chosen: dict[tuple[str, str, str], tuple[tuple[bool, int], Path]] = {}
     for rec in recs:
         source = Path(rec["path"]) / records.ROLLOUT_NAME
         if rec.get("status") not in ("ok", "diverged") or not source.is_file():
