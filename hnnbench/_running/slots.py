@@ -12,7 +12,10 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import IO, Optional
 
-__all__ = ["claim_least_held", "slots_dir"]
+__all__ = ["claim_least_held", "slots_dir", "CLAIMING"]
+
+#: The lock file of a slots directory that claimants take in turn while they count.
+CLAIMING = ".claiming.lock"
 
 
 def slots_dir(kind: str) -> Path:
@@ -36,8 +39,21 @@ def claim_least_held(
     while counting (so no other claimant takes it meanwhile), and the others are let go
     once the least-held resource is chosen. With cores 0 and 1 held and a third claimant
     on core 0's second slot, once the first two exit the next claimant goes to core 1,
-    not to core 0's free first slot.
+    not to core 0's free first slot. Claimants count one at a time (``CLAIMING``, a lock
+    of the directory): two counting at once would each see the other's passing locks as
+    holders and could both choose the same resource.
     """
+    import fcntl
+
+    with open(directory / CLAIMING, "a+") as turn:
+        fcntl.flock(turn, fcntl.LOCK_EX)  # released when the file closes
+        return _count_and_claim(directory, slots)
+
+
+def _count_and_claim(
+    directory: Path, slots: Mapping[int, Sequence[str]]
+) -> tuple[Optional[int], Optional[IO[str]]]:
+    """:func:`claim_least_held`'s count and choice, run by one claimant at a time."""
     import fcntl
 
     held = dict.fromkeys(slots, 0)
