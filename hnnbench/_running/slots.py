@@ -8,14 +8,17 @@ from __future__ import annotations
 
 import os
 import tempfile
+import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import IO, Optional
 
-__all__ = ["claim_least_held", "slots_dir", "CLAIMING"]
+__all__ = ["claim_least_held", "slots_dir", "CLAIMING", "TURN_WAIT_S"]
 
 #: The lock file of a slots directory that claimants take in turn while they count.
 CLAIMING = ".claiming.lock"
+#: Seconds a claimant waits for its turn to count before it counts anyway.
+TURN_WAIT_S = 5.0
 
 
 def slots_dir(kind: str) -> Path:
@@ -41,12 +44,24 @@ def claim_least_held(
     on core 0's second slot, once the first two exit the next claimant goes to core 1,
     not to core 0's free first slot. Claimants count one at a time (``CLAIMING``, a lock
     of the directory): two counting at once would each see the other's passing locks as
-    holders and could both choose the same resource.
+    holders and could both choose the same resource. A claimant waits at most
+    :data:`TURN_WAIT_S` for its turn (the counter stopped, say by ``SIGSTOP``), then
+    counts anyway.
     """
     import fcntl
 
-    with open(directory / CLAIMING, "a+") as turn:
-        fcntl.flock(turn, fcntl.LOCK_EX)  # released when the file closes
+    with open(directory / CLAIMING, "a+") as turn:  # the lock goes when the file closes
+        deadline = time.monotonic() + TURN_WAIT_S
+        while True:
+            try:
+                fcntl.flock(turn, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() > deadline:
+                    break
+                time.sleep(0.01)
+            except OSError:  # no locks on this file system: every slot will read as held
+                break
         return _count_and_claim(directory, slots)
 
 
@@ -58,19 +73,24 @@ def _count_and_claim(
 
     held = dict.fromkeys(slots, 0)
     free: dict[int, IO[str]] = {}
-    for key, names in slots.items():
-        for name in names:
-            handle: IO[str] = open(directory / name, "a+")  # noqa: SIM115
-            try:
-                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
-                held[key] += 1
-                handle.close()
-                continue
-            if key in free:  # a second free slot of this resource: not needed
-                handle.close()
-            else:
-                free[key] = handle
+    try:
+        for key, names in slots.items():
+            for name in names:
+                handle: IO[str] = open(directory / name, "a+")  # noqa: SIM115
+                try:
+                    fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except OSError:
+                    held[key] += 1
+                    handle.close()
+                    continue
+                if key in free:  # a second free slot of this resource: not needed
+                    handle.close()
+                else:
+                    free[key] = handle
+    except OSError:  # a lock file that cannot be opened: let go of the slots kept so far
+        for handle in free.values():
+            handle.close()
+        raise
     if not free:
         return None, None
     chosen = min(free, key=lambda k: (held[k], k))

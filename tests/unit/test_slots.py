@@ -6,6 +6,7 @@ import threading
 
 import pytest
 
+from hnnbench._running import slots
 from hnnbench._running.slots import CLAIMING, claim_least_held
 
 fcntl = pytest.importorskip("fcntl")
@@ -23,7 +24,7 @@ def _claim_together(directory, n):
         start.wait()
         out.append(claim_least_held(directory, SLOTS))
 
-    threads = [threading.Thread(target=claimant) for _ in range(n)]
+    threads = [threading.Thread(target=claimant, daemon=True) for _ in range(n)]
     for t in threads:
         t.start()
     for t in threads:
@@ -52,7 +53,7 @@ def test_a_claimant_waits_while_another_counts(tmp_path):
     with open(tmp_path / CLAIMING, "a+") as turn:
         fcntl.flock(turn, fcntl.LOCK_EX)  # another claimant counting
         t = threading.Thread(target=lambda: (out.append(claim_least_held(tmp_path, SLOTS)),
-                                             done.set()))  # fmt: skip
+                                             done.set()), daemon=True)  # fmt: skip
         t.start()
         assert not done.wait(0.3)
     assert done.wait(30)
@@ -68,3 +69,14 @@ def test_four_claimants_on_two_resources_share_them_evenly(tmp_path):
     finally:
         for _, handle in out:
             handle.close()
+
+
+def test_a_claimant_counts_anyway_when_the_counter_never_finishes(tmp_path, monkeypatch):
+    """A counter stopped while it holds the turn (``SIGSTOP``) delays a claimant by
+    ``TURN_WAIT_S`` at most, never for ever."""
+    monkeypatch.setattr(slots, "TURN_WAIT_S", 0.2)
+    with open(tmp_path / CLAIMING, "a+") as turn:
+        fcntl.flock(turn, fcntl.LOCK_EX)
+        key, handle = claim_least_held(tmp_path, SLOTS)
+    handle.close()
+    assert key == 0
