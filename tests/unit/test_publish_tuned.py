@@ -9,85 +9,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from publish_fixtures import publish_results
-from report_fixtures import write_run
-
-TRIALS = 16
-
-
-def write_study(
-    out: Path,
-    system: str,
-    model: str,
-    seeds: tuple[int, ...] = (0, 1),
-    done: int | None = None,
-    lr: float = 0.003,
-    budget: int = TRIALS,
-    fold: int | None = None,
-    rollouts: tuple[int, ...] = (0,),
-    **change: Any,
-) -> Path:
-    """What ``hnnbench tune system=S model=M out=OUT`` leaves of a study of ``done``
-    (default: all) of its ``budget`` trials: its summary and, when it is finished, its
-    final records (the selected ``model.lr`` on ``seeds``, those of ``rollouts`` with a
-    rollout; its trials trained seeds 0 and 1).
-    ``change`` overrides fields of the summary. Returns the summary's path."""
-    done = budget if done is None else done
-    study = f"{system}/{model}" + ("" if fold is None else f"/fold{fold}")
-    selected = {"number": 3, "value": 1e-3 / 4, "settings": {"model.lr": lr}}
-    trials = [
-        {
-            "number": n,
-            "state": "complete" if n < 4 else "pruned",
-            "value": 1e-3 / (n + 1),
-            "settings": {"model.lr": 0.001 if n == 0 else lr},
-            "protocol": n == 0,
-            "cpu_s": 10.0,
-            "last_step": 2000 if n < 4 else 230,
-            "seed_values": [1e-3 / (n + 1)] * 2,
-        }
-        for n in range(done)
-    ]
-    summary = {
-        "system": system, "model": model, "study": study, "profile": "paper",
-        "trials_budget": budget, "steps": 2000, "criterion": "field_mse_clean",
-        "seeds_per_trial": 2, "trial_seeds": [0, 1], "fold": fold,
-        "final_seeds": list(seeds), "protocol_trial": 0, "protocol_value": 1e-3,
-        "selected": selected if done >= budget else None, "trials": trials, **change,
-    }  # fmt: skip
-    path = out / "tuning" / system / publish_results.summary_name(model, fold)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(summary))
-    if done < budget:
-        return path
-    for seed in seeds:
-        job = write_run(
-            out / "final", system, model, seed, profile="paper", rollout=seed in rollouts
-        )
-        record = json.loads((job / "result.json").read_text())
-        record["track"] = record["config"]["track"] = "tuned"
-        record["config"]["model"]["lr"] = lr
-        record["config"]["model"]["steps"] = 2000
-        record["tuning"] = {
-            "selected_on": "validation", "criterion": "field_mse_clean",
-            "seeds_per_trial": 2, "trial_seeds": [0, 1], "protocol_trial": 0,
-            "trials": budget, "steps": 2000, "space": {}, "selected": {"model.lr": lr},
-            "selected_trial": 3, "study": study, "cpu_s": 100.0,
-        }  # fmt: skip
-        (job / "result.json").write_text(json.dumps(record))
-    return path
+from publish_fixtures import publish_results, publish_spring_protocol, write_study
 
 
 @pytest.fixture()
 def spring(tree, tmp_path):
-    """The tree with spring's protocol track published: the MLP, the HNN and the oracle
-    (which has no tuned track) on seeds 0 and 1."""
-    protocol = tmp_path / "protocol"
-    for model in ("mlp_jax", "hnn_jax", "oracle"):
-        for seed in (0, 1):
-            write_run(protocol, "spring", model, seed, profile="paper", rollout=False)
-    publish_results.copy_records([protocol])
-    return tree / "results"
+    """The tree with spring's protocol track published (:func:`publish_spring_protocol`)."""
+    return publish_spring_protocol(tree, tmp_path)
 
 
 def tuned_jobs(root: Path) -> set[tuple[str, ...]]:
@@ -355,28 +283,6 @@ def test_a_published_tuned_system_that_loses_a_family_is_refused(spring, tmp_pat
     kept = [str(records / m) for m in ("hnn_jax", "mlp_jax", "oracle")]
     assert publish_results.main(kept) == 2
     assert "spring: tuned hnn; its protocol ran hnn, mlp" in capsys.readouterr().err
-
-
-@pytest.mark.slow
-def test_the_pages_of_a_published_tuned_system_show_how_its_studies_converged(
-    spring, tmp_path, capsys
-):
-    """The pages rebuilt after a tuned publication read results/tuning: a row per study
-    in tuning_convergence.csv, its figure, and the section of tracks.md."""
-    hnn, mlp = tmp_path / "hnn", tmp_path / "mlp"
-    write_study(hnn, "spring", "hnn_jax")
-    write_study(mlp, "spring", "mlp_jax")
-    assert publish_results.main(["--tuned", str(hnn), str(mlp)]) == 0
-    assert json.loads(capsys.readouterr().out)["published_tuned"] == ["spring"]
-    table = (spring / "tuning_convergence.csv").read_text().splitlines()
-    assert len(table) == 3 and table[1].startswith("spring,hnn_jax,,16,160.0,")
-    assert (spring / "figures" / "tuning_convergence.png").is_file()
-    assert "## Has the criterion flattened?" in (spring / "tracks.md").read_text()
-    # the trials' values fall to trial 3 (the last complete one): set in the first half
-    assert (
-        "2 of 2 studies had their best criterion by the end of the first half"
-        in (spring / "README.md").read_text()
-    )
 
 
 def test_protocol_records_that_disagree_on_a_setting_cannot_vouch_for_trial_0(spring, tmp_path):
