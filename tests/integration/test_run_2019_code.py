@@ -1,4 +1,5 @@
-"""scripts/analysis/run_2019_code.py: calls the original's train.py per seed and model, parses it.
+"""scripts/analysis/run_2019_code.py: calls the original's train.py per seed and model (each
+in a fresh interpreter), parses it.
 
 The original repository cannot be fetched in CI, so a stand-in ``train.py`` with the
 original's command line and final print format takes its place; what is tested is this
