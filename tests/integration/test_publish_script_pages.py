@@ -1,5 +1,6 @@
-"""Publishing a new model with the published records keeps every figure and page (slow: a
-whole report; tests/unit/test_publish_script.py has the rest)."""
+"""Publishing a new model with the published records keeps every figure and page, and a
+published tuned system's pages show its studies (slow: a whole report;
+tests/unit/test_publish_script.py and test_publish_tuned.py have the rest)."""
 
 from __future__ import annotations
 
