@@ -257,3 +257,12 @@ def tree(tmp_path, monkeypatch):
     fake.main = lambda argv: 0  # the real one rewrites the installed job costs
     monkeypatch.setitem(sys.modules, "job_costs", fake)
     return root
+
+
+@pytest.fixture()
+def published_spring(tree, tmp_path):
+    """``tree``'s results/ with spring's protocol track published
+    (``publish_fixtures.publish_spring_protocol``)."""
+    from publish_fixtures import publish_spring_protocol
+
+    return publish_spring_protocol(tree, tmp_path)

@@ -8,7 +8,7 @@ import json
 
 import pandas as pd
 import pytest
-from publish_fixtures import publish_results, publish_spring_protocol, write_study
+from publish_fixtures import publish_results, write_study
 from report_fixtures import write_run
 
 
@@ -81,15 +81,9 @@ def test_a_new_model_published_with_the_records_keeps_every_figure_and_page(tree
     assert "| dhnn " in readme.split("<!-- leaderboard:begin -->")[1]
 
 
-@pytest.fixture()
-def spring(tree, tmp_path):
-    """The tree with spring's protocol track published (:func:`publish_spring_protocol`)."""
-    return publish_spring_protocol(tree, tmp_path)
-
-
 @pytest.mark.slow
 def test_the_pages_of_a_published_tuned_system_show_how_its_studies_converged(
-    spring, tmp_path, capsys
+    published_spring, tmp_path, capsys
 ):
     """The pages rebuilt after a tuned publication read results/tuning: a row per study
     in tuning_convergence.csv, its figure, and the section of tracks.md."""
@@ -98,12 +92,12 @@ def test_the_pages_of_a_published_tuned_system_show_how_its_studies_converged(
     write_study(mlp, "spring", "mlp_jax")
     assert publish_results.main(["--tuned", str(hnn), str(mlp)]) == 0
     assert json.loads(capsys.readouterr().out)["published_tuned"] == ["spring"]
-    table = (spring / "tuning_convergence.csv").read_text().splitlines()
+    table = (published_spring / "tuning_convergence.csv").read_text().splitlines()
     assert len(table) == 3 and table[1].startswith("spring,hnn_jax,,16,160.0,")
-    assert (spring / "figures" / "tuning_convergence.png").is_file()
-    assert "## Has the criterion flattened?" in (spring / "tracks.md").read_text()
+    assert (published_spring / "figures" / "tuning_convergence.png").is_file()
+    assert "## Has the criterion flattened?" in (published_spring / "tracks.md").read_text()
     # the trials' values fall to trial 3 (the last complete one): set in the first half
     assert (
         "2 of 2 studies had their best criterion by the end of the first half"
-        in (spring / "README.md").read_text()
+        in (published_spring / "README.md").read_text()
     )

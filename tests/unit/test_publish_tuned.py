@@ -9,13 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from publish_fixtures import publish_results, publish_spring_protocol, write_study
-
-
-@pytest.fixture()
-def spring(tree, tmp_path):
-    """The tree with spring's protocol track published (:func:`publish_spring_protocol`)."""
-    return publish_spring_protocol(tree, tmp_path)
+from publish_fixtures import publish_results, write_study
 
 
 def tuned_jobs(root: Path) -> set[tuple[str, ...]]:
@@ -25,7 +19,7 @@ def tuned_jobs(root: Path) -> set[tuple[str, ...]]:
 
 
 def test_a_finished_study_is_staged_and_its_system_published_when_every_family_is_in(
-    spring, tmp_path
+    published_spring, tmp_path
 ):
     hnn, mlp = tmp_path / "hnn", tmp_path / "mlp"
     write_study(hnn, "spring", "hnn_jax")
@@ -33,8 +27,8 @@ def test_a_finished_study_is_staged_and_its_system_published_when_every_family_i
     staged, waiting = publish_results.stage_tuned([hnn, mlp])
     assert staged == ["spring/hnn_jax"]
     assert waiting == ["spring/mlp_jax: study spring/mlp_jax has 9 of 16 trials; not staged"]
-    here = spring / "staged" / "spring" / "hnn_jax"
-    assert tuned_jobs(spring / "staged") == {
+    here = published_spring / "staged" / "spring" / "hnn_jax"
+    assert tuned_jobs(published_spring / "staged") == {
         ("spring", "hnn_jax", "tuned", "seed0"),
         ("spring", "hnn_jax", "tuned", "seed1"),
     }
@@ -42,7 +36,10 @@ def test_a_finished_study_is_staged_and_its_system_published_when_every_family_i
     assert json.loads((here / "hnn_jax.json").read_text())["selected"]
     # One family of two: nothing is published, and the page says what is staged.
     assert publish_results.publish_complete_systems() == []
-    assert tuned_jobs(spring / "records") == set() and not (spring / "tuning").exists()
+    assert (
+        tuned_jobs(published_spring / "records") == set()
+        and not (published_spring / "tuning").exists()
+    )
     assert publish_results.staged_lines() == [
         "- Tuned track, staged (not published until every family's study is in): "
         "`spring` has hnn (1 of 2 families)"
@@ -53,14 +50,14 @@ def test_a_finished_study_is_staged_and_its_system_published_when_every_family_i
     assert publish_results.stage_tuned([hnn, mlp])[0] == ["spring/hnn_jax", "spring/mlp_jax"]
     assert {p: p.read_bytes() for p in here.rglob("*") if p.is_file()} == before
     assert publish_results.publish_complete_systems() == ["spring"]
-    assert {j[:2] for j in tuned_jobs(spring / "records")} == {
+    assert {j[:2] for j in tuned_jobs(published_spring / "records")} == {
         ("spring", "hnn_jax"),
         ("spring", "mlp_jax"),
     }
-    assert len(tuned_jobs(spring / "records")) == 4
-    assert not (spring / "staged").exists()
+    assert len(tuned_jobs(published_spring / "records")) == 4
+    assert not (published_spring / "staged").exists()
     assert publish_results.staged_lines() == []
-    assert sorted(p.name for p in (spring / "tuning" / "spring").iterdir()) == [
+    assert sorted(p.name for p in (published_spring / "tuning" / "spring").iterdir()) == [
         "hnn_jax.json",
         "mlp_jax.json",
     ]
@@ -69,7 +66,7 @@ def test_a_finished_study_is_staged_and_its_system_published_when_every_family_i
     write_study(hnn, "spring", "hnn_jax", lr=0.005)
     assert publish_results.stage_tuned([hnn])[0] == ["spring/hnn_jax"]
     assert publish_results.publish_complete_systems() == ["spring"]
-    tuned = spring / "records" / "spring" / "hnn_jax" / "tuned"
+    tuned = published_spring / "records" / "spring" / "hnn_jax" / "tuned"
     assert sorted(p.relative_to(tuned).as_posix() for p in tuned.rglob("*.*")) == [
         "seed0/result.json",
         "seed0/rollout.npz",
@@ -77,12 +74,12 @@ def test_a_finished_study_is_staged_and_its_system_published_when_every_family_i
     ]
     record = json.loads((tuned / "seed0" / "result.json").read_text())
     assert record["tuning"]["selected"] == {"model.lr": 0.005}
-    summary = json.loads((spring / "tuning" / "spring" / "hnn_jax.json").read_text())
+    summary = json.loads((published_spring / "tuning" / "spring" / "hnn_jax.json").read_text())
     assert summary["selected"]["settings"] == {"model.lr": 0.005}
 
 
 def test_a_pair_waits_until_its_studies_cover_the_protocols_seeds_and_their_finals_are_written(
-    spring, tmp_path
+    published_spring, tmp_path
 ):
     """A measured system's fold studies end one by one, and a study's final runs come
     after its summary: either way the pair waits, said in one line, and the others stage."""
@@ -104,7 +101,9 @@ def test_a_pair_waits_until_its_studies_cover_the_protocols_seeds_and_their_fina
     assert publish_results.publish_complete_systems() == []
     write_study(folds, "spring", "mlp_jax", seeds=(1,), fold=1)
     assert publish_results.stage_tuned([folds])[0] == ["spring/mlp_jax"]
-    assert sorted(p.name for p in (spring / "staged" / "spring" / "mlp_jax").glob("*.json")) == [
+    assert sorted(
+        p.name for p in (published_spring / "staged" / "spring" / "mlp_jax").glob("*.json")
+    ) == [
         "mlp_jax.fold0.json",
         "mlp_jax.fold1.json",
     ]
@@ -117,7 +116,9 @@ def test_a_pair_waits_until_its_studies_cover_the_protocols_seeds_and_their_fina
     )
 
 
-def test_fold_studies_run_side_by_side_in_folders_of_their_own_stage_together(spring, tmp_path):
+def test_fold_studies_run_side_by_side_in_folders_of_their_own_stage_together(
+    published_spring, tmp_path
+):
     """A folder takes one tuner at a time, so a measured system's fold studies run side by
     side each in an out= folder of its own; each study's final runs are read from its own
     folder, and a job found in two folders is refused."""
@@ -132,16 +133,18 @@ def test_fold_studies_run_side_by_side_in_folders_of_their_own_stage_together(sp
         SystemExit, match=r"the tuned run spring/mlp_jax seed 1 is in both .*fold0.* and .*fold1"
     ):
         publish_results.stage_tuned([f0, f1, hnn])
-    assert not (spring / "staged").exists()
+    assert not (published_spring / "staged").exists()
     shutil.rmtree(f0 / "final" / "spring" / "mlp_jax" / "seed1")
     assert publish_results.stage_tuned([f0, f1, hnn]) == (["spring/hnn_jax", "spring/mlp_jax"], [])
-    assert {j[1:] for j in tuned_jobs(spring / "staged")} == {
+    assert {j[1:] for j in tuned_jobs(published_spring / "staged")} == {
         (m, "tuned", f"seed{k}") for m in ("mlp_jax", "hnn_jax") for k in (0, 1)
     }
     assert publish_results.publish_complete_systems() == ["spring"]
 
 
-def test_a_tuned_pairs_figure_rollout_is_of_its_lowest_seed_no_trial_trained(spring, tmp_path):
+def test_a_tuned_pairs_figure_rollout_is_of_its_lowest_seed_no_trial_trained(
+    published_spring, tmp_path
+):
     """The figures draw what the rows read: of a tuned pair whose finals have rollouts on
     seeds 0 to 2, the one kept is seed 2's (seeds 0 and 1 are its trials' own)."""
     hnn, mlp = tmp_path / "hnn", tmp_path / "mlp"
@@ -149,8 +152,8 @@ def test_a_tuned_pairs_figure_rollout_is_of_its_lowest_seed_no_trial_trained(spr
     write_study(mlp, "spring", "mlp_jax", seeds=(0, 1, 2), rollouts=(0, 1))  # none unseen
     publish_results.stage_tuned([hnn, mlp])
     kept = sorted(
-        p.parent.relative_to(spring / "staged").parts
-        for p in (spring / "staged").rglob("rollout.npz")
+        p.parent.relative_to(published_spring / "staged").parts
+        for p in (published_spring / "staged").rglob("rollout.npz")
     )
     assert kept == [
         ("spring", "hnn_jax", "tuned", "seed2"),
@@ -158,14 +161,14 @@ def test_a_tuned_pairs_figure_rollout_is_of_its_lowest_seed_no_trial_trained(spr
     ]
 
 
-def test_a_study_of_another_budget_than_its_systems_others_is_refused(spring, tmp_path):
+def test_a_study_of_another_budget_than_its_systems_others_is_refused(published_spring, tmp_path):
     hnn, mlp = tmp_path / "hnn", tmp_path / "mlp"
     write_study(hnn, "spring", "hnn_jax")
     publish_results.stage_tuned([hnn])
     write_study(mlp, "spring", "mlp_jax", budget=24)
     with pytest.raises(SystemExit, match=r"unequal.*a system's studies share one budget"):
         publish_results.stage_tuned([mlp])
-    assert {j[1] for j in tuned_jobs(spring / "staged")} == {"hnn_jax"}
+    assert {j[1] for j in tuned_jobs(published_spring / "staged")} == {"hnn_jax"}
 
 
 def _bad_final(out: Path, seed: int, **tuning: Any) -> None:
@@ -235,17 +238,17 @@ def _edit(path: Path, **fields: Any) -> None:
     ],
 )
 def test_a_study_that_does_not_hold_together_is_one_line_and_nothing_is_staged(
-    spring, tmp_path, spoil, needle
+    published_spring, tmp_path, spoil, needle
 ):
     out = tmp_path / "hnn"
     summary = write_study(out, "spring", "hnn_jax")
     spoil(out, summary)
     with pytest.raises(SystemExit, match=needle):
         publish_results.main(["--tuned", str(out)])
-    assert not (spring / "staged").exists() and not (spring / "tuning").exists()
+    assert not (published_spring / "staged").exists() and not (published_spring / "tuning").exists()
 
 
-def test_the_main_entry_stages_and_says_what_waits(spring, tmp_path, capsys):
+def test_the_main_entry_stages_and_says_what_waits(published_spring, tmp_path, capsys):
     """``--tuned`` with nothing finished stages nothing, publishes nothing and says which
     study waits, in one line each."""
     out = tmp_path / "mlp"
@@ -254,23 +257,25 @@ def test_the_main_entry_stages_and_says_what_waits(spring, tmp_path, capsys):
     captured = capsys.readouterr()
     assert "spring/mlp_jax has 5 of 16 trials; not staged" in captured.err
     assert json.loads(captured.out) == {"staged": [], "published_tuned": []}
-    assert not (spring / "staged").exists()
+    assert not (published_spring / "staged").exists()
 
 
-def test_tuned_rows_do_not_enter_through_the_sweep_door(spring, tmp_path, capsys):
+def test_tuned_rows_do_not_enter_through_the_sweep_door(published_spring, tmp_path, capsys):
     """Tuned records given as a sweep are refused, whole system or not: they enter with
     --tuned, checked against their studies' summaries."""
     hnn, mlp = tmp_path / "hnn", tmp_path / "mlp"
     write_study(hnn, "spring", "hnn_jax")
     write_study(mlp, "spring", "mlp_jax")
-    assert publish_results.main([str(hnn / "final"), str(spring / "records")]) == 2
+    assert publish_results.main([str(hnn / "final"), str(published_spring / "records")]) == 2
     assert "tuned rows enter with --tuned OUT" in capsys.readouterr().err
-    both = [str(hnn / "final"), str(mlp / "final"), str(spring / "records")]
+    both = [str(hnn / "final"), str(mlp / "final"), str(published_spring / "records")]
     assert publish_results.main(both) == 2
-    assert tuned_jobs(spring / "records") == set()
+    assert tuned_jobs(published_spring / "records") == set()
 
 
-def test_a_published_tuned_system_that_loses_a_family_is_refused(spring, tmp_path, capsys):
+def test_a_published_tuned_system_that_loses_a_family_is_refused(
+    published_spring, tmp_path, capsys
+):
     """Withdrawing one family's protocol rows from a tuned system would leave its tuned
     rows without that family's pair: refused, naming it."""
     hnn, mlp = tmp_path / "hnn", tmp_path / "mlp"
@@ -278,18 +283,20 @@ def test_a_published_tuned_system_that_loses_a_family_is_refused(spring, tmp_pat
     write_study(mlp, "spring", "mlp_jax")
     publish_results.stage_tuned([hnn, mlp])
     assert publish_results.publish_complete_systems() == ["spring"]
-    records = spring / "records" / "spring"
+    records = published_spring / "records" / "spring"
     shutil.rmtree(records / "mlp_jax" / "tuned")
     kept = [str(records / m) for m in ("hnn_jax", "mlp_jax", "oracle")]
     assert publish_results.main(kept) == 2
     assert "spring: tuned hnn; its protocol ran hnn, mlp" in capsys.readouterr().err
 
 
-def test_protocol_records_that_disagree_on_a_setting_cannot_vouch_for_trial_0(spring, tmp_path):
+def test_protocol_records_that_disagree_on_a_setting_cannot_vouch_for_trial_0(
+    published_spring, tmp_path
+):
     """Trial 0 is checked against the published protocol records; where those records
     themselves hold two values of a setting, the check cannot be made: one line saying
     so, and nothing is staged."""
-    path = spring / "records" / "spring" / "hnn_jax" / "seed1" / "result.json"
+    path = published_spring / "records" / "spring" / "hnn_jax" / "seed1" / "result.json"
     record = json.loads(path.read_text())
     record["config"]["model"]["lr"] = 0.005
     path.write_text(json.dumps(record))
@@ -297,10 +304,10 @@ def test_protocol_records_that_disagree_on_a_setting_cannot_vouch_for_trial_0(sp
     write_study(out, "spring", "hnn_jax")
     with pytest.raises(SystemExit, match="the published protocol records disagree on model.lr"):
         publish_results.main(["--tuned", str(out)])
-    assert not (spring / "staged").exists()
+    assert not (published_spring / "staged").exists()
 
 
-def test_a_study_whose_trial_0_was_interrupted_and_replayed_is_staged(spring, tmp_path):
+def test_a_study_whose_trial_0_was_interrupted_and_replayed_is_staged(published_spring, tmp_path):
     """An interruption during trial 0 leaves it out of the summary (an interrupted trial
     is not counted) and the tuner runs its settings again as trial 1, flagged the
     protocol's: that study is staged; two trials flagged the protocol's are not."""
