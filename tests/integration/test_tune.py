@@ -663,6 +663,64 @@ def test_an_interrupted_trial_runs_its_settings_again(tmp_path):
 
 
 @pytest.mark.slow
+def test_a_studys_final_seeds_split_across_two_folders_are_the_one_process_runs(tmp_path):
+    """docs/TUNING.md, "A study's final seeds in two processes": a copy of a finished
+    study's tuning/ and trials/ is the same study, so its final seeds trained in the copy
+    are those a single process trains; copied back, they are read back, not redone, and
+    the summary then names every final seed."""
+    import shutil
+
+    def tune(out: Path, seeds: tuple[int, ...]) -> None:
+        hnnbench.tune(
+            "spring",
+            ["mlp_jax"],
+            trials=2,
+            seeds=seeds,
+            profile="quick",
+            out=out,
+            steps=40,
+            pin_cpu=False,
+        )
+
+    def finals(out: Path) -> dict[int, dict]:
+        paths = (out / "final" / "spring" / "mlp_jax").glob("seed*/result.json")
+        return {int(p.parent.name[4:]): json.loads(p.read_text()) for p in paths}
+
+    one, first, second = tmp_path / "one", tmp_path / "first", tmp_path / "second"
+    tune(one, (0, 1, 2, 3))
+    tune(first, (0, 1))
+    second.mkdir()
+    for part in ("tuning", "trials"):
+        shutil.copytree(first / part, second / part)
+    tune(second, (2, 3))
+    assert len(_trial_records(second, "mlp_jax")) == 4  # the copy's trials: read, not rerun
+    for seed in (2, 3):
+        shutil.copytree(
+            second / "final" / "spring" / "mlp_jax" / f"seed{seed}",
+            first / "final" / "spring" / "mlp_jax" / f"seed{seed}",
+        )
+    copied = {s: r["created_at"] for s, r in finals(first).items()}
+    tune(first, (0, 1, 2, 3))
+    merged, reference = finals(first), finals(one)
+    assert {s: r["created_at"] for s, r in merged.items()} == copied  # nothing redone
+    assert sorted(merged) == sorted(reference) == [0, 1, 2, 3]
+    measured = ("cpu_s", "cpu_s_per_trial")  # the CPU each run of the trials took
+    assert len({json.dumps(r["tuning"], sort_keys=True) for r in merged.values()}) == 1
+    for seed, record in merged.items():
+        assert {k: v for k, v in record["tuning"].items() if k not in measured} == {
+            k: v for k, v in reference[seed]["tuning"].items() if k not in measured
+        }
+        for name in ("test_loss", "val_loss"):
+            assert math.isclose(
+                record["metrics"][name]["mean"],
+                reference[seed]["metrics"][name]["mean"],
+                rel_tol=1e-6,
+            ), (seed, name)
+    summary = json.loads((first / "tuning" / "spring" / "mlp_jax.json").read_text())
+    assert summary["final_seeds"] == [0, 1, 2, 3]
+
+
+@pytest.mark.slow
 def test_the_protocol_trial_is_trial_0_and_never_pruned(tmp_path):
     """A study's trial 0 runs the protocol's settings (the model's config under the
     profile, its training fields as the protocol resolves them) and is never pruned, even
