@@ -35,12 +35,9 @@ def _tuned_cells(recs: list[dict[str, Any]]) -> dict[tuple[str, str], str]:
     }
 
 
-def _leaders(verdict: str) -> set[str]:
-    return {name.strip() for name in verdict.partition(": ")[2].split(",") if name.strip()}
-
-
 def main(argv: list[str] | None = None) -> int:
     from hnnbench._results.report.inputs import load_sweeps
+    from hnnbench._results.report.verdicts import _leader_set
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("dirs", nargs="+", type=Path, help="record directories (merged)")
@@ -60,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     changed = 0
     for key in sorted(published):
         a, b = published[key], read_in.get(key, "—")
-        differs = _leaders(a) != _leaders(b)
+        differs = _leader_set(a) != _leader_set(b)
         changed += differs
         mark = "  <- other leaders" if differs else ""
         print(f"{key[0]:18s} {key[1]:14s} {a:28s} | with trial seeds: {b}{mark}")
