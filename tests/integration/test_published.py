@@ -363,12 +363,14 @@ def test_every_tuned_study_is_committed_whole_and_its_rows_are_its_selection(com
     assert [p for p in problems if ": tuned [" not in p] == []
 
 
-def test_the_pages_count_of_tuned_cells_the_trial_seeds_would_change_is_the_records(capsys):
+def test_the_pages_count_of_tuned_cells_the_trial_seeds_would_change_is_the_records(
+    capsys, monkeypatch
+):
     """results/README.md says how many tuned cells of the simulated systems would have
     other leaders were the trial seeds read in (scripts/analysis/trial_seed_leaders.py);
     the committed records say the same. Publishing a tuned system can change the count:
     then update the page's sentence that gives it ("three of the fifteen tuned cells")."""
-    sys.path.insert(0, str(REPO / "scripts" / "analysis"))
+    monkeypatch.syspath_prepend(str(REPO / "scripts" / "analysis"))
     from trial_seed_leaders import main
 
     assert main([str(RECORDS)]) == 0
@@ -383,9 +385,13 @@ def test_the_pages_count_of_tuned_cells_the_trial_seeds_would_change_is_the_reco
         if r and r["seed"] in (r.get("tuning") or {}).get("trial_seeds", [])
     }
     cells = sum(1 for line in lines if line.split()[0] in simulated)
-    words = "zero one two three four five six seven eight nine ten eleven twelve thirteen"
-    words += " fourteen fifteen sixteen seventeen eighteen nineteen twenty twenty-one"
-    name = words.split()
+    ones = "zero one two three four five six seven eight nine ten eleven twelve thirteen"
+    ones += " fourteen fifteen sixteen seventeen eighteen nineteen"
+    name = ones.split() + [
+        f"{t}{'-' + u if u != 'zero' else ''}"
+        for t in ("twenty", "thirty")
+        for u in ones.split()[:10]
+    ]
     sentence = f"the leaders of {name[len(changed)]} of the {name[cells]} tuned cells of the "
     sentence += f"{name[len(simulated)]} simulated systems"
     assert sentence in " ".join(PAGE.read_text().split()), (sentence, changed)
