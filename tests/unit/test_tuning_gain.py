@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import pandas as pd
@@ -12,9 +13,12 @@ from hnnbench._results.families import Families
 from hnnbench._results.leaderboard import records_frame
 from hnnbench._results.report.tuning import (
     CRITERION_ROW,
+    GAIN_SIDES,
     TRIAL,
     UNSEEN,
+    gain_figure,
     gain_markdown,
+    gain_summary,
     studies_frame,
     tuning_gain,
 )
@@ -123,3 +127,42 @@ def test_no_tuned_row_reads_a_trial_seed_and_the_gain_still_shows_them_apart():
     recs[11] = {**recs[11], "status": "failed", "metrics": {}, "selection": None}
     board = leaderboard_frame(records_frame(recs)).set_index("track")
     assert board.loc["tuned", "n_failed"] == 1 and board.loc["tuned", "n_ok"] == 8
+
+
+def _row(family: str, metric: str, gain: float, low: float, high: float, seeds: str = UNSEEN):
+    """A tuning gain row of factors ``gain`` in ``[low, high]`` (as :func:`tuning_gain`
+    writes them, log10)."""
+    return {"profile": "paper", "system": "spring", "family": family, "metric": metric,
+            "seeds": seeds, "n": 8, "gain": math.log10(gain), "low": math.log10(low),
+            "high": math.log10(high), "coverage": 0.99, "scale": "log"}  # fmt: skip
+
+
+def test_the_summary_sorts_each_family_by_its_gains_interval_and_draws_them(tmp_path: Path):
+    """A family goes under `helped` where its interval lies above x1 (x1.04 written with
+    three digits, not as x1), `hurt` below, `within noise` across it, largest gain first;
+    the trial seeds' rows (their luck) and metrics outside the headline are not read."""
+    rows = [
+        _row("a", CRITERION_ROW, 4.0, 2.0, 8.0),
+        _row("b", CRITERION_ROW, 1.04, 1.01, 1.08),
+        _row("c", CRITERION_ROW, 0.5, 0.3, 0.8),
+        _row("d", CRITERION_ROW, 1.3, 0.8, 2.0),
+        _row("e", CRITERION_ROW, 9.0, 0.9, 20.0),
+        _row("c", CRITERION_ROW, 50.0, 40.0, 60.0, seeds=TRIAL),  # the selection's own seeds
+        _row("a", "test_loss", 0.9, 0.5, 1.5),
+        _row("a", "train_loss", 0.2, 0.1, 0.3),  # not a headline metric
+    ]
+    gain = pd.DataFrame(rows)
+    summary = gain_summary(gain).set_index("metric")
+    assert list(summary.index) == [CRITERION_ROW, "test_loss"]
+    assert list(summary.columns) == ["profile", "system", *GAIN_SIDES]
+    helped, noise, hurt = (summary.loc[CRITERION_ROW, side] for side in GAIN_SIDES)
+    assert (helped, noise, hurt) == ("a ×4, b ×1.04", "e ×9, d ×1.3", "c ×0.5")
+    assert summary.loc["test_loss", "helped"] == "—"
+    assert summary.loc["test_loss", "within noise"] == "a ×0.9"
+    assert "| spring | criterion | a ×4, b ×1.04 |" in " ".join(
+        gain_markdown(gain, studies_frame([])).split()
+    )
+    made = gain_figure(gain, tmp_path / "gain.png")
+    assert made is not None and made.stat().st_size > 0
+    assert gain_summary(gain.iloc[:0]).empty
+    assert gain_figure(gain.iloc[:0], tmp_path / "x.png") is None

@@ -29,7 +29,13 @@ from hnnbench._results.report.inputs import ReportError, load_sweeps, provenance
 from hnnbench._results.report.published import comparison_markdown
 from hnnbench._results.report.selection import selection_frame, selection_markdown
 from hnnbench._results.report.tables import leaderboard_markdown
-from hnnbench._results.report.tuning import cost_figure, gain_markdown, studies_frame, tuning_gain
+from hnnbench._results.report.tuning import (
+    cost_figure,
+    gain_figure,
+    gain_markdown,
+    studies_frame,
+    tuning_gain,
+)
 from hnnbench._results.report.verdicts import (
     Verdicts,
     aggregate_markdown,
@@ -162,6 +168,10 @@ def write_report(
         made = cost_figure(studies, out / "figures" / "tuning_cost.png")
         if made is not None:
             report.figures.append(Made("tuned track", "tuning_cost", made))
+    if not gain.empty and figures:
+        made = gain_figure(gain, out / "figures" / "tuning_gain.png")
+        if made is not None:
+            report.figures.append(Made("tuned track", "tuning_gain", made))
     if figures:
         made = convergence_figure(curves, out / "figures" / "tuning_convergence.png")
         if made is not None:

@@ -1,6 +1,7 @@
-"""The tuned track's own tables and figure (docs/TUNING.md): what each study was and
+"""The tuned track's own tables and figures (docs/TUNING.md): what each study was and
 cost (:func:`studies_frame`), the tuning gain per family and system, tuned against the
-protocol on the final seeds, paired by seed (:func:`tuning_gain`), and each family's
+protocol on the final seeds, paired by seed (:func:`tuning_gain`), which families it
+helped and hurt (:func:`gain_summary`, drawn by :func:`gain_figure`), and each family's
 best criterion against the CPU its studies spent (:func:`cost_figure`)."""
 
 from __future__ import annotations
@@ -11,10 +12,13 @@ from pathlib import Path
 from typing import Any, Optional
 
 import pandas as pd
+from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter
 
 from hnnbench._contracts.names import DEFAULT_TRACK
 from hnnbench._record.tracks import track_of
 from hnnbench._results import stats
+from hnnbench._results.aggregate import headline_metrics
 from hnnbench._results.families import Families
 from hnnbench._results.leaderboard import flag_column, metric_declarations, text_column
 from hnnbench._results.report.style import family_color, log_axes, panel_grid, save_panels
@@ -25,8 +29,11 @@ __all__ = [
     "STUDY_COLUMNS",
     "TRIAL",
     "UNSEEN",
+    "GAIN_SIDES",
     "cost_figure",
+    "gain_figure",
     "gain_markdown",
+    "gain_summary",
     "studies_frame",
     "tuning_gain",
 ]
@@ -226,6 +233,112 @@ def _trial_seeds_sentence(gain: pd.DataFrame) -> str:
     )
 
 
+#: The columns of :func:`gain_summary` that name families: where the gain's interval lies
+#: wholly above no change (tuning helped), holds it (the seeds cannot tell), or lies
+#: wholly below it (tuning hurt).
+GAIN_SIDES = ("helped", "within noise", "hurt")
+
+
+def _side(row: Mapping[str, Any]) -> str:
+    """Which of :data:`GAIN_SIDES` a tuning gain row is on (its interval against 0, the
+    log ratio or difference of no change)."""
+    low, high = float(row["low"]), float(row["high"])
+    return GAIN_SIDES[0] if low > 0 else GAIN_SIDES[2] if high < 0 else GAIN_SIDES[1]
+
+
+def _near_one(row: Mapping[str, Any]) -> str:
+    """A gain as :func:`effect_text` writes it, with three digits within 10 % of no
+    change (a gain of ×1.04 whose interval clears ×1 is not written ×1)."""
+    value, scale = float(row["gain"]), str(row["scale"])
+    if scale == "log" and abs(value) < math.log10(1.1):
+        return f"×{10.0**value:.3g}"
+    return effect_text(value, scale)
+
+
+def _summary_metrics(gain: pd.DataFrame) -> list[str]:
+    """The criterion row, then the headline metrics, those ``gain`` has."""
+    present = set(gain["metric"].astype(str))
+    return [m for m in [CRITERION_ROW, *headline_metrics()] if m in present]
+
+
+def gain_summary(gain: pd.DataFrame) -> pd.DataFrame:
+    """Which families tuning helped and hurt: one row per (profile, system, metric: the
+    criterion, then the headline metrics) of :func:`tuning_gain`'s unseen seeds, a
+    column per side of :data:`GAIN_SIDES` naming its families with their median gain,
+    largest first (``dhnn ×4.7, lnn ×3``; ``—`` where none). Empty without rows."""
+    columns = ["profile", "system", "metric", *GAIN_SIDES]
+    if gain.empty or "seeds" not in gain:
+        return pd.DataFrame(columns=columns)
+    gain = gain[gain["seeds"] == UNSEEN]
+    metrics = _summary_metrics(gain)
+    rows = []
+    for (profile, system), group in gain.groupby(["profile", "system"], sort=False):
+        for metric in metrics:
+            part = group[group["metric"] == metric]
+            part = part.assign(_g=pd.to_numeric(part["gain"], errors="coerce"))
+            sides: dict[str, list[str]] = {side: [] for side in GAIN_SIDES}
+            for _, r in part.sort_values("_g", ascending=False, kind="stable").iterrows():
+                sides[_side(r)].append(f"{r['family']} {_near_one(r)}")
+            if not part.empty:
+                rows.append({"profile": profile, "system": system, "metric": metric,
+                             **{s: ", ".join(v) or "—" for s, v in sides.items()}})  # fmt: skip
+    return pd.DataFrame(rows, columns=columns)
+
+
+def gain_figure(gain: pd.DataFrame, path: Path) -> Optional[Path]:
+    """The tuning gain on the unseen seeds as intervals, a panel per metric of
+    :func:`gain_summary` (columns) and profile (rows): a row per system, a point per
+    family (its median protocol / tuned, log x axis; its interval as a bar), the line of
+    no change at ×1; written to ``path`` (``None`` without rows)."""
+    if gain.empty or "seeds" not in gain:
+        return None
+    gain = gain[(gain["seeds"] == UNSEEN) & (gain["scale"] == "log")]
+    metrics = _summary_metrics(gain)
+    if not metrics:
+        return None
+    profiles = list(dict.fromkeys(gain["profile"].astype(str)))
+    families = list(dict.fromkeys(gain["family"].astype(str)))
+    systems = {p: list(dict.fromkeys(gain[gain["profile"] == p]["system"].astype(str)))
+               for p in profiles}  # fmt: skip
+    tall = sum(0.5 + 0.16 * len(families) * len(systems[p]) for p in profiles)
+    fig = Figure(figsize=(3.6 * len(metrics), tall + 0.6))
+    axes = fig.subplots(
+        len(profiles), len(metrics), squeeze=False,
+        gridspec_kw={"height_ratios": [len(systems[p]) for p in profiles]},
+    )  # fmt: skip
+    step = 0.8 / max(len(families), 1)
+    for i, profile in enumerate(profiles):
+        names = systems[profile]
+        for j, metric in enumerate(metrics):
+            ax = axes[i][j]
+            part = gain[(gain["profile"] == profile) & (gain["metric"] == metric)]
+            for k, family in enumerate(families):
+                rows = part[part["family"].astype(str) == family]
+                if rows.empty:
+                    continue
+                y = [names.index(str(s)) - 0.4 + step * (k + 0.5) for s in rows["system"]]
+                x = 10.0 ** pd.to_numeric(rows["gain"]).clip(-12, 12)
+                lo = 10.0 ** pd.to_numeric(rows["low"]).clip(-12, 12)
+                hi = 10.0 ** pd.to_numeric(rows["high"]).clip(-12, 12)
+                ax.errorbar(x, y, xerr=[x - lo, hi - x], fmt="o", ms=3, lw=1,
+                            color=family_color(family), label=family)  # fmt: skip
+            ax.axvline(1.0, color="black", lw=0.8)
+            ax.set_xscale("log")
+            ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+            ax.set_yticks(range(len(names)), names if j == 0 else [""] * len(names), fontsize=7)
+            ax.set_ylim(len(names) - 0.5, -0.5)
+            for edge in range(len(names) - 1):
+                ax.axhline(edge + 0.5, color="0.85", lw=0.6)
+            ax.set_title(f"{metric} ({profile})", fontsize=9)
+            ax.set_xlabel("protocol / tuned (above ×1: tuning helped)", fontsize=7)
+            ax.tick_params(axis="x", labelsize=7)
+    axes[0][-1].legend(fontsize=6, loc="lower right")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    return path
+
+
 def _gain_text(row: Mapping[str, Any]) -> str:
     scale = str(row["scale"])
     return (
@@ -275,6 +388,18 @@ def gain_markdown(gain: pd.DataFrame, studies: pd.DataFrame) -> str:
             md_table(pd.DataFrame(rows)),
             "",
         ]
+        summary = gain_summary(every)
+        if not summary.empty:
+            lines += [
+                "Which families tuning helped, on the criterion and the headline metrics "
+                "(the table above, read by its intervals; figures/tuning_gain.png draws "
+                "them): a family is under `helped` where its interval lies wholly above ×1, "
+                "under `hurt` where it lies wholly below, and `within noise` where it holds "
+                "×1, each with its median gain, largest first.",
+                "",
+                md_table(summary.drop(columns=["profile"])),
+                "",
+            ]
     folded = sorted(
         {str(sy) for sy, f in zip(studies["system"], studies["fold"], strict=True) if pd.notna(f)}
         & set(gain["system"].astype(str))
