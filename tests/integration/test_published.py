@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import sys
 
 import numpy as np
@@ -396,3 +397,42 @@ def test_the_pages_count_of_tuned_cells_the_trial_seeds_would_change_is_the_reco
     sentence += f"{name[len(simulated)]} simulated systems"
     assert sentence in " ".join(PAGE.read_text().split()), (sentence, changed)
     assert "double_pendulum" not in changed  # the page: "(none of `double_pendulum`'s)"
+
+
+def _tracks_sentence_counts(metric: str) -> tuple[int, int]:
+    """From the tracks block's generated sentence under "Tuning gain": in how many
+    studies the trial seeds' ``metric`` gain was larger than the unseen seeds', of how
+    many."""
+    block = " ".join(_block(PAGE.read_text(), "tracks").split())
+    found = re.search(rf"`{metric}` (\d+) larger and \d+ smaller of (\d+)", block)
+    assert found, metric
+    return int(found[1]), int(found[2])
+
+
+def test_the_pages_hand_written_counts_of_the_tuned_studies_are_the_generated_ones():
+    """The tuned track's prose on results/README.md gives counts that the generated
+    tables also hold: how often the trial seeds' gain was larger (the tracks block's
+    sentence under "Tuning gain") and how many studies had their best criterion by the
+    end of the first half of their trials (results/tuning_convergence.csv). Publishing a
+    tuned system changes them: update the prose where this test points."""
+    page = " ".join(PAGE.read_text().split())
+    loss, criterion = _tracks_sentence_counts("test_loss"), _tracks_sentence_counts("criterion")
+    said = (
+        f"their gain was larger than the unseen seeds' in {loss[0]} of {loss[1]} studies on "
+        f"test loss, but in only {criterion[0]} of {criterion[1]} on the criterion itself"
+    )
+    assert said in page, said
+    conv = pd.read_csv(RESULTS / "tuning_convergence.csv")
+    simulated, folds = conv[conv["fold"].isna()], conv[conv["fold"].notna()]
+    early = int((simulated["second_half_gain"] <= 1).sum())
+    systems = ["zero", "one", "two", "three", "four", "five", "six", "seven", "eight"]
+    said = (
+        f"{early} of the {len(simulated)} studies of the "
+        f"{systems[simulated['system'].nunique()]} simulated systems (and "
+        f"{int((folds['second_half_gain'] <= 1).sum())} of `real_pendulum`'s {len(folds)} "
+        f"fold studies) had their best criterion by the end of the first half of their "
+        f"trials (the protocol's settings and TPE's random start-up draws). In the other "
+        f"{len(simulated) - early} the second half still improved it"
+    )
+    assert set(folds["system"]) == {"real_pendulum"}
+    assert said in page, said
