@@ -243,9 +243,18 @@ def test_the_tracks_table_shows_the_tuning_gain_with_its_interval_negative_where
     assert len(studies) == 4 and set(studies["budget"]) == {"4 x 20 x 2"}
     made = cost_figure(studies, tmp_path / "cost.png")
     assert made is not None and made.stat().st_size > 0
-    # the tuned rows withdrawn, the same folder rebuilt: no table of them is left behind
-    again = write_report([protocol], tmp_path / "out", figures=False)
-    for name in ("tracks.csv", "tuning_studies.csv", "tuning_gain.csv"):
+    # four paired seeds cannot separate: the summary under the table says within noise
+    assert "| spring | energy_mse | — | " in " ".join(text.split())
+    # the figures: drawn with the report (what the HTML page shows) ...
+    report = write_report([protocol, tuned], tmp_path / "out")
+    names = {m.path.name for m in report.figures if m.label == "tuned track"}
+    assert names == {"tuning_cost.png", "tuning_gain.png"}
+    assert "figures/tuning_gain.png" in report.files["html"].read_text()
+    # the tuned rows withdrawn, the same folder rebuilt: no table or figure of them is
+    # left behind
+    again = write_report([protocol], tmp_path / "out")
+    for name in ("tracks.csv", "tuning_studies.csv", "tuning_gain.csv", "figures/tuning_gain.png",
+                 "figures/tuning_cost.png"):  # fmt: skip
         assert not (tmp_path / "out" / name).exists(), name
     assert "## Tuning gain" not in again.files["tracks_md"].read_text()
 

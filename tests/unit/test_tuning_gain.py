@@ -16,6 +16,7 @@ from hnnbench._results.report.tuning import (
     GAIN_SIDES,
     TRIAL,
     UNSEEN,
+    _gain_plot,  # one figure's artists
     gain_figure,
     gain_markdown,
     gain_summary,
@@ -129,26 +130,39 @@ def test_no_tuned_row_reads_a_trial_seed_and_the_gain_still_shows_them_apart():
     assert board.loc["tuned", "n_failed"] == 1 and board.loc["tuned", "n_ok"] == 8
 
 
-def _row(family: str, metric: str, gain: float, low: float, high: float, seeds: str = UNSEEN):
-    """A tuning gain row of factors ``gain`` in ``[low, high]`` (as :func:`tuning_gain`
-    writes them, log10)."""
-    return {"profile": "paper", "system": "spring", "family": family, "metric": metric,
-            "seeds": seeds, "n": 8, "gain": math.log10(gain), "low": math.log10(low),
-            "high": math.log10(high), "coverage": 0.99, "scale": "log"}  # fmt: skip
+def _row(
+    family: str,
+    metric: str,
+    gain: float,
+    low: float,
+    high: float,
+    seeds: str = UNSEEN,
+    n: int = 8,
+    profile: str = "paper",
+) -> dict[str, Any]:
+    """A tuning gain row of factors ``gain`` in ``[low, high]`` on ``n`` paired seeds (as
+    :func:`tuning_gain` writes them, log10)."""
+    return {"profile": profile, "system": "spring", "family": family, "metric": metric,
+            "seeds": seeds, "n": n, "gain": math.log10(gain), "low": math.log10(low),
+            "high": math.log10(high), "coverage": 1 - 2 * 0.5**n, "scale": "log"}  # fmt: skip
 
 
 def test_the_summary_sorts_each_family_by_its_gains_interval_and_draws_them(tmp_path: Path):
     """A family goes under `helped` where its interval lies above x1 (x1.04 written with
-    three digits, not as x1), `hurt` below, `within noise` across it, largest gain first;
-    the trial seeds' rows (their luck) and metrics outside the headline are not read."""
+    three digits, not as x1), `hurt` below, `within noise` across it or on fewer seeds
+    than can separate, largest gain first; the trial seeds' rows (their luck) and
+    metrics outside the headline are not read. The figure draws one interval per family
+    and panel, the log-scale metrics only, an infinite end as an arrow at the axis."""
     rows = [
         _row("a", CRITERION_ROW, 4.0, 2.0, 8.0),
         _row("b", CRITERION_ROW, 1.04, 1.01, 1.08),
         _row("c", CRITERION_ROW, 0.5, 0.3, 0.8),
         _row("d", CRITERION_ROW, 1.3, 0.8, 2.0),
         _row("e", CRITERION_ROW, 9.0, 0.9, 20.0),
+        _row("f", CRITERION_ROW, 30.0, 20.0, 40.0, n=4),  # all four better: too few seeds
         _row("c", CRITERION_ROW, 50.0, 40.0, 60.0, seeds=TRIAL),  # the selection's own seeds
         _row("a", "test_loss", 0.9, 0.5, 1.5),
+        {**_row("b", "test_loss", 2.0, 1.5, 3.0), "high": math.inf},  # a diverged protocol
         _row("a", "train_loss", 0.2, 0.1, 0.3),  # not a headline metric
     ]
     gain = pd.DataFrame(rows)
@@ -156,13 +170,44 @@ def test_the_summary_sorts_each_family_by_its_gains_interval_and_draws_them(tmp_
     assert list(summary.index) == [CRITERION_ROW, "test_loss"]
     assert list(summary.columns) == ["profile", "system", *GAIN_SIDES]
     helped, noise, hurt = (summary.loc[CRITERION_ROW, side] for side in GAIN_SIDES)
-    assert (helped, noise, hurt) == ("a ×4, b ×1.04", "e ×9, d ×1.3", "c ×0.5")
-    assert summary.loc["test_loss", "helped"] == "—"
+    assert (helped, noise, hurt) == ("a ×4, b ×1.04", "f ×30, e ×9, d ×1.3", "c ×0.5")
+    assert summary.loc["test_loss", "helped"] == "b ×2"
     assert summary.loc["test_loss", "within noise"] == "a ×0.9"
-    assert "| spring | criterion | a ×4, b ×1.04 |" in " ".join(
-        gain_markdown(gain, studies_frame([])).split()
-    )
+    text = " ".join(gain_markdown(gain, studies_frame([])).split())
+    assert "| spring | criterion | a ×4, b ×1.04 |" in text and "fewer than 6 paired seeds" in text
+    fig = _gain_plot(gain)
+    assert fig is not None
+    panels = [ax for ax in fig.axes if ax.get_title()]
+    assert [ax.get_title() for ax in panels] == ["criterion (paper)", "test_loss (paper)"]
+    assert [len(ax.containers) for ax in panels] == [6, 2]  # trial seeds' row not drawn
+    from matplotlib.collections import PathCollection
+
+    arrows = [[c for c in ax.collections if isinstance(c, PathCollection)] for ax in panels]
+    assert [len(a) for a in arrows] == [0, 1]  # the infinite end's arrow, at the axis
+    assert arrows[1][0].get_offsets()[0][0] == panels[1].get_xlim()[1]
     made = gain_figure(gain, tmp_path / "gain.png")
     assert made is not None and made.stat().st_size > 0
+    # nothing left to draw: no figure, and an earlier one is removed
+    linear = gain.assign(scale="linear")
+    assert not gain_summary(linear).empty and gain_figure(linear, made) is None
+    assert not made.exists()
     assert gain_summary(gain.iloc[:0]).empty
-    assert gain_figure(gain.iloc[:0], tmp_path / "x.png") is None
+
+
+def test_a_second_profile_keeps_its_own_rows_and_panels():
+    """Two profiles: the summary names each row's profile, the figure a row of panels
+    per profile."""
+    gain = pd.DataFrame(
+        [_row("a", CRITERION_ROW, 4.0, 2.0, 8.0), _row("a", CRITERION_ROW, 0.5, 0.3, 0.8,
+                                                          profile="quick")]
+    )  # fmt: skip
+    summary = gain_summary(gain)
+    assert list(summary["profile"]) == ["paper", "quick"]
+    assert list(summary["helped"]) == ["a ×4", "—"] and list(summary["hurt"]) == ["—", "a ×0.5"]
+    assert "| quick | spring | criterion |" in " ".join(
+        gain_markdown(gain, studies_frame([])).split()
+    )
+    fig = _gain_plot(gain)
+    assert fig is not None
+    titles = [ax.get_title() for ax in fig.axes if ax.get_title()]
+    assert titles == ["criterion (paper)", "criterion (quick)"]

@@ -164,11 +164,10 @@ def write_report(
             continue
         report.files[key] = out / name
         records.atomic_write_text(report.files[key], csv_text(frame))
-    if not studies.empty and figures:
+    if figures:  # each removed where it has nothing to draw (as the tables above)
         made = cost_figure(studies, out / "figures" / "tuning_cost.png")
         if made is not None:
             report.figures.append(Made("tuned track", "tuning_cost", made))
-    if not gain.empty and figures:
         made = gain_figure(gain, out / "figures" / "tuning_gain.png")
         if made is not None:
             report.figures.append(Made("tuned track", "tuning_gain", made))

@@ -357,9 +357,10 @@ def convergence_figure(frame: pd.DataFrame, path: Path) -> Optional[Path]:
     studies as thin lines of their family's colour) against the CPU seconds it had
     spent, a panel per system, the CPU of its cheapest whole study with a completed
     trial dotted (one line per fold on a measured system);
-    written to ``path`` (``None`` without a completed trial)."""
+    written to ``path`` (``None``, and ``path`` removed, without a completed trial)."""
     frame = frame[frame["best"].notna() & frame["cpu_s"].gt(0)]
     if frame.empty:
+        path.unlink(missing_ok=True)
         return None
     panels = list(frame.groupby("system", sort=False))
     fig, axes = panel_grid(len(panels))

@@ -13,6 +13,7 @@ from typing import Any, Optional
 
 import pandas as pd
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter
 
 from hnnbench._contracts.names import DEFAULT_TRACK
@@ -26,10 +27,10 @@ from hnnbench._results.report.tables import effect_text, md_table
 
 __all__ = [
     "CRITERION_ROW",
+    "GAIN_SIDES",
     "STUDY_COLUMNS",
     "TRIAL",
     "UNSEEN",
-    "GAIN_SIDES",
     "cost_figure",
     "gain_figure",
     "gain_markdown",
@@ -240,9 +241,14 @@ GAIN_SIDES = ("helped", "within noise", "hurt")
 
 
 def _side(row: Mapping[str, Any]) -> str:
-    """Which of :data:`GAIN_SIDES` a tuning gain row is on (its interval against 0, the
-    log ratio or difference of no change)."""
+    """Which of :data:`GAIN_SIDES` a tuning gain row is on: its interval against 0 (the
+    log ratio or difference of no change), read only where it can separate, from at
+    least :data:`~hnnbench._results.stats.MIN_SEPARABLE_SEEDS` paired seeds at the
+    stated confidence (fewer: ``within noise``, however the seeds fell)."""
     low, high = float(row["low"]), float(row["high"])
+    n, coverage = int(row["n"]), float(row["coverage"])
+    if n < stats.MIN_SEPARABLE_SEEDS or not coverage >= stats.CONFIDENCE:
+        return GAIN_SIDES[1]
     return GAIN_SIDES[0] if low > 0 else GAIN_SIDES[2] if high < 0 else GAIN_SIDES[1]
 
 
@@ -285,25 +291,31 @@ def gain_summary(gain: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=columns)
 
 
-def gain_figure(gain: pd.DataFrame, path: Path) -> Optional[Path]:
-    """The tuning gain on the unseen seeds as intervals, a panel per metric of
-    :func:`gain_summary` (columns) and profile (rows): a row per system, a point per
-    family (its median protocol / tuned, log x axis; its interval as a bar), the line of
-    no change at ×1; written to ``path`` (``None`` without rows)."""
+def _gain_plot(gain: pd.DataFrame) -> Optional[Figure]:
+    """:func:`gain_figure`'s figure (``None`` without log-scale unseen rows): one
+    ``errorbar`` per (panel, family) drawn, in panel order."""
     if gain.empty or "seeds" not in gain:
         return None
     gain = gain[(gain["seeds"] == UNSEEN) & (gain["scale"] == "log")]
+    value = {c: pd.to_numeric(gain[c], errors="coerce") for c in ("gain", "low", "high")}
+    gain = gain[value["gain"].abs() < math.inf]  # a median of -inf and +inf (NaN): no point
     metrics = _summary_metrics(gain)
-    if not metrics:
+    if gain.empty or not metrics:
         return None
+    limits = {}  # per metric, log10: its finite values and no change, with a margin
+    for metric in metrics:
+        part = gain[gain["metric"] == metric]
+        ends = pd.concat([pd.to_numeric(part[c]) for c in ("gain", "low", "high")])
+        ends = ends[ends.abs() < math.inf]
+        limits[metric] = (min(float(ends.min()), 0.0) - 0.2, max(float(ends.max()), 0.0) + 0.2)
     profiles = list(dict.fromkeys(gain["profile"].astype(str)))
     families = list(dict.fromkeys(gain["family"].astype(str)))
     systems = {p: list(dict.fromkeys(gain[gain["profile"] == p]["system"].astype(str)))
                for p in profiles}  # fmt: skip
     tall = sum(0.5 + 0.16 * len(families) * len(systems[p]) for p in profiles)
-    fig = Figure(figsize=(3.6 * len(metrics), tall + 0.6))
+    fig = Figure(figsize=(3.6 * len(metrics), tall + 0.9))
     axes = fig.subplots(
-        len(profiles), len(metrics), squeeze=False,
+        len(profiles), len(metrics), squeeze=False, sharex="col",
         gridspec_kw={"height_ratios": [len(systems[p]) for p in profiles]},
     )  # fmt: skip
     step = 0.8 / max(len(families), 1)
@@ -312,28 +324,50 @@ def gain_figure(gain: pd.DataFrame, path: Path) -> Optional[Path]:
         for j, metric in enumerate(metrics):
             ax = axes[i][j]
             part = gain[(gain["profile"] == profile) & (gain["metric"] == metric)]
+            lim = limits[metric]
             for k, family in enumerate(families):
                 rows = part[part["family"].astype(str) == family]
                 if rows.empty:
                     continue
+                colour = family_color(family)
                 y = [names.index(str(s)) - 0.4 + step * (k + 0.5) for s in rows["system"]]
-                x = 10.0 ** pd.to_numeric(rows["gain"]).clip(-12, 12)
-                lo = 10.0 ** pd.to_numeric(rows["low"]).clip(-12, 12)
-                hi = 10.0 ** pd.to_numeric(rows["high"]).clip(-12, 12)
-                ax.errorbar(x, y, xerr=[x - lo, hi - x], fmt="o", ms=3, lw=1,
-                            color=family_color(family), label=family)  # fmt: skip
+                x, lo, hi = (pd.to_numeric(rows[c]).clip(*lim) for c in ("gain", "low", "high"))
+                ax.errorbar(10.0**x, y, xerr=[10.0**x - 10.0**lo, 10.0**hi - 10.0**x],
+                            fmt="o", ms=3, lw=1, color=colour)  # fmt: skip
+                for side, clipped, marker in ((lo, "low", "<"), (hi, "high", ">")):
+                    cut = pd.to_numeric(rows[clipped]) != side  # beyond the axis: an arrow
+                    ys = [v for v, c in zip(y, cut, strict=True) if c]
+                    if ys:
+                        ax.scatter(10.0 ** side[cut], ys, marker=marker, s=14, color=colour)
             ax.axvline(1.0, color="black", lw=0.8)
             ax.set_xscale("log")
+            ax.set_xlim(10.0 ** lim[0], 10.0 ** lim[1])
             ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
             ax.set_yticks(range(len(names)), names if j == 0 else [""] * len(names), fontsize=7)
             ax.set_ylim(len(names) - 0.5, -0.5)
             for edge in range(len(names) - 1):
                 ax.axhline(edge + 0.5, color="0.85", lw=0.6)
             ax.set_title(f"{metric} ({profile})", fontsize=9)
-            ax.set_xlabel("protocol / tuned (above ×1: tuning helped)", fontsize=7)
-            ax.tick_params(axis="x", labelsize=7)
-    axes[0][-1].legend(fontsize=6, loc="lower right")
-    fig.tight_layout()
+            ax.set_xlabel("tuning gain (×; above 1: tuning helped)", fontsize=7)
+            ax.tick_params(axis="x", labelsize=7, labelbottom=True)
+    handles = [Line2D([], [], marker="o", ls="", color=family_color(f), label=f) for f in families]
+    fig.legend(handles=handles, loc="lower center", ncol=len(families), fontsize=7, frameon=False)
+    fig.tight_layout(rect=(0, 0.5 / (tall + 0.9), 1, 1))
+    return fig
+
+
+def gain_figure(gain: pd.DataFrame, path: Path) -> Optional[Path]:
+    """The tuning gain on the unseen seeds as intervals, a panel per log-scale metric of
+    :func:`gain_summary` (columns) and profile (rows): a row per system, a point per
+    family (its median gain: protocol / tuned for a lower-is-better metric, tuned /
+    protocol for a higher-is-better one; log x axis, one per metric), its interval as a bar
+    (an arrow where it runs past the axis: a diverged side's infinite gain), the line of
+    no change at ×1; written to ``path`` (``None``, and ``path`` removed, without such
+    rows)."""
+    fig = _gain_plot(gain)
+    if fig is None:
+        path.unlink(missing_ok=True)
+        return None
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     return path
@@ -390,14 +424,31 @@ def gain_markdown(gain: pd.DataFrame, studies: pd.DataFrame) -> str:
         ]
         summary = gain_summary(every)
         if not summary.empty:
+            folded_here = sorted(
+                {str(sy) for sy, f in zip(studies["system"], studies["fold"], strict=True)
+                 if pd.notna(f)} & set(summary["system"].astype(str))
+            )  # fmt: skip
             lines += [
                 "Which families tuning helped, on the criterion and the headline metrics "
                 "(the table above, read by its intervals; figures/tuning_gain.png draws "
-                "them): a family is under `helped` where its interval lies wholly above ×1, "
-                "under `hurt` where it lies wholly below, and `within noise` where it holds "
-                "×1, each with its median gain, largest first.",
+                "them): a family is under `helped` where its interval lies wholly above ×1 "
+                "(above 0 on a linear scale), under `hurt` where it lies wholly below, and "
+                "`within noise` where it holds ×1 or reads fewer than "
+                f"{stats.MIN_SEPARABLE_SEEDS} paired seeds, each with its median gain, "
+                "largest first."
+                + (
+                    " On "
+                    + ", ".join(f"`{sy}`" for sy in folded_here)
+                    + " the interval counts seeds that share a fold as independent (below)."
+                    if folded_here
+                    else ""
+                ),
                 "",
-                md_table(summary.drop(columns=["profile"])),
+                md_table(
+                    summary
+                    if summary["profile"].nunique() > 1
+                    else summary.drop(columns=["profile"])
+                ),
                 "",
             ]
     folded = sorted(
@@ -460,12 +511,13 @@ def cost_figure(studies: pd.DataFrame, path: Path) -> Optional[Path]:
     """Each family's best criterion (its selected trial's, summed over a measured
     system's folds as the mean) against the CPU seconds its studies spent, a panel
     per (profile, system), the protocol trial's criterion beside it as an open marker;
-    written to ``path`` (``None`` without studies)."""
+    written to ``path`` (``None``, and ``path`` removed, without studies)."""
     finite = pd.to_numeric(studies["best"], errors="coerce").gt(0) & pd.to_numeric(
         studies["cpu_s"], errors="coerce"
     ).gt(0)
     studies = studies[finite]
     if studies.empty:  # records before the criterion (no selected value): nothing to draw
+        path.unlink(missing_ok=True)
         return None
     per = (
         studies.groupby(["profile", "system", "family"], sort=False)
