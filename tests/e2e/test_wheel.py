@@ -50,6 +50,9 @@ def test_wheel_install_finds_config_from_any_directory(tmp_path):
     pip_install(site, str(wheel))
     assert (site / "hnnbench_conf" / "config.yaml").exists()
     assert (site / "hnnbench_plugins" / "systems" / "spring.py").exists()
+    (info,) = site.glob("hnnbench-*.dist-info")  # the licence travels with the wheel
+    assert "License-Expression: Apache-2.0" in (info / "METADATA").read_text()
+    assert (info / "licenses" / "LICENSE").read_text() == (REPO / "LICENSE").read_text()
     proc = _python_in(
         site,
         elsewhere,
