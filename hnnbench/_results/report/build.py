@@ -171,7 +171,6 @@ def write_report(
         made = gain_figure(gain, out / "figures" / "tuning_gain.png")
         if made is not None:
             report.figures.append(Made("tuned track", "tuning_gain", made))
-    if figures:
         made = convergence_figure(curves, out / "figures" / "tuning_convergence.png")
         if made is not None:
             report.figures.append(Made("tuned track", "tuning_convergence", made))
